@@ -1,1 +1,93 @@
-"""trainsim."""
+"""trainsim: train performance calculator and energy-efficient driving optimizer.
+
+The public API::
+
+    import trainsim
+    scenario = trainsim.load_scenario("examples/metro_b/scenario.yaml")
+    result = trainsim.run(scenario)                 # fastest run
+    result.summary()                                # JSON-ready summary
+    result.to_dataframe()                           # the trace as a pandas DataFrame
+
+    session = trainsim.DrivingSession(scenario)     # driving by command, step by step
+    state = session.step(command=1.0, dt_s=0.5)
+"""
+
+from trainsim.errors import InfeasibleError, InputError, TrainsimError
+from trainsim.model import (
+    Braking,
+    Curve,
+    EffortCurve,
+    Electrical,
+    ElectrificationSection,
+    GradientSection,
+    LineResistanceSettings,
+    Quadratic,
+    ResistanceTerm,
+    Route,
+    SpeedLimit,
+    Station,
+    Train,
+    Tunnel,
+    Vehicle,
+)
+from trainsim.model.scenario import RunSettings, Scenario
+from trainsim.sim.fastest import run_fastest, run_scenario
+from trainsim.sim.result import EnergyFigures, RunResult, SectionSummary, Trace
+
+__version__ = "0.1.0"
+
+
+def run(scenario: Scenario) -> RunResult:
+    """The fastest run of a scenario (its train over its route, with its stops and settings)."""
+    return run_scenario(scenario)
+
+
+def __getattr__(name: str):
+    # file readers and the driving session import more; load them on first use
+    if name in {"load_train", "load_route", "load_scenario", "scenario_from_files", "check_file"}:
+        from trainsim.io import loader
+
+        return getattr(loader, name)
+    if name in {"DrivingSession", "DrivingState"}:
+        from trainsim.sim import driving
+
+        return getattr(driving, name)
+    raise AttributeError(f"module 'trainsim' has no attribute {name!r}")
+
+
+__all__ = [
+    "Braking",
+    "Curve",
+    "DrivingSession",
+    "DrivingState",
+    "EffortCurve",
+    "Electrical",
+    "ElectrificationSection",
+    "EnergyFigures",
+    "GradientSection",
+    "InfeasibleError",
+    "InputError",
+    "LineResistanceSettings",
+    "Quadratic",
+    "ResistanceTerm",
+    "Route",
+    "RunResult",
+    "RunSettings",
+    "Scenario",
+    "SectionSummary",
+    "SpeedLimit",
+    "Station",
+    "Trace",
+    "Train",
+    "TrainsimError",
+    "Tunnel",
+    "Vehicle",
+    "check_file",
+    "load_route",
+    "load_scenario",
+    "load_train",
+    "run",
+    "run_fastest",
+    "run_scenario",
+    "scenario_from_files",
+]

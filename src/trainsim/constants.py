@@ -21,3 +21,10 @@ MW = 1.0e6  #: MW -> W
 KWH = 3.6e6  #: kWh -> J
 PERMILLE = 1.0e-3  #: per mille (N/kN, m/km) -> dimensionless ratio
 MINUTE = 60.0  #: min -> s
+
+#: Reference speed v00 of the per-mille resistance laws of Strahl, Sauthoff and Wende [m/s]
+#: (Wende 2003, p. 151-153; TrainRuns.jl ``v00 = 100/3.6``).
+WENDE_REFERENCE_SPEED = 100 * KMH
+#: Head-wind allowance dv_air added to the speed in the air term of Sauthoff's and Wende's laws [m/s]
+#: (Wende 2003; TrainRuns.jl ``Δv_air = 15/3.6``).
+WENDE_AIR_SPEED_MARGIN = 15 * KMH

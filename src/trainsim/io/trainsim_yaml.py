@@ -1,0 +1,1667 @@
+"""trainsim's own YAML formats: ``trainsim/train``, ``trainsim/route`` and ``trainsim/scenario``.
+
+The formats are documented for their writers in ``docs/FORMAT.md``. Each file starts with::
+
+    schema: trainsim/train        # or trainsim/route, trainsim/scenario
+    version: 1
+
+Rules that hold everywhere:
+
+* every quantity has its unit in its field name (``mass_t``, ``speed_kmh``, ``force_kn``,
+  ``position_m``...); the same name without the suffix takes a string with a unit instead
+  (``mass: "49800 kg"``), see :mod:`trainsim.io.units`;
+* unknown fields are errors (a typo must not silently fall back to a default); so are duplicate keys;
+* what changes the result and has no obvious value has no default (``table_is`` of a braking table,
+  the line-resistance formulas, the rotating mass factor).
+
+Files are validated by pydantic v2 models (the ``*Spec`` classes); every validation problem becomes
+one :class:`~trainsim.errors.InputError` naming the file, the YAML line when known, the field path
+(``formation[2].mass_t``), the value and what is allowed. The validated spec is kept available
+(:func:`read_train_spec`, ``spec.to_train()``, :func:`dump_yaml`) so that an editor can round-trip it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated, Any, ClassVar, Literal, NoReturn
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, model_validator
+from pydantic_core import PydanticCustomError
+
+from trainsim.constants import KMH, KN, KW, TONNE
+from trainsim.errors import InputError
+from trainsim.model import (
+    Braking,
+    Curve,
+    EffortCurve,
+    Electrical,
+    ElectrificationSection,
+    GradientSection,
+    LineResistanceSettings,
+    Quadratic,
+    ResistanceTerm,
+    Route,
+    SpeedLimit,
+    Station,
+    Train,
+    Tunnel,
+    Vehicle,
+)
+from trainsim.model.route import ApplyOver, CurveFormula, GradientFormula, TunnelFormula
+from trainsim.model.scenario import RunSettings, Scenario
+from trainsim.physics import line_resistance
+from trainsim.physics import resistance as res
+from trainsim.io.units import split_suffix, to_unit
+
+__all__ = [
+    "SCHEMAS",
+    "RouteSpec",
+    "ScenarioSpec",
+    "TrainSpec",
+    "dump_yaml",
+    "load_route_yaml",
+    "load_scenario_yaml",
+    "load_train_yaml",
+    "read_route_spec",
+    "read_scenario_spec",
+    "read_train_spec",
+    "read_yaml",
+    "route_from_dict",
+    "route_spec_from_dict",
+    "scenario_from_dict",
+    "scenario_spec_from_dict",
+    "train_from_dict",
+    "train_spec_from_dict",
+]
+
+#: The schema identifiers of this module and the versions it reads.
+SCHEMAS: dict[str, tuple[int, ...]] = {
+    "trainsim/train": (1,),
+    "trainsim/route": (1,),
+    "trainsim/scenario": (1,),
+}
+
+
+# ====================================================================== YAML reading
+class _StrictLoader(yaml.SafeLoader):
+    """SafeLoader that rejects duplicate keys (PyYAML silently keeps the last one)."""
+
+
+def _construct_mapping(loader: _StrictLoader, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+    loader.flatten_mapping(node)
+    seen: dict[Any, int] = {}
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if isinstance(key, list | dict):
+            continue  # unhashable keys: let PyYAML report them
+        if key in seen:
+            raise yaml.constructor.ConstructorError(
+                None,
+                None,
+                f"duplicate key '{key}' (first at line {seen[key] + 1})",
+                key_node.start_mark,
+            )
+        seen[key] = key_node.start_mark.line
+    return loader.construct_mapping(node, deep=deep)
+
+
+_StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+def read_yaml(path: str | Path) -> Any:
+    """The content of a YAML file; InputError for a missing, unreadable or malformed file.
+
+    Duplicate keys are errors. The error of a malformed file names its line.
+    """
+    file = str(path)
+    p = Path(path)
+    if not p.exists():
+        raise InputError("file not found", file=file)
+    if p.is_dir():
+        raise InputError("this is a directory, not a file", file=file)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read the file ({exc})", file=file) from exc
+    try:
+        return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        reason = " ".join(str(x) for x in (exc.context, exc.problem) if x)
+        raise InputError(
+            f"invalid YAML: {reason}", file=file, line=mark.line + 1 if mark else None
+        ) from exc
+    except yaml.YAMLError as exc:
+        raise InputError(f"invalid YAML: {exc}", file=file) from exc
+
+
+def _yaml_line(path: str | Path, loc: Sequence[str | int]) -> int | None:
+    """Line (1-based) of the YAML node at ``loc`` in the file, or of its deepest existing parent."""
+    try:
+        node = yaml.compose(Path(path).read_text(encoding="utf-8"), Loader=yaml.SafeLoader)
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        return None
+    line = None
+    for part in loc:
+        if isinstance(node, yaml.MappingNode) and isinstance(part, str):
+            match = [(k, v) for k, v in node.value if getattr(k, "value", None) == part]
+            if not match:
+                break
+            line = match[0][0].start_mark.line + 1
+            node = match[0][1]
+        elif isinstance(node, yaml.SequenceNode) and isinstance(part, int) and 0 <= part < len(node.value):
+            node = node.value[part]
+            line = node.start_mark.line + 1
+        else:
+            break
+    return line
+
+
+# ====================================================================== validation errors
+def _fail(reason: str, *, field: str | None = None, value: Any = None, allowed: str | None = None) -> NoReturn:
+    """Raise a validation error inside a spec validator; ``field`` is relative to the model."""
+    raise PydanticCustomError(
+        "trainsim", "{reason}", {"reason": reason, "field": field, "value": value, "allowed": allowed}
+    )
+
+
+# Fields holding a tagged union: pydantic puts the tag into the error location, which we drop.
+_UNION_FIELDS: dict[str, tuple[str, str]] = {
+    "traction": ("model", "table, piecewise, power_limited"),
+    "braking": ("model", "table, fraction_of_full, deceleration"),
+    "regenerative": ("model", "none, or a mapping with model: fraction_of_traction | table"),
+    "resistance": ("family", ""),  # filled in below, once the families are known
+    "train": ("", "a file name, or a mapping with the train"),
+    "route": ("", "a file name, or a mapping with the route"),
+}
+
+
+def _clean_loc(loc: Sequence[str | int]) -> list[str | int]:
+    out: list[str | int] = []
+    for i, part in enumerate(loc):
+        prev = loc[i - 1] if i > 0 else None
+        prev2 = loc[i - 2] if i > 1 else None
+        is_tag = isinstance(part, str) and (
+            prev in _UNION_FIELDS or (isinstance(prev, int) and prev2 == "resistance")
+        )
+        if not is_tag:
+            out.append(part)
+    return out
+
+
+def _format_loc(loc: Sequence[str | int]) -> str:
+    text = ""
+    for part in loc:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        else:
+            text += ("." if text else "") + str(part)
+    return text
+
+
+def _describe(err: Any) -> tuple[str, Any, str | None]:
+    """(reason, value shown or None, allowed) of one pydantic error."""
+    kind = err["type"]
+    ctx = err.get("ctx") or {}
+    value = err.get("input")
+    if isinstance(value, dict):
+        value = None
+    bounds = {
+        "greater_than": (">", "gt"),
+        "greater_than_equal": (">=", "ge"),
+        "less_than": ("<", "lt"),
+        "less_than_equal": ("<=", "le"),
+    }
+    if kind == "trainsim":
+        return ctx["reason"], ctx.get("value"), ctx.get("allowed")
+    if kind == "missing":
+        return "required field is missing", None, None
+    if kind == "extra_forbidden":
+        return "unknown field", value, None
+    if kind in bounds:
+        op, key = bounds[kind]
+        return f"must be {op} {ctx[key]}", value, f"{op} {ctx[key]}"
+    if kind == "literal_error":
+        return "not an allowed value", value, str(ctx.get("expected", "")).replace("'", "")
+    if kind == "union_tag_invalid":
+        return f"unknown {ctx.get('discriminator', 'kind')}".replace("'", ""), ctx.get("tag"), str(
+            ctx.get("expected_tags", "")
+        ).replace("'", "")
+    if kind == "union_tag_not_found":
+        return "missing or wrong kind of entry", value, None
+    if kind in ("float_type", "float_parsing", "int_type", "int_parsing", "int_from_float", "finite_number"):
+        what = "a whole number" if kind.startswith("int") else "a finite number"
+        return f"must be {what}", value, None
+    if kind in ("bool_type", "bool_parsing"):
+        return "must be true or false", value, "true, false"
+    if kind in ("string_type",):
+        return "must be text", value, None
+    if kind in ("list_type", "tuple_type"):
+        return "must be a list", value, None
+    if kind in ("model_type", "dict_type", "model_attributes_type"):
+        return "must be a mapping (key: value lines)", value, None
+    if kind == "too_short":
+        return f"needs at least {ctx.get('min_length')} item(s)", None, None
+    if kind in ("value_error", "assertion_error"):
+        return err["msg"].removeprefix("Value error, ").removeprefix("Assertion failed, "), value, None
+    return err["msg"], value, None
+
+
+def _validation_error(exc: ValidationError, file: str, path: str | Path | None, prefix: str = "") -> InputError:
+    """One InputError (one paragraph) for all problems of a pydantic ValidationError."""
+    problems: list[tuple[list[str | int], str, Any, str | None]] = []
+    for err in exc.errors(include_url=False):
+        loc = _clean_loc(err["loc"])
+        ctx = err.get("ctx") or {}
+        if err["type"] == "trainsim" and ctx.get("field"):
+            loc += [ctx["field"]]
+        elif err["type"] == "union_tag_not_found" and loc and loc[-1] in _UNION_FIELDS:
+            key, allowed = _UNION_FIELDS[loc[-1]]
+            if key:
+                loc += [key]
+            problems.append((loc, f"'{key}' is required" if key else "wrong kind of entry", None, allowed))
+            continue
+        elif err["type"] == "union_tag_invalid" and loc and loc[-1] in _UNION_FIELDS:
+            loc += [_UNION_FIELDS[loc[-1]][0]]
+        reason, value, allowed = _describe(err)
+        problems.append((loc, reason, value, allowed))
+    full = [[*([prefix] if prefix else []), *loc] for loc, *_ in problems]
+    paths = [_format_loc(loc) for loc in full]
+    line = _yaml_line(path, full[0]) if path is not None and full else None
+    if len(problems) == 1:
+        _, reason, value, allowed = problems[0]
+        error = InputError(reason, file=file, field=paths[0] or None, value=value, allowed=allowed, line=line)
+    else:
+        parts = []
+        for p, (_, reason, value, allowed) in zip(paths, problems, strict=True):
+            part = f"{p or '(top level)'}: {reason}"
+            if value is not None:
+                shown = repr(value)
+                part += f" (got {shown if len(shown) <= 60 else shown[:57] + '...'})"
+            if allowed:
+                part += f", allowed: {allowed}"
+            parts.append(part)
+        error = InputError(
+            f"{len(problems)} problems: " + "; ".join(f"({i}) {t}" for i, t in enumerate(parts, 1)),
+            file=file,
+            field=paths[0] or None,
+            line=line,
+        )
+    error.problems = list(zip(paths, [p[1] for p in problems], strict=True))  # type: ignore[attr-defined]
+    return error
+
+
+@contextmanager
+def _located(file: str, field: str) -> Iterator[None]:
+    """Give InputErrors raised by the model classes the file and the spec field they come from."""
+    try:
+        yield
+    except InputError as exc:
+        inner = f" ({exc.field})" if exc.field and exc.field != field else ""
+        raise InputError(
+            exc.reason + inner, file=exc.file or file, field=field, value=exc.value, allowed=exc.allowed
+        ) from exc
+
+
+# ====================================================================== base spec
+class _Spec(BaseModel):
+    """Base of every spec: unknown fields are errors; generic fields take quantities with units."""
+
+    model_config = ConfigDict(extra="forbid", populate_by_name=True, allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _fields_and_units(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        names: dict[str, str] = {}
+        for name, info in cls.model_fields.items():
+            names[info.alias or name] = name
+        generic: dict[str, tuple[str, str]] = {}
+        for key in names:
+            split = split_suffix(key)
+            if split and split[0] not in names:
+                generic.setdefault(split[0], (key, split[1]))
+        out: dict[str, Any] = {}
+        unknown: list[str] = []
+        for key, value in data.items():
+            if not isinstance(key, str):
+                _fail("field names must be text", value=key)
+            if key in names:
+                split = split_suffix(key)
+                if split and isinstance(value, str):
+                    _fail(
+                        f"'{key}' takes a plain number in {split[1]}; to give a unit, write "
+                        f"'{split[0]}: {value}' instead",
+                        field=key,
+                        value=value,
+                    )
+                out[key] = value
+            elif key in generic:
+                target, unit = generic[key]
+                if target in data:
+                    _fail(f"give either '{key}' or '{target}', not both", field=key)
+                try:
+                    if isinstance(value, list):
+                        out[target] = [to_unit(v, unit, field=key) for v in value]
+                    else:
+                        out[target] = to_unit(value, unit, field=key)
+                except InputError as exc:
+                    _fail(exc.reason, field=key, value=value, allowed=exc.allowed)
+            else:
+                unknown.append(key)
+        if unknown:
+            hints = []
+            for key in unknown:
+                close = difflib.get_close_matches(key, [*names, *generic], n=1, cutoff=0.6)
+                hints.append(f"'{key}'" + (f" (did you mean '{close[0]}'?)" if close else ""))
+            _fail(
+                "unknown field" + ("s " if len(unknown) > 1 else " ") + ", ".join(hints),
+                field=unknown[0],
+                allowed=", ".join(names),
+            )
+        return out
+
+
+def _check_increasing(values: Sequence[float], field: str, *, strict: bool = True, what: str = "values") -> None:
+    for i in range(1, len(values)):
+        if values[i] < values[i - 1] or (strict and values[i] == values[i - 1]):
+            _fail(
+                f"{what} must {'increase strictly' if strict else 'not decrease'}",
+                field=f"{field}[{i}]",
+                value=values[i],
+                allowed=f"{'>' if strict else '>='} {values[i - 1]:g}",
+            )
+
+
+NonNegative = Annotated[float, Field(ge=0)]
+Positive = Annotated[float, Field(gt=0)]
+Fraction = Annotated[float, Field(gt=0, le=1)]
+
+
+# ====================================================================== force tables
+class _ForceTable(_Spec):
+    """A table of speeds [km/h] and forces [kN or N], interpolated linearly (source 002 eq. 1, 8)."""
+
+    speed_kmh: list[float] = Field(min_length=1)
+    force_kn: list[float] | None = None
+    force_n: list[float] | None = None
+
+    signed: ClassVar[bool] = False  # braking tables may be written negative (source 002)
+
+    @model_validator(mode="after")
+    def _check_table(self) -> _ForceTable:
+        if (self.force_kn is None) == (self.force_n is None):
+            _fail("give the forces as exactly one of 'force_kn' or 'force_n'", field="force_kn")
+        forces = self.forces_n_signed()
+        name = "force_kn" if self.force_kn is not None else "force_n"
+        if len(forces) != len(self.speed_kmh):
+            _fail(
+                f"'speed_kmh' has {len(self.speed_kmh)} values but '{name}' has {len(forces)}",
+                field=name,
+                allowed="as many forces as speeds",
+            )
+        if self.speed_kmh[0] < 0:
+            _fail("speeds must be >= 0", field="speed_kmh[0]", value=self.speed_kmh[0], allowed=">= 0")
+        _check_increasing(self.speed_kmh, "speed_kmh", what="table speeds")
+        if self.signed:
+            if any(f > 0 for f in forces) and any(f < 0 for f in forces):
+                _fail(
+                    "braking forces must all have the same sign (positive magnitudes, or all negative "
+                    "as in source 002)",
+                    field=name,
+                    value=[self._shown(f) for f in forces],
+                )
+        else:
+            for i, f in enumerate(forces):
+                if f < 0:
+                    _fail("forces must be >= 0", field=f"{name}[{i}]", value=self._shown(f), allowed=">= 0")
+        return self
+
+    def _shown(self, force_n: float) -> float:
+        return force_n / KN if self.force_kn is not None else force_n
+
+    def forces_n_signed(self) -> list[float]:
+        """Forces as written, in N."""
+        if self.force_kn is not None:
+            return [f * KN for f in self.force_kn]
+        return list(self.force_n or [])
+
+    def curve(self, label: str) -> EffortCurve:
+        """The table as an effort curve [N over m/s]; braking forces as magnitudes."""
+        return EffortCurve.from_table(
+            np.asarray(self.speed_kmh) * KMH, np.abs(self.forces_n_signed()), label=label
+        )
+
+
+# ====================================================================== traction
+class _Caps(_Spec):
+    max_force_kn: Positive | None = None
+    max_power_kw: Positive | None = None
+
+    def _capped(self, curve: EffortCurve) -> EffortCurve:
+        return curve.capped(
+            force_cap_n=self.max_force_kn * KN if self.max_force_kn is not None else None,
+            power_cap_w=self.max_power_kw * KW if self.max_power_kw is not None else None,
+        )
+
+
+class TableTraction(_ForceTable, _Caps):
+    """``model: table``: maximum tractive effort by speed; ``per_motor`` tables times ``motors``
+    (source 002 eq. 2: W_x = n_m w_x)."""
+
+    model: Literal["table"]
+    per_motor: bool = False
+    motors: int | None = Field(default=None, ge=1)
+
+    @model_validator(mode="after")
+    def _check_motors(self) -> TableTraction:
+        if self.per_motor and self.motors is None:
+            _fail("a per-motor table needs 'motors' (the number of motors or motor cars)", field="motors")
+        if not self.per_motor and self.motors is not None:
+            _fail("'motors' only applies with 'per_motor: true'", field="motors", value=self.motors)
+        return self
+
+    def build(self, train: TrainSpec) -> EffortCurve:
+        curve = self.curve("traction table")
+        if self.per_motor:
+            curve = curve.scaled(float(self.motors or 1), label=f"{self.motors} x traction table per motor")
+        return self._capped(curve)
+
+
+class PiecewiseInterval(_Spec):
+    """One interval of a piecewise law from ``from_kmh`` to the next interval's start (source 000):
+    ``F = c0 + c1 V + c2 V^2 + ch / v`` with V in km/h and F in kN; ``ch_kw`` is the constant power
+    P of a hyperbolic law ``F = P / v``."""
+
+    from_kmh: float = Field(ge=0)
+    c0_kn: float = 0.0
+    c1_kn_per_kmh: float = 0.0
+    c2_kn_per_kmh2: float = 0.0
+    ch_kw: float = 0.0
+
+    def row(self) -> tuple[float, float, float, float]:
+        # V [km/h] = v [m/s] / KMH: the linear term scales by 1/KMH, the quadratic one by 1/KMH^2.
+        return (self.c0_kn * KN, self.c1_kn_per_kmh * KN / KMH, self.c2_kn_per_kmh2 * KN / KMH**2, self.ch_kw * KW)
+
+
+class PiecewiseTraction(_Caps):
+    """``model: piecewise``: quadratic or hyperbolic law per speed interval (source 000)."""
+
+    model: Literal["piecewise"]
+    intervals: list[PiecewiseInterval] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _check_intervals(self) -> PiecewiseTraction:
+        if self.intervals[0].from_kmh != 0:
+            _fail(
+                "the first interval must start at 0 km/h",
+                field="intervals[0].from_kmh",
+                value=self.intervals[0].from_kmh,
+                allowed="0",
+            )
+        starts = [i.from_kmh for i in self.intervals]
+        for i in range(1, len(starts)):
+            if starts[i] <= starts[i - 1]:
+                _fail(
+                    "interval starts must increase strictly",
+                    field=f"intervals[{i}].from_kmh",
+                    value=starts[i],
+                    allowed=f"> {starts[i - 1]:g}",
+                )
+        if self.intervals[0].ch_kw != 0 and self.max_force_kn is None:
+            _fail(
+                "a hyperbolic law (ch_kw) from 0 km/h is infinite at standstill: give 'max_force_kn' "
+                "(e.g. the adhesion limit) or start it at a speed above 0",
+                field="max_force_kn",
+            )
+        return self
+
+    def build(self, train: TrainSpec) -> EffortCurve:
+        curve = EffortCurve.piecewise(
+            np.array([i.from_kmh * KMH for i in self.intervals]),
+            np.array([i.row() for i in self.intervals]),
+            force_cap_n=self.max_force_kn * KN if self.max_force_kn is not None else float("inf"),
+            label="piecewise traction law",
+        )
+        return self._capped(curve)
+
+
+class PowerLimitedTraction(_Spec):
+    """``model: power_limited``: ``F = min(F_cap, eta P / v)`` (source 001: P_available = eta P_nom).
+
+    The force cap is ``max_force_kn`` and/or the adhesion limit ``mu m_adh g`` (the smaller if both).
+    ``efficiency`` is nominal power -> wheel, not the line-to-wheel efficiency of ``electrical``.
+    """
+
+    model: Literal["power_limited"]
+    power_kw: Positive
+    efficiency: Fraction
+    max_force_kn: Positive | None = None
+    adhesion_coefficient: Annotated[float, Field(gt=0, le=0.6)] | None = None
+    adhesion_mass_t: Positive | None = None
+
+    @model_validator(mode="after")
+    def _check_cap(self) -> PowerLimitedTraction:
+        if self.max_force_kn is None and self.adhesion_coefficient is None:
+            _fail(
+                "power-limited traction needs a force limit at low speed: 'max_force_kn' and/or "
+                "'adhesion_coefficient'",
+                field="max_force_kn",
+            )
+        if self.adhesion_mass_t is not None and self.adhesion_coefficient is None:
+            _fail("'adhesion_mass_t' needs 'adhesion_coefficient'", field="adhesion_mass_t")
+        return self
+
+    def build(self, train: TrainSpec) -> EffortCurve:
+        cap = math.inf
+        if self.max_force_kn is not None:
+            cap = self.max_force_kn * KN
+        if self.adhesion_coefficient is not None:
+            mass_kg = self.adhesion_mass_t * TONNE if self.adhesion_mass_t is not None else train.adhesion_mass_kg()
+            if mass_kg is None:
+                raise InputError(
+                    "the adhesion limit needs the mass on driven axles: give 'adhesion_mass_t', or mark the "
+                    "driving vehicles 'powered: true', or give the train's 'adhesion_mass_t'",
+                    field="traction.adhesion_mass_t",
+                )
+            from trainsim.constants import G
+
+            cap = min(cap, self.adhesion_coefficient * mass_kg * G)
+        return EffortCurve.power_limited(
+            self.power_kw * KW, cap, self.efficiency, label=f"{self.power_kw:g} kW power-limited"
+        )
+
+
+TractionSpec = Annotated[
+    TableTraction | PiecewiseTraction | PowerLimitedTraction,
+    Field(discriminator="model"),
+]
+
+
+# ====================================================================== braking
+class RegenerativeFraction(_Spec):
+    """``model: fraction_of_traction``: regenerative force = fraction x maximum traction
+    (source 004: f_ru = 0.8 f_u(V))."""
+
+    model: Literal["fraction_of_traction"]
+    fraction: Fraction
+    max_power_kw: Positive | None = None
+
+    def build(self, traction: EffortCurve) -> EffortCurve:
+        curve = traction.scaled(self.fraction, label=f"{self.fraction:g} x traction (regenerative)")
+        return curve.capped(power_cap_w=self.max_power_kw * KW) if self.max_power_kw else curve
+
+
+class RegenerativeTable(_ForceTable):
+    """``model: table``: maximum regenerative braking force by speed (magnitudes; signs ignored)."""
+
+    model: Literal["table"]
+    max_power_kw: Positive | None = None
+    signed: ClassVar[bool] = True
+
+    def build(self, traction: EffortCurve) -> EffortCurve:
+        curve = self.curve("regenerative braking table")
+        return curve.capped(power_cap_w=self.max_power_kw * KW) if self.max_power_kw else curve
+
+
+def _regen_tag(value: Any) -> str | None:
+    if value is None or value == "none":
+        return "none"
+    if isinstance(value, dict):
+        return value.get("model")
+    return None
+
+
+RegenerativeSpec = Annotated[
+    Annotated[Literal["none"], Tag("none")]
+    | Annotated[RegenerativeFraction, Tag("fraction_of_traction")]
+    | Annotated[RegenerativeTable, Tag("table")],
+    Discriminator(_regen_tag),
+]
+
+
+class _BrakingBase(_Spec):
+    regenerative: RegenerativeSpec | None = None
+
+    def _regen(self, traction: EffortCurve) -> EffortCurve | None:
+        if self.regenerative is None or self.regenerative == "none":
+            return None
+        return self.regenerative.build(traction)
+
+
+class TableBraking(_ForceTable, _BrakingBase):
+    """``model: table`` (``table_is`` required) or ``model: fraction_of_full`` (a table of the full
+    braking force). Service force = ``service_fraction`` x table; ``service_fraction`` defaults to
+    0.75 for a full-braking table (source 000: service braking is 0.75 x full braking, the rest is
+    kept for emergencies) and to 1.0 for a service table. Negative forces (source 002 table 4) are
+    read as magnitudes."""
+
+    model: Literal["table", "fraction_of_full"]
+    table_is: Literal["service", "full"] | None = None
+    service_fraction: Fraction | None = None
+    signed: ClassVar[bool] = True
+
+    @model_validator(mode="after")
+    def _check_kind(self) -> TableBraking:
+        if self.model == "table" and self.table_is is None:
+            _fail(
+                "say what the braking table is: 'table_is: service' (the force the train brakes with) or "
+                "'table_is: full' (full/emergency force; service = 0.75 x full unless 'service_fraction')",
+                field="table_is",
+                allowed="service, full",
+            )
+        if self.model == "fraction_of_full" and self.table_is == "service":
+            _fail(
+                "'fraction_of_full' scales a table of the full braking force",
+                field="table_is",
+                value=self.table_is,
+                allowed="full",
+            )
+        return self
+
+    @property
+    def is_full(self) -> bool:
+        return self.model == "fraction_of_full" or self.table_is == "full"
+
+    @property
+    def fraction(self) -> float:
+        if self.service_fraction is not None:
+            return self.service_fraction
+        return 0.75 if self.is_full else 1.0
+
+    def build(self, traction: EffortCurve) -> Braking:
+        table = self.curve("braking table")
+        if self.is_full:
+            service = table.scaled(self.fraction, label=f"{self.fraction:g} x full braking table")
+            return Braking(service_force=service, full_force=table, regenerative=self._regen(traction))
+        service = table if self.fraction == 1.0 else table.scaled(self.fraction)
+        return Braking(service_force=service, regenerative=self._regen(traction))
+
+
+class DecelerationBraking(_BrakingBase):
+    """``model: deceleration``: constant service deceleration [m/s^2], whatever resistance and grade
+    (TrainRuns.jl convention); the sign is ignored because sources write it negative."""
+
+    model: Literal["deceleration"]
+    deceleration_mps2: float
+
+    @model_validator(mode="after")
+    def _check_value(self) -> DecelerationBraking:
+        if not 0 < abs(self.deceleration_mps2) <= 5:
+            _fail(
+                "the deceleration must be non-zero and realistic",
+                field="deceleration_mps2",
+                value=self.deceleration_mps2,
+                allowed="0 < |a| <= 5 m/s^2",
+            )
+        return self
+
+    def build(self, traction: EffortCurve) -> Braking:
+        return Braking(deceleration_mps2=abs(self.deceleration_mps2), regenerative=self._regen(traction))
+
+
+BrakingSpec = Annotated[TableBraking | DecelerationBraking, Field(discriminator="model")]
+
+
+# ====================================================================== resistance
+class _Term(_Spec):
+    """A running-resistance term; ``applies_to`` is ``train`` or the name of a vehicle of the
+    formation (the term is then evaluated with that vehicle's mass, empty + load, and multiplied by
+    its count)."""
+
+    applies_to: str | None = None
+
+    def law(self, mass_kg: float, axles: int | None) -> Quadratic:
+        raise NotImplementedError
+
+    @staticmethod
+    def _axles(own: int | None, fallback: int | None, family: str) -> int:
+        axles = own if own is not None else fallback
+        if axles is None:
+            raise InputError(
+                f"'{family}' needs the number of axles: give 'axles' in the term or in the vehicle",
+                field="axles",
+            )
+        return axles
+
+
+class DavisTerm(_Term):
+    """``R = A + B v + C v^2`` in SI (N, v in m/s) (Davis 1926; source 002 eq. 4)."""
+
+    family: Literal["davis"]
+    a_n: NonNegative
+    b_n_s_per_m: float
+    c_n_s2_per_m2: NonNegative
+
+    def law(self, mass_kg: float, axles: int | None) -> Quadratic:
+        return res.davis(self.a_n, self.b_n_s_per_m, self.c_n_s2_per_m2)
+
+
+class DavisKnKmhTerm(_Term):
+    """``R = A + B V + C V^2`` in kN with V in km/h (source 002 table 2 reading)."""
+
+    family: Literal["davis_kn_kmh"]
+    a_kn: NonNegative
+    b_kn_per_kmh: float
+    c_kn_per_kmh2: NonNegative
+
+    def law(self, mass_kg: float, axles: int | None) -> Quadratic:
+        return res.davis_kn_kmh(self.a_kn, self.b_kn_per_kmh, self.c_kn_per_kmh2)
+
+
+class PerMassTerm(_Term):
+    """``R_b = m (a1 + a2 v^2)`` (source 000), a1 [N/kg], a2 [N s^2/(kg m^2)], v in m/s."""
+
+    family: Literal["per_mass"]
+    a1_n_per_kg: NonNegative
+    a2_n_s2_per_kg_m2: NonNegative
+
+    def law(self, mass_kg: float, axles: int | None) -> Quadratic:
+        return res.per_mass(mass_kg, self.a1_n_per_kg, self.a2_n_s2_per_kg_m2)
+
+
+class SpecificTerm(_Term):
+    """``w = a + b V + c V^2`` [N/kN] with V in km/h, force ``w m g / 1000`` (TB/T 1407, PTR)."""
+
+    family: Literal["specific_n_per_kn"]
+    a_n_per_kn: NonNegative
+    b_n_per_kn_per_kmh: float
+    c_n_per_kn_per_kmh2: NonNegative
+
+    def law(self, mass_kg: float, axles: int | None) -> Quadratic:
+        return res.specific_n_per_kn(mass_kg, self.a_n_per_kn, self.b_n_per_kn_per_kmh, self.c_n_per_kn_per_kmh2)
+
+
+class RavTerm(_Term):
+    """French ``RAV = A + B V + C V^2`` in N with V in km/h (source 001)."""
+
+    family: Literal["rav"]
+    a_n: NonNegative
+    b_n_per_kmh: float
+    c_n_per_kmh2: NonNegative
+
+    def law(self, mass_kg: float, axles: int | None) -> Quadratic:
+        return res.rav(self.a_n, self.b_n_per_kmh, self.c_n_per_kmh2)
+
+
+class RavLocomotiveTerm(_Term):
+    """BB 60000 locomotive RAV ``6.5 M + 130 N_e + 0.1 M V + 0.3 V^2`` (source 001)."""
+
+    family: Literal["rav_locomotive_bb60000"]
+    axles: int | None = Field(default=None, ge=1)
+
+    def law(self, mass_kg: float, axles: int | None) -> Quadratic:
+        return res.rav_locomotive_bb60000(mass_kg, self._axles(self.axles, axles, self.family))
+
+
+class RavCarriageTerm(_Term):
+    """Standard 4-axle carriage RAV ``12 M + 0.09 M V + 0.0044 M V^2`` (source 001)."""
+
+    family: Literal["rav_carriage_4axle"]
+
+    def law(self, mass_kg: float, axles: int | None) -> Quadratic:
+        return res.rav_carriage_4axle(mass_kg)
+
+
+class StrahlTerm(_Term):
+    """Strahl (freight wagons): ``m g (f0 + f2 (v/v00)^2) / 1000`` (Wende 2003)."""
+
+    family: Literal["strahl"]
+    f0_permille: NonNegative
+    f2_permille: NonNegative
+
+    def law(self, mass_kg: float, axles: int | None) -> Quadratic:
+        return res.strahl(mass_kg, self.f0_permille, self.f2_permille)
+
+
+class SauthoffTerm(_Term):
+    """Sauthoff (passenger coaches): ``m g (f0 + f1 v/v00 + f2 ((v+dv)/v00)^2) / 1000`` (Wende 2003)."""
+
+    family: Literal["sauthoff"]
+    f0_permille: NonNegative
+    f1_permille: NonNegative
+    f2_permille: NonNegative
+
+    def law(self, mass_kg: float, axles: int | None) -> Quadratic:
+        return res.sauthoff(mass_kg, self.f0_permille, self.f1_permille, self.f2_permille)
+
+
+class WendeTerm(_Term):
+    """Traction unit after Wende (2003) p. 151; ``driven_mass_t`` defaults to the whole mass."""
+
+    family: Literal["wende"]
+    f_driven_permille: NonNegative
+    f_carrying_permille: NonNegative
+    f_air_permille: NonNegative
+    driven_mass_t: Positive | None = None
+
+    def law(self, mass_kg: float, axles: int | None) -> Quadratic:
+        driven = self.driven_mass_t * TONNE if self.driven_mass_t is not None else mass_kg
+        return res.wende_traction_unit(
+            mass_kg, driven, self.f_driven_permille, self.f_carrying_permille, self.f_air_permille
+        )
+
+
+class AltriosTerm(_Term):
+    """US freight style (ALTRIOS): bearing per axle + rolling ratio x W + davis_b v W + rho cd_area v^2."""
+
+    family: Literal["altrios"]
+    bearing_force_per_axle_n: NonNegative
+    rolling_ratio: NonNegative
+    davis_b_s_per_m: NonNegative
+    cd_area_m2: NonNegative
+    axles: int | None = Field(default=None, ge=1)
+
+    def law(self, mass_kg: float, axles: int | None) -> Quadratic:
+        return res.altrios(
+            mass_kg,
+            self._axles(self.axles, axles, self.family),
+            self.bearing_force_per_axle_n,
+            self.rolling_ratio,
+            self.davis_b_s_per_m,
+            self.cd_area_m2,
+        )
+
+
+_TERMS = (
+    DavisTerm,
+    DavisKnKmhTerm,
+    PerMassTerm,
+    SpecificTerm,
+    RavTerm,
+    RavLocomotiveTerm,
+    RavCarriageTerm,
+    StrahlTerm,
+    SauthoffTerm,
+    WendeTerm,
+    AltriosTerm,
+)
+RESISTANCE_FAMILY_NAMES = tuple(t.model_fields["family"].annotation.__args__[0] for t in _TERMS)
+_UNION_FIELDS["resistance"] = ("family", ", ".join(RESISTANCE_FAMILY_NAMES))
+
+ResistanceSpec = Annotated[
+    DavisTerm
+    | DavisKnKmhTerm
+    | PerMassTerm
+    | SpecificTerm
+    | RavTerm
+    | RavLocomotiveTerm
+    | RavCarriageTerm
+    | StrahlTerm
+    | SauthoffTerm
+    | WendeTerm
+    | AltriosTerm,
+    Field(discriminator="family"),
+]
+
+
+# ====================================================================== train
+class VehicleSpec(_Spec):
+    """One vehicle type of the formation, ``count`` times."""
+
+    name: str = Field(min_length=1)
+    count: int = Field(default=1, ge=1)
+    mass_t: Annotated[float, Field(gt=0, le=1000)]
+    load_t: NonNegative = 0.0
+    length_m: Annotated[float, Field(gt=0, le=500)]
+    axles: int | None = Field(default=None, ge=1, le=64)
+    rotating_mass_factor: Annotated[float, Field(ge=1, le=2)] | None = None
+    powered: bool = False
+    max_speed_kmh: Positive | None = None
+    resistance: list[ResistanceSpec] | None = None
+
+    @model_validator(mode="after")
+    def _check_terms(self) -> VehicleSpec:
+        for i, term in enumerate(self.resistance or []):
+            if term.applies_to not in (None, self.name):
+                _fail(
+                    "a term inside a vehicle applies to that vehicle; leave 'applies_to' out",
+                    field=f"resistance[{i}].applies_to",
+                    value=term.applies_to,
+                    allowed=self.name,
+                )
+        return self
+
+    @property
+    def total_mass_kg(self) -> float:
+        return (self.mass_t + self.load_t) * TONNE
+
+
+class ElectricalSpec(_Spec):
+    """Electrical data; ``regenerative_efficiency`` defaults to ``traction_efficiency``."""
+
+    line_voltage_v: Positive
+    traction_efficiency: Fraction
+    regenerative_efficiency: Annotated[float, Field(ge=0, le=1)] | None = None
+    power_factor: Fraction = 1.0
+    auxiliary_power_kw: NonNegative = 0.0
+    receptivity: Annotated[float, Field(ge=0, le=1)] = 1.0
+
+    def build(self) -> Electrical:
+        return Electrical(
+            line_voltage_v=self.line_voltage_v,
+            traction_efficiency=self.traction_efficiency,
+            regenerative_efficiency=(
+                self.regenerative_efficiency
+                if self.regenerative_efficiency is not None
+                else self.traction_efficiency
+            ),
+            power_factor=self.power_factor,
+            auxiliary_power_w=self.auxiliary_power_kw * KW,
+            receptivity=self.receptivity,
+        )
+
+
+class TrainSpec(_Spec):
+    """A ``trainsim/train`` file (see docs/FORMAT.md)."""
+
+    schema_id: Literal["trainsim/train"] = Field(default="trainsim/train", alias="schema")
+    version: Literal[1] = 1
+    name: str = Field(min_length=1)
+    description: str | None = None
+    formation: list[VehicleSpec] | None = Field(default=None, min_length=1)
+    mass_t: Annotated[float, Field(gt=0, le=50000)] | None = None
+    load_t: NonNegative | None = None
+    length_m: Annotated[float, Field(gt=0, le=5000)] | None = None
+    adhesion_mass_t: Positive | None = None
+    rotating_mass_factor: Annotated[float, Field(ge=1, le=2)] | None = None
+    gamma: Annotated[float, Field(ge=0, le=1)] | None = None
+    max_speed_kmh: Annotated[float, Field(gt=0, lt=720)] | None = None
+    traction: TractionSpec
+    braking: BrakingSpec
+    resistance: list[ResistanceSpec] = Field(min_length=1)
+    electrical: ElectricalSpec | None = None
+
+    @model_validator(mode="after")
+    def _check_train(self) -> TrainSpec:
+        if self.formation is None:
+            if self.mass_t is None:
+                _fail("give the train's 'formation' (list of vehicles) or its 'mass_t'", field="formation")
+            if self.length_m is None:
+                _fail("a train given by 'mass_t' needs 'length_m'", field="length_m")
+            vehicles: list[VehicleSpec] = []
+        else:
+            for key in ("mass_t", "load_t", "length_m"):
+                if getattr(self, key) is not None:
+                    _fail(
+                        f"'{key}' comes from the formation; give it per vehicle, not for the train",
+                        field=key,
+                        value=getattr(self, key),
+                    )
+            vehicles = self.formation
+            seen: dict[str, int] = {}
+            for i, v in enumerate(vehicles):
+                if v.name in seen:
+                    _fail(
+                        f"vehicle name already used by formation[{seen[v.name]}]",
+                        field=f"formation[{i}].name",
+                        value=v.name,
+                    )
+                seen[v.name] = i
+        if self.rotating_mass_factor is not None and self.gamma is not None:
+            _fail("give 'rotating_mass_factor' or 'gamma' (= factor - 1), not both", field="gamma")
+        if self.rotating_mass_factor is None and self.gamma is None:
+            missing = [f"formation[{i}]" for i, v in enumerate(vehicles) if v.rotating_mass_factor is None]
+            if not vehicles or missing:
+                _fail(
+                    "the rotating mass factor is needed: give the train's 'rotating_mass_factor' (rho >= 1) or "
+                    "'gamma' (= rho - 1, source 002), or 'rotating_mass_factor' for every vehicle"
+                    + (f" (missing in {', '.join(missing)})" if vehicles else ""),
+                    field="rotating_mass_factor",
+                )
+        if self.max_speed_kmh is None and (not vehicles or any(v.max_speed_kmh is None for v in vehicles)):
+            _fail(
+                "give the train's 'max_speed_kmh' (or 'max_speed_kmh' for every vehicle)", field="max_speed_kmh"
+            )
+        names = [v.name for v in vehicles]
+        for i, term in enumerate(self.resistance):
+            if term.applies_to is None:
+                _fail(
+                    "say what the term applies to: 'train' or a vehicle name",
+                    field=f"resistance[{i}].applies_to",
+                    allowed=", ".join(["train", *names]),
+                )
+            if term.applies_to != "train" and term.applies_to not in names:
+                _fail(
+                    "no vehicle of that name in the formation",
+                    field=f"resistance[{i}].applies_to",
+                    value=term.applies_to,
+                    allowed=", ".join(["train", *names]),
+                )
+        return self
+
+    # ------------------------------------------------------------------ derived figures
+    def vehicles(self) -> list[VehicleSpec]:
+        """The vehicle types of the formation (empty for a train given by its mass)."""
+        return list(self.formation or [])
+
+    def mass_kg(self) -> float:
+        """Train mass including load [kg]."""
+        if self.formation is None:
+            return ((self.mass_t or 0.0) + (self.load_t or 0.0)) * TONNE
+        return sum(v.count * v.total_mass_kg for v in self.formation)
+
+    def adhesion_mass_kg(self) -> float | None:
+        """Mass on driven axles [kg]: the train's ``adhesion_mass_t``, else the powered vehicles'
+        mass (empty + load), else None."""
+        if self.adhesion_mass_t is not None:
+            return self.adhesion_mass_t * TONNE
+        powered = [v for v in self.vehicles() if v.powered]
+        return sum(v.count * v.total_mass_kg for v in powered) if powered else None
+
+    def rho(self) -> float:
+        """Rotating mass factor of the train [-].
+
+        From the vehicles: each vehicle's rotating parts add ``(xi - 1) x empty mass`` of inertia
+        (they do not grow with the load), so ``rho = 1 + sum n (xi - 1) m_empty / m_total``.
+        """
+        if self.rotating_mass_factor is not None:
+            return self.rotating_mass_factor
+        if self.gamma is not None:
+            return 1.0 + self.gamma
+        extra = sum(v.count * ((v.rotating_mass_factor or 1.0) - 1.0) * v.mass_t * TONNE for v in self.vehicles())
+        return 1.0 + extra / self.mass_kg()
+
+    def max_speed_mps(self) -> float:
+        if self.max_speed_kmh is not None:
+            return self.max_speed_kmh * KMH
+        return min(v.max_speed_kmh or math.inf for v in self.vehicles()) * KMH
+
+    def resistance_terms(self, file: str = "") -> list[ResistanceTerm]:
+        """The running-resistance terms, vehicle terms evaluated per vehicle and times its count."""
+        vehicles = {v.name: v for v in self.vehicles()}
+        terms: list[tuple[str, _Term, VehicleSpec | None]] = []
+        for i, term in enumerate(self.resistance):
+            terms.append((f"resistance[{i}]", term, vehicles.get(term.applies_to or "train")))
+        for j, v in enumerate(self.vehicles()):
+            for i, term in enumerate(v.resistance or []):
+                terms.append((f"formation[{j}].resistance[{i}]", term, v))
+        out = []
+        all_axles = [v.axles for v in self.vehicles()]
+        train_axles = (
+            sum((v.axles or 0) * v.count for v in self.vehicles())
+            if all_axles and all(a is not None for a in all_axles)
+            else None
+        )
+        for field, term, vehicle in terms:
+            family = term.model_fields["family"].annotation.__args__[0]  # type: ignore[attr-defined]
+            with _located(file, field):
+                if vehicle is None:
+                    law = term.law(self.mass_kg(), train_axles)
+                    label = f"{family} (whole train)"
+                else:
+                    if isinstance(term, RavCarriageTerm) and vehicle.axles not in (None, 4):
+                        raise InputError(
+                            "'rav_carriage_4axle' is the law of 4-axle carriages",
+                            field="axles",
+                            value=vehicle.axles,
+                            allowed="4",
+                        )
+                    law = term.law(vehicle.total_mass_kg, vehicle.axles).scaled(float(vehicle.count))
+                    label = f"{family}: {vehicle.count} x {vehicle.name}"
+            out.append(ResistanceTerm(label, law))
+        return out
+
+    def notes(self) -> list[str]:
+        """Defaults applied and readings made when building the train, for ``trainsim check``."""
+        notes: list[str] = []
+        if self.formation is not None and self.rotating_mass_factor is None and self.gamma is None:
+            notes.append(f"rotating mass factor {self.rho():.4f} combined from the vehicles' factors")
+        if isinstance(self.traction, PowerLimitedTraction) and self.traction.adhesion_coefficient is not None:
+            if self.traction.adhesion_mass_t is None:
+                mass = self.adhesion_mass_kg()
+                if mass is not None:
+                    notes.append(f"adhesion mass {mass / TONNE:g} t (powered vehicles or the train's adhesion_mass_t)")
+        b = self.braking
+        if isinstance(b, TableBraking):
+            if b.is_full and b.service_fraction is None:
+                notes.append("service braking = 0.75 x the full braking table (source 000 default)")
+            if any(f < 0 for f in b.forces_n_signed()):
+                notes.append("braking table given as negative forces: read as magnitudes")
+        if b.regenerative is None:
+            notes.append("no regenerative braking (the 'regenerative' key is absent: friction brakes only)")
+        if self.electrical is not None:
+            if self.electrical.regenerative_efficiency is None:
+                notes.append("regenerative efficiency = traction efficiency (not given)")
+        else:
+            notes.append("no electrical data: energy at the wheel only")
+        if self.max_speed_kmh is not None and self.formation:
+            slow = [v for v in self.formation if v.max_speed_kmh is not None and v.max_speed_kmh < self.max_speed_kmh]
+            for v in slow:
+                notes.append(f"warning: train max speed {self.max_speed_kmh:g} km/h exceeds '{v.name}' ({v.max_speed_kmh:g})")
+        return notes
+
+    # ------------------------------------------------------------------ the model object
+    def to_train(self, file: str = "<train>") -> Train:
+        """The :class:`~trainsim.model.Train` in SI units."""
+        with _located(file, "traction"):
+            traction = self.traction.build(self)
+        with _located(file, "braking"):
+            braking = self.braking.build(traction)
+        resistance = self.resistance_terms(file)
+        electrical = None
+        if self.electrical is not None:
+            with _located(file, "electrical"):
+                electrical = self.electrical.build()
+        vehicles: list[Vehicle] = []
+        for v in self.vehicles():
+            vehicles += [
+                Vehicle(
+                    name=v.name,
+                    mass_kg=v.mass_t * TONNE,
+                    length_m=v.length_m,
+                    load_kg=v.load_t * TONNE,
+                    axles=v.axles,
+                    rotating_mass_factor=v.rotating_mass_factor or self.rho(),
+                    powered=v.powered,
+                )
+            ] * v.count
+        length = self.length_m if self.formation is None else sum(v.count * v.length_m for v in self.vehicles())
+        with _located(file, "train"):
+            return Train(
+                name=self.name,
+                mass_kg=self.mass_kg(),
+                rotating_mass_factor=self.rho(),
+                length_m=float(length or 0.0),
+                max_speed_mps=self.max_speed_mps(),
+                traction=traction,
+                braking=braking,
+                resistance=tuple(resistance),
+                electrical=electrical,
+                vehicles=tuple(vehicles),
+                adhesion_mass_kg=self.adhesion_mass_kg(),
+            )
+
+
+# ====================================================================== route
+class StationSpec(_Spec):
+    name: str = Field(min_length=1)
+    position_m: float
+    dwell_s: NonNegative = 0.0
+    stop: bool = True
+
+
+class _Section(_Spec):
+    """A section from ``from_m`` to ``to_m`` (or ``from_m + length_m``)."""
+
+    from_m: float
+    to_m: float | None = None
+
+    def end(self) -> float | None:
+        length = getattr(self, "length_m", None)
+        if self.to_m is not None:
+            return self.to_m
+        return self.from_m + length if length is not None else None
+
+    @model_validator(mode="after")
+    def _check_extent(self) -> _Section:
+        length = getattr(self, "length_m", None)
+        if self.to_m is not None and length is not None:
+            _fail("give 'to_m' or 'length_m', not both", field="length_m")
+        end = self.end()
+        if end is not None and not end > self.from_m:
+            _fail("a section must end after it starts", field="to_m", value=end, allowed=f"> {self.from_m:g}")
+        return self
+
+
+class SpeedLimitSpec(_Section):
+    limit_kmh: Annotated[float, Field(gt=0, lt=720)]
+
+
+class GradientSpec(_Section):
+    gradient_permille: Annotated[float, Field(gt=-200, lt=200)]
+
+
+class ElevationPointSpec(_Spec):
+    position_m: float
+    elevation_m: float
+
+
+class CurveSpec(_Section):
+    """A curve: extent by ``to_m`` or ``length_m``; ``radius_m`` or ``central_angle_deg`` (source 002:
+    R = (360 / 2 pi) L_r / alpha)."""
+
+    length_m: Positive | None = None
+    radius_m: Positive | None = None
+    central_angle_deg: Annotated[float, Field(gt=0, lt=360)] | None = None
+
+    @model_validator(mode="after")
+    def _check_curve(self) -> CurveSpec:
+        if self.end() is None:
+            _fail("a curve needs 'to_m' or 'length_m'", field="to_m")
+        if (self.radius_m is None) == (self.central_angle_deg is None):
+            _fail("give exactly one of 'radius_m' or 'central_angle_deg'", field="radius_m")
+        return self
+
+    def radius(self) -> float:
+        if self.radius_m is not None:
+            return self.radius_m
+        return line_resistance.curve_radius_from_angle((self.end() or 0.0) - self.from_m, self.central_angle_deg or 0.0)
+
+
+class TunnelSpec(_Section):
+    length_m: Positive | None = None
+    limiting_gradient: bool = False
+
+    @model_validator(mode="after")
+    def _check_tunnel(self) -> TunnelSpec:
+        if self.end() is None:
+            _fail("a tunnel needs 'to_m' or 'length_m'", field="length_m")
+        return self
+
+
+class ElectrificationSpec(_Section):
+    voltage_v: NonNegative
+
+
+class LineResistanceSpec(_Spec):
+    """Formula choices; ``curve_formula`` and ``tunnel_formula`` are required (they change the result
+    and no choice is neutral); ``gradient_formula`` defaults to ``small_angle`` (differs from ``exact``
+    by < 0.01 % below 10 per mille) and ``apply_over`` to ``head`` (mass-point train)."""
+
+    curve_formula: CurveFormula
+    tunnel_formula: TunnelFormula
+    gradient_formula: GradientFormula = "small_angle"
+    apply_over: ApplyOver = "head"
+
+    def build(self) -> LineResistanceSettings:
+        return LineResistanceSettings(
+            curve_formula=self.curve_formula,
+            tunnel_formula=self.tunnel_formula,
+            gradient_formula=self.gradient_formula,
+            apply_over=self.apply_over,
+        )
+
+
+class RouteSpec(_Spec):
+    """A ``trainsim/route`` file (see docs/FORMAT.md)."""
+
+    schema_id: Literal["trainsim/route"] = Field(default="trainsim/route", alias="schema")
+    version: Literal[1] = 1
+    name: str = Field(min_length=1)
+    description: str | None = None
+    start_m: float = 0.0
+    length_m: Positive | None = None
+    end_m: float | None = None
+    stations: list[StationSpec] = Field(min_length=2)
+    speed_limits: list[SpeedLimitSpec] = Field(min_length=1)
+    gradients: list[GradientSpec] | None = None
+    elevation: list[ElevationPointSpec] | None = None
+    curves: list[CurveSpec] = Field(default_factory=list)
+    tunnels: list[TunnelSpec] = Field(default_factory=list)
+    electrification: list[ElectrificationSpec] = Field(default_factory=list)
+    line_resistance: LineResistanceSpec
+
+    @model_validator(mode="after")
+    def _check_route(self) -> RouteSpec:
+        if (self.length_m is None) == (self.end_m is None):
+            _fail("give exactly one of 'length_m' or 'end_m'", field="length_m")
+        end = self.end()
+        if not end > self.start_m:
+            _fail("the route must end after it starts", field="end_m", value=end, allowed=f"> {self.start_m:g}")
+        if self.gradients is not None and self.elevation is not None:
+            _fail("give 'gradients' or 'elevation', not both", field="elevation")
+        self._check_stations(end)
+        self._check_changes("speed_limits", self.speed_limits, end, cover=True)
+        self._check_changes("gradients", self.gradients or [], end, cover=False)
+        self._check_changes("electrification", self.electrification, end, cover=False)
+        self._check_spans("curves", self.curves, end)
+        self._check_spans("tunnels", self.tunnels, end)
+        if self.elevation is not None:
+            if len(self.elevation) < 2:
+                _fail("an elevation profile needs at least 2 points", field="elevation")
+            _check_increasing([p.position_m for p in self.elevation], "elevation", what="positions")
+        return self
+
+    def end(self) -> float:
+        return self.end_m if self.end_m is not None else self.start_m + (self.length_m or 0.0)
+
+    def _check_stations(self, end: float) -> None:
+        names: dict[str, int] = {}
+        for i, s in enumerate(self.stations):
+            if not self.start_m <= s.position_m <= end:
+                _fail(
+                    "station outside the route",
+                    field=f"stations[{i}].position_m",
+                    value=s.position_m,
+                    allowed=f"{self.start_m:g} .. {end:g} m",
+                )
+            if s.name in names:
+                _fail(f"station name already used by stations[{names[s.name]}]", field=f"stations[{i}].name", value=s.name)
+            names[s.name] = i
+        _check_increasing([s.position_m for s in self.stations], "stations", what="station positions")
+
+    def _check_changes(self, name: str, items: Sequence[_Section], end: float, *, cover: bool) -> None:
+        """Lists of changes: each entry runs to its own ``to_m`` or to the next entry's start."""
+        for i, item in enumerate(items):
+            if not self.start_m <= item.from_m < end:
+                _fail(
+                    "section starts outside the route",
+                    field=f"{name}[{i}].from_m",
+                    value=item.from_m,
+                    allowed=f"{self.start_m:g} <= from_m < {end:g} m",
+                )
+        _check_increasing([x.from_m for x in items], name, what="'from_m' positions")
+        if cover and items and items[0].from_m != self.start_m:
+            _fail(
+                f"{name} must start at the route start",
+                field=f"{name}[0].from_m",
+                value=items[0].from_m,
+                allowed=f"{self.start_m:g}",
+            )
+        for i, item in enumerate(items):
+            nxt = items[i + 1].from_m if i + 1 < len(items) else end
+            if item.to_m is None:
+                continue
+            if item.to_m > nxt + 1e-9:
+                _fail(
+                    "section runs into the next one" if i + 1 < len(items) else "section runs past the route end",
+                    field=f"{name}[{i}].to_m",
+                    value=item.to_m,
+                    allowed=f"<= {nxt:g}",
+                )
+            if cover and item.to_m < nxt - 1e-9:
+                _fail(
+                    f"gap in {name}: every position needs a value (leave 'to_m' out to run to the next entry)",
+                    field=f"{name}[{i}].to_m",
+                    value=item.to_m,
+                    allowed=f"{nxt:g}",
+                )
+
+    def _check_spans(self, name: str, items: Sequence[_Section], end: float) -> None:
+        for i, item in enumerate(items):
+            stop = item.end() or item.from_m
+            if item.from_m < self.start_m or stop > end + 1e-9:
+                _fail(
+                    "section outside the route",
+                    field=f"{name}[{i}]",
+                    value=(item.from_m, stop),
+                    allowed=f"{self.start_m:g} .. {end:g} m",
+                )
+            if i > 0:
+                prev_end = items[i - 1].end() or 0.0
+                if item.from_m < prev_end - 1e-9:
+                    _fail(
+                        f"{name} must be listed in order and must not overlap",
+                        field=f"{name}[{i}].from_m",
+                        value=item.from_m,
+                        allowed=f">= {prev_end:g}",
+                    )
+
+    @staticmethod
+    def _ends(items: Sequence[_Section], end: float) -> list[tuple[float, float]]:
+        return [
+            (x.from_m, x.to_m if x.to_m is not None else (items[i + 1].from_m if i + 1 < len(items) else end))
+            for i, x in enumerate(items)
+        ]
+
+    def notes(self) -> list[str]:
+        notes = []
+        fields_set = self.line_resistance.model_fields_set
+        if "gradient_formula" not in fields_set:
+            notes.append("line_resistance.gradient_formula not given: small_angle")
+        if "apply_over" not in fields_set:
+            notes.append("line_resistance.apply_over not given: head (mass-point train)")
+        if not self.gradients and not self.elevation:
+            notes.append("no gradients: level line")
+        return notes
+
+    def to_route(self, file: str = "<route>") -> Route:
+        """The :class:`~trainsim.model.Route` in SI units."""
+        end = self.end()
+        limits = [SpeedLimit(a, b, x.limit_kmh * KMH) for (a, b), x in zip(self._ends(self.speed_limits, end), self.speed_limits, strict=True)]
+        gradients: list[GradientSection] = []
+        if self.gradients:
+            gradients = [
+                GradientSection(a, b, x.gradient_permille)
+                for (a, b), x in zip(self._ends(self.gradients, end), self.gradients, strict=True)
+                if x.gradient_permille != 0
+            ]
+        elif self.elevation:
+            pts = self.elevation
+            for p, q in zip(pts, pts[1:], strict=False):
+                a, b = max(p.position_m, self.start_m), min(q.position_m, end)
+                grade = (q.elevation_m - p.elevation_m) / (q.position_m - p.position_m) * 1000.0
+                if b > a and grade != 0:
+                    gradients.append(GradientSection(a, b, grade))
+        with _located(file, "curves"):
+            curves = [Curve(c.from_m, c.end() or c.from_m, c.radius()) for c in self.curves]
+        tunnels = [Tunnel(t.from_m, t.end() or t.from_m, t.limiting_gradient) for t in self.tunnels]
+        electrification = [
+            ElectrificationSection(a, b, x.voltage_v)
+            for (a, b), x in zip(self._ends(self.electrification, end), self.electrification, strict=True)
+        ]
+        stations = [Station(s.name, s.position_m, s.dwell_s, s.stop) for s in self.stations]
+        with _located(file, "route"):
+            return Route(
+                name=self.name,
+                start_m=self.start_m,
+                end_m=end,
+                stations=tuple(stations),
+                speed_limits=tuple(limits),
+                gradients=tuple(gradients),
+                curves=tuple(curves),
+                tunnels=tuple(tunnels),
+                electrification=tuple(electrification),
+                line_resistance=self.line_resistance.build(),
+            )
+
+
+# ====================================================================== scenario
+class SettingsSpec(_Spec):
+    max_step_m: Annotated[float, Field(ge=0.01, le=1000)] = 10.0
+    braking_fraction: Fraction = 1.0
+    record_dwell: bool = True
+
+    def build(self) -> RunSettings:
+        return RunSettings(
+            max_step_m=self.max_step_m, braking_fraction=self.braking_fraction, record_dwell=self.record_dwell
+        )
+
+
+def _file_or_inline(value: Any) -> str | None:
+    if isinstance(value, str):
+        return "file"
+    if isinstance(value, dict):
+        return "inline"
+    return None
+
+
+class ScenarioSpec(_Spec):
+    """A ``trainsim/scenario`` file (see docs/FORMAT.md)."""
+
+    schema_id: Literal["trainsim/scenario"] = Field(default="trainsim/scenario", alias="schema")
+    version: Literal[1] = 1
+    name: str = Field(min_length=1)
+    description: str | None = None
+    train: Annotated[
+        Annotated[str, Tag("file")] | Annotated[TrainSpec, Tag("inline")], Discriminator(_file_or_inline)
+    ]
+    route: Annotated[
+        Annotated[str, Tag("file")] | Annotated[RouteSpec, Tag("inline")], Discriminator(_file_or_inline)
+    ]
+    stops: list[str] | None = None
+    dwell_s: dict[str, NonNegative] | None = None
+    settings: SettingsSpec = Field(default_factory=SettingsSpec)
+
+    def to_scenario(self, file: str = "<scenario>", base_dir: str | Path | None = None) -> Scenario:
+        """The :class:`~trainsim.model.scenario.Scenario`; file names are relative to ``base_dir``."""
+        # Imported here: the loader detects formats and imports this module.
+        from trainsim.io import loader
+
+        base = Path(base_dir) if base_dir is not None else Path(".")
+        if isinstance(self.train, str):
+            train = loader.load_train(_resolve(base, self.train, file, "train"))
+        else:
+            train = self.train.to_train(file)
+        if isinstance(self.route, str):
+            route = loader.load_route(_resolve(base, self.route, file, "route"))
+        else:
+            route = self.route.to_route(file)
+        route = apply_stops(route, self.stops, self.dwell_s, file=file)
+        return Scenario(name=self.name, train=train, route=route, settings=self.settings.build())
+
+
+def _resolve(base: Path, name: str, file: str, field: str) -> Path:
+    path = Path(name)
+    path = path if path.is_absolute() else base / path
+    if not path.exists():
+        raise InputError("referenced file not found", file=file, field=field, value=str(path))
+    return path
+
+
+def apply_stops(
+    route: Route,
+    stops: Sequence[str] | None,
+    dwell_s: dict[str, float] | None,
+    *,
+    file: str | None = None,
+) -> Route:
+    """The route with the scenario's stop pattern: with ``stops`` only the named stations are stops;
+    ``dwell_s`` overrides dwell times by station name."""
+    names = [s.name for s in route.stations]
+    for i, name in enumerate(stops or []):
+        if name not in names:
+            raise InputError(
+                "no station of that name on the route", file=file, field=f"stops[{i}]", value=name, allowed=", ".join(names)
+            )
+    for name in dwell_s or {}:
+        if name not in names:
+            raise InputError(
+                "no station of that name on the route",
+                file=file,
+                field=f"dwell_s.{name}",
+                value=name,
+                allowed=", ".join(names),
+            )
+    if stops is None and not dwell_s:
+        return route
+    stations = []
+    for s in route.stations:
+        stop = s.stop if stops is None else s.name in stops
+        dwell = (dwell_s or {}).get(s.name, s.dwell_s)
+        stations.append(dataclasses.replace(s, stop=stop, dwell_s=dwell))
+    return dataclasses.replace(route, stations=tuple(stations))
+
+
+# ====================================================================== public functions
+def _check_header(data: Any, schema: str, file: str, *, required: bool = True) -> None:
+    """Check ``schema`` / ``version`` before the rest, so that a wrong file gets one clear error."""
+    if not isinstance(data, dict):
+        raise InputError(
+            "expected a mapping of fields (key: value lines) at the top level", file=file, value=type(data).__name__
+        )
+    if "schema" not in data:
+        if required:
+            raise InputError("missing 'schema' line", file=file, field="schema", allowed=", ".join(SCHEMAS))
+        return
+    if data["schema"] != schema:
+        raise InputError(
+            f"this reader expects a '{schema}' file",
+            file=file,
+            field="schema",
+            value=data["schema"],
+            allowed=schema,
+        )
+    if "version" not in data:
+        raise InputError("missing 'version' line", file=file, field="version", allowed="1")
+    if data["version"] not in SCHEMAS[schema]:
+        raise InputError(
+            f"unsupported version of '{schema}'",
+            file=file,
+            field="version",
+            value=data["version"],
+            allowed=", ".join(str(v) for v in SCHEMAS[schema]),
+        )
+
+
+def _validate(cls: type[_Spec], data: Any, schema: str, source: str, path: str | Path | None, *, header: bool) -> Any:
+    _check_header(data, schema, source, required=header)
+    try:
+        return cls.model_validate(data)
+    except ValidationError as exc:
+        raise _validation_error(exc, source, path) from None
+
+
+def train_spec_from_dict(data: Any, source: str = "<train>", *, path: str | Path | None = None) -> TrainSpec:
+    """Validate a ``trainsim/train`` mapping; InputError naming ``source`` and the field on failure."""
+    return _validate(TrainSpec, data, "trainsim/train", source, path, header=True)
+
+
+def route_spec_from_dict(data: Any, source: str = "<route>", *, path: str | Path | None = None) -> RouteSpec:
+    """Validate a ``trainsim/route`` mapping."""
+    return _validate(RouteSpec, data, "trainsim/route", source, path, header=True)
+
+
+def scenario_spec_from_dict(data: Any, source: str = "<scenario>", *, path: str | Path | None = None) -> ScenarioSpec:
+    """Validate a ``trainsim/scenario`` mapping (inline train and route may omit schema/version)."""
+    return _validate(ScenarioSpec, data, "trainsim/scenario", source, path, header=True)
+
+
+def train_from_dict(data: Any, source: str = "<train>") -> Train:
+    """A Train from a ``trainsim/train`` mapping (web layer)."""
+    return train_spec_from_dict(data, source).to_train(source)
+
+
+def route_from_dict(data: Any, source: str = "<route>") -> Route:
+    """A Route from a ``trainsim/route`` mapping (web layer)."""
+    return route_spec_from_dict(data, source).to_route(source)
+
+
+def scenario_from_dict(data: Any, source: str = "<scenario>", base_dir: str | Path | None = None) -> Scenario:
+    """A Scenario from a ``trainsim/scenario`` mapping; train/route file names relative to ``base_dir``."""
+    return scenario_spec_from_dict(data, source).to_scenario(source, base_dir)
+
+
+def _read(path: str | Path, reader: Callable[..., Any]) -> Any:
+    return reader(read_yaml(path), str(path), path=path)
+
+
+def read_train_spec(path: str | Path) -> TrainSpec:
+    """The validated spec of a ``trainsim/train`` file (for editors: ``dump_yaml(spec)`` round-trips)."""
+    return _read(path, train_spec_from_dict)
+
+
+def read_route_spec(path: str | Path) -> RouteSpec:
+    """The validated spec of a ``trainsim/route`` file."""
+    return _read(path, route_spec_from_dict)
+
+
+def read_scenario_spec(path: str | Path) -> ScenarioSpec:
+    """The validated spec of a ``trainsim/scenario`` file."""
+    return _read(path, scenario_spec_from_dict)
+
+
+def load_train_yaml(path: str | Path) -> Train:
+    """A Train from a ``trainsim/train`` file."""
+    return read_train_spec(path).to_train(str(path))
+
+
+def load_route_yaml(path: str | Path) -> Route:
+    """A Route from a ``trainsim/route`` file."""
+    return read_route_spec(path).to_route(str(path))
+
+
+def load_scenario_yaml(path: str | Path) -> Scenario:
+    """A Scenario from a ``trainsim/scenario`` file; train and route files relative to it."""
+    return read_scenario_spec(path).to_scenario(str(path), Path(path).parent)
+
+
+def dump_yaml(spec: BaseModel) -> str:
+    """A spec as YAML text that reads back to an equal spec (fields left at their default omitted,
+    except ``schema`` and ``version``)."""
+    data = spec.model_dump(mode="json", by_alias=True, exclude_unset=True)
+    for key, value in (("schema", getattr(spec, "schema_id", None)), ("version", getattr(spec, "version", None))):
+        if value is not None:
+            data[key] = value
+    order = ["schema", "version", "name"]
+    data = {**{k: data[k] for k in order if k in data}, **{k: v for k, v in data.items() if k not in order}}
+    return yaml.safe_dump(data, sort_keys=False, allow_unicode=True)

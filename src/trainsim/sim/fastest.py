@@ -1,0 +1,165 @@
+"""The fastest run over a route with its stops and dwell times."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from trainsim.errors import InputError
+from trainsim.model.route import Route
+from trainsim.model.scenario import RunSettings, Scenario
+from trainsim.model.train import Train
+from trainsim.sim import kernel
+from trainsim.sim.profile import compile_track
+from trainsim.sim.result import RunResult, build_result
+
+_NO_CURVE = (np.zeros(1), np.zeros((1, 4)), 0.0, 0.0)
+
+
+def kernel_parameters(train: Train, settings: RunSettings) -> tuple:
+    """Scalar parameter vector and compiled effort curves of a train for the kernel."""
+    from trainsim.constants import G
+
+    law = train.resistance_law
+    P = np.zeros(kernel.N_PARAMS)
+    P[kernel.P_INERTIAL_MASS] = train.inertial_mass_kg
+    P[kernel.P_WEIGHT] = train.mass_kg * G
+    P[kernel.P_R0], P[kernel.P_R1], P[kernel.P_R2] = law.c0, law.c1, law.c2
+    braking = train.braking
+    if braking.deceleration_mps2 is not None:
+        P[kernel.P_DECEL] = braking.deceleration_mps2 * settings.braking_fraction
+        brake_curve = _NO_CURVE
+    else:
+        brake_curve = braking.service_force.as_arrays()
+    P[kernel.P_BRAKE_FRACTION] = settings.braking_fraction
+    return P, train.traction.as_arrays(), brake_curve
+
+
+def kink_speeds(starts: np.ndarray, coefs: np.ndarray, force_cap: float, power_cap: float) -> np.ndarray:
+    """Speeds where an effort curve is not smooth: interval starts and where the power cap takes
+    over from the force cap [m/s]."""
+    kinks = list(starts[1:])
+    if np.isfinite(power_cap) and np.isfinite(force_cap) and force_cap > 0:
+        kinks.append(power_cap / force_cap)
+    return np.array(sorted(k for k in kinks if k > 0), dtype=float)
+
+
+def insert_kink_points(track, P, traction, braking, tk, bk, s, v, t, regime):
+    """Add a trace point wherever a stretch crosses a kink of the effort curve it uses, so that
+    the work integrals over the trace (trapezoids) are exact at kinks such as source 002's
+    braking force jumping from 150 to 335 kN between 5 and 6 km/h."""
+    lo = np.minimum(v[:-1], v[1:])
+    hi = np.maximum(v[:-1], v[1:])
+    candidates = []
+    for mode, kinks in ((kernel.TRACTION, tk), (kernel.BRAKE, bk)):
+        if len(kinks) == 0:
+            continue
+        is_mode = regime[:-1] == mode
+        straddles = ((kinks[None, :] > lo[:, None]) & (kinks[None, :] < hi[:, None])).any(axis=1)
+        candidates.extend(np.flatnonzero(is_mode & straddles).tolist())
+    if not candidates:
+        return s.copy(), v.copy(), t.copy(), regime.copy()
+    new_s, new_v, new_t, new_m, at = [], [], [], [], []
+    for k in sorted(candidates):
+        mode = int(regime[k])
+        kinks = tk if mode == kernel.TRACTION else bk
+        i = min(int(np.searchsorted(track.x, s[k], side="right")) - 1, len(track.a0) - 1)
+        args = (track.a0[i], track.a1[i], track.b0[i], track.b1[i], P, *traction, *braking)
+        u = s[k] - track.x[i]
+        remaining = s[k + 1] - s[k]
+        E, tk_ = 0.5 * v[k] ** 2, t[k]
+        ordered = sorted((q for q in kinks if min(v[k], v[k + 1]) < q < max(v[k], v[k + 1])), reverse=bool(v[k + 1] < v[k]))
+        for vk in ordered:
+            h = kernel.find_speed_crossing_split(E, u, remaining, 0.5 * vk * vk, mode, *args, kinks)
+            if not 0.0 < h < remaining:
+                continue
+            _, dt = kernel.step_energy_time(E, u, h, mode, *args, kinks)
+            E, u, remaining, tk_ = 0.5 * vk * vk, u + h, remaining - h, tk_ + dt
+            new_s.append(s[k] + (u - (s[k] - track.x[i])))
+            new_v.append(vk)
+            new_t.append(tk_)
+            new_m.append(mode)
+            at.append(k + 1)
+    return (
+        np.insert(s, at, new_s),
+        np.insert(v, at, new_v),
+        np.insert(t, at, new_t),
+        np.insert(regime, at, np.array(new_m, dtype=regime.dtype)),
+    )
+
+
+def stops_of(route: Route) -> list[float]:
+    """Positions where the run stops, first and last included."""
+    stops = [s.position_m for s in route.stops]
+    if len(stops) < 2:
+        raise InputError(
+            "a run needs at least two stops (origin and destination)",
+            field="stations",
+            value=[s.name for s in route.stops],
+            allowed="two or more stations with stop: true",
+        )
+    if any(b - a < 1.0 for a, b in zip(stops, stops[1:], strict=False)):
+        raise InputError(
+            "two consecutive stops are less than 1 m apart", field="stations.position", value=stops
+        )
+    return stops
+
+
+def run_fastest(train: Train, route: Route, settings: RunSettings | None = None) -> RunResult:
+    """Simulate the fastest run of ``train`` over ``route``, stopping at every station with
+    ``stop`` set for its dwell time.
+
+    Speed limits hold until the train's rear has cleared them; the train brakes at service
+    braking to every lower limit and stop and accelerates with maximum traction otherwise.
+    A train that stalls on a grade gives a result with ``status == "stalled"`` that ends where
+    it stopped, and a warning saying where and why.
+    """
+    settings = settings or RunSettings()
+    stops = stops_of(route)
+    track, profile, ceiling = compile_track(route, train, stops, settings.max_step_m)
+    P, (ts, tc, tf, tp), (bs, bc, bf, bp) = kernel_parameters(train, settings)
+    tk = kink_speeds(ts, tc, tf, tp)
+    bk = kink_speeds(bs, bc, bf, bp)
+    n_max = 4 * len(track.x) + 8 * len(stops) + 16
+    out_s = np.empty(n_max)
+    out_v = np.empty(n_max)
+    out_t = np.empty(n_max)
+    out_m = np.empty(n_max, dtype=np.int8)
+    n = 0
+    t = 0.0
+    status = kernel.STATUS_OK
+    stall_at = float("nan")
+    stations = route.stops
+    for k in range(len(stops) - 1):
+        i0, i1 = int(track.stop_index[k]), int(track.stop_index[k + 1])
+        n, status, stall_at = kernel.fastest_segment(
+            track.x, track.a0, track.a1, track.b0, track.b1, track.vlim,
+            i0, i1, t, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, out_s, out_v, out_t, out_m, n,
+        )  # fmt: skip
+        if status != kernel.STATUS_OK:
+            break
+        t = out_t[n - 1]
+        if k + 1 < len(stops) - 1:
+            dwell = stations[k + 1].dwell_s
+            t += dwell
+    s, v, t, regime = insert_kink_points(
+        track, P, (ts, tc, tf, tp), (bs, bc, bf, bp), tk, bk, out_s[:n], out_v[:n], out_t[:n], out_m[:n]
+    )
+    return build_result(
+        train=train,
+        route=route,
+        settings=settings,
+        profile=profile,
+        ceiling=ceiling,
+        s=s,
+        v=v,
+        t=t,
+        regime=regime,
+        status="ok" if status == kernel.STATUS_OK else "stalled",
+        stall_position_m=stall_at,
+        kind="fastest",
+    )
+
+
+def run_scenario(scenario: Scenario) -> RunResult:
+    """The fastest run of a scenario."""
+    return run_fastest(scenario.train, scenario.route, scenario.settings)

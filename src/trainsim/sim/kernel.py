@@ -1,0 +1,442 @@
+"""Compiled kernel of the fastest run: speed envelopes in the distance domain.
+
+State: E = v^2 / 2 [m^2/s^2] over head position s [m], so that dE/ds = a is regular at standstill,
+and time t with dt/ds = 1/v. Each grid interval has linear line-resistance laws and a constant
+speed ceiling; RK4 steps of at most one interval, with every regime switch root-found inside its
+interval (OSRD-style envelopes: braking curves backwards from every ceiling drop and stop, then
+maximum traction forwards under them).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+TRACTION = 0
+CRUISE = 1
+COAST = 2
+BRAKE = 3
+DWELL = 4
+
+REGIME_NAMES = ("traction", "cruising", "coasting", "braking", "dwell")
+
+# Indices into the scalar parameter vector P.
+P_INERTIAL_MASS = 0  # rho m [kg]
+P_WEIGHT = 1  # m g [N]
+P_R0 = 2  # running resistance c0 [N]
+P_R1 = 3  # c1 [N s/m]
+P_R2 = 4  # c2 [N s^2/m^2]
+P_DECEL = 5  # constant service deceleration [m/s^2], 0 when braking is a force law
+P_BRAKE_FRACTION = 6  # share of the service braking force used [-]
+N_PARAMS = 7
+
+#: Two speeds closer than this are the same speed [m/s] (far below any physical meaning).
+SPEED_TOLERANCE = 1e-7
+#: Root-finding stops when the bracket is shorter than this [m].
+POSITION_TOLERANCE = 1e-9
+
+STATUS_OK = 0
+STATUS_STALLED = 1
+
+
+@njit(cache=True)
+def effort(v, starts, coefs, fcap, pcap):
+    """Maximum force [N] of a compiled EffortCurve at speed v [m/s]."""
+    j = np.searchsorted(starts, v, side="right") - 1
+    if j < 0:
+        j = 0
+    f = coefs[j, 0] + coefs[j, 1] * v + coefs[j, 2] * v * v
+    if coefs[j, 3] != 0.0:
+        f += coefs[j, 3] / v if v > 0.0 else np.inf
+    if f > fcap:
+        f = fcap
+    if v > 0.0 and f * v > pcap:
+        f = pcap / v
+    return f if f > 0.0 else 0.0
+
+
+@njit(cache=True)
+def resistance_force(v, u, a0, a1, b0, b1, P):
+    """Running plus line resistance [N] at speed v and offset u into the interval."""
+    running = P[P_R0] + P[P_R1] * v + P[P_R2] * v * v
+    line = P[P_WEIGHT] * ((a0 + a1 * u) + (b0 + b1 * u) * v * v)
+    return running + line
+
+
+@njit(cache=True)
+def acceleration(mode, E, u, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
+    """dE/ds = acceleration [m/s^2] in a regime with maximum effort."""
+    v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+    res = resistance_force(v, u, a0, a1, b0, b1, P)
+    M = P[P_INERTIAL_MASS]
+    if mode == TRACTION:
+        return (effort(v, ts, tc, tf, tp) - res) / M
+    if mode == BRAKE:
+        if P[P_DECEL] > 0.0:
+            a_res = res / M
+            return -a_res if a_res > P[P_DECEL] else -P[P_DECEL]
+        return -(P[P_BRAKE_FRACTION] * effort(v, bs, bc, bf, bp) + res) / M
+    return -res / M
+
+
+@njit(cache=True)
+def rk4_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
+    """E after a step h [m] (negative: backwards) from offset u; not clipped at 0."""
+    k1 = acceleration(mode, E, u, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+    k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+    k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+    k4 = acceleration(mode, E + h * k3, u + h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+    return E + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+#: Sub-intervals of a step over which time is summed with the exact constant-acceleration formula.
+TIME_SUBSTEPS = 4
+
+
+@njit(cache=True)
+def rk4_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
+    """(E, elapsed time) after a forward step h [m] from offset u.
+
+    Time is the integral of ds / v, singular at standstill. E(s) over the step is taken as the
+    cubic Hermite interpolant of its end values and slopes, and on each sub-interval, where E is
+    nearly linear, dt = 2 ds / (v_a + v_b), exact for linear E (constant acceleration).
+    """
+    k1 = acceleration(mode, E, u, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+    k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+    k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+    k4 = acceleration(mode, E + h * k3, u + h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+    E1 = E + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    d1 = acceleration(mode, E1 if E1 > 0.0 else 0.0, u + h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+    dt = 0.0
+    v_prev = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+    for j in range(1, TIME_SUBSTEPS + 1):
+        x = j / TIME_SUBSTEPS
+        h00 = 2 * x**3 - 3 * x**2 + 1
+        h10 = x**3 - 2 * x**2 + x
+        h01 = -2 * x**3 + 3 * x**2
+        h11 = x**3 - x**2
+        Ej = h00 * E + h10 * h * k1 + h01 * E1 + h11 * h * d1
+        vj = np.sqrt(2.0 * Ej) if Ej > 0.0 else 0.0
+        dt += 2.0 * (h / TIME_SUBSTEPS) / (v_prev + vj) if v_prev + vj > 0.0 else np.inf
+        v_prev = vj
+    return E1, dt
+
+
+@njit(cache=True)
+def find_speed_crossing(E, u, H, target_E, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
+    """Step length h in (0, H] where E(h) reaches target_E along ``mode`` (Illinois method)."""
+    lo, hi = 0.0, H
+    f_lo = E - target_E
+    f_hi = rk4_energy(E, u, H, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp) - target_E
+    side = 0
+    h = hi
+    for _ in range(100):
+        if f_hi == f_lo:
+            break
+        h = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        f = rk4_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp) - target_E
+        if (f > 0.0) == (f_hi > 0.0):
+            hi, f_hi = h, f
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
+        else:
+            lo, f_lo = h, f
+            if side == -1:
+                f_hi *= 0.5
+            side = -1
+        if abs(hi - lo) < POSITION_TOLERANCE or f == 0.0:
+            break
+    return h
+
+
+#: Local error tolerance on E = v^2/2 per step [m^2/s^2], relative to (1 + E).
+ENERGY_TOLERANCE = 1e-9
+#: Shortest step the error control may take [m].
+MIN_ADAPTIVE_STEP = 1e-4
+
+
+@njit(cache=True)
+def adaptive_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
+    """(E, elapsed time) after a step h from offset u, subdivided by step doubling until the
+    local error is below ENERGY_TOLERANCE: the effort laws are tables with kinks and the time
+    near standstill is sensitive to them, so a fixed step is not enough."""
+    done = 0.0
+    dt_total = 0.0
+    hh = h
+    for _ in range(100000):
+        if abs(done - h) <= 1e-12 * max(1.0, abs(h)):
+            break
+        if abs(hh) > abs(h - done):
+            hh = h - done
+        E_full, dt_full = rk4_energy_time(E, u + done, hh, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        E_half, dt1 = rk4_energy_time(E, u + done, 0.5 * hh, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        E_two, dt2 = rk4_energy_time(
+            E_half, u + done + 0.5 * hh, 0.5 * hh, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp
+        )
+        err = abs(E_two - E_full)
+        if err <= ENERGY_TOLERANCE * (1.0 + abs(E)) or abs(hh) <= MIN_ADAPTIVE_STEP:
+            E = E_two
+            dt_total += dt1 + dt2
+            done += hh
+            if err < 0.05 * ENERGY_TOLERANCE * (1.0 + abs(E)):
+                hh *= 2.0
+        else:
+            hh *= 0.5
+    return E, dt_total
+
+
+@njit(cache=True)
+def _next_kink(v0, v1, kinks):
+    """The kink speed strictly between v0 and v1 closest to v0, or -1."""
+    best = -1.0
+    for vk in kinks:
+        if (v0 < vk < v1) or (v1 < vk < v0):
+            if best < 0.0 or abs(vk - v0) < abs(best - v0):
+                best = vk
+    return best
+
+
+@njit(cache=True)
+def step_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks):
+    """RK4 step that restarts at every kink of the effort curve it crosses, because one RK4 step
+    across a kink (e.g. source 002's braking force jumping from 150 to 335 kN between 5 and 6 km/h)
+    loses its accuracy. Returns E at u + h."""
+    remaining = h
+    for _ in range(64):
+        E1, _ = adaptive_energy_time(E, u, remaining, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        v0 = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+        v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
+        vk = _next_kink(v0, v1, kinks)
+        if vk < 0.0:
+            return E1
+        hk = find_speed_crossing(E, u, remaining, 0.5 * vk * vk, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        if abs(hk) < POSITION_TOLERANCE or abs(hk) >= abs(remaining):
+            return E1
+        E = 0.5 * vk * vk
+        u += hk
+        remaining -= hk
+    return E1
+
+
+@njit(cache=True)
+def step_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks):
+    """Forward step like ``step_energy`` that also returns the elapsed time."""
+    remaining = h
+    total_dt = 0.0
+    for _ in range(64):
+        E1, dt = adaptive_energy_time(E, u, remaining, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        v0 = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+        v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
+        vk = _next_kink(v0, v1, kinks)
+        if vk < 0.0:
+            return E1, total_dt + dt
+        hk = find_speed_crossing(E, u, remaining, 0.5 * vk * vk, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        if abs(hk) < POSITION_TOLERANCE or abs(hk) >= abs(remaining):
+            return E1, total_dt + dt
+        _, dtk = adaptive_energy_time(E, u, hk, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        total_dt += dtk
+        E = 0.5 * vk * vk
+        u += hk
+        remaining -= hk
+    return E1, total_dt + dt
+
+
+@njit(cache=True)
+def find_speed_crossing_split(E, u, H, target_E, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks):
+    """Like ``find_speed_crossing`` along kink-aware steps."""
+    lo, hi = 0.0, H
+    f_lo = E - target_E
+    f_hi = step_energy(E, u, H, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks) - target_E
+    side = 0
+    h = hi
+    for _ in range(100):
+        if f_hi == f_lo:
+            break
+        h = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        f = step_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks) - target_E
+        if (f > 0.0) == (f_hi > 0.0):
+            hi, f_hi = h, f
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
+        else:
+            lo, f_lo = h, f
+            if side == -1:
+                f_hi *= 0.5
+            side = -1
+        if abs(hi - lo) < POSITION_TOLERANCE or f == 0.0:
+            break
+    return h
+
+
+@njit(cache=True)
+def find_curve_meeting(E, u, Er, w, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk):
+    """Offset in (u, w] where the traction curve from (u, E) meets the braking curve ending at
+    (w, Er) (Illinois method on their difference)."""
+    lo, hi = u, w
+    f_lo = E - step_energy(Er, w, u - w, BRAKE, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk)
+    f_hi = step_energy(E, u, w - u, TRACTION, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk) - Er
+    side = 0
+    x = hi
+    for _ in range(100):
+        if f_hi == f_lo:
+            break
+        x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        f = step_energy(E, u, x - u, TRACTION, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk) - step_energy(
+            Er, w, x - w, BRAKE, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk
+        )
+        if (f > 0.0) == (f_hi > 0.0):
+            hi, f_hi = x, f
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
+        else:
+            lo, f_lo = x, f
+            if side == -1:
+                f_hi *= 0.5
+            side = -1
+        if abs(hi - lo) < POSITION_TOLERANCE or f == 0.0:
+            break
+    return x
+
+
+@njit(cache=True)
+def fastest_segment(x, a0, a1, b0, b1, vlim, i0, i1, t0, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, out_s, out_v, out_t, out_m, n):
+    """Fastest run from standstill at x[i0] to standstill at x[i1]; appends points to the out
+    arrays from index n. Returns (new n, status, position of a stall)."""
+    m_int = i1 - i0
+    Cr = np.empty(m_int)
+    Cl = np.empty(m_int)
+    US = np.empty(m_int)
+    # backward pass: the speed ceiling including braking curves to every drop and to the stop
+    c_next = 0.0
+    for k in range(m_int - 1, -1, -1):
+        i = i0 + k
+        w = x[i + 1] - x[i]
+        cr = min(vlim[i], c_next)
+        Er = 0.5 * cr * cr
+        El = step_energy(Er, w, -w, BRAKE, a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp, bk)
+        vl = np.sqrt(2.0 * El) if El > 0.0 else 0.0
+        if vl <= vlim[i]:
+            US[k] = 0.0
+            Cl[k] = vl
+        else:
+            if cr >= vlim[i] - SPEED_TOLERANCE:
+                US[k] = w
+            else:
+                h = find_speed_crossing_split(
+                    Er, w, -w, 0.5 * vlim[i] * vlim[i], BRAKE, a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp, bk
+                )
+                US[k] = w + h
+            Cl[k] = vlim[i]
+        Cr[k] = cr
+        c_next = Cl[k]
+
+    # forward pass: maximum traction under the ceiling
+    v = 0.0
+    t = t0
+    for k in range(m_int):
+        i = i0 + k
+        w = x[i + 1] - x[i]
+        A0, A1, B0, B1, vl_i = a0[i], a1[i], b0[i], b1[i], vlim[i]
+        u = 0.0
+        while u < w:
+            E = 0.5 * v * v
+            if u < US[k]:
+                end = US[k]
+                if v >= vl_i - SPEED_TOLERANCE:
+                    v = vl_i
+                    # cruise as long as the traction can hold the speed
+                    need_u = resistance_force(v, u, A0, A1, B0, B1, P)
+                    need_end = resistance_force(v, end, A0, A1, B0, B1, P)
+                    fmax = effort(v, ts, tc, tf, tp)
+                    if need_u > fmax * (1.0 + 1e-12):
+                        stop_at = u
+                    elif need_end > fmax:
+                        stop_at = u + (end - u) * (fmax - need_u) / (need_end - need_u)
+                    else:
+                        stop_at = end
+                    if stop_at > u:
+                        out_s[n] = x[i] + u
+                        out_v[n] = v
+                        out_t[n] = t
+                        out_m[n] = CRUISE
+                        n += 1
+                        t += (stop_at - u) / v
+                        u = stop_at
+                        continue
+                # traction towards the end of this part
+                E1, dt = step_energy_time(E, u, end - u, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk)
+                if E1 <= 0.0:
+                    h = find_speed_crossing_split(
+                        E, u, end - u, 0.0, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
+                    )
+                    out_s[n] = x[i] + u
+                    out_v[n] = v
+                    out_t[n] = t
+                    out_m[n] = TRACTION
+                    n += 1
+                    out_s[n] = x[i] + u + h
+                    out_v[n] = 0.0
+                    out_t[n] = t + (2.0 * h / v if v > 0 else 0.0)
+                    out_m[n] = TRACTION
+                    n += 1
+                    return n, STATUS_STALLED, x[i] + u + h
+                v1 = np.sqrt(2.0 * E1)
+                out_s[n] = x[i] + u
+                out_v[n] = v
+                out_t[n] = t
+                out_m[n] = TRACTION
+                n += 1
+                if v1 > vl_i and v < vl_i:
+                    h = find_speed_crossing_split(
+                        E, u, end - u, 0.5 * vl_i * vl_i, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
+                    )
+                    _, dt = step_energy_time(E, u, h, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk)
+                    t += dt
+                    u += h
+                    v = vl_i
+                else:
+                    t += dt
+                    u = end
+                    v = min(v1, vl_i)
+            else:
+                # under the braking curve that ends at (w, Cr[k])
+                Er = 0.5 * Cr[k] * Cr[k]
+                Eb = step_energy(Er, w, u - w, BRAKE, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk)
+                if E < Eb * (1.0 - 1e-12) - 1e-14:
+                    E1, dt = step_energy_time(E, u, w - u, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk)
+                    out_s[n] = x[i] + u
+                    out_v[n] = v
+                    out_t[n] = t
+                    out_m[n] = TRACTION
+                    n += 1
+                    if E1 > Er:
+                        xm = find_curve_meeting(E, u, Er, w, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk)
+                        Em, dt = step_energy_time(E, u, xm - u, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk)
+                        t += dt
+                        u = xm
+                        v = np.sqrt(2.0 * Em) if Em > 0 else 0.0
+                        continue
+                    if E1 <= 0.0:
+                        return n, STATUS_STALLED, x[i] + u
+                    t += dt
+                    u = w
+                    v = np.sqrt(2.0 * E1)
+                else:
+                    out_s[n] = x[i] + u
+                    out_v[n] = v
+                    out_t[n] = t
+                    out_m[n] = BRAKE
+                    n += 1
+                    _, dt = step_energy_time(0.5 * v * v, u, w - u, BRAKE, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk)
+                    t += dt
+                    u = w
+                    v = Cr[k]
+    out_s[n] = x[i1]
+    out_v[n] = 0.0
+    out_t[n] = t
+    out_m[n] = DWELL
+    n += 1
+    return n, STATUS_OK, 0.0

@@ -1,0 +1,218 @@
+"""Compile a route for one train into the arrays the simulation kernel walks.
+
+The route's piecewise data (gradients, curves, tunnels, speed limits) become, on a grid of head
+positions that contains every breakpoint, per-interval linear laws of the specific line resistance
+and a constant speed ceiling. Averaging over the train length (a homogeneous mass strip) turns a
+piecewise constant law into a continuous piecewise linear one with breakpoints at x and x + L, so
+both ways of applying line resistance share one representation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from trainsim.errors import InputError
+from trainsim.model.route import Route
+from trainsim.model.train import Train
+from trainsim.physics import line_resistance as lr
+
+#: Smallest interval kept when merging breakpoints [m]; closer points are the same point.
+POSITION_TOLERANCE_M = 1e-6
+
+#: Steps next to standstill are graded geometrically down to this length [m], because the time
+#: spent in the last metres before a stop depends on the braking law at walking speed.
+SMALLEST_STEP_M = 0.005
+
+#: Ratio between successive graded steps next to a stop or a start.
+GRADING_RATIO = 2.0
+
+
+@dataclass(frozen=True)
+class PiecewiseLinear:
+    """A function of position, linear on each ``[x[k], x[k+1])``, given by values at both ends of
+    each piece (so it may jump at a breakpoint). Beyond the ends it keeps the end values."""
+
+    x: np.ndarray  # breakpoints, increasing [m]
+    left: np.ndarray  # value at x[k] from the right (start of piece k)
+    right: np.ndarray  # value at x[k+1] from the left (end of piece k)
+
+    def __call__(self, s: np.ndarray | float) -> np.ndarray:
+        s = np.asarray(s, dtype=float)
+        k = np.clip(np.searchsorted(self.x, s, side="right") - 1, 0, len(self.left) - 1)
+        width = self.x[k + 1] - self.x[k]
+        frac = np.clip((s - self.x[k]) / width, 0.0, 1.0)
+        return self.left[k] + (self.right[k] - self.left[k]) * frac
+
+
+def step_function(starts: list[float], ends: list[float], values: list[float], lo: float, hi: float) -> PiecewiseLinear:
+    """A piecewise constant function on [lo, hi] that is ``values[k]`` on ``[starts[k], ends[k])``
+    and 0 elsewhere."""
+    pts = sorted({lo, hi, *[min(max(p, lo), hi) for p in starts + ends]})
+    x = np.array(pts)
+    mid = 0.5 * (x[:-1] + x[1:])
+    val = np.zeros(len(mid))
+    for a, b, v in zip(starts, ends, values, strict=True):
+        val[(mid >= a) & (mid < b)] = v
+    return PiecewiseLinear(x, val.copy(), val.copy())
+
+
+def averaged_over_length(f: PiecewiseLinear, length_m: float) -> PiecewiseLinear:
+    """The mean of a piecewise constant ``f`` over ``[s - L, s]`` as a function of the head
+    position s (exact: the mean of a step function over a sliding window is piecewise linear)."""
+    x = f.x
+    lo, hi = x[0], x[-1]
+    # integral F(s) of the step function, extended with the end values beyond the ends
+    cum = np.concatenate([[0.0], np.cumsum(f.left * np.diff(x))])
+
+    def integral(s: np.ndarray) -> np.ndarray:
+        s_c = np.clip(s, lo, hi)
+        k = np.clip(np.searchsorted(x, s_c, side="right") - 1, 0, len(f.left) - 1)
+        inside = cum[k] + f.left[k] * (s_c - x[k])
+        return inside + np.where(s < lo, (s - lo) * f.left[0], 0.0) + np.where(s > hi, (s - hi) * f.left[-1], 0.0)
+
+    nodes = np.unique(np.clip(np.concatenate([x, x + length_m]), lo, hi))
+    mean = (integral(nodes) - integral(nodes - length_m)) / length_m
+    return PiecewiseLinear(nodes, mean[:-1].copy(), mean[1:].copy())
+
+
+def speed_ceiling(route: Route, train: Train) -> PiecewiseLinear:
+    """Most restrictive speed profile over head position [m/s]: the line limits, each held until
+    the train's rear has cleared it, and the train's maximum speed."""
+    lo, hi = route.start_m, route.end_m
+    L = train.length_m
+    pts = {lo, hi}
+    for lim in route.speed_limits:
+        for p in (lim.start_m, lim.end_m, lim.end_m + L):
+            if lo < p < hi:
+                pts.add(p)
+    x = np.array(sorted(pts))
+    mid = 0.5 * (x[:-1] + x[1:])
+    ceiling = np.full(len(mid), train.max_speed_mps)
+    for lim in route.speed_limits:
+        # a limit on [a, b) binds head positions in [a, b + L): the rear leaves it at b + L
+        covered = (mid >= lim.start_m) & (mid < lim.end_m + L)
+        ceiling[covered] = np.minimum(ceiling[covered], lim.limit_mps)
+    return PiecewiseLinear(x, ceiling.copy(), ceiling.copy())
+
+
+@dataclass(frozen=True)
+class LineResistanceProfile:
+    """Specific line resistances over head position, each a ratio of the train's weight
+    (force = ratio x m g); ``tunnel_v2`` multiplies v^2 [s^2/m^2]."""
+
+    gradient: PiecewiseLinear
+    curve: PiecewiseLinear
+    tunnel: PiecewiseLinear
+    tunnel_v2: PiecewiseLinear
+
+
+def line_resistance_profile(route: Route, train: Train) -> LineResistanceProfile:
+    """Evaluate the route's gradient, curve and tunnel resistance laws once, at the head or
+    averaged over the train's length as the route's settings say."""
+    settings = route.line_resistance
+    lo, hi = route.start_m, route.end_m
+    grad = step_function(
+        [g.start_m for g in route.gradients],
+        [g.end_m for g in route.gradients],
+        [lr.gradient_ratio(g.gradient_permille, settings.gradient_formula) for g in route.gradients],
+        lo,
+        hi,
+    )
+    curve = step_function(
+        [c.start_m for c in route.curves],
+        [c.end_m for c in route.curves],
+        [lr.curve_ratio(c.radius_m, settings.curve_formula) for c in route.curves],
+        lo,
+        hi,
+    )
+    tunnel_terms = [lr.tunnel_ratio(t.length_m, settings.tunnel_formula, t.limiting_gradient) for t in route.tunnels]
+    tun0 = step_function(
+        [t.start_m for t in route.tunnels], [t.end_m for t in route.tunnels], [c for c, _ in tunnel_terms], lo, hi
+    )
+    tun2 = step_function(
+        [t.start_m for t in route.tunnels], [t.end_m for t in route.tunnels], [k for _, k in tunnel_terms], lo, hi
+    )
+    if settings.apply_over == "train_length":
+        grad, curve, tun0, tun2 = (averaged_over_length(f, train.length_m) for f in (grad, curve, tun0, tun2))
+    return LineResistanceProfile(grad, curve, tun0, tun2)
+
+
+@dataclass(frozen=True)
+class KernelTrack:
+    """The arrays the kernel walks: grid of head positions and per-interval laws."""
+
+    x: np.ndarray  # grid [m], N + 1 points
+    a0: np.ndarray  # line resistance ratio at the start of each interval [-]
+    a1: np.ndarray  # its slope [1/m]
+    b0: np.ndarray  # v^2 coefficient at the start of each interval [s^2/m^2]
+    b1: np.ndarray  # its slope [s^2/m^3]
+    vlim: np.ndarray  # speed ceiling on each interval [m/s]
+    stop_index: np.ndarray  # grid index of each stop, increasing
+
+
+def _graded(a: float, b: float, max_step: float, grade_left: bool, grade_right: bool) -> list[float]:
+    """Interior points of [a, b]: steps of at most ``max_step``, graded geometrically towards an
+    end where the train is at standstill."""
+    pts: list[float] = []
+    length = b - a
+    left_edge, right_edge = a, b
+    if grade_left or grade_right:
+        h = SMALLEST_STEP_M
+        reach = min(max_step, length / (2 if grade_left and grade_right else 1))
+        offsets = []
+        while h < reach:
+            offsets.append(h)
+            h *= GRADING_RATIO
+        if grade_left:
+            pts += [a + d for d in offsets]
+            left_edge = a + (offsets[-1] if offsets else 0.0)
+        if grade_right:
+            pts += [b - d for d in offsets]
+            right_edge = b - (offsets[-1] if offsets else 0.0)
+    span = right_edge - left_edge
+    if span > 0:
+        n = int(np.ceil(span / max_step - 1e-9))
+        pts += list(np.linspace(left_edge, right_edge, n + 1)[1:-1])
+    return sorted(pts)
+
+
+def compile_track(route: Route, train: Train, stops_m: list[float], max_step_m: float) -> tuple[KernelTrack, LineResistanceProfile, PiecewiseLinear]:
+    """Build the kernel grid for a run between the first and last of ``stops_m``."""
+    profile = line_resistance_profile(route, train)
+    ceiling = speed_ceiling(route, train)
+    lo, hi = stops_m[0], stops_m[-1]
+    breaks = {lo, hi, *stops_m}
+    for f in (profile.gradient, profile.curve, profile.tunnel, profile.tunnel_v2, ceiling):
+        breaks.update(float(p) for p in f.x if lo < p < hi)
+    coarse = np.array(sorted(breaks))
+    keep = np.concatenate([[True], np.diff(coarse) > POSITION_TOLERANCE_M])
+    coarse = coarse[keep]
+    stop_set = set(stops_m)
+    pts: list[float] = [float(coarse[0])]
+    for a, b in zip(coarse[:-1], coarse[1:], strict=True):
+        pts += _graded(float(a), float(b), max_step_m, a in stop_set, b in stop_set)
+        pts.append(float(b))
+    x = np.array(pts)
+    if np.any(np.diff(x) <= 0):
+        raise InputError("internal: grid not increasing", field="route")
+    left, right = x[:-1], x[1:]
+    width = right - left
+    eps = 1e-9 * np.maximum(1.0, np.abs(left))
+
+    def law(f: PiecewiseLinear) -> tuple[np.ndarray, np.ndarray]:
+        # evaluate just inside each interval so a jump at a breakpoint belongs to the right piece
+        v0 = f(left + eps)
+        v1 = f(right - eps)
+        slope = (v1 - v0) / np.maximum(width - 2 * eps, 1e-12)
+        return v0 - slope * eps, slope
+
+    g0, g1 = law(profile.gradient)
+    c0, c1 = law(profile.curve)
+    t0, t1 = law(profile.tunnel)
+    a0, a1 = g0 + c0 + t0, g1 + c1 + t1
+    b0, b1 = law(profile.tunnel_v2)
+    vlim = ceiling(0.5 * (left + right))
+    stop_index = np.searchsorted(x, np.array(stops_m) - POSITION_TOLERANCE_M)
+    return KernelTrack(x, a0, a1, b0, b1, vlim, stop_index.astype(np.int64)), profile, ceiling

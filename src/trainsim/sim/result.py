@@ -1,0 +1,390 @@
+"""Typed results of a run: the trace, the energy accounting and the per-section summary."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from trainsim.constants import G, KMH, KWH
+from trainsim.model.route import Route
+from trainsim.model.scenario import RunSettings
+from trainsim.model.train import Train
+from trainsim.physics import electrical as el
+from trainsim.sim.kernel import BRAKE, COAST, CRUISE, DWELL, REGIME_NAMES, TRACTION
+from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear
+
+
+@dataclass(frozen=True)
+class Trace:
+    """Point-by-point record of a run. Every array has one entry per point; ``regime[k]`` is the
+    regime of the stretch from point k to point k + 1. Forces are those of that regime at the
+    point. Cumulative energies are integrated stretch by stretch up to the point."""
+
+    time_s: np.ndarray
+    position_m: np.ndarray
+    speed_mps: np.ndarray
+    acceleration_mps2: np.ndarray
+    regime: np.ndarray  # int codes, see REGIME_NAMES
+    traction_force_n: np.ndarray
+    braking_force_n: np.ndarray
+    regenerative_braking_force_n: np.ndarray
+    friction_braking_force_n: np.ndarray
+    running_resistance_n: np.ndarray
+    gradient_resistance_n: np.ndarray
+    curve_resistance_n: np.ndarray
+    tunnel_resistance_n: np.ndarray
+    speed_limit_mps: np.ndarray
+    mechanical_power_w: np.ndarray
+    electrical_power_w: np.ndarray
+    line_current_a: np.ndarray
+    paper_power_w: np.ndarray
+    paper_line_current_a: np.ndarray
+    traction_work_j: np.ndarray
+    braking_work_j: np.ndarray
+    regenerated_energy_j: np.ndarray
+    electrical_energy_j: np.ndarray
+
+    @property
+    def regime_names(self) -> list[str]:
+        """Regime of each point as a name."""
+        return [REGIME_NAMES[int(r)] for r in self.regime]
+
+    def __len__(self) -> int:
+        return len(self.time_s)
+
+    def to_dataframe(self):  # -> pandas.DataFrame (imported lazily: pandas is slow to import)
+        """The trace as a pandas DataFrame, one column per quantity, units in column names."""
+        import pandas as pd
+
+        data = {name: getattr(self, name) for name in self.__dataclass_fields__ if name != "regime"}
+        df = pd.DataFrame(data)
+        df.insert(4, "regime", pd.Categorical(self.regime_names, categories=list(REGIME_NAMES)))
+        df.insert(3, "speed_kmh", self.speed_mps / KMH)
+        return df
+
+
+@dataclass(frozen=True)
+class EnergyFigures:
+    """Energy of a run or a section [kWh].
+
+    traction: traction work at the wheel. braking: braking work at the wheel (regenerative and
+    friction). regenerated: energy returned to the line (regenerative work x efficiency x
+    receptivity). auxiliary: auxiliaries. net: drawn from the line = traction / efficiency +
+    auxiliary - regenerated. paper: source 002's convention, integral of F v eta in traction.
+    """
+
+    traction: float
+    braking: float
+    regenerated: float
+    auxiliary: float
+    net: float
+    paper: float
+
+
+@dataclass(frozen=True)
+class SectionSummary:
+    """One section between two consecutive stops."""
+
+    from_station: str
+    to_station: str
+    distance_m: float
+    running_time_s: float
+    dwell_s: float
+    max_speed_kmh: float
+    average_speed_kmh: float
+    peak_current_a: float
+    energy_kwh: EnergyFigures
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["from"] = d.pop("from_station")
+        d["to"] = d.pop("to_station")
+        return d
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """Result of a run: status, warnings, trace, sections and totals.
+
+    Attributes:
+        status: ``ok``, or ``stalled`` when the train could not go on (see ``warnings``).
+        kind: what produced it (``fastest``, ``driven``...).
+    """
+
+    train_name: str
+    route_name: str
+    kind: str
+    status: str
+    warnings: tuple[str, ...]
+    trace: Trace
+    sections: tuple[SectionSummary, ...]
+    distance_m: float
+    running_time_s: float
+    total_time_s: float
+    dwell_s: float
+    max_speed_kmh: float
+    average_speed_kmh: float
+    average_running_speed_kmh: float
+    peak_current_a: float
+    peak_paper_current_a: float
+    energy_kwh: EnergyFigures
+    energy_balance: dict[str, float] = field(default_factory=dict)
+
+    def to_dataframe(self):
+        """The trace as a pandas DataFrame."""
+        return self.trace.to_dataframe()
+
+    def summary(self) -> dict[str, Any]:
+        """The run summary as plain JSON-ready data."""
+        out: dict[str, Any] = {
+            "status": self.status,
+            "warnings": list(self.warnings),
+            "kind": self.kind,
+            "train": self.train_name,
+            "route": self.route_name,
+            "distance_m": self.distance_m,
+            "running_time_s": self.running_time_s,
+            "dwell_s": self.dwell_s,
+            "total_time_s": self.total_time_s,
+            "max_speed_kmh": self.max_speed_kmh,
+            "average_speed_kmh": self.average_speed_kmh,
+            "average_running_speed_kmh": self.average_running_speed_kmh,
+            "peak_current_a": self.peak_current_a,
+            "peak_current_paper_convention_a": self.peak_paper_current_a,
+            "energy_kwh": asdict(self.energy_kwh),
+            "energy_balance": dict(self.energy_balance),
+            "sections": [s.to_dict() for s in self.sections],
+        }
+        return _finite(out)
+
+
+def _finite(obj: Any) -> Any:
+    """JSON has no NaN: unknown values become null."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, float | np.floating):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
+def _regime_forces(
+    train: Train,
+    settings: RunSettings,
+    regime: np.ndarray,
+    v: np.ndarray,
+    running: np.ndarray,
+    line: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Traction and braking force [N] in each point's regime at speed v."""
+    traction = np.zeros_like(v)
+    braking = np.zeros_like(v)
+    is_t = regime == TRACTION
+    traction[is_t] = train.traction(v[is_t])
+    is_c = regime == CRUISE
+    need = running[is_c] + line[is_c]
+    traction[is_c] = np.maximum(need, 0.0)
+    braking[is_c] = np.maximum(-need, 0.0)
+    is_b = regime == BRAKE
+    if train.braking.deceleration_mps2 is not None:
+        decel = train.braking.deceleration_mps2 * settings.braking_fraction
+        braking[is_b] = np.maximum(train.inertial_mass_kg * decel - running[is_b] - line[is_b], 0.0)
+    else:
+        braking[is_b] = settings.braking_fraction * train.braking.service_force(v[is_b])
+    return traction, braking
+
+
+def _line_forces(profile: LineResistanceProfile, mass_kg: float, s: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, ...]:
+    weight = mass_kg * G
+    return (
+        weight * profile.gradient(s),
+        weight * profile.curve(s),
+        weight * (profile.tunnel(s) + profile.tunnel_v2(s) * v * v),
+    )
+
+
+def build_result(
+    *,
+    train: Train,
+    route: Route,
+    settings: RunSettings,
+    profile: LineResistanceProfile,
+    ceiling: PiecewiseLinear,
+    s: np.ndarray,
+    v: np.ndarray,
+    t: np.ndarray,
+    regime: np.ndarray,
+    status: str,
+    stall_position_m: float = float("nan"),
+    kind: str = "fastest",
+    warnings: list[str] | None = None,
+) -> RunResult:
+    """Evaluate forces, powers, currents and energies along a run given as points."""
+    warnings = list(warnings or [])
+    m = train.mass_kg
+    n = len(s)
+    elec = train.electrical
+    # point values in each point's own regime, line resistance from the right of the point
+    s_right = np.minimum(s + 1e-7, route.end_m)
+    running = np.asarray(train.running_resistance_n(v), dtype=float) * (v > 0)
+    grad, curve, tunnel = _line_forces(profile, m, s_right, v)
+    line = grad + curve + tunnel
+    traction, braking = _regime_forces(train, settings, regime, v, running, line)
+    regen_cap = train.braking.regenerative(v) if train.braking.regenerative is not None else np.zeros(n)
+    regen = np.minimum(braking, regen_cap)
+    friction = braking - regen
+    accel = (traction - braking - running - line) / train.inertial_mass_kg
+    accel[regime == DWELL] = 0.0
+
+    # stretch integrals: both ends in the stretch's regime, line resistance at its middle
+    ds = np.diff(s)
+    dt = np.diff(t)
+    r = regime[:-1]
+    v0, v1 = v[:-1], v[1:]
+    mid = 0.5 * (s[:-1] + s[1:])
+    run0 = np.asarray(train.running_resistance_n(v0), dtype=float)
+    run1 = np.asarray(train.running_resistance_n(v1), dtype=float)
+    g_mid, c_mid, t_mid = _line_forces(profile, m, mid, np.sqrt(0.5 * (v0**2 + v1**2)))
+    line_mid = g_mid + c_mid + t_mid
+    f0t, f0b = _regime_forces(train, settings, r, v0, run0, line_mid)
+    f1t, f1b = _regime_forces(train, settings, r, v1, run1, line_mid)
+    w_traction = 0.5 * (f0t + f1t) * ds
+    w_braking = 0.5 * (f0b + f1b) * ds
+    if train.braking.regenerative is not None:
+        rg0 = np.minimum(f0b, train.braking.regenerative(v0))
+        rg1 = np.minimum(f1b, train.braking.regenerative(v1))
+    else:
+        rg0 = rg1 = np.zeros_like(v0)
+    w_regen = 0.5 * (rg0 + rg1) * ds
+    w_running = 0.5 * (run0 + run1) * ds
+    w_gradient = g_mid * ds
+    w_curve_tunnel = (c_mid + t_mid) * ds
+
+    eta_t = elec.traction_efficiency if elec else 1.0
+    eta_r = elec.regenerative_efficiency * elec.receptivity if elec else 0.0
+    aux_w = elec.auxiliary_power_w if elec else 0.0
+    e_traction_line = w_traction / eta_t
+    e_regen_line = w_regen * eta_r
+    e_aux = aux_w * dt
+    e_net = e_traction_line + e_aux - e_regen_line
+    e_paper = w_traction * (elec.traction_efficiency if elec else 1.0)
+
+    mech_power = traction * v
+    el_power = el.traction_line_power_w(traction, v, eta_t) + aux_w - el.regenerated_line_power_w(regen, v, eta_r)
+    paper_power = el.paper_power_w(traction, v, eta_t)
+    if elec:
+        current = el.line_current_a(el_power, elec.line_voltage_v, elec.power_factor)
+        paper_current = el.line_current_a(paper_power, elec.line_voltage_v, elec.power_factor)
+    else:
+        current = np.full(n, np.nan)
+        paper_current = np.full(n, np.nan)
+
+    def cumulative(x: np.ndarray) -> np.ndarray:
+        return np.concatenate([[0.0], np.cumsum(x)])
+
+    trace = Trace(
+        time_s=t,
+        position_m=s,
+        speed_mps=v,
+        acceleration_mps2=accel,
+        regime=regime,
+        traction_force_n=traction,
+        braking_force_n=braking,
+        regenerative_braking_force_n=regen,
+        friction_braking_force_n=friction,
+        running_resistance_n=running,
+        gradient_resistance_n=grad,
+        curve_resistance_n=curve,
+        tunnel_resistance_n=tunnel,
+        speed_limit_mps=ceiling(s_right),
+        mechanical_power_w=mech_power,
+        electrical_power_w=el_power,
+        line_current_a=current,
+        paper_power_w=paper_power,
+        paper_line_current_a=paper_current,
+        traction_work_j=cumulative(w_traction),
+        braking_work_j=cumulative(w_braking),
+        regenerated_energy_j=cumulative(e_regen_line),
+        electrical_energy_j=cumulative(e_net),
+    )
+
+    # sections: between consecutive stop points (a DWELL point ends a section)
+    stops = route.stops
+    ends = list(np.flatnonzero(regime == DWELL))
+    starts = [0] + [e + 1 for e in ends[:-1]]
+    sections = []
+    for k, (a, b) in enumerate(zip(starts, ends, strict=False)):
+        sl = slice(a, b)  # stretches a .. b-1 belong to the run of this section
+        dwell = float(t[b + 1] - t[b]) if b + 1 < n else 0.0
+        run_time = float(t[b] - t[a])
+        dist = float(s[b] - s[a])
+        sections.append(
+            SectionSummary(
+                from_station=stops[k].name,
+                to_station=stops[k + 1].name if k + 1 < len(stops) else "?",
+                distance_m=dist,
+                running_time_s=run_time,
+                dwell_s=dwell,
+                max_speed_kmh=float(v[a : b + 1].max() / KMH),
+                average_speed_kmh=dist / run_time / KMH if run_time > 0 else 0.0,
+                peak_current_a=float(np.nanmax(current[a : b + 1])) if elec else float("nan"),
+                energy_kwh=EnergyFigures(
+                    traction=float(w_traction[sl].sum() / KWH),
+                    braking=float(w_braking[sl].sum() / KWH),
+                    regenerated=float(e_regen_line[sl].sum() / KWH),
+                    auxiliary=float((e_aux[sl].sum() + (e_aux[b] if b < n - 1 else 0.0)) / KWH),
+                    net=float((e_net[sl].sum() + (e_aux[b] if b < n - 1 else 0.0)) / KWH),
+                    paper=float(e_paper[sl].sum() / KWH),
+                ),
+            )
+        )
+    if status == "stalled":
+        warnings.append(
+            f"the train stalls at {stall_position_m:.1f} m: its maximum tractive effort cannot overcome the "
+            "running and line resistance there; the result ends at that point"
+        )
+    total_time = float(t[-1] - t[0]) if n else 0.0
+    dwell_total = float(sum(sec.dwell_s for sec in sections))
+    running_time = total_time - dwell_total
+    distance = float(s[-1] - s[0]) if n else 0.0
+    # energy balance: traction work = kinetic + potential change + resistance + braking work
+    kinetic = 0.5 * train.inertial_mass_kg * (v[-1] ** 2 - v[0] ** 2)
+    supplied = float(w_traction.sum())
+    spent = float(kinetic + w_gradient.sum() + w_running.sum() + w_curve_tunnel.sum() + w_braking.sum())
+    balance = {
+        "traction_work_j": supplied,
+        "kinetic_potential_resistance_braking_j": spent,
+        "relative_error": (supplied - spent) / max(abs(supplied), 1.0),
+    }
+    return RunResult(
+        train_name=train.name,
+        route_name=route.name,
+        kind=kind,
+        status=status,
+        warnings=tuple(warnings),
+        trace=trace,
+        sections=tuple(sections),
+        distance_m=distance,
+        running_time_s=running_time,
+        total_time_s=total_time,
+        dwell_s=dwell_total,
+        max_speed_kmh=float(v.max() / KMH) if n else 0.0,
+        average_speed_kmh=distance / total_time / KMH if total_time > 0 else 0.0,
+        average_running_speed_kmh=distance / running_time / KMH if running_time > 0 else 0.0,
+        peak_current_a=float(np.nanmax(current)) if elec and n else float("nan"),
+        peak_paper_current_a=float(np.nanmax(paper_current)) if elec and n else float("nan"),
+        energy_kwh=EnergyFigures(
+            traction=float(w_traction.sum() / KWH),
+            braking=float(w_braking.sum() / KWH),
+            regenerated=float(e_regen_line.sum() / KWH),
+            auxiliary=float(e_aux.sum() / KWH),
+            net=float(e_net.sum() / KWH),
+            paper=float(e_paper.sum() / KWH),
+        ),
+        energy_balance=balance,
+    )
