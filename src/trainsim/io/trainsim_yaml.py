@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import itertools
 import math
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -35,8 +36,9 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
 
-from trainsim.constants import KMH, KN, KW, TONNE
+from trainsim.constants import KMH, KN, KW, TONNE, G
 from trainsim.errors import InputError
+from trainsim.io.units import split_suffix, to_unit
 from trainsim.model import (
     Braking,
     Curve,
@@ -58,7 +60,6 @@ from trainsim.model.route import ApplyOver, CurveFormula, GradientFormula, Tunne
 from trainsim.model.scenario import RunSettings, Scenario
 from trainsim.physics import line_resistance
 from trainsim.physics import resistance as res
-from trainsim.io.units import split_suffix, to_unit
 
 __all__ = [
     "SCHEMAS",
@@ -131,13 +132,11 @@ def read_yaml(path: str | Path) -> Any:
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read the file ({exc})", file=file) from exc
     try:
-        return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
+        return yaml.load(text, Loader=_StrictLoader)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         reason = " ".join(str(x) for x in (exc.context, exc.problem) if x)
-        raise InputError(
-            f"invalid YAML: {reason}", file=file, line=mark.line + 1 if mark else None
-        ) from exc
+        raise InputError(f"invalid YAML: {reason}", file=file, line=mark.line + 1 if mark else None) from exc
     except yaml.YAMLError as exc:
         raise InputError(f"invalid YAML: {exc}", file=file) from exc
 
@@ -165,7 +164,9 @@ def _yaml_line(path: str | Path, loc: Sequence[str | int]) -> int | None:
 
 
 # ====================================================================== validation errors
-def _fail(reason: str, *, field: str | None = None, value: Any = None, allowed: str | None = None) -> NoReturn:
+def _fail(
+    reason: str, *, field: str | None = None, value: Any = None, allowed: str | None = None
+) -> NoReturn:
     """Raise a validation error inside a spec validator; ``field`` is relative to the model."""
     raise PydanticCustomError(
         "trainsim", "{reason}", {"reason": reason, "field": field, "value": value, "allowed": allowed}
@@ -181,6 +182,26 @@ _UNION_FIELDS: dict[str, tuple[str, str]] = {
     "train": ("", "a file name, or a mapping with the train"),
     "route": ("", "a file name, or a mapping with the route"),
 }
+
+
+def _parse_field(field: str) -> list[str | int]:
+    """``"speed_kmh[3]"`` -> ``["speed_kmh", 3]``; ``"a.b[1].c"`` -> ``["a", "b", 1, "c"]``."""
+    parts: list[str | int] = []
+    for piece in field.split("."):
+        name, *indices = piece.replace("]", "").split("[")
+        if name:
+            parts.append(name)
+        parts += [int(i) if i.isdigit() else i for i in indices]
+    return parts
+
+
+def _union_field(loc: Sequence[str | int]) -> str | None:
+    """The union field an error location ends at (``traction``, ``resistance[2]``...), or None."""
+    if loc and isinstance(loc[-1], str) and loc[-1] in _UNION_FIELDS:
+        return loc[-1]
+    if len(loc) > 1 and isinstance(loc[-1], int) and loc[-2] == "resistance":
+        return "resistance"
+    return None
 
 
 def _clean_loc(loc: Sequence[str | int]) -> list[str | int]:
@@ -211,7 +232,7 @@ def _describe(err: Any) -> tuple[str, Any, str | None]:
     kind = err["type"]
     ctx = err.get("ctx") or {}
     value = err.get("input")
-    if isinstance(value, dict):
+    if isinstance(value, dict | list):
         value = None
     bounds = {
         "greater_than": (">", "gt"),
@@ -224,16 +245,21 @@ def _describe(err: Any) -> tuple[str, Any, str | None]:
     if kind == "missing":
         return "required field is missing", None, None
     if kind == "extra_forbidden":
+        if isinstance(value, _UnknownField):
+            hint = f" (did you mean '{value.suggestion}'?)" if value.suggestion else ""
+            return f"unknown field{hint}", None, value.allowed
         return "unknown field", value, None
     if kind in bounds:
         op, key = bounds[kind]
-        return f"must be {op} {ctx[key]}", value, f"{op} {ctx[key]}"
+        return "out of range", value, f"{op} {ctx[key]:g}"
     if kind == "literal_error":
         return "not an allowed value", value, str(ctx.get("expected", "")).replace("'", "")
     if kind == "union_tag_invalid":
-        return f"unknown {ctx.get('discriminator', 'kind')}".replace("'", ""), ctx.get("tag"), str(
-            ctx.get("expected_tags", "")
-        ).replace("'", "")
+        return (
+            f"unknown {ctx.get('discriminator', 'kind')}".replace("'", ""),
+            ctx.get("tag"),
+            str(ctx.get("expected_tags", "")).replace("'", ""),
+        )
     if kind == "union_tag_not_found":
         return "missing or wrong kind of entry", value, None
     if kind in ("float_type", "float_parsing", "int_type", "int_parsing", "int_from_float", "finite_number"):
@@ -254,22 +280,28 @@ def _describe(err: Any) -> tuple[str, Any, str | None]:
     return err["msg"], value, None
 
 
-def _validation_error(exc: ValidationError, file: str, path: str | Path | None, prefix: str = "") -> InputError:
+def _validation_error(
+    exc: ValidationError, file: str, path: str | Path | None, prefix: str = ""
+) -> InputError:
     """One InputError (one paragraph) for all problems of a pydantic ValidationError."""
     problems: list[tuple[list[str | int], str, Any, str | None]] = []
     for err in exc.errors(include_url=False):
         loc = _clean_loc(err["loc"])
         ctx = err.get("ctx") or {}
+        union = _union_field(loc)
         if err["type"] == "trainsim" and ctx.get("field"):
-            loc += [ctx["field"]]
-        elif err["type"] == "union_tag_not_found" and loc and loc[-1] in _UNION_FIELDS:
-            key, allowed = _UNION_FIELDS[loc[-1]]
-            if key:
+            loc += _parse_field(str(ctx["field"]))
+        elif err["type"] == "union_tag_not_found" and union:
+            key, allowed = _UNION_FIELDS[union]
+            shown = err.get("input") if not isinstance(err.get("input"), dict) else None
+            if key and isinstance(err.get("input"), dict):
                 loc += [key]
-            problems.append((loc, f"'{key}' is required" if key else "wrong kind of entry", None, allowed))
+                problems.append((loc, f"'{key}' is required", None, allowed))
+            else:
+                problems.append((loc, "wrong kind of entry", shown, allowed))
             continue
-        elif err["type"] == "union_tag_invalid" and loc and loc[-1] in _UNION_FIELDS:
-            loc += [_UNION_FIELDS[loc[-1]][0]]
+        elif err["type"] == "union_tag_invalid" and union:
+            loc += [_UNION_FIELDS[union][0]]
         reason, value, allowed = _describe(err)
         problems.append((loc, reason, value, allowed))
     full = [[*([prefix] if prefix else []), *loc] for loc, *_ in problems]
@@ -291,9 +323,9 @@ def _validation_error(exc: ValidationError, file: str, path: str | Path | None, 
         error = InputError(
             f"{len(problems)} problems: " + "; ".join(f"({i}) {t}" for i, t in enumerate(parts, 1)),
             file=file,
-            field=paths[0] or None,
             line=line,
         )
+        error.field = paths[0] or None  # for programs; the message already names every field
     error.problems = list(zip(paths, [p[1] for p in problems], strict=True))  # type: ignore[attr-defined]
     return error
 
@@ -311,6 +343,15 @@ def _located(file: str, field: str) -> Iterator[None]:
 
 
 # ====================================================================== base spec
+@dataclasses.dataclass(frozen=True)
+class _UnknownField:
+    """The value of an unknown field, with the closest known name and the known names."""
+
+    value: Any
+    suggestion: str | None
+    allowed: str
+
+
 class _Spec(BaseModel):
     """Base of every spec: unknown fields are errors; generic fields take quantities with units."""
 
@@ -357,20 +398,17 @@ class _Spec(BaseModel):
                     _fail(exc.reason, field=key, value=value, allowed=exc.allowed)
             else:
                 unknown.append(key)
-        if unknown:
-            hints = []
-            for key in unknown:
-                close = difflib.get_close_matches(key, [*names, *generic], n=1, cutoff=0.6)
-                hints.append(f"'{key}'" + (f" (did you mean '{close[0]}'?)" if close else ""))
-            _fail(
-                "unknown field" + ("s " if len(unknown) > 1 else " ") + ", ".join(hints),
-                field=unknown[0],
-                allowed=", ".join(names),
-            )
+        for key in unknown:
+            # Left in place for pydantic's extra="forbid", which reports each one at its own location
+            # without stopping the validation of the other fields; the wrapper carries the hint.
+            close = difflib.get_close_matches(key, [*names, *generic], n=1, cutoff=0.6)
+            out[key] = _UnknownField(data[key], close[0] if close else None, ", ".join(names))
         return out
 
 
-def _check_increasing(values: Sequence[float], field: str, *, strict: bool = True, what: str = "values") -> None:
+def _check_increasing(
+    values: Sequence[float], field: str, *, strict: bool = True, what: str = "values"
+) -> None:
     for i in range(1, len(values)):
         if values[i] < values[i - 1] or (strict and values[i] == values[i - 1]):
             _fail(
@@ -489,7 +527,12 @@ class PiecewiseInterval(_Spec):
 
     def row(self) -> tuple[float, float, float, float]:
         # V [km/h] = v [m/s] / KMH: the linear term scales by 1/KMH, the quadratic one by 1/KMH^2.
-        return (self.c0_kn * KN, self.c1_kn_per_kmh * KN / KMH, self.c2_kn_per_kmh2 * KN / KMH**2, self.ch_kw * KW)
+        return (
+            self.c0_kn * KN,
+            self.c1_kn_per_kmh * KN / KMH,
+            self.c2_kn_per_kmh2 * KN / KMH**2,
+            self.ch_kw * KW,
+        )
 
 
 class PiecewiseTraction(_Caps):
@@ -565,15 +608,15 @@ class PowerLimitedTraction(_Spec):
         if self.max_force_kn is not None:
             cap = self.max_force_kn * KN
         if self.adhesion_coefficient is not None:
-            mass_kg = self.adhesion_mass_t * TONNE if self.adhesion_mass_t is not None else train.adhesion_mass_kg()
+            mass_kg = (
+                self.adhesion_mass_t * TONNE if self.adhesion_mass_t is not None else train.adhesion_mass_kg()
+            )
             if mass_kg is None:
                 raise InputError(
                     "the adhesion limit needs the mass on driven axles: give 'adhesion_mass_t', or mark the "
                     "driving vehicles 'powered: true', or give the train's 'adhesion_mass_t'",
                     field="traction.adhesion_mass_t",
                 )
-            from trainsim.constants import G
-
             cap = min(cap, self.adhesion_coefficient * mass_kg * G)
         return EffortCurve.power_limited(
             self.power_kw * KW, cap, self.efficiency, label=f"{self.power_kw:g} kW power-limited"
@@ -777,7 +820,9 @@ class SpecificTerm(_Term):
     c_n_per_kn_per_kmh2: NonNegative
 
     def law(self, mass_kg: float, axles: int | None) -> Quadratic:
-        return res.specific_n_per_kn(mass_kg, self.a_n_per_kn, self.b_n_per_kn_per_kmh, self.c_n_per_kn_per_kmh2)
+        return res.specific_n_per_kn(
+            mass_kg, self.a_n_per_kn, self.b_n_per_kn_per_kmh, self.c_n_per_kn_per_kmh2
+        )
 
 
 class RavTerm(_Term):
@@ -1012,14 +1057,15 @@ class TrainSpec(_Spec):
             missing = [f"formation[{i}]" for i, v in enumerate(vehicles) if v.rotating_mass_factor is None]
             if not vehicles or missing:
                 _fail(
-                    "the rotating mass factor is needed: give the train's 'rotating_mass_factor' (rho >= 1) or "
-                    "'gamma' (= rho - 1, source 002), or 'rotating_mass_factor' for every vehicle"
-                    + (f" (missing in {', '.join(missing)})" if vehicles else ""),
+                    "the rotating mass factor is needed: give the train's 'rotating_mass_factor' "
+                    "(rho >= 1) or 'gamma' (= rho - 1, source 002), or 'rotating_mass_factor' for every "
+                    "vehicle" + (f" (missing in {', '.join(missing)})" if vehicles else ""),
                     field="rotating_mass_factor",
                 )
         if self.max_speed_kmh is None and (not vehicles or any(v.max_speed_kmh is None for v in vehicles)):
             _fail(
-                "give the train's 'max_speed_kmh' (or 'max_speed_kmh' for every vehicle)", field="max_speed_kmh"
+                "give the train's 'max_speed_kmh' (or 'max_speed_kmh' for every vehicle)",
+                field="max_speed_kmh",
             )
         names = [v.name for v in vehicles]
         for i, term in enumerate(self.resistance):
@@ -1067,7 +1113,9 @@ class TrainSpec(_Spec):
             return self.rotating_mass_factor
         if self.gamma is not None:
             return 1.0 + self.gamma
-        extra = sum(v.count * ((v.rotating_mass_factor or 1.0) - 1.0) * v.mass_t * TONNE for v in self.vehicles())
+        extra = sum(
+            v.count * ((v.rotating_mass_factor or 1.0) - 1.0) * v.mass_t * TONNE for v in self.vehicles()
+        )
         return 1.0 + extra / self.mass_kg()
 
     def max_speed_mps(self) -> float:
@@ -1092,7 +1140,7 @@ class TrainSpec(_Spec):
             else None
         )
         for field, term, vehicle in terms:
-            family = term.model_fields["family"].annotation.__args__[0]  # type: ignore[attr-defined]
+            family = getattr(term, "family", "?")
             with _located(file, field):
                 if vehicle is None:
                     law = term.law(self.mass_kg(), train_axles)
@@ -1115,11 +1163,13 @@ class TrainSpec(_Spec):
         notes: list[str] = []
         if self.formation is not None and self.rotating_mass_factor is None and self.gamma is None:
             notes.append(f"rotating mass factor {self.rho():.4f} combined from the vehicles' factors")
-        if isinstance(self.traction, PowerLimitedTraction) and self.traction.adhesion_coefficient is not None:
-            if self.traction.adhesion_mass_t is None:
-                mass = self.adhesion_mass_kg()
-                if mass is not None:
-                    notes.append(f"adhesion mass {mass / TONNE:g} t (powered vehicles or the train's adhesion_mass_t)")
+        t = self.traction
+        if isinstance(t, PowerLimitedTraction) and t.adhesion_coefficient and t.adhesion_mass_t is None:
+            mass = self.adhesion_mass_kg()
+            if mass is not None:
+                notes.append(
+                    f"adhesion mass {mass / TONNE:g} t (powered vehicles or the train's adhesion_mass_t)"
+                )
         b = self.braking
         if isinstance(b, TableBraking):
             if b.is_full and b.service_fraction is None:
@@ -1133,11 +1183,19 @@ class TrainSpec(_Spec):
                 notes.append("regenerative efficiency = traction efficiency (not given)")
         else:
             notes.append("no electrical data: energy at the wheel only")
-        if self.max_speed_kmh is not None and self.formation:
-            slow = [v for v in self.formation if v.max_speed_kmh is not None and v.max_speed_kmh < self.max_speed_kmh]
-            for v in slow:
-                notes.append(f"warning: train max speed {self.max_speed_kmh:g} km/h exceeds '{v.name}' ({v.max_speed_kmh:g})")
         return notes
+
+    def warnings(self) -> list[str]:
+        """Inconsistencies that are not errors, for ``trainsim check``."""
+        out = []
+        if self.max_speed_kmh is not None and self.formation:
+            for v in self.formation:
+                if v.max_speed_kmh is not None and v.max_speed_kmh < self.max_speed_kmh:
+                    out.append(
+                        f"train max speed {self.max_speed_kmh:g} km/h exceeds the limit of vehicle "
+                        f"'{v.name}' ({v.max_speed_kmh:g} km/h)"
+                    )
+        return out
 
     # ------------------------------------------------------------------ the model object
     def to_train(self, file: str = "<train>") -> Train:
@@ -1164,7 +1222,9 @@ class TrainSpec(_Spec):
                     powered=v.powered,
                 )
             ] * v.count
-        length = self.length_m if self.formation is None else sum(v.count * v.length_m for v in self.vehicles())
+        length = (
+            self.length_m if self.formation is None else sum(v.count * v.length_m for v in self.vehicles())
+        )
         with _located(file, "train"):
             return Train(
                 name=self.name,
@@ -1244,7 +1304,9 @@ class CurveSpec(_Section):
     def radius(self) -> float:
         if self.radius_m is not None:
             return self.radius_m
-        return line_resistance.curve_radius_from_angle((self.end() or 0.0) - self.from_m, self.central_angle_deg or 0.0)
+        return line_resistance.curve_radius_from_angle(
+            (self.end() or 0.0) - self.from_m, self.central_angle_deg or 0.0
+        )
 
 
 class TunnelSpec(_Section):
@@ -1306,7 +1368,9 @@ class RouteSpec(_Spec):
             _fail("give exactly one of 'length_m' or 'end_m'", field="length_m")
         end = self.end()
         if not end > self.start_m:
-            _fail("the route must end after it starts", field="end_m", value=end, allowed=f"> {self.start_m:g}")
+            _fail(
+                "the route must end after it starts", field="end_m", value=end, allowed=f"> {self.start_m:g}"
+            )
         if self.gradients is not None and self.elevation is not None:
             _fail("give 'gradients' or 'elevation', not both", field="elevation")
         self._check_stations(end)
@@ -1335,7 +1399,11 @@ class RouteSpec(_Spec):
                     allowed=f"{self.start_m:g} .. {end:g} m",
                 )
             if s.name in names:
-                _fail(f"station name already used by stations[{names[s.name]}]", field=f"stations[{i}].name", value=s.name)
+                _fail(
+                    f"station name already used by stations[{names[s.name]}]",
+                    field=f"stations[{i}].name",
+                    value=s.name,
+                )
             names[s.name] = i
         _check_increasing([s.position_m for s in self.stations], "stations", what="station positions")
 
@@ -1363,14 +1431,16 @@ class RouteSpec(_Spec):
                 continue
             if item.to_m > nxt + 1e-9:
                 _fail(
-                    "section runs into the next one" if i + 1 < len(items) else "section runs past the route end",
+                    "section runs into the next one"
+                    if i + 1 < len(items)
+                    else "section runs past the route end",
                     field=f"{name}[{i}].to_m",
                     value=item.to_m,
                     allowed=f"<= {nxt:g}",
                 )
             if cover and item.to_m < nxt - 1e-9:
                 _fail(
-                    f"gap in {name}: every position needs a value (leave 'to_m' out to run to the next entry)",
+                    f"gap in {name}: every position needs a value (leave 'to_m' out to run to the next one)",
                     field=f"{name}[{i}].to_m",
                     value=item.to_m,
                     allowed=f"{nxt:g}",
@@ -1417,7 +1487,10 @@ class RouteSpec(_Spec):
     def to_route(self, file: str = "<route>") -> Route:
         """The :class:`~trainsim.model.Route` in SI units."""
         end = self.end()
-        limits = [SpeedLimit(a, b, x.limit_kmh * KMH) for (a, b), x in zip(self._ends(self.speed_limits, end), self.speed_limits, strict=True)]
+        limits = [
+            SpeedLimit(a, b, x.limit_kmh * KMH)
+            for (a, b), x in zip(self._ends(self.speed_limits, end), self.speed_limits, strict=True)
+        ]
         gradients: list[GradientSection] = []
         if self.gradients:
             gradients = [
@@ -1427,7 +1500,7 @@ class RouteSpec(_Spec):
             ]
         elif self.elevation:
             pts = self.elevation
-            for p, q in zip(pts, pts[1:], strict=False):
+            for p, q in itertools.pairwise(pts):
                 a, b = max(p.position_m, self.start_m), min(q.position_m, end)
                 grade = (q.elevation_m - p.elevation_m) / (q.position_m - p.position_m) * 1000.0
                 if b > a and grade != 0:
@@ -1531,7 +1604,11 @@ def apply_stops(
     for i, name in enumerate(stops or []):
         if name not in names:
             raise InputError(
-                "no station of that name on the route", file=file, field=f"stops[{i}]", value=name, allowed=", ".join(names)
+                "no station of that name on the route",
+                file=file,
+                field=f"stops[{i}]",
+                value=name,
+                allowed=", ".join(names),
             )
     for name in dwell_s or {}:
         if name not in names:
@@ -1557,7 +1634,9 @@ def _check_header(data: Any, schema: str, file: str, *, required: bool = True) -
     """Check ``schema`` / ``version`` before the rest, so that a wrong file gets one clear error."""
     if not isinstance(data, dict):
         raise InputError(
-            "expected a mapping of fields (key: value lines) at the top level", file=file, value=type(data).__name__
+            "expected a mapping of fields (key: value lines) at the top level",
+            file=file,
+            value=type(data).__name__,
         )
     if "schema" not in data:
         if required:
@@ -1583,7 +1662,9 @@ def _check_header(data: Any, schema: str, file: str, *, required: bool = True) -
         )
 
 
-def _validate(cls: type[_Spec], data: Any, schema: str, source: str, path: str | Path | None, *, header: bool) -> Any:
+def _validate(
+    cls: type[_Spec], data: Any, schema: str, source: str, path: str | Path | None, *, header: bool
+) -> Any:
     _check_header(data, schema, source, required=header)
     try:
         return cls.model_validate(data)
@@ -1601,7 +1682,9 @@ def route_spec_from_dict(data: Any, source: str = "<route>", *, path: str | Path
     return _validate(RouteSpec, data, "trainsim/route", source, path, header=True)
 
 
-def scenario_spec_from_dict(data: Any, source: str = "<scenario>", *, path: str | Path | None = None) -> ScenarioSpec:
+def scenario_spec_from_dict(
+    data: Any, source: str = "<scenario>", *, path: str | Path | None = None
+) -> ScenarioSpec:
     """Validate a ``trainsim/scenario`` mapping (inline train and route may omit schema/version)."""
     return _validate(ScenarioSpec, data, "trainsim/scenario", source, path, header=True)
 
@@ -1659,7 +1742,10 @@ def dump_yaml(spec: BaseModel) -> str:
     """A spec as YAML text that reads back to an equal spec (fields left at their default omitted,
     except ``schema`` and ``version``)."""
     data = spec.model_dump(mode="json", by_alias=True, exclude_unset=True)
-    for key, value in (("schema", getattr(spec, "schema_id", None)), ("version", getattr(spec, "version", None))):
+    for key, value in (
+        ("schema", getattr(spec, "schema_id", None)),
+        ("version", getattr(spec, "version", None)),
+    ):
         if value is not None:
             data[key] = value
     order = ["schema", "version", "name"]

@@ -163,6 +163,8 @@ def _unit(symbol: str, *, field: str | None, file: str | None, dimension: str | 
 
 def split_suffix(field_name: str) -> tuple[str, str] | None:
     """``"max_speed_kmh"`` -> ``("max_speed", "km/h")``; None if the name has no unit suffix."""
+    if "_per_" in field_name:  # compound units (b_kn_per_kmh) have no generic form
+        return None
     base, sep, suffix = field_name.rpartition("_")
     if not sep or not base or suffix not in SUFFIX_UNITS:
         return None
@@ -207,7 +209,11 @@ def parse_quantity(
         match = _NUMBER_WITH_UNIT.match(value)
         if match is None:
             raise InputError(
-                "expected '<number> <unit>'", file=file, field=field, value=value, allowed=format_units(dimension)
+                "expected '<number> <unit>'",
+                file=file,
+                field=field,
+                value=value,
+                allowed=format_units(dimension),
             )
         number = float(match.group(1))
         symbol = match.group(2) or bare_unit or ""

@@ -180,12 +180,15 @@ def _regime_forces(
     v: np.ndarray,
     running: np.ndarray,
     line: np.ndarray,
+    level: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Traction and braking force [N] in each point's regime at speed v."""
+    """Traction and braking force [N] in each point's regime at speed v; ``level`` is the
+    driver's command magnitude (0..1) in traction and braking, 1 for the envelope regimes."""
     traction = np.zeros_like(v)
     braking = np.zeros_like(v)
+    level = np.ones_like(v) if level is None else level
     is_t = regime == TRACTION
-    traction[is_t] = train.traction(v[is_t])
+    traction[is_t] = level[is_t] * train.traction(v[is_t])
     is_c = regime == CRUISE
     need = running[is_c] + line[is_c]
     traction[is_c] = np.maximum(need, 0.0)
@@ -193,10 +196,24 @@ def _regime_forces(
     is_b = regime == BRAKE
     if train.braking.deceleration_mps2 is not None:
         decel = train.braking.deceleration_mps2 * settings.braking_fraction
-        braking[is_b] = np.maximum(train.inertial_mass_kg * decel - running[is_b] - line[is_b], 0.0)
+        braking[is_b] = level[is_b] * np.maximum(train.inertial_mass_kg * decel - running[is_b] - line[is_b], 0.0)
     else:
-        braking[is_b] = settings.braking_fraction * train.braking.service_force(v[is_b])
+        braking[is_b] = level[is_b] * settings.braking_fraction * train.braking.service_force(v[is_b])
     return traction, braking
+
+
+def _section_ends(regime: np.ndarray) -> list[int]:
+    """Index of the arrival point of each section: the first point of each run of DWELL points,
+    and the last point if the run ends without a stop."""
+    ends = []
+    n = len(regime)
+    for k in range(n):
+        if regime[k] == DWELL and (k == 0 or regime[k - 1] != DWELL):
+            if k > 0:
+                ends.append(k)
+    if n and (not ends or ends[-1] != n - 1) and regime[-1] != DWELL:
+        ends.append(n - 1)
+    return ends
 
 
 def _line_forces(profile: LineResistanceProfile, mass_kg: float, s: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -223,6 +240,8 @@ def build_result(
     stall_position_m: float = float("nan"),
     kind: str = "fastest",
     warnings: list[str] | None = None,
+    level: np.ndarray | None = None,
+    stop_names: list[str] | None = None,
 ) -> RunResult:
     """Evaluate forces, powers, currents and energies along a run given as points."""
     warnings = list(warnings or [])
@@ -234,7 +253,8 @@ def build_result(
     running = np.asarray(train.running_resistance_n(v), dtype=float) * (v > 0)
     grad, curve, tunnel = _line_forces(profile, m, s_right, v)
     line = grad + curve + tunnel
-    traction, braking = _regime_forces(train, settings, regime, v, running, line)
+    level = np.ones(n) if level is None else np.asarray(level, dtype=float)
+    traction, braking = _regime_forces(train, settings, regime, v, running, line, level)
     regen_cap = train.braking.regenerative(v) if train.braking.regenerative is not None else np.zeros(n)
     regen = np.minimum(braking, regen_cap)
     friction = braking - regen
@@ -251,8 +271,8 @@ def build_result(
     run1 = np.asarray(train.running_resistance_n(v1), dtype=float)
     g_mid, c_mid, t_mid = _line_forces(profile, m, mid, np.sqrt(0.5 * (v0**2 + v1**2)))
     line_mid = g_mid + c_mid + t_mid
-    f0t, f0b = _regime_forces(train, settings, r, v0, run0, line_mid)
-    f1t, f1b = _regime_forces(train, settings, r, v1, run1, line_mid)
+    f0t, f0b = _regime_forces(train, settings, r, v0, run0, line_mid, level[:-1])
+    f1t, f1b = _regime_forces(train, settings, r, v1, run1, line_mid, level[:-1])
     w_traction = 0.5 * (f0t + f1t) * ds
     w_braking = 0.5 * (f0b + f1b) * ds
     if train.braking.regenerative is not None:
@@ -314,19 +334,23 @@ def build_result(
     )
 
     # sections: between consecutive stop points (a DWELL point ends a section)
-    stops = route.stops
-    ends = list(np.flatnonzero(regime == DWELL))
-    starts = [0] + [e + 1 for e in ends[:-1]]
+    names = stop_names if stop_names is not None else [st.name for st in route.stops]
+    ends = _section_ends(regime)
     sections = []
-    for k, (a, b) in enumerate(zip(starts, ends, strict=False)):
-        sl = slice(a, b)  # stretches a .. b-1 belong to the run of this section
-        dwell = float(t[b + 1] - t[b]) if b + 1 < n else 0.0
+    a = 0
+    for k, b in enumerate(ends):
+        # stretches a .. b-1 are the run; b .. d-1 the dwell at its arrival station
+        d = b
+        while d < n - 1 and regime[d] == DWELL:
+            d += 1
+        dwell = float(t[d] - t[b])
         run_time = float(t[b] - t[a])
         dist = float(s[b] - s[a])
+        run, stay = slice(a, b), slice(b, d)
         sections.append(
             SectionSummary(
-                from_station=stops[k].name,
-                to_station=stops[k + 1].name if k + 1 < len(stops) else "?",
+                from_station=names[k] if k < len(names) else "?",
+                to_station=names[k + 1] if k + 1 < len(names) else "(end of run)",
                 distance_m=dist,
                 running_time_s=run_time,
                 dwell_s=dwell,
@@ -334,15 +358,16 @@ def build_result(
                 average_speed_kmh=dist / run_time / KMH if run_time > 0 else 0.0,
                 peak_current_a=float(np.nanmax(current[a : b + 1])) if elec else float("nan"),
                 energy_kwh=EnergyFigures(
-                    traction=float(w_traction[sl].sum() / KWH),
-                    braking=float(w_braking[sl].sum() / KWH),
-                    regenerated=float(e_regen_line[sl].sum() / KWH),
-                    auxiliary=float((e_aux[sl].sum() + (e_aux[b] if b < n - 1 else 0.0)) / KWH),
-                    net=float((e_net[sl].sum() + (e_aux[b] if b < n - 1 else 0.0)) / KWH),
-                    paper=float(e_paper[sl].sum() / KWH),
+                    traction=float(w_traction[run].sum() / KWH),
+                    braking=float(w_braking[run].sum() / KWH),
+                    regenerated=float(e_regen_line[run].sum() / KWH),
+                    auxiliary=float((e_aux[run].sum() + e_aux[stay].sum()) / KWH),
+                    net=float((e_net[run].sum() + e_net[stay].sum()) / KWH),
+                    paper=float(e_paper[run].sum() / KWH),
                 ),
             )
         )
+        a = d
     if status == "stalled":
         warnings.append(
             f"the train stalls at {stall_position_m:.1f} m: its maximum tractive effort cannot overcome the "

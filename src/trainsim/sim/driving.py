@@ -1,0 +1,289 @@
+"""Driving by command, step by step in the time domain (source 002's accelerator and brake).
+
+The session holds the train's state; each ``step(command, dt_s)`` applies a command in [-1, 1]
+(positive: that share of the maximum tractive effort; negative: that share of the service braking
+force; 0: coasting) for ``dt_s`` seconds. Stops are served when the train comes to rest with its
+head within ``stop_window_m`` of a stop it has not served yet; it then dwells (commands are
+ignored) for the station's dwell time. The recorded drive converts to the same ``RunResult`` as a
+fastest run, so both can be compared.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from trainsim.constants import G
+from trainsim.errors import InputError
+from trainsim.model.route import Route
+from trainsim.model.scenario import RunSettings, Scenario
+from trainsim.model.train import Train
+from trainsim.sim.kernel import BRAKE, COAST, DWELL, TRACTION
+from trainsim.sim.profile import line_resistance_profile, speed_ceiling
+from trainsim.sim.result import RunResult, build_result
+
+#: Largest internal time step [s]; a command may span many of them.
+MAX_SUBSTEP_S = 0.1
+#: A stop counts when the head is this close to the stopping point [m].
+DEFAULT_STOP_WINDOW_M = 5.0
+#: Longest drive a session records [s], to bound memory.
+MAX_DRIVE_S = 6 * 3600.0
+
+
+@dataclass(frozen=True)
+class DrivingState:
+    """What the driver sees after a step (SI units)."""
+
+    time_s: float
+    position_m: float
+    speed_mps: float
+    acceleration_mps2: float
+    command: float
+    regime: str
+    traction_force_n: float
+    braking_force_n: float
+    speed_limit_mps: float
+    next_limit_position_m: float | None
+    next_limit_mps: float | None
+    next_stop_name: str | None
+    next_stop_distance_m: float | None
+    dwell_remaining_s: float
+    line_current_a: float | None
+    electrical_energy_j: float
+    overspeed: bool
+    finished: bool
+    message: str
+
+
+class DrivingSession:
+    """A train driven by command along a route, from standstill at its first stop."""
+
+    def __init__(
+        self,
+        scenario: Scenario | None = None,
+        *,
+        train: Train | None = None,
+        route: Route | None = None,
+        settings: RunSettings | None = None,
+        stop_window_m: float = DEFAULT_STOP_WINDOW_M,
+    ) -> None:
+        if scenario is not None:
+            train, route, settings = scenario.train, scenario.route, scenario.settings
+        if train is None or route is None:
+            raise InputError("a driving session needs a scenario or a train and a route", field="session")
+        self.train = train
+        self.route = route
+        self.settings = settings or RunSettings()
+        self.stop_window_m = stop_window_m
+        self._profile = line_resistance_profile(route, train)
+        self._ceiling = speed_ceiling(route, train)
+        stops = route.stops
+        if not stops:
+            raise InputError("the route has no stop to start from", field="stations")
+        self._stops = list(stops)
+        self._next_stop = 1
+        self.time_s = 0.0
+        self.position_m = stops[0].position_m
+        self.speed_mps = 0.0
+        self.dwell_remaining_s = 0.0
+        self.finished = len(stops) < 2
+        self._energy_j = 0.0
+        self._message = f"at {stops[0].name}"
+        self._record: list[tuple[float, float, float, int, float]] = [
+            (self.time_s, self.position_m, 0.0, COAST, 0.0)
+        ]
+        self._passed: list[str] = []
+
+    # ------------------------------------------------------------------ physics
+    def _forces(self, command: float, v: float, s: float) -> tuple[float, float, float]:
+        """(traction, braking, resistance) [N] for a command at speed v and head position s."""
+        train = self.train
+        traction = command * float(train.traction(v)) if command > 0 else 0.0
+        running = float(train.running_resistance_n(v)) if v > 0 else 0.0
+        p = self._profile
+        ratio = float(p.gradient(s) + p.curve(s) + p.tunnel(s) + p.tunnel_v2(s) * v * v)
+        resistance = running + train.mass_kg * G * ratio
+        braking = 0.0
+        if command < 0:
+            if train.braking.deceleration_mps2 is not None:
+                decel = train.braking.deceleration_mps2 * self.settings.braking_fraction
+                braking = -command * max(train.inertial_mass_kg * decel - resistance, 0.0)
+            else:
+                braking = -command * self.settings.braking_fraction * float(train.braking.service_force(v))
+        return traction, braking, resistance
+
+    def _line_power_w(self, command: float) -> float:
+        """Power drawn from the line now [W] (for the live display; the record is integrated
+        properly by ``result``)."""
+        elec = self.train.electrical
+        if elec is None:
+            return 0.0
+        v = self.speed_mps
+        traction, braking, _ = self._forces(command, v, self.position_m)
+        regen_cap = self.train.braking.regenerative
+        regen = min(braking, float(regen_cap(v))) if regen_cap is not None else 0.0
+        return (
+            traction * v / elec.traction_efficiency
+            + elec.auxiliary_power_w
+            - regen * v * elec.regenerative_efficiency * elec.receptivity
+        )
+
+    def _acceleration(self, command: float, v: float, s: float) -> float:
+        traction, braking, resistance = self._forces(command, v, s)
+        net = traction - braking - resistance
+        if v <= 0.0 and net <= 0.0:
+            return 0.0  # at rest, resistance and brakes hold the train; they never push it back
+        return net / self.train.inertial_mass_kg
+
+    def _substep(self, command: float, h: float) -> None:
+        s, v = self.position_m, self.speed_mps
+        a1 = self._acceleration(command, v, s)
+        a2 = self._acceleration(command, max(v + 0.5 * h * a1, 0.0), s + 0.5 * h * v)
+        a3 = self._acceleration(command, max(v + 0.5 * h * a2, 0.0), s + 0.5 * h * (v + 0.5 * h * a1))
+        a4 = self._acceleration(command, max(v + h * a3, 0.0), s + h * (v + 0.5 * h * a2))
+        v_new = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
+        if v_new < 0.0:
+            # stops within the step: constant-deceleration estimate of when and where
+            h_stop = h * v / (v - v_new) if v > 0 else 0.0
+            s += 0.5 * v * h_stop
+            v_new = 0.0
+        else:
+            s += h / 6.0 * (v + 2 * (v + 0.5 * h * a1) + 2 * (v + 0.5 * h * a2) + (v + h * a3))
+        self.position_m = min(s, self.route.end_m)
+        self.speed_mps = v_new
+        self.time_s += h
+
+    # ------------------------------------------------------------------ API
+    def step(self, command: float, dt_s: float) -> DrivingState:
+        """Apply ``command`` in [-1, 1] for ``dt_s`` seconds (0 < dt_s <= 60) and return the state."""
+        if not np.isfinite(command) or not -1.0 <= command <= 1.0:
+            raise InputError("the driving command must be in [-1, 1]", field="command", value=command)
+        if not 0.0 < dt_s <= 60.0:
+            raise InputError("the time step must be in (0, 60] s", field="dt_s", value=dt_s)
+        if self.finished:
+            return self.state(command)
+        if self.time_s + dt_s > MAX_DRIVE_S:
+            self.finished = True
+            self._message = "drive too long: stopped recording"
+            return self.state(command)
+        remaining = dt_s
+        while remaining > 1e-12 and not self.finished:
+            h = min(MAX_SUBSTEP_S, remaining)
+            if self.dwell_remaining_s > 0.0:
+                h = min(h, self.dwell_remaining_s)
+                self.time_s += h
+                self._energy_j += self._line_power_w(0.0) * h
+                self.dwell_remaining_s -= h
+                self._log(DWELL, 0.0)
+                if self.dwell_remaining_s <= 1e-9:
+                    self.dwell_remaining_s = 0.0
+                    self._message = f"departing {self._stops[self._next_stop - 1].name}"
+            else:
+                self._log(TRACTION if command > 0 else BRAKE if command < 0 else COAST, abs(command), replace=True)
+                self._energy_j += self._line_power_w(command) * h
+                self._substep(command, h)
+                self._after_move()
+                self._log(TRACTION if command > 0 else BRAKE if command < 0 else COAST, abs(command))
+            remaining -= h
+        return self.state(command)
+
+    def _after_move(self) -> None:
+        stop = self._stops[self._next_stop]
+        ahead = stop.position_m - self.position_m
+        if self.speed_mps == 0.0 and abs(ahead) <= self.stop_window_m:
+            self._next_stop += 1
+            if self._next_stop >= len(self._stops):
+                self.finished = True
+                self._message = f"arrived at {stop.name}: end of the route"
+            else:
+                self.dwell_remaining_s = stop.dwell_s
+                self._message = f"stopped at {stop.name}: dwell {stop.dwell_s:.0f} s"
+        elif ahead < -self.stop_window_m:
+            self._passed.append(stop.name)
+            self._message = f"passed {stop.name} without stopping"
+            self._next_stop += 1
+            if self._next_stop >= len(self._stops):
+                self.finished = True
+        if self.position_m >= self.route.end_m:
+            self.finished = True
+            self._message = "reached the end of the route"
+
+    def _log(self, regime: int, level: float, replace: bool = False) -> None:
+        entry = (self.time_s, self.position_m, self.speed_mps, regime, level)
+        if replace:
+            # the point that starts a stretch carries that stretch's regime
+            self._record[-1] = (*self._record[-1][:3], regime, level)
+        else:
+            self._record.append(entry)
+
+    def state(self, command: float = 0.0) -> DrivingState:
+        """The current state without moving."""
+        s, v = self.position_m, self.speed_mps
+        traction, braking, resistance = self._forces(command if self.dwell_remaining_s == 0 else 0.0, v, s)
+        limit = float(self._ceiling(s + 1e-7))
+        x = self._ceiling.x
+        later = np.flatnonzero((x > s + 1e-6) & (np.abs(self._ceiling(x + 1e-7) - limit) > 1e-9))
+        next_pos = float(x[later[0]]) if len(later) else None
+        next_lim = float(self._ceiling(x[later[0]] + 1e-7)) if len(later) else None
+        nxt = self._stops[self._next_stop] if self._next_stop < len(self._stops) else None
+        elec = self.train.electrical
+        current = None
+        if elec:
+            p = traction * v / elec.traction_efficiency + elec.auxiliary_power_w
+            current = p / (elec.line_voltage_v * elec.power_factor)
+        regime = (
+            "dwell"
+            if self.dwell_remaining_s > 0
+            else "traction"
+            if command > 0
+            else "braking"
+            if command < 0
+            else "coasting"
+        )
+        return DrivingState(
+            time_s=self.time_s,
+            position_m=s,
+            speed_mps=v,
+            acceleration_mps2=(traction - braking - resistance) / self.train.inertial_mass_kg if v > 0 else 0.0,
+            command=command,
+            regime=regime,
+            traction_force_n=traction,
+            braking_force_n=braking,
+            speed_limit_mps=limit,
+            next_limit_position_m=next_pos,
+            next_limit_mps=next_lim,
+            next_stop_name=nxt.name if nxt else None,
+            next_stop_distance_m=(nxt.position_m - s) if nxt else None,
+            dwell_remaining_s=self.dwell_remaining_s,
+            line_current_a=current,
+            electrical_energy_j=self._energy_j,
+            overspeed=v > limit + 1e-6,
+            finished=self.finished,
+            message=self._message,
+        )
+
+    def result(self) -> RunResult:
+        """The drive so far as a RunResult (same trace and summary as a fastest run)."""
+        rec = np.array(self._record, dtype=float)
+        t, s, v, regime, level = rec[:, 0], rec[:, 1], rec[:, 2], rec[:, 3].astype(np.int8), rec[:, 4]
+        warnings = [f"passed {name} without stopping" for name in self._passed]
+        if not self.finished:
+            warnings.append("the drive has not reached its destination yet")
+        served = [st.name for st in self._stops if st.name not in self._passed]
+        return build_result(
+            train=self.train,
+            route=self.route,
+            settings=self.settings,
+            profile=self._profile,
+            ceiling=self._ceiling,
+            s=s,
+            v=v,
+            t=t,
+            regime=regime,
+            status="ok" if self.finished else "in progress",
+            kind="driven",
+            warnings=warnings,
+            level=level,
+            stop_names=served,
+        )
