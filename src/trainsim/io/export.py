@@ -1,0 +1,93 @@
+"""Write a run's results: the trace as CSV, the summary as JSON, the per-section table for a terminal."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from rich.console import JustifyMethod
+from rich.table import Table
+
+from trainsim.sim.result import RunResult
+
+__all__ = ["summary_table", "write_summary_json", "write_trace_csv"]
+
+
+def write_trace_csv(result: RunResult, path: str | Path) -> Path:
+    """Write the trace, one row per point and units in the column names (see ``Trace.to_dataframe``)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    result.to_dataframe().to_csv(path, index=False)
+    return path
+
+
+def write_summary_json(result: RunResult, path: str | Path) -> Path:
+    """Write ``result.summary()`` as indented JSON (unknown values are ``null``, never NaN)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    # allow_nan=False: summary() already maps NaN to None; a NaN here would be a bug, not output
+    path.write_text(json.dumps(result.summary(), indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    return path
+
+
+def _num(value: float | None, digits: int) -> str:
+    if value is None or not math.isfinite(value):
+        return "–"
+    return f"{value:,.{digits}f}"
+
+
+def summary_table(result: RunResult) -> Table:
+    """Per-section figures and a total row, for printing with ``rich``."""
+    table = Table(
+        title=f"{result.train_name} on {result.route_name} ({result.kind} run, status {result.status})",
+        show_footer=False,
+    )
+    headers: tuple[tuple[str, JustifyMethod], ...] = (
+        ("from", "left"),
+        ("to", "left"),
+        ("distance\n[km]", "right"),
+        ("running\ntime [s]", "right"),
+        ("dwell\n[s]", "right"),
+        ("max\n[km/h]", "right"),
+        ("avg\n[km/h]", "right"),
+        ("traction\n[kWh]", "right"),
+        ("regenerated\n[kWh]", "right"),
+        ("net\n[kWh]", "right"),
+        ("peak current\n[A]", "right"),
+    )
+    for name, justify in headers:
+        table.add_column(name, justify=justify)
+    for s in result.sections:
+        table.add_row(
+            s.from_station,
+            s.to_station,
+            _num(s.distance_m / 1000.0, 3),
+            _num(s.running_time_s, 1),
+            _num(s.dwell_s, 0),
+            _num(s.max_speed_kmh, 1),
+            _num(s.average_speed_kmh, 1),
+            _num(s.energy_kwh.traction, 2),
+            _num(s.energy_kwh.regenerated, 2),
+            _num(s.energy_kwh.net, 2),
+            _num(s.peak_current_a, 0),
+        )
+    first = result.sections[0].from_station if result.sections else ""
+    last = result.sections[-1].to_station if result.sections else ""
+    table.add_section()
+    # the total's average is the running average, like the sections' (distance / running time)
+    table.add_row(
+        f"total: {first}",
+        last,
+        _num(result.distance_m / 1000.0, 3),
+        _num(result.running_time_s, 1),
+        _num(result.dwell_s, 0),
+        _num(result.max_speed_kmh, 1),
+        _num(result.average_running_speed_kmh, 1),
+        _num(result.energy_kwh.traction, 2),
+        _num(result.energy_kwh.regenerated, 2),
+        _num(result.energy_kwh.net, 2),
+        _num(result.peak_current_a, 0),
+        style="bold",
+    )
+    return table
