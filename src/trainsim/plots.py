@@ -128,20 +128,25 @@ def plot_speed_distance(
         hi,
     )
     ax.plot(l_x / 1000.0, l_y, color="tab:red", lw=1.0, ls=":", label="line speed limit")
-    ax.plot(km, tr.speed_limit_mps / KMH, color="tab:red", lw=1.2, alpha=0.7, label="speed ceiling (train)")
+    # the trace's ceiling at point k holds from point k to k + 1 (evaluated just right of the point)
+    ax.step(
+        km, tr.speed_limit_mps / KMH, where="post", color="tab:red", lw=1.2, alpha=0.7, label="speed ceiling (train)"
+    )
     ax.plot(km, tr.speed_mps / KMH, color="tab:blue", lw=1.6, label="speed")
 
     top = max(float(np.nanmax(tr.speed_limit_mps)) if len(tr) else 0.0, train.max_speed_mps) / KMH
     for st in route.stations:
-        style = {"color": "0.3", "lw": 0.8, "ls": "-" if st.stop else "--"}
-        ax.axvline(st.position_m / 1000.0, **style)
+        ax.axvline(st.position_m / 1000.0, color="0.3", lw=0.8, ls="-" if st.stop else "--")
+        # names beside their line, inside the axes: a station at the route's end gets it on the left
+        at_end = st.position_m >= hi - 0.02 * (hi - lo)
         ax.annotate(
             st.name,
             (st.position_m / 1000.0, 1.0),
             xycoords=("data", "axes fraction"),
-            xytext=(2, -2),
+            xytext=(-2 if at_end else 2, -4),
             textcoords="offset points",
             rotation=90,
+            ha="right" if at_end else "left",
             va="top",
             fontsize=8,
             color="0.2",
@@ -154,7 +159,7 @@ def plot_speed_distance(
     ax.grid(True, alpha=0.3)
     handles, labels = ax.get_legend_handles_labels()
     h2, l2 = ax_p.get_legend_handles_labels()
-    ax.legend(handles + h2, labels + l2, loc="lower center", fontsize=8, ncols=4)
+    fig.legend(handles + h2, labels + l2, loc="outside lower center", fontsize=8, ncols=4)
     return fig
 
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from rich.console import JustifyMethod
 from rich.table import Table
+from rich.text import Text
 
 from trainsim.sim.result import RunResult
 
@@ -40,7 +41,7 @@ def _num(value: float | None, digits: int) -> str:
 def summary_table(result: RunResult) -> Table:
     """Per-section figures and a total row, for printing with ``rich``."""
     table = Table(
-        title=f"{result.train_name} on {result.route_name} ({result.kind} run, status {result.status})",
+        title=Text(f"{result.train_name} on {result.route_name} ({result.kind} run, status {result.status})"),
         show_footer=False,
     )
     headers: tuple[tuple[str, JustifyMethod], ...] = (
@@ -57,11 +58,12 @@ def summary_table(result: RunResult) -> Table:
         ("peak current\n[A]", "right"),
     )
     for name, justify in headers:
-        table.add_column(name, justify=justify)
+        # Text, not str: rich would read '[km]' as a markup tag and drop it
+        table.add_column(Text(name), justify=justify)
     for s in result.sections:
         table.add_row(
-            s.from_station,
-            s.to_station,
+            Text(s.from_station),
+            Text(s.to_station),
             _num(s.distance_m / 1000.0, 3),
             _num(s.running_time_s, 1),
             _num(s.dwell_s, 0),
@@ -77,8 +79,8 @@ def summary_table(result: RunResult) -> Table:
     table.add_section()
     # the total's average is the running average, like the sections' (distance / running time)
     table.add_row(
-        f"total: {first}",
-        last,
+        "total",
+        Text(f"{first} → {last}"),
         _num(result.distance_m / 1000.0, 3),
         _num(result.running_time_s, 1),
         _num(result.dwell_s, 0),

@@ -78,6 +78,7 @@ __all__ = [
     "route_spec_from_dict",
     "scenario_from_dict",
     "scenario_spec_from_dict",
+    "settings_from_dict",
     "train_from_dict",
     "train_spec_from_dict",
 ]
@@ -1687,6 +1688,14 @@ def scenario_spec_from_dict(
 ) -> ScenarioSpec:
     """Validate a ``trainsim/scenario`` mapping (inline train and route may omit schema/version)."""
     return _validate(ScenarioSpec, data, "trainsim/scenario", source, path, header=True)
+
+
+def settings_from_dict(data: Any, source: str = "<settings>") -> RunSettings:
+    """RunSettings from a mapping of the scenario ``settings`` keys."""
+    try:
+        return SettingsSpec.model_validate(data).build()
+    except ValidationError as exc:
+        raise _validation_error(exc, source, None, prefix="settings") from None
 
 
 def train_from_dict(data: Any, source: str = "<train>") -> Train:

@@ -122,119 +122,77 @@ def rk4_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf
     return E1, dt
 
 
-@njit(cache=True)
-def find_speed_crossing(E, u, H, target_E, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
-    """Step length h in (0, H] where E(h) reaches target_E along ``mode`` (Illinois method)."""
-    lo, hi = 0.0, H
-    f_lo = E - target_E
-    f_hi = rk4_energy(E, u, H, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp) - target_E
-    side = 0
-    h = hi
-    for _ in range(100):
-        if f_hi == f_lo:
-            break
-        h = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
-        f = rk4_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp) - target_E
-        if (f > 0.0) == (f_hi > 0.0):
-            hi, f_hi = h, f
-            if side == 1:
-                f_lo *= 0.5
-            side = 1
-        else:
-            lo, f_lo = h, f
-            if side == -1:
-                f_hi *= 0.5
-            side = -1
-        if abs(hi - lo) < POSITION_TOLERANCE or f == 0.0:
-            break
-    return h
-
-
-#: Local error tolerance on E = v^2/2 per step [m^2/s^2], relative to (1 + E).
-ENERGY_TOLERANCE = 1e-9
-#: Shortest step the error control may take [m].
-MIN_ADAPTIVE_STEP = 1e-4
+#: RK4 sub-steps of a speed-domain integration between two kinks.
+SPEED_DOMAIN_SUBSTEPS = 4
 
 
 @njit(cache=True)
-def adaptive_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
-    """(E, elapsed time) after a step h from offset u, subdivided by step doubling until the
-    local error is below ENERGY_TOLERANCE: the effort laws are tables with kinks and the time
-    near standstill is sensitive to them, so a fixed step is not enough."""
-    done = 0.0
-    dt_total = 0.0
-    hh = h
-    for _ in range(100000):
-        if abs(done - h) <= 1e-12 * max(1.0, abs(h)):
-            break
-        if abs(hh) > abs(h - done):
-            hh = h - done
-        E_full, dt_full = rk4_energy_time(E, u + done, hh, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
-        E_half, dt1 = rk4_energy_time(E, u + done, 0.5 * hh, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
-        E_two, dt2 = rk4_energy_time(
-            E_half, u + done + 0.5 * hh, 0.5 * hh, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp
-        )
-        err = abs(E_two - E_full)
-        if err <= ENERGY_TOLERANCE * (1.0 + abs(E)) or abs(hh) <= MIN_ADAPTIVE_STEP:
-            E = E_two
-            dt_total += dt1 + dt2
-            done += hh
-            if err < 0.05 * ENERGY_TOLERANCE * (1.0 + abs(E)):
-                hh *= 2.0
-        else:
-            hh *= 0.5
-    return E, dt_total
+def distance_to_speed(E, u, Et, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
+    """Signed distance [m] from (u, E) along ``mode`` until E reaches Et, integrating
+    ds/dE = 1/a(E, s) in the speed domain (exact event location, no root finding). The law must be
+    smooth between E and Et (no kink inside). Returns inf when the acceleration vanishes or changes
+    sign on the way, i.e. Et is never reached."""
+    n = SPEED_DOMAIN_SUBSTEPS
+    dE = (Et - E) / n
+    s = 0.0
+    sign = 0.0
+    for _ in range(n):
+        k1 = acceleration(mode, E, u + s, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        if sign == 0.0:
+            sign = 1.0 if k1 > 0.0 else -1.0
+        if k1 * sign <= 0.0:
+            return np.inf
+        r1 = 1.0 / k1
+        k2 = acceleration(mode, E + 0.5 * dE, u + s + 0.5 * dE * r1, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        if k2 * sign <= 0.0:
+            return np.inf
+        r2 = 1.0 / k2
+        k3 = acceleration(mode, E + 0.5 * dE, u + s + 0.5 * dE * r2, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        if k3 * sign <= 0.0:
+            return np.inf
+        r3 = 1.0 / k3
+        k4 = acceleration(mode, E + dE, u + s + dE * r3, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        if k4 * sign <= 0.0:
+            return np.inf
+        r4 = 1.0 / k4
+        s += dE / 6.0 * (r1 + 2.0 * r2 + 2.0 * r3 + r4)
+        E += dE
+    return s
 
 
 @njit(cache=True)
-def _next_kink(v0, v1, kinks):
-    """The kink speed strictly between v0 and v1 closest to v0, or -1."""
+def _next_kink(v0, rising, v_far, kinks):
+    """The kink speed closest to v0 in the direction of the speed change, up to v_far, or -1."""
     best = -1.0
     for vk in kinks:
-        if (v0 < vk < v1) or (v1 < vk < v0):
-            if best < 0.0 or abs(vk - v0) < abs(best - v0):
-                best = vk
+        ahead = (vk > v0 and vk < v_far) if rising else (vk < v0 and vk > v_far)
+        if ahead and (best < 0.0 or abs(vk - v0) < abs(best - v0)):
+            best = vk
     return best
 
 
 @njit(cache=True)
-def step_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks):
-    """RK4 step that restarts at every kink of the effort curve it crosses, because one RK4 step
-    across a kink (e.g. source 002's braking force jumping from 150 to 335 kN between 5 and 6 km/h)
-    loses its accuracy. Returns E at u + h."""
-    remaining = h
-    for _ in range(64):
-        E1, _ = adaptive_energy_time(E, u, remaining, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
-        v0 = np.sqrt(2.0 * E) if E > 0.0 else 0.0
-        v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
-        vk = _next_kink(v0, v1, kinks)
-        if vk < 0.0:
-            return E1
-        hk = find_speed_crossing(E, u, remaining, 0.5 * vk * vk, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
-        if abs(hk) < POSITION_TOLERANCE or abs(hk) >= abs(remaining):
-            return E1
-        E = 0.5 * vk * vk
-        u += hk
-        remaining -= hk
-    return E1
-
-
-@njit(cache=True)
 def step_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks):
-    """Forward step like ``step_energy`` that also returns the elapsed time."""
+    """(E, elapsed time) after a step h [m] from offset u, restarted at every kink of the
+    effort curve on the way: one RK4 step across a kink (e.g. source 002's braking force jumping
+    from 150 to 335 kN between 5 and 6 km/h) loses its accuracy, so the kink is located in the
+    speed domain and the step split there."""
     remaining = h
     total_dt = 0.0
     for _ in range(64):
-        E1, dt = adaptive_energy_time(E, u, remaining, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        E1, dt = rk4_energy_time(E, u, remaining, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
         v0 = np.sqrt(2.0 * E) if E > 0.0 else 0.0
         v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
-        vk = _next_kink(v0, v1, kinks)
+        rising = v1 > v0
+        # a kink just beyond v1 may still lie inside the step: RK4 across it can land on either side
+        v_far = v1 + 0.5 * (v1 - v0) + 1e-6 if rising else v1 - 0.5 * (v0 - v1) - 1e-6
+        vk = _next_kink(v0, rising, v_far, kinks)
         if vk < 0.0:
             return E1, total_dt + dt
-        hk = find_speed_crossing(E, u, remaining, 0.5 * vk * vk, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
-        if abs(hk) < POSITION_TOLERANCE or abs(hk) >= abs(remaining):
+        hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        if not (hk * remaining > 0.0 and abs(hk) < abs(remaining) - POSITION_TOLERANCE):
             return E1, total_dt + dt
-        _, dtk = adaptive_energy_time(E, u, hk, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        _, dtk = rk4_energy_time(E, u, hk, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
         total_dt += dtk
         E = 0.5 * vk * vk
         u += hk
@@ -243,31 +201,33 @@ def step_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, b
 
 
 @njit(cache=True)
+def step_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks):
+    """E after a kink-aware step h [m] (negative: backwards) from offset u."""
+    E1, _ = step_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks)
+    return E1
+
+
+@njit(cache=True)
 def find_speed_crossing_split(E, u, H, target_E, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks):
-    """Like ``find_speed_crossing`` along kink-aware steps."""
-    lo, hi = 0.0, H
-    f_lo = E - target_E
-    f_hi = step_energy(E, u, H, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks) - target_E
-    side = 0
-    h = hi
-    for _ in range(100):
-        if f_hi == f_lo:
+    """Signed distance in (0, H] (H may be negative) where E reaches target_E along ``mode``,
+    chaining speed-domain integrations across the kinks in between; H if it is not reached."""
+    v_t = np.sqrt(2.0 * target_E) if target_E > 0.0 else 0.0
+    v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+    rising = v_t > v
+    total = 0.0
+    for _ in range(64):
+        vk = _next_kink(v, rising, v_t, kinks)
+        Ek = 0.5 * vk * vk if vk >= 0.0 else target_E
+        hk = distance_to_speed(E, u + total, Ek, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        if not np.isfinite(hk):
+            return H
+        total += hk
+        if vk < 0.0:
             break
-        h = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
-        f = step_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks) - target_E
-        if (f > 0.0) == (f_hi > 0.0):
-            hi, f_hi = h, f
-            if side == 1:
-                f_lo *= 0.5
-            side = 1
-        else:
-            lo, f_lo = h, f
-            if side == -1:
-                f_hi *= 0.5
-            side = -1
-        if abs(hi - lo) < POSITION_TOLERANCE or f == 0.0:
-            break
-    return h
+        E, v = Ek, vk
+    if total * H <= 0.0 or abs(total) > abs(H):
+        return H
+    return total
 
 
 @njit(cache=True)

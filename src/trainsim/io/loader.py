@@ -1,0 +1,395 @@
+"""Reading any input file trainsim knows, whatever its format, and checking it.
+
+The format is detected from the file's content, never from its name:
+
+* ``schema: trainsim/train`` | ``trainsim/route`` | ``trainsim/scenario``: trainsim's own formats
+  (:mod:`trainsim.io.trainsim_yaml`, docs/FORMAT.md);
+* ``schema: https://railtoolkit.org/schema/rolling-stock.json`` or ``.../running-path.json``:
+  railtoolkit / TrainRuns.jl files (:mod:`trainsim.io.railtoolkit`);
+* a file with only a ``settings`` mapping: a TrainRuns.jl settings file.
+
+A missing file, malformed YAML (with its line) and an unknown format are InputErrors; the last one
+lists the formats trainsim knows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+from trainsim.constants import KMH, KN, TONNE
+from trainsim.errors import InputError
+from trainsim.io import railtoolkit as rtk
+from trainsim.io import trainsim_yaml as tsy
+from trainsim.model import Route, Train
+from trainsim.model.scenario import RunSettings, Scenario
+
+__all__ = [
+    "KNOWN_FORMATS",
+    "CheckReport",
+    "Detected",
+    "check_file",
+    "detect_format",
+    "load_route",
+    "load_scenario",
+    "load_train",
+    "scenario_from_files",
+]
+
+Kind = Literal["train", "route", "scenario", "settings"]
+
+#: format name -> (kind, how a file of that format is recognised)
+KNOWN_FORMATS: dict[str, tuple[Kind, str]] = {
+    "trainsim/train": ("train", "schema: trainsim/train"),
+    "trainsim/route": ("route", "schema: trainsim/route"),
+    "trainsim/scenario": ("scenario", "schema: trainsim/scenario"),
+    "railtoolkit/rolling-stock": ("train", f"schema: {rtk.ROLLING_STOCK_SCHEMA_URL}"),
+    "railtoolkit/running-path": ("route", f"schema: {rtk.PATH_SCHEMA_URL}"),
+    "trainruns/settings": ("settings", "a top-level 'settings' mapping (TrainRuns.jl settings)"),
+}
+
+_BY_SCHEMA = {
+    "trainsim/train": "trainsim/train",
+    "trainsim/route": "trainsim/route",
+    "trainsim/scenario": "trainsim/scenario",
+    rtk.ROLLING_STOCK_SCHEMA_URL: "railtoolkit/rolling-stock",
+    rtk.PATH_SCHEMA_URL: "railtoolkit/running-path",
+}
+
+
+@dataclass(frozen=True)
+class Detected:
+    """What a file is.
+
+    Attributes:
+        kind: ``train``, ``route``, ``scenario`` or ``settings``.
+        format: a key of :data:`KNOWN_FORMATS`.
+        version: the format version written in the file ("" for settings files).
+    """
+
+    kind: Kind
+    format: str
+    version: str
+
+
+def _known_formats() -> str:
+    return "; ".join(f"{name} ({how})" for name, (_, how) in KNOWN_FORMATS.items())
+
+
+def _detect(data: Any, file: str) -> Detected:
+    if not isinstance(data, dict):
+        raise InputError(
+            "not a trainsim or railtoolkit file: expected a YAML mapping at the top level",
+            file=file,
+            value=type(data).__name__,
+            allowed=_known_formats(),
+        )
+    schema = data.get("schema")
+    if schema is None:
+        # Files that lost their schema line still get the error of their own reader.
+        if "version" in data:
+            raise InputError(
+                "missing 'schema' line", file=file, field="schema", allowed=", ".join(tsy.SCHEMAS)
+            )
+        if "schema_version" in data or "paths" in data:
+            return Detected("route", "railtoolkit/running-path", str(data.get("schema_version", "")))
+        if "trains" in data or "vehicles" in data:
+            return Detected("train", "railtoolkit/rolling-stock", str(data.get("schema_version", "")))
+        if set(data) == {"settings"}:
+            return Detected("settings", "trainruns/settings", "")
+        raise InputError(
+            "unknown file format: no 'schema' line", file=file, field="schema", allowed=_known_formats()
+        )
+    if not isinstance(schema, str) or schema not in _BY_SCHEMA:
+        raise InputError(
+            "unknown file format", file=file, field="schema", value=schema, allowed=_known_formats()
+        )
+    name = _BY_SCHEMA[schema]
+    version = data.get("version") if name.startswith("trainsim/") else data.get("schema_version")
+    return Detected(KNOWN_FORMATS[name][0], name, "" if version is None else str(version))
+
+
+def detect_format(path: str | Path) -> Detected:
+    """The format of a file, from its content."""
+    return _detect(tsy.read_yaml(path), str(path))
+
+
+def _expect(detected: Detected, kind: Kind, file: str) -> None:
+    if detected.kind != kind:
+        raise InputError(
+            f"this is a {detected.kind} file ({detected.format}), expected a {kind} file",
+            file=file,
+            field="schema",
+            allowed=", ".join(n for n, (k, _) in KNOWN_FORMATS.items() if k == kind),
+        )
+
+
+def load_train(path: str | Path, train_id: str | None = None) -> Train:
+    """A train from a ``trainsim/train`` or railtoolkit rolling-stock file.
+
+    Args:
+        path: the file.
+        train_id: for railtoolkit files with several trains, the ``id`` of the one to read
+            (default: the first, as TrainRuns.jl).
+    """
+    file = str(path)
+    detected = detect_format(path)
+    _expect(detected, "train", file)
+    if detected.format == "trainsim/train":
+        if train_id is not None:
+            raise InputError(
+                "a trainsim train file holds one train; 'train_id' is for railtoolkit files", file=file
+            )
+        return tsy.load_train_yaml(path)
+    return rtk.load_railtoolkit_train(path, train_id)
+
+
+def load_route(path: str | Path, mass_model: str | None = None, path_id: str | None = None) -> Route:
+    """A route from a ``trainsim/route`` or railtoolkit running-path file.
+
+    Args:
+        path: the file.
+        mass_model: for railtoolkit paths, TrainRuns.jl's ``massModel``: ``mass_point`` (default) or
+            ``homogeneous_strip``. A trainsim route says it in ``line_resistance.apply_over``; giving
+            a different ``mass_model`` with it is an error rather than a silent override.
+        path_id: for railtoolkit files with several paths, the ``id`` of the one to read.
+    """
+    file = str(path)
+    detected = detect_format(path)
+    _expect(detected, "route", file)
+    if detected.format == "trainsim/route":
+        route = tsy.load_route_yaml(path)
+        if mass_model is not None and rtk.MASS_MODELS.get(mass_model) != route.line_resistance.apply_over:
+            raise InputError(
+                "the mass model contradicts the route's line_resistance.apply_over",
+                file=file,
+                field="line_resistance.apply_over",
+                value=mass_model,
+                allowed=f"{route.line_resistance.apply_over} (or change the route file)",
+            )
+        return route
+    return rtk.load_railtoolkit_path(path, path_id, mass_model or "mass_point")
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """A scenario from a ``trainsim/scenario`` file (train and route files relative to it)."""
+    detected = detect_format(path)
+    _expect(detected, "scenario", str(path))
+    return tsy.load_scenario_yaml(path)
+
+
+def scenario_from_files(
+    train_path: str | Path,
+    route_path: str | Path,
+    settings: RunSettings | Mapping[str, Any] | str | Path | None = None,
+    *,
+    name: str | None = None,
+    train_id: str | None = None,
+    path_id: str | None = None,
+) -> Scenario:
+    """A scenario from a train file and a route file of any known format.
+
+    Args:
+        train_path: trainsim train or railtoolkit rolling-stock file.
+        route_path: trainsim route or railtoolkit running-path file.
+        settings: :class:`RunSettings`, a mapping of the scenario ``settings`` keys (``max_step_m``,
+            ``braking_fraction``, ``record_dwell``), or a TrainRuns.jl settings file whose
+            ``massModel`` is used for the route (its other keys are ignored: see
+            :func:`check_file`).
+        name: scenario name (default "<train> on <route>").
+        train_id, path_id: which train / path of a railtoolkit file.
+    """
+    mass_model = None
+    run_settings = RunSettings()
+    if isinstance(settings, RunSettings):
+        run_settings = settings
+    elif isinstance(settings, str | Path):
+        mass_model = rtk.load_railtoolkit_settings(settings).mass_model
+    elif settings is not None:
+        run_settings = tsy.settings_from_dict(dict(settings))
+    train = load_train(train_path, train_id)
+    route = load_route(route_path, mass_model, path_id)
+    return Scenario(
+        name=name or f"{train.name} on {route.name}", train=train, route=route, settings=run_settings
+    )
+
+
+# ====================================================================== check
+@dataclass
+class CheckReport:
+    """What ``trainsim check FILE`` shows.
+
+    Attributes:
+        path: the file.
+        kind: ``train``, ``route``, ``scenario`` or ``settings``.
+        format: format name and version, e.g. ``trainsim/train v1``.
+        name: name of the train / route / scenario.
+        figures: key figures, already formatted with units.
+        notes: defaults applied, readings made and fields ignored.
+        warnings: things that look wrong but are not errors.
+    """
+
+    path: str
+    kind: str
+    format: str
+    name: str
+    figures: dict[str, str] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    def to_text(self) -> str:
+        """The report as plain text, one item per line."""
+        lines = [f"{self.path}: {self.kind} '{self.name}' ({self.format})"]
+        width = max((len(k) for k in self.figures), default=0)
+        lines += [f"  {k.ljust(width)}  {v}" for k, v in self.figures.items()]
+        lines += [f"  note: {n}" for n in self.notes]
+        lines += [f"  WARNING: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+
+def _train_figures(train: Train) -> dict[str, str]:
+    v_max = train.max_speed_mps
+    figures = {
+        "mass": f"{train.mass_kg / TONNE:.1f} t",
+        "length": f"{train.length_m:.2f} m",
+        "max speed": f"{v_max / KMH:.1f} km/h",
+        "rotating mass factor": f"{train.rotating_mass_factor:.4f}",
+        "vehicles": str(len(train.vehicles)) if train.vehicles else "(given as a whole)",
+        "traction at 0 km/h": f"{float(train.traction(0.0)) / KN:.1f} kN",
+        "traction at max speed": f"{float(train.traction(v_max)) / KN:.1f} kN",
+        "resistance at max speed": f"{float(train.running_resistance_n(v_max)) / KN:.2f} kN "
+        f"({len(train.resistance)} term(s))",
+    }
+    if train.braking.deceleration_mps2 is not None:
+        figures["braking"] = f"constant deceleration {train.braking.deceleration_mps2:g} m/s^2"
+    else:
+        figures["braking"] = f"service force {float(train.max_braking_n(0.0)) / KN:.1f} kN at 0 km/h"
+    figures["regenerative braking"] = "yes" if train.braking.regenerative is not None else "none"
+    if train.electrical is not None:
+        figures["line voltage"] = f"{train.electrical.line_voltage_v:g} V"
+    return figures
+
+
+def _route_figures(route: Route) -> dict[str, str]:
+    stations = ", ".join(
+        f"{s.name} @ {s.position_m:g} m" + ("" if s.stop else " (no stop)") for s in route.stations
+    )
+    limits = [x.limit_mps / KMH for x in route.speed_limits]
+    grades = [g.gradient_permille for g in route.gradients] or [0.0]
+    lr = route.line_resistance
+    return {
+        "length": f"{route.length_m:.2f} m ({route.start_m:g} .. {route.end_m:g} m)",
+        "stations": f"{len(route.stations)}: {stations}",
+        "speed limits": f"{len(route.speed_limits)} section(s), {min(limits):g} .. {max(limits):g} km/h",
+        "gradients": f"{len(route.gradients)} section(s), {min(grades):g} .. {max(grades):g} per mille",
+        "curves": str(len(route.curves)),
+        "tunnels": str(len(route.tunnels)),
+        "line resistance": f"curves {lr.curve_formula}, tunnels {lr.tunnel_formula}, "
+        f"gradients {lr.gradient_formula}, applied over {lr.apply_over}",
+    }
+
+
+# Fields of railtoolkit files that trainsim reads; the others are reported as ignored.
+_RTK_VEHICLE_FIELDS = {
+    "name",
+    "id",
+    "vehicle_type",
+    "length",
+    "mass",
+    "load_limit",
+    "mass_traction",
+    "speed_limit",
+    "rotation_mass",
+    "base_resistance",
+    "rolling_resistance",
+    "air_resistance",
+    "tractive_effort",
+    "a_braking",
+}
+
+
+def _ignored_rtk_fields(data: dict[str, Any]) -> list[str]:
+    ignored: set[str] = set()
+    for v in data.get("vehicles") or []:
+        ignored |= {f"vehicles.{k}" for k in v if k not in _RTK_VEHICLE_FIELDS}
+    for t in data.get("trains") or []:
+        ignored |= {f"trains.{k}" for k in t if k not in {"name", "id", "formation"}}
+    paths = data.get("paths")
+    for p in paths if isinstance(paths, list) else []:
+        ignored |= {
+            f"paths.{k}"
+            for k in p
+            if k not in {"name", "id", "description", "characteristic_sections", "points_of_interest"}
+        }
+    return sorted(ignored)
+
+
+def check_file(path: str | Path) -> CheckReport:
+    """Read and check a file of any known format; InputError if it is not valid.
+
+    The report gives the format, the name, key figures (mass, length, route length, stations...)
+    and notes: defaults applied, readings made, fields ignored.
+    """
+    file = str(path)
+    data = tsy.read_yaml(path)
+    detected = _detect(data, file)
+    fmt = detected.format + (f" v{detected.version}" if detected.format.startswith("trainsim/") else "")
+    if detected.format.startswith("railtoolkit/"):
+        fmt += f" {detected.version}"
+    if detected.format == "trainsim/train":
+        spec = tsy.read_train_spec(path)
+        train = spec.to_train(file)
+        return CheckReport(
+            file, "train", fmt, train.name, _train_figures(train), spec.notes(), spec.warnings()
+        )
+    if detected.format == "trainsim/route":
+        spec_r = tsy.read_route_spec(path)
+        route = spec_r.to_route(file)
+        return CheckReport(file, "route", fmt, route.name, _route_figures(route), spec_r.notes())
+    if detected.format == "trainsim/scenario":
+        spec_s = tsy.read_scenario_spec(path)
+        scenario = spec_s.to_scenario(file, Path(path).parent)
+        figures = {f"train {k}": v for k, v in _train_figures(scenario.train).items()}
+        figures.update({f"route {k}": v for k, v in _route_figures(scenario.route).items()})
+        figures["stops"] = ", ".join(s.name for s in scenario.route.stops)
+        figures["settings"] = (
+            f"max step {scenario.settings.max_step_m:g} m, braking fraction {scenario.settings.braking_fraction:g}"
+        )
+        notes = []
+        for label, sub in (("train", spec_s.train), ("route", spec_s.route)):
+            if isinstance(sub, str):
+                notes.append(f"{label} from {sub}")
+            else:
+                notes += [f"{label}: {n}" for n in sub.notes()]
+        return CheckReport(file, "scenario", fmt, scenario.name, figures, notes)
+    if detected.format == "railtoolkit/rolling-stock":
+        loaded = rtk.read_railtoolkit_train(path)
+        notes = list(loaded.notes)
+        ignored = _ignored_rtk_fields(data)
+        if ignored:
+            notes.append("fields not used by trainsim: " + ", ".join(ignored))
+        figures = {"train id": loaded.train_id, **_train_figures(loaded.train)}
+        return CheckReport(file, "train", fmt, loaded.train.name, figures, notes)
+    if detected.format == "railtoolkit/running-path":
+        loaded_p = rtk.read_railtoolkit_path(path)
+        notes = list(loaded_p.notes)
+        ignored = _ignored_rtk_fields(data)
+        if ignored:
+            notes.append("fields not used by trainsim: " + ", ".join(ignored))
+        notes.append(
+            "path resistance f_Rp carried as gradient-equivalent sections; curves and tunnels: none "
+            "(already in f_Rp); mass_point unless a settings file says homogeneous_strip"
+        )
+        figures = {"path id": loaded_p.path_id, **_route_figures(loaded_p.route)}
+        pois = loaded_p.points_of_interest
+        figures["points of interest"] = (
+            f"{len(pois)}: " + ", ".join(f"{p.name} @ {p.position_m:g} m ({p.measure})" for p in pois)
+            if pois
+            else "none"
+        )
+        return CheckReport(file, "route", fmt, loaded_p.route.name, figures, notes)
+    settings = rtk.load_railtoolkit_settings(path)
+    figures = {"mass model": settings.mass_model, "line resistance applied over": settings.apply_over}
+    return CheckReport(file, "settings", fmt, Path(file).stem, figures, list(settings.notes))
