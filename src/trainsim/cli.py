@@ -11,9 +11,9 @@ import dataclasses
 import json
 from collections.abc import Iterator
 from contextlib import contextmanager
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -40,7 +40,7 @@ app = typer.Typer(
 USER_ERROR = 2
 
 
-class MassModel(str, Enum):
+class MassModel(StrEnum):
     """How line resistance applies over the train (railtoolkit / TrainRuns.jl ``massModel``)."""
 
     mass_point = "mass_point"
@@ -92,7 +92,8 @@ def _load_scenario(
             raise InputError("give a scenario file or --train and --route, not both")
         if mass_model is not None:
             raise InputError(
-                "--mass-model applies to a route given with --route; a scenario file says how its route is read"
+                "--mass-model applies to a route given with --route; "
+                "a scenario file says itself how its route is read"
             )
         _require_file(scenario, "scenario file")
         return loader.load_scenario(scenario)
@@ -113,20 +114,27 @@ def _load_scenario(
 def run(
     scenario: Annotated[
         Path | None,
-        typer.Argument(help="Scenario file (trainsim YAML); or give --train and --route.", show_default=False),
+        typer.Argument(
+            help="Scenario file (trainsim YAML); or give --train and --route.", show_default=False
+        ),
     ] = None,
     train: Annotated[Path | None, typer.Option("--train", "-t", help="Train file (format detected).")] = None,
     route: Annotated[Path | None, typer.Option("--route", "-r", help="Route file (format detected).")] = None,
     mass_model: Annotated[
         MassModel | None,
-        typer.Option("--mass-model", help="Line resistance at the head or over the train (railtoolkit routes)."),
+        typer.Option(
+            "--mass-model", help="Line resistance at the head or over the train (railtoolkit routes)."
+        ),
     ] = None,
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="Directory for trace.csv, summary.json and the plots.")
     ] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print only the summary as JSON on stdout.")] = False,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print only the summary as JSON on stdout.")
+    ] = False,
     step: Annotated[
-        float | None, typer.Option("--step", help="Largest integration step [m] (overrides the scenario).")
+        float | None,
+        typer.Option("--step", help="Largest integration step in metres (overrides the scenario)."),
     ] = None,
     no_plots: Annotated[bool, typer.Option("--no-plots", help="Do not write PNG plots with --out.")] = False,
 ) -> None:
@@ -165,49 +173,31 @@ def run(
     for warning in result.warnings:
         typer.echo(f"warning: {warning}", err=True)
     for path in written:
-        console.print(f"wrote {path}", highlight=False)
-
-
-def _print_report(report: Any, console: Console) -> None:
-    """Show a loader CheckReport field by field (dicts and lists one item a line)."""
-    fields = (
-        [(f.name, getattr(report, f.name)) for f in dataclasses.fields(report)]
-        if dataclasses.is_dataclass(report)
-        else list(vars(report).items())
-    )
-    for name, value in fields:
-        label = name.replace("_", " ")
-        if isinstance(value, dict):
-            if value:
-                console.print(f"{label}:", highlight=False)
-                for key, item in value.items():
-                    console.print(f"  {key}: {item}", highlight=False)
-        elif isinstance(value, list | tuple):
-            if value:
-                console.print(f"{label}:", highlight=False)
-                for item in value:
-                    console.print(f"  - {item}", highlight=False)
-        elif value is not None:
-            console.print(f"{label}: {value}", highlight=False)
+        console.print(f"wrote {path}", markup=False, highlight=False)
 
 
 @app.command()
-def check(file: Annotated[Path, typer.Argument(help="Train, route or scenario file, any supported format.")]) -> None:
+def check(
+    file: Annotated[Path, typer.Argument(help="Train, route or scenario file, any supported format.")],
+) -> None:
     """Read a file and print what it holds, or why it cannot be used."""
     with _user_errors():
         _require_file(file, "file")
         from trainsim.io import loader
 
         report = loader.check_file(file)
-    _print_report(report, _console())
+    # plain text: file names and figures may hold '[...]' that rich would take for markup
+    typer.echo(report.to_text())
 
 
 @app.command("analyze-acceleration")
 def analyze_acceleration(
     train: Annotated[Path, typer.Argument(help="Train file (format detected).")],
-    power_kw: Annotated[float, typer.Option("--power-kw", help="Nominal traction power P_nom [kW].")],
-    efficiency: Annotated[float, typer.Option("--efficiency", help="Nominal-to-wheel efficiency eta (0 < eta <= 1).")],
-    dt: Annotated[float, typer.Option("--dt", help="Time step of the speed increment [s].")] = 1.0,
+    power_kw: Annotated[float, typer.Option("--power-kw", help="Nominal traction power P_nom in kW.")],
+    efficiency: Annotated[
+        float, typer.Option("--efficiency", help="Nominal-to-wheel efficiency eta (0 < eta <= 1).")
+    ],
+    dt: Annotated[float, typer.Option("--dt", help="Time step of the speed increment in seconds.")] = 1.0,
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="Directory for acceleration_analysis.png.")
     ] = None,
@@ -231,10 +221,15 @@ def analyze_acceleration(
             plot_acceleration_analysis(analysis).savefig(written, dpi=120)
 
     from rich.table import Table
+    from rich.text import Text
 
     console = _console()
     vb = analysis.balancing_speed_mps
-    console.print(f"{t.name}: P_nom {power_kw:g} kW, efficiency {efficiency:g}, k {analysis.mass_factor:g}")
+    console.print(
+        f"{t.name}: P_nom {power_kw:g} kW, efficiency {efficiency:g}, k {analysis.mass_factor:g}",
+        markup=False,
+        highlight=False,
+    )
     if vb is None:
         console.print("balancing speed: none (the resistance never takes the whole power)")
     else:
@@ -242,7 +237,7 @@ def analyze_acceleration(
         console.print(f"balancing speed: {vb / KMH:.1f} km/h{note}", highlight=False)
     table = Table(title="available power and speed increment")
     for name in ("speed [km/h]", "P_available [kW]", f"dv in {dt:g} s [m/s]", "mean acceleration [m/s²]"):
-        table.add_column(name, justify="right")
+        table.add_column(Text(name), justify="right")  # Text: '[km/h]' is not markup
     n = len(analysis.speed_mps)
     for k in sorted({*range(0, n, max(1, n // 10)), n - 1}):
         table.add_row(
@@ -253,7 +248,7 @@ def analyze_acceleration(
         )
     console.print(table)
     if written is not None:
-        console.print(f"wrote {written}", highlight=False)
+        console.print(f"wrote {written}", markup=False, highlight=False)
 
 
 if __name__ == "__main__":  # pragma: no cover

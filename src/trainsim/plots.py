@@ -17,7 +17,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from trainsim.analysis.acceleration import AccelerationAnalysis
-from trainsim.constants import G, KMH, KN, KW, MW
+from trainsim.constants import KMH, KN, KW, MW, G
 from trainsim.model.route import Route
 from trainsim.model.train import Train
 from trainsim.physics.line_resistance import gradient_ratio
@@ -76,7 +76,8 @@ def _step_xy(starts: Sequence[float], ends: Sequence[float], values: Sequence[fl
 
 
 def _title(result: RunResult, what: str) -> str:
-    return f"{what}: {result.train_name} on {result.route_name}"
+    # names can be long (source descriptions): the second line keeps the title inside the figure
+    return f"{what}\n{result.train_name} on {result.route_name}"
 
 
 # ====================================================================== run plots
@@ -130,7 +131,13 @@ def plot_speed_distance(
     ax.plot(l_x / 1000.0, l_y, color="tab:red", lw=1.0, ls=":", label="line speed limit")
     # the trace's ceiling at point k holds from point k to k + 1 (evaluated just right of the point)
     ax.step(
-        km, tr.speed_limit_mps / KMH, where="post", color="tab:red", lw=1.2, alpha=0.7, label="speed ceiling (train)"
+        km,
+        tr.speed_limit_mps / KMH,
+        where="post",
+        color="tab:red",
+        lw=1.2,
+        alpha=0.7,
+        label="speed ceiling (train)",
     )
     ax.plot(km, tr.speed_mps / KMH, color="tab:blue", lw=1.6, label="speed")
 
@@ -188,7 +195,12 @@ def plot_power_current(result: RunResult) -> Figure:
     ax_p.plot(tr.time_s, tr.mechanical_power_w / MW, color="tab:blue", lw=1.2, label="mechanical (wheel)")
     ax_p.plot(tr.time_s, tr.electrical_power_w / MW, color="tab:orange", lw=1.2, label="electrical (line)")
     ax_p.plot(
-        tr.time_s, tr.paper_power_w / MW, color="tab:green", lw=1.0, ls="--", label="source 002: F v η (paper)"
+        tr.time_s,
+        tr.paper_power_w / MW,
+        color="tab:green",
+        lw=1.0,
+        ls="--",
+        label="source 002: F v η (paper)",
     )
     ax_p.axhline(0.0, color="0.5", lw=0.6)
     ax_p.set_ylabel("power [MW]")
@@ -198,7 +210,14 @@ def plot_power_current(result: RunResult) -> Figure:
 
     if np.all(np.isnan(tr.line_current_a)):
         # a train without electrical data has no current; say so rather than leave an empty axis
-        ax_i.text(0.5, 0.5, "no electrical data: no line current", ha="center", va="center", transform=ax_i.transAxes)
+        ax_i.text(
+            0.5,
+            0.5,
+            "no electrical data: no line current",
+            ha="center",
+            va="center",
+            transform=ax_i.transAxes,
+        )
     else:
         ax_i.plot(tr.time_s, tr.line_current_a, color="tab:orange", lw=1.2, label="line current")
         ax_i.plot(
@@ -230,7 +249,8 @@ def plot_energy_sections(result: RunResult) -> Figure:
         ("net (from line)", [s.energy_kwh.net for s in result.sections], "tab:orange"),
     )
     for k, (label, values, color) in enumerate(series):
-        ax.bar(x + (k - 1) * width, values, width, label=label, color=color)
+        bars = ax.bar(x + (k - 1) * width, values, width, label=label, color=color)
+        ax.bar_label(bars, fmt="%.1f", fontsize=7, padding=2)
     ax.set_xticks(x, names, rotation=30 if len(names) > 4 else 0, ha="right" if len(names) > 4 else "center")
     ax.axhline(0.0, color="0.5", lw=0.6)
     ax.set_xlabel("section")
@@ -253,7 +273,9 @@ def plot_effort_resistance(train: Train, *, gradients_permille: Sequence[float] 
     ax.plot(kmh, np.asarray(train.traction(v)) / KN, color="tab:blue", lw=1.6, label="maximum traction")
     braking = train.braking
     if braking.service_force is not None:
-        ax.plot(kmh, np.asarray(braking.service_force(v)) / KN, color="tab:red", lw=1.6, label="service braking")
+        ax.plot(
+            kmh, np.asarray(braking.service_force(v)) / KN, color="tab:red", lw=1.6, label="service braking"
+        )
     else:
         # constant-deceleration braking has no force law; show the force it takes on level track
         equiv = np.full_like(v, train.inertial_mass_kg * float(braking.deceleration_mps2 or 0.0))
@@ -266,7 +288,13 @@ def plot_effort_resistance(train: Train, *, gradients_permille: Sequence[float] 
             label=f"service braking ({braking.deceleration_mps2:g} m/s², ρ m a)",
         )
     if braking.regenerative is not None:
-        ax.plot(kmh, np.asarray(braking.regenerative(v)) / KN, color="tab:green", lw=1.3, label="regenerative braking")
+        ax.plot(
+            kmh,
+            np.asarray(braking.regenerative(v)) / KN,
+            color="tab:green",
+            lw=1.3,
+            label="regenerative braking",
+        )
     running = np.asarray(train.running_resistance_n(v), dtype=float)
     ax.plot(kmh, running / KN, color="black", lw=1.4, label="running resistance (level, 0 ‰)")
     for i in gradients_permille:
@@ -277,7 +305,7 @@ def plot_effort_resistance(train: Train, *, gradients_permille: Sequence[float] 
     ax.set_ylim(bottom=0)
     ax.set_xlabel("speed [km/h]")
     ax.set_ylabel("force [kN]")
-    ax.set_title(f"Effort and resistance: {train.name}")
+    ax.set_title(f"Effort and resistance\n{train.name}")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="upper right")
     return fig
@@ -289,9 +317,13 @@ def plot_acceleration_analysis(analysis: AccelerationAnalysis) -> Figure:
     fig = _figure(ncols=2, width=12.0, height=5.0)
     ax_p, ax_v = fig.axes
     kmh = analysis.speed_mps / KMH
-    ax_p.plot(kmh, analysis.available_power_w / KW, color="tab:blue", lw=1.6, label="P_available = η P_nom − R(v) v")
+    ax_p.plot(
+        kmh, analysis.available_power_w / KW, color="tab:blue", lw=1.6, label="P_available = η P_nom − R(v) v"
+    )
     ax_p.set_ylabel("available power [kW]")
-    ax_p.set_title(f"Available power (P_nom = {analysis.nominal_power_w / KW:g} kW, η = {analysis.efficiency:g})")
+    ax_p.set_title(
+        f"Available power (P_nom = {analysis.nominal_power_w / KW:g} kW, η = {analysis.efficiency:g})"
+    )
     ax_v.plot(kmh, analysis.delta_v_mps, color="tab:orange", lw=1.6, label=f"Δv in {analysis.dt_s:g} s")
     ax_v.set_ylabel(f"speed gained in {analysis.dt_s:g} s [m/s]")
     ax_v.set_title(f"Speed increment per step (k = {analysis.mass_factor:g})")
@@ -299,7 +331,11 @@ def plot_acceleration_analysis(analysis: AccelerationAnalysis) -> Figure:
         ax.axhline(0.0, color="0.5", lw=0.6)
         if analysis.balancing_speed_mps is not None:
             vb = analysis.balancing_speed_mps / KMH
-            ax.axvline(vb, color="tab:red", lw=1.0, ls="--", label=f"balancing speed {vb:.1f} km/h")
+            if vb <= 1.05 * kmh.max():
+                ax.axvline(vb, color="tab:red", lw=1.0, ls="--", label=f"balancing speed {vb:.1f} km/h")
+            else:
+                # a line far right of the curves would squash them: name it in the legend only
+                ax.plot([], [], " ", label=f"balancing speed {vb:.1f} km/h (beyond the range shown)")
         ax.set_xlabel("speed [km/h]")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)

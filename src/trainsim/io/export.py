@@ -41,8 +41,8 @@ def _num(value: float | None, digits: int) -> str:
 def summary_table(result: RunResult) -> Table:
     """Per-section figures and a total row, for printing with ``rich``."""
     table = Table(
-        title=Text(f"{result.train_name} on {result.route_name} ({result.kind} run, status {result.status})"),
-        show_footer=False,
+        title=Text(f"{result.train_name} on {result.route_name}"),
+        caption=Text(f"{result.kind} run, status {result.status}"),
     )
     headers: tuple[tuple[str, JustifyMethod], ...] = (
         ("from", "left"),

@@ -354,9 +354,8 @@ def check_file(path: str | Path) -> CheckReport:
         figures = {f"train {k}": v for k, v in _train_figures(scenario.train).items()}
         figures.update({f"route {k}": v for k, v in _route_figures(scenario.route).items()})
         figures["stops"] = ", ".join(s.name for s in scenario.route.stops)
-        figures["settings"] = (
-            f"max step {scenario.settings.max_step_m:g} m, braking fraction {scenario.settings.braking_fraction:g}"
-        )
+        run = scenario.settings
+        figures["settings"] = f"max step {run.max_step_m:g} m, braking fraction {run.braking_fraction:g}"
         notes = []
         for label, sub in (("train", spec_s.train), ("route", spec_s.route)):
             if isinstance(sub, str):

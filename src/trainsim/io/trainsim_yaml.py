@@ -1023,11 +1023,17 @@ class TrainSpec(_Spec):
     max_speed_kmh: Annotated[float, Field(gt=0, lt=720)] | None = None
     traction: TractionSpec
     braking: BrakingSpec
-    resistance: list[ResistanceSpec] = Field(min_length=1)
+    resistance: list[ResistanceSpec] = Field(default_factory=list)
     electrical: ElectricalSpec | None = None
 
     @model_validator(mode="after")
     def _check_train(self) -> TrainSpec:
+        if not self.resistance and not any(v.resistance for v in self.formation or []):
+            _fail(
+                "the train needs running resistance: a 'resistance' list (or 'resistance' in its vehicles)",
+                field="resistance",
+                allowed=", ".join(RESISTANCE_FAMILY_NAMES),
+            )
         if self.formation is None:
             if self.mass_t is None:
                 _fail("give the train's 'formation' (list of vehicles) or its 'mass_t'", field="formation")

@@ -43,50 +43,6 @@ def kink_speeds(starts: np.ndarray, coefs: np.ndarray, force_cap: float, power_c
     return np.array(sorted(k for k in kinks if k > 0), dtype=float)
 
 
-def insert_kink_points(track, P, traction, braking, tk, bk, s, v, t, regime):
-    """Add a trace point wherever a stretch crosses a kink of the effort curve it uses, so that
-    the work integrals over the trace (trapezoids) are exact at kinks such as source 002's
-    braking force jumping from 150 to 335 kN between 5 and 6 km/h."""
-    lo = np.minimum(v[:-1], v[1:])
-    hi = np.maximum(v[:-1], v[1:])
-    candidates = []
-    for mode, kinks in ((kernel.TRACTION, tk), (kernel.BRAKE, bk)):
-        if len(kinks) == 0:
-            continue
-        is_mode = regime[:-1] == mode
-        straddles = ((kinks[None, :] > lo[:, None]) & (kinks[None, :] < hi[:, None])).any(axis=1)
-        candidates.extend(np.flatnonzero(is_mode & straddles).tolist())
-    if not candidates:
-        return s.copy(), v.copy(), t.copy(), regime.copy()
-    new_s, new_v, new_t, new_m, at = [], [], [], [], []
-    for k in sorted(candidates):
-        mode = int(regime[k])
-        kinks = tk if mode == kernel.TRACTION else bk
-        i = min(int(np.searchsorted(track.x, s[k], side="right")) - 1, len(track.a0) - 1)
-        args = (track.a0[i], track.a1[i], track.b0[i], track.b1[i], P, *traction, *braking)
-        u = s[k] - track.x[i]
-        remaining = s[k + 1] - s[k]
-        E, tk_ = 0.5 * v[k] ** 2, t[k]
-        ordered = sorted((q for q in kinks if min(v[k], v[k + 1]) < q < max(v[k], v[k + 1])), reverse=bool(v[k + 1] < v[k]))
-        for vk in ordered:
-            h = kernel.find_speed_crossing_split(E, u, remaining, 0.5 * vk * vk, mode, *args, kinks)
-            if not 0.0 < h < remaining:
-                continue
-            _, dt = kernel.step_energy_time(E, u, h, mode, *args, kinks)
-            E, u, remaining, tk_ = 0.5 * vk * vk, u + h, remaining - h, tk_ + dt
-            new_s.append(s[k] + (u - (s[k] - track.x[i])))
-            new_v.append(vk)
-            new_t.append(tk_)
-            new_m.append(mode)
-            at.append(k + 1)
-    return (
-        np.insert(s, at, new_s),
-        np.insert(v, at, new_v),
-        np.insert(t, at, new_t),
-        np.insert(regime, at, np.array(new_m, dtype=regime.dtype)),
-    )
-
-
 def stops_of(route: Route) -> list[float]:
     """Positions where the run stops, first and last included."""
     stops = [s.position_m for s in route.stops]
@@ -141,9 +97,11 @@ def run_fastest(train: Train, route: Route, settings: RunSettings | None = None)
         if k + 1 < len(stops) - 1:
             dwell = stations[k + 1].dwell_s
             t += dwell
-    s, v, t, regime = insert_kink_points(
-        track, P, (ts, tc, tf, tp), (bs, bc, bf, bp), tk, bk, out_s[:n], out_v[:n], out_t[:n], out_m[:n]
-    )
+    # a point at every effort-curve kink makes the trapezoidal work integrals exact there
+    s, v, t, regime = kernel.insert_kink_points(
+        track.x, track.a0, track.a1, track.b0, track.b1,
+        P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, out_s[:n], out_v[:n], out_t[:n], out_m[:n],
+    )  # fmt: skip
     return build_result(
         train=train,
         route=route,

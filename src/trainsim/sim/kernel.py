@@ -400,3 +400,71 @@ def fastest_segment(x, a0, a1, b0, b1, vlim, i0, i1, t0, P, ts, tc, tf, tp, bs, 
     out_m[n] = DWELL
     n += 1
     return n, STATUS_OK, 0.0
+
+
+@njit(cache=True)
+def _kinks_between(v0, v1, kinks):
+    count = 0
+    lo, hi = min(v0, v1), max(v0, v1)
+    for vk in kinks:
+        if lo < vk < hi:
+            count += 1
+    return count
+
+
+@njit(cache=True)
+def insert_kink_points(x, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, s, v, t, m):
+    """The trace with a point added wherever a traction or braking stretch crosses a kink of its
+    effort curve, so that trapezoidal work integrals over the trace are exact at kinks."""
+    n = len(s)
+    extra = 0
+    for k in range(n - 1):
+        if m[k] == TRACTION:
+            extra += _kinks_between(v[k], v[k + 1], tk)
+        elif m[k] == BRAKE:
+            extra += _kinks_between(v[k], v[k + 1], bk)
+    out_s = np.empty(n + extra)
+    out_v = np.empty(n + extra)
+    out_t = np.empty(n + extra)
+    out_m = np.empty(n + extra, dtype=m.dtype)
+    j = 0
+    n_int = len(a0)
+    for k in range(n):
+        out_s[j] = s[k]
+        out_v[j] = v[k]
+        out_t[j] = t[k]
+        out_m[j] = m[k]
+        j += 1
+        if k == n - 1 or (m[k] != TRACTION and m[k] != BRAKE):
+            continue
+        kinks = tk if m[k] == TRACTION else bk
+        if _kinks_between(v[k], v[k + 1], kinks) == 0:
+            continue
+        i = np.searchsorted(x, s[k], side="right") - 1
+        if i > n_int - 1:
+            i = n_int - 1
+        u = s[k] - x[i]
+        E = 0.5 * v[k] * v[k]
+        time = t[k]
+        remaining = s[k + 1] - s[k]
+        rising = v[k + 1] > v[k]
+        vc = v[k]
+        for _ in range(len(kinks)):
+            vk = _next_kink(vc, rising, v[k + 1], kinks)
+            if vk < 0.0:
+                break
+            hk = distance_to_speed(E, u, 0.5 * vk * vk, m[k], a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp)
+            if not (0.0 < hk < remaining):
+                break
+            _, dt = rk4_energy_time(E, u, hk, m[k], a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp)
+            E = 0.5 * vk * vk
+            u += hk
+            remaining -= hk
+            time += dt
+            vc = vk
+            out_s[j] = x[i] + u
+            out_v[j] = vk
+            out_t[j] = time
+            out_m[j] = m[k]
+            j += 1
+    return out_s[:j], out_v[:j], out_t[:j], out_m[:j]

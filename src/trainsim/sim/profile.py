@@ -190,11 +190,19 @@ def compile_track(route: Route, train: Train, stops_m: list[float], max_step_m: 
     keep = np.concatenate([[True], np.diff(coarse) > POSITION_TOLERANCE_M])
     coarse = coarse[keep]
     stop_set = set(stops_m)
-    pts: list[float] = [float(coarse[0])]
-    for a, b in zip(coarse[:-1], coarse[1:], strict=True):
-        pts += _graded(float(a), float(b), max_step_m, a in stop_set, b in stop_set)
-        pts.append(float(b))
-    x = np.array(pts)
+    # uniform subdivision of every coarse interval, vectorised; grading only next to stops
+    widths = np.diff(coarse)
+    counts = np.maximum(np.ceil(widths / max_step_m - 1e-9).astype(np.int64), 1)
+    graded = np.array([a in stop_set or b in stop_set for a, b in zip(coarse[:-1], coarse[1:], strict=True)])
+    counts[graded] = 1
+    starts = np.repeat(coarse[:-1], counts)
+    within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    uniform = starts + within * np.repeat(widths / counts, counts)
+    extra: list[float] = []
+    for k in np.flatnonzero(graded):
+        a, b = float(coarse[k]), float(coarse[k + 1])
+        extra += _graded(a, b, max_step_m, a in stop_set, b in stop_set)
+    x = np.unique(np.concatenate([uniform, coarse[-1:], np.array(extra)]))
     if np.any(np.diff(x) <= 0):
         raise InputError("internal: grid not increasing", field="route")
     left, right = x[:-1], x[1:]

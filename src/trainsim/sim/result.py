@@ -205,12 +205,11 @@ def _regime_forces(
 def _section_ends(regime: np.ndarray) -> list[int]:
     """Index of the arrival point of each section: the first point of each run of DWELL points,
     and the last point if the run ends without a stop."""
-    ends = []
     n = len(regime)
-    for k in range(n):
-        if regime[k] == DWELL and (k == 0 or regime[k - 1] != DWELL):
-            if k > 0:
-                ends.append(k)
+    is_dwell = regime == DWELL
+    first = is_dwell & np.concatenate([[False], ~is_dwell[:-1]])
+    first[0] = False
+    ends = np.flatnonzero(first).tolist()
     if n and (not ends or ends[-1] != n - 1) and regime[-1] != DWELL:
         ends.append(n - 1)
     return ends
