@@ -54,7 +54,9 @@ def _figure(ncols: int = 1, nrows: int = 1, *, width: float = 10.0, height: floa
     return fig
 
 
-def _step_xy(starts: Sequence[float], ends: Sequence[float], values: Sequence[float], lo: float, hi: float):
+def _step_xy(
+    starts: Sequence[float], ends: Sequence[float], values: Sequence[float], lo: float, hi: float
+) -> tuple[np.ndarray, np.ndarray]:
     """x, y of a piecewise constant function (0 where no section covers) for ``ax.plot``."""
     xs: list[float] = []
     ys: list[float] = []
@@ -307,7 +309,7 @@ def plot_effort_resistance(train: Train, *, gradients_permille: Sequence[float] 
     ax.set_ylabel("force [kN]")
     ax.set_title(f"Effort and resistance\n{train.name}")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8, loc="upper right")
+    ax.legend(fontsize=8, loc="best")
     return fig
 
 

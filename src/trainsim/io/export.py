@@ -80,7 +80,7 @@ def summary_table(result: RunResult) -> Table:
     # the total's average is the running average, like the sections' (distance / running time)
     table.add_row(
         "total",
-        Text(f"{first} → {last}"),
+        Text(f"{first} → {last}" if result.sections else ""),
         _num(result.distance_m / 1000.0, 3),
         _num(result.running_time_s, 1),
         _num(result.dwell_s, 0),

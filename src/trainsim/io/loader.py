@@ -360,6 +360,8 @@ def check_file(path: str | Path) -> CheckReport:
         for label, sub in (("train", spec_s.train), ("route", spec_s.route)):
             if isinstance(sub, str):
                 notes.append(f"{label} from {sub}")
+                sub_path = Path(sub) if Path(sub).is_absolute() else Path(path).parent / sub
+                notes += [f"{label}: {n}" for n in check_file(sub_path).notes]
             else:
                 notes += [f"{label}: {n}" for n in sub.notes()]
         return CheckReport(file, "scenario", fmt, scenario.name, figures, notes)

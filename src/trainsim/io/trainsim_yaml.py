@@ -286,8 +286,17 @@ def _validation_error(
 ) -> InputError:
     """One InputError (one paragraph) for all problems of a pydantic ValidationError."""
     problems: list[tuple[list[str | int], str, Any, str | None]] = []
-    for err in exc.errors(include_url=False):
+    errors = exc.errors(include_url=False)
+    # A misspelt required field gives "unknown field" and "missing": report the typo only.
+    typos = {
+        (*_clean_loc(err["loc"])[:-1], err["input"].suggestion)
+        for err in errors
+        if err["type"] == "extra_forbidden" and isinstance(err["input"], _UnknownField)
+    }
+    for err in errors:
         loc = _clean_loc(err["loc"])
+        if err["type"] == "missing" and tuple(loc) in typos:
+            continue
         ctx = err.get("ctx") or {}
         union = _union_field(loc)
         if err["type"] == "trainsim" and ctx.get("field"):

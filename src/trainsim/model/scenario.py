@@ -21,7 +21,7 @@ class RunSettings:
         record_dwell: whether the trace holds dwell points at stops.
     """
 
-    max_step_m: float = 10.0
+    max_step_m: float = 20.0
     braking_fraction: float = 1.0
     record_dwell: bool = True
 

@@ -122,8 +122,8 @@ def rk4_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf
     return E1, dt
 
 
-#: RK4 sub-steps of a speed-domain integration between two kinks.
-SPEED_DOMAIN_SUBSTEPS = 4
+#: Speed change covered by one RK4 step of a speed-domain integration [m/s].
+SPEED_DOMAIN_STEP = 0.5
 
 
 @njit(cache=True)
@@ -132,7 +132,9 @@ def distance_to_speed(E, u, Et, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc,
     ds/dE = 1/a(E, s) in the speed domain (exact event location, no root finding). The law must be
     smooth between E and Et (no kink inside). Returns inf when the acceleration vanishes or changes
     sign on the way, i.e. Et is never reached."""
-    n = SPEED_DOMAIN_SUBSTEPS
+    # one RK4 step per SPEED_DOMAIN_STEP of speed change keeps the local error far below 1 mm
+    dv = abs(np.sqrt(2.0 * Et if Et > 0.0 else 0.0) - np.sqrt(2.0 * E if E > 0.0 else 0.0))
+    n = min(max(int(np.ceil(dv / SPEED_DOMAIN_STEP)), 3), 16)
     dE = (Et - E) / n
     s = 0.0
     sign = 0.0
@@ -162,13 +164,17 @@ def distance_to_speed(E, u, Et, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc,
 
 @njit(cache=True)
 def _next_kink(v0, rising, v_far, kinks):
-    """The kink speed closest to v0 in the direction of the speed change, up to v_far, or -1."""
-    best = -1.0
-    for vk in kinks:
-        ahead = (vk > v0 and vk < v_far) if rising else (vk < v0 and vk > v_far)
-        if ahead and (best < 0.0 or abs(vk - v0) < abs(best - v0)):
-            best = vk
-    return best
+    """The kink speed closest to v0 in the direction of the speed change, strictly before v_far,
+    or -1 (``kinks`` sorted increasing)."""
+    if rising:
+        j = np.searchsorted(kinks, v0, side="right")
+        if j < len(kinks) and kinks[j] < v_far:
+            return kinks[j]
+    else:
+        j = np.searchsorted(kinks, v0, side="left") - 1
+        if j >= 0 and kinks[j] > v_far:
+            return kinks[j]
+    return -1.0
 
 
 @njit(cache=True)
@@ -202,8 +208,25 @@ def step_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, b
 
 @njit(cache=True)
 def step_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks):
-    """E after a kink-aware step h [m] (negative: backwards) from offset u."""
-    E1, _ = step_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks)
+    """E after a kink-aware step h [m] (negative: backwards) from offset u; like
+    ``step_energy_time`` without the time, for the backward braking curves."""
+    remaining = h
+    E1 = E
+    for _ in range(64):
+        E1 = rk4_energy(E, u, remaining, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        v0 = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+        v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
+        rising = v1 > v0
+        v_far = v1 + 0.5 * (v1 - v0) + 1e-6 if rising else v1 - 0.5 * (v0 - v1) - 1e-6
+        vk = _next_kink(v0, rising, v_far, kinks)
+        if vk < 0.0:
+            return E1
+        hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        if not (hk * remaining > 0.0 and abs(hk) < abs(remaining) - POSITION_TOLERANCE):
+            return E1
+        E = 0.5 * vk * vk
+        u += hk
+        remaining -= hk
     return E1
 
 
@@ -276,6 +299,16 @@ def fastest_segment(x, a0, a1, b0, b1, vlim, i0, i1, t0, P, ts, tc, tf, tp, bs, 
         w = x[i + 1] - x[i]
         cr = min(vlim[i], c_next)
         Er = 0.5 * cr * cr
+        if cr >= vlim[i] and (
+            acceleration(BRAKE, Er, 0.0, a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp) < 0.0
+            and acceleration(BRAKE, Er, w, a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp) < 0.0
+        ):
+            # braking backwards from the limit only rises above it: the whole interval is at the limit
+            US[k] = w
+            Cl[k] = vlim[i]
+            Cr[k] = cr
+            c_next = vlim[i]
+            continue
         El = step_energy(Er, w, -w, BRAKE, a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp, bk)
         vl = np.sqrt(2.0 * El) if El > 0.0 else 0.0
         if vl <= vlim[i]:
@@ -404,12 +437,8 @@ def fastest_segment(x, a0, a1, b0, b1, vlim, i0, i1, t0, P, ts, tc, tf, tp, bs, 
 
 @njit(cache=True)
 def _kinks_between(v0, v1, kinks):
-    count = 0
     lo, hi = min(v0, v1), max(v0, v1)
-    for vk in kinks:
-        if lo < vk < hi:
-            count += 1
-    return count
+    return np.searchsorted(kinks, hi, side="left") - np.searchsorted(kinks, lo, side="right")
 
 
 @njit(cache=True)
