@@ -24,8 +24,8 @@ if TYPE_CHECKING:
 
     from trainsim.model.scenario import Scenario
 
-# heavy modules (numba kernel, pandas, matplotlib) are imported inside the commands so that
-# `trainsim --help` and shell completion stay fast
+# matplotlib, pandas and the file readers are imported inside the commands that need them, so
+# that `trainsim --help` and `trainsim check` do not pay for them
 
 app = typer.Typer(
     name="trainsim",

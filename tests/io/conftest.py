@@ -1,4 +1,4 @@
-"""Fixtures of the io tests: where the examples and the shared TrainRuns.jl data are."""
+"""Fixtures of the io tests: where the examples and the TrainRuns.jl test data are."""
 
 from __future__ import annotations
 
@@ -18,20 +18,10 @@ def examples_dir() -> Path:
 
 @pytest.fixture(scope="session")
 def trainruns_dir() -> Path:
-    """TrainRuns.jl 1.0.4 test data (shared/data/trainruns next to the repository, or
-    $TRAINSIM_SHARED/data/trainruns)."""
+    """TrainRuns.jl 1.0.4 test data: the repository's copy in tests/data/trainruns, else
+    shared/data/trainruns next to the repository (or under $TRAINSIM_SHARED)."""
     shared = Path(os.environ.get("TRAINSIM_SHARED", REPO.parent / "shared"))
-    path = shared / "data" / "trainruns"
-    if not path.is_dir():
-        pytest.skip(f"shared TrainRuns.jl data not found at {path}")
-    return path
-
-
-@pytest.fixture(scope="session")
-def railtoolkit_schema_dir() -> Path:
-    """railtoolkit/schema docs and examples (shared/data/railtoolkit-schema)."""
-    shared = Path(os.environ.get("TRAINSIM_SHARED", REPO.parent / "shared"))
-    path = shared / "data" / "railtoolkit-schema"
-    if not path.is_dir():
-        pytest.skip(f"shared railtoolkit schema data not found at {path}")
-    return path
+    for path in (REPO / "tests" / "data" / "trainruns", shared / "data" / "trainruns"):
+        if (path / "trains" / "freight.yaml").is_file():
+            return path
+    pytest.skip("TrainRuns.jl test data not found (tests/data/trainruns or shared/data/trainruns)")

@@ -89,7 +89,9 @@ def test_metro_b_route_and_scenario(examples_dir: Path) -> None:
     assert [s.position_m for s in route.stations] == [0.0, 1553.0, 3075.0, 4590.97]
     assert [s.dwell_s for s in route.stations] == [0, 51, 49, 0]
     assert all(s.stop for s in route.stations)
-    assert [(x.start_m, x.end_m, x.limit_mps) for x in route.speed_limits] == [(0, 4590.97, pytest.approx(80 * KMH))]
+    assert [(x.start_m, x.end_m, x.limit_mps) for x in route.speed_limits] == [
+        (0, 4590.97, pytest.approx(80 * KMH))
+    ]
     assert route.gradients == ()
     lr = route.line_resistance
     assert (lr.curve_formula, lr.tunnel_formula, lr.gradient_formula, lr.apply_over) == (
@@ -193,7 +195,9 @@ def test_gamma_and_rotating_mass_factor_are_the_same(metro: dict[str, Any]) -> N
     data = copy.deepcopy(metro)
     del data["gamma"]
     data["rotating_mass_factor"] = 1.2
-    assert train_from_dict(data).rotating_mass_factor == pytest.approx(train_from_dict(metro).rotating_mass_factor)
+    assert train_from_dict(data).rotating_mass_factor == pytest.approx(
+        train_from_dict(metro).rotating_mass_factor
+    )
 
 
 def test_rotating_mass_factor_from_vehicles(metro: dict[str, Any]) -> None:
@@ -233,13 +237,24 @@ def test_vehicle_terms_equal_applies_to_terms(examples_dir: Path) -> None:
     ("term", "expected"),
     [
         ({"family": "davis", "a_n": 1000, "b_n_s_per_m": 50, "c_n_s2_per_m2": 5}, 1000 + 50 * 20 + 5 * 400),
-        ({"family": "per_mass", "a1_n_per_kg": 0.01, "a2_n_s2_per_kg_m2": 1e-5}, 288200 * (0.01 + 1e-5 * 400)),
         (
-            {"family": "specific_n_per_kn", "a_n_per_kn": 2, "b_n_per_kn_per_kmh": 0.01, "c_n_per_kn_per_kmh2": 1e-4},
+            {"family": "per_mass", "a1_n_per_kg": 0.01, "a2_n_s2_per_kg_m2": 1e-5},
+            288200 * (0.01 + 1e-5 * 400),
+        ),
+        (
+            {
+                "family": "specific_n_per_kn",
+                "a_n_per_kn": 2,
+                "b_n_per_kn_per_kmh": 0.01,
+                "c_n_per_kn_per_kmh2": 1e-4,
+            },
             (2 + 0.01 * 72 + 1e-4 * 72**2) * 288200 * G / 1000,
         ),
         ({"family": "rav", "a_n": 500, "b_n_per_kmh": 10, "c_n_per_kmh2": 0.5}, 500 + 10 * 72 + 0.5 * 72**2),
-        ({"family": "strahl", "f0_permille": 1.4, "f2_permille": 3.9}, 288200 * G * (1.4 + 3.9 * 0.72**2) / 1000),
+        (
+            {"family": "strahl", "f0_permille": 1.4, "f2_permille": 3.9},
+            288200 * G * (1.4 + 3.9 * 0.72**2) / 1000,
+        ),
     ],
 )
 def test_resistance_families_at_72_kmh(metro: dict[str, Any], term: dict[str, Any], expected: float) -> None:
@@ -337,7 +352,13 @@ def test_scenario_stops_and_dwell_overrides(examples_dir: Path) -> None:
 
 def test_scenario_with_inline_train_and_route(metro: dict[str, Any], metro_route: dict[str, Any]) -> None:
     train = {k: v for k, v in metro.items() if k not in ("schema", "version")}
-    data = {"schema": "trainsim/scenario", "version": 1, "name": "inline", "train": train, "route": metro_route}
+    data = {
+        "schema": "trainsim/scenario",
+        "version": 1,
+        "name": "inline",
+        "train": train,
+        "route": metro_route,
+    }
     scenario = scenario_from_dict(data)
     assert scenario.train.mass_kg == pytest.approx(288200)
     assert len(scenario.route.stations) == 4

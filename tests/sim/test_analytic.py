@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import make_route, make_train
+from simcases import make_route, make_train
 
 from trainsim.constants import G, KMH
 from trainsim.model import Quadratic

@@ -314,7 +314,7 @@ def _check(data: Any, file: str, expected_url: str, kind: str) -> str:
         error = InputError(
             f"{len(described)} problems with the railtoolkit {kind} schema {version}: "
             + "; ".join(shown[:8])
-            + ("; ..." if len(shown) > 8 else ""),
+            + (f" (and {len(shown) - 8} more)" if len(shown) > 8 else ""),
             file=file,
         )
         error.field = path or None

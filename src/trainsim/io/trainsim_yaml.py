@@ -401,11 +401,15 @@ class _Spec(BaseModel):
                     _fail(f"give either '{key}' or '{target}', not both", field=key)
                 try:
                     if isinstance(value, list):
-                        out[target] = [to_unit(v, unit, field=key) for v in value]
+                        out[target] = [to_unit(v, unit, require_unit=True, field=key) for v in value]
                     else:
-                        out[target] = to_unit(value, unit, field=key)
+                        out[target] = to_unit(value, unit, require_unit=True, field=key)
                 except InputError as exc:
-                    _fail(exc.reason, field=key, value=value, allowed=exc.allowed)
+                    reason = exc.reason
+                    if "without unit" in reason:
+                        reason = f"'{key}' needs a unit, e.g. '{key}: {value} {unit}'"
+                        reason += f"; or write '{target}: {value}'"
+                    _fail(reason, field=key, value=value, allowed=exc.allowed)
             else:
                 unknown.append(key)
         for key in unknown:

@@ -253,10 +253,19 @@ def from_si(value_si: float, unit: str) -> float:
     return float(value_si) / _unit(unit, field=None, file=None).factor
 
 
-def to_unit(value: object, unit: str, *, field: str | None = None, file: str | None = None) -> float:
-    """A number in ``unit`` or a string with any unit of the same dimension, in ``unit``.
+def to_unit(
+    value: object,
+    unit: str,
+    *,
+    require_unit: bool = False,
+    field: str | None = None,
+    file: str | None = None,
+) -> float:
+    """A number in ``unit`` (unless ``require_unit``) or a string with any unit of the same
+    dimension, expressed in ``unit``.
 
     ``to_unit("1 MW", "kW")`` = 1000.0; ``to_unit(49.8, "t")`` = 49.8.
     """
     target = _unit(unit, field=field, file=file)
-    return parse_quantity(value, target.dimension, bare_unit=unit, field=field, file=file) / target.factor
+    bare = None if require_unit else unit
+    return parse_quantity(value, target.dimension, bare_unit=bare, field=field, file=file) / target.factor

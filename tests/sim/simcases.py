@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
-import pytest
-
 from trainsim.constants import KMH
 from trainsim.model import (
     Braking,
@@ -64,8 +61,3 @@ def make_route(
         gradients=grads,
         line_resistance=LineResistanceSettings(curve_formula="none", tunnel_formula="none", apply_over=apply_over),
     )
-
-
-@pytest.fixture
-def rng() -> np.random.Generator:
-    return np.random.default_rng(7)
