@@ -346,9 +346,28 @@ def _located(file: str, field: str) -> Iterator[None]:
     try:
         yield
     except InputError as exc:
-        inner = f" ({exc.field})" if exc.field and exc.field != field else ""
+        if exc.field and exc.field.startswith(field):
+            field, inner = exc.field, ""  # already a spec path
+        else:
+            inner = f" ({exc.field})" if exc.field else ""
         raise InputError(
             exc.reason + inner, file=exc.file or file, field=field, value=exc.value, allowed=exc.allowed
+        ) from exc
+
+
+@contextmanager
+def _prefixed(prefix: str) -> Iterator[None]:
+    """Put ``prefix.`` before the field of InputErrors raised inside (inline train / route)."""
+    try:
+        yield
+    except InputError as exc:
+        raise InputError(
+            exc.reason,
+            file=exc.file,
+            field=f"{prefix}.{exc.field}" if exc.field else prefix,
+            value=exc.value,
+            allowed=exc.allowed,
+            line=exc.line,
         ) from exc
 
 
@@ -1594,11 +1613,13 @@ class ScenarioSpec(_Spec):
         if isinstance(self.train, str):
             train = loader.load_train(_resolve(base, self.train, file, "train"))
         else:
-            train = self.train.to_train(file)
+            with _prefixed("train"):
+                train = self.train.to_train(file)
         if isinstance(self.route, str):
             route = loader.load_route(_resolve(base, self.route, file, "route"))
         else:
-            route = self.route.to_route(file)
+            with _prefixed("route"):
+                route = self.route.to_route(file)
         route = apply_stops(route, self.stops, self.dwell_s, file=file)
         return Scenario(name=self.name, train=train, route=route, settings=self.settings.build())
 

@@ -43,6 +43,18 @@ def kink_speeds(starts: np.ndarray, coefs: np.ndarray, force_cap: float, power_c
     return np.array(sorted(k for k in kinks if k > 0), dtype=float)
 
 
+#: Stretches shorter than this in both distance [m] and time [s] are root-finding residue.
+EMPTY_STRETCH = 1e-6
+
+
+def drop_empty_stretches(s, v, t, regime):
+    """Remove points that start a stretch of no length and no duration (a regime switch found twice
+    by root finding), so that no point shows the forces of a regime the train is never in."""
+    empty = (np.diff(s) < EMPTY_STRETCH) & (np.diff(t) < EMPTY_STRETCH) & (regime[:-1] != kernel.DWELL)
+    keep = np.concatenate([~empty, [True]])
+    return s[keep], v[keep], t[keep], regime[keep]
+
+
 def stops_of(route: Route) -> list[float]:
     """Positions where the run stops, first and last included."""
     stops = [s.position_m for s in route.stops]
@@ -97,10 +109,11 @@ def run_fastest(train: Train, route: Route, settings: RunSettings | None = None)
         if k + 1 < len(stops) - 1:
             dwell = stations[k + 1].dwell_s
             t += dwell
+    s, v, t, regime = drop_empty_stretches(out_s[:n], out_v[:n], out_t[:n], out_m[:n])
     # a point at every effort-curve kink makes the trapezoidal work integrals exact there
     s, v, t, regime = kernel.insert_kink_points(
         track.x, track.a0, track.a1, track.b0, track.b1,
-        P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, out_s[:n], out_v[:n], out_t[:n], out_m[:n],
+        P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, s, v, t, regime,
     )  # fmt: skip
     return build_result(
         train=train,

@@ -398,7 +398,7 @@ def fastest_segment(x, a0, a1, b0, b1, vlim, i0, i1, t0, P, ts, tc, tf, tp, bs, 
                 # under the braking curve that ends at (w, Cr[k])
                 Er = 0.5 * Cr[k] * Cr[k]
                 Eb = step_energy(Er, w, u - w, BRAKE, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk)
-                if E < Eb * (1.0 - 1e-12) - 1e-14:
+                if E < Eb * (1.0 - 1e-9) - 1e-12:
                     E1, dt = step_energy_time(E, u, w - u, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk)
                     out_s[n] = x[i] + u
                     out_v[n] = v
