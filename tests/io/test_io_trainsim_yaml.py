@@ -561,3 +561,33 @@ def test_duplicate_keys_and_bad_yaml(tmp_path: Path) -> None:
     assert err.value.line == 4 and "invalid YAML" in str(err.value)
     with pytest.raises(InputError, match="file not found"):
         load_train_yaml(tmp_path / "missing.yaml")
+
+
+def test_generic_field_needs_a_unit(metro: dict[str, Any]) -> None:
+    data = copy.deepcopy(metro)
+    del data["max_speed_kmh"]
+    data["max_speed"] = 80
+    e = _error(data)
+    assert e.field == "max_speed" and "needs a unit" in str(e) and "max_speed_kmh: 80" in str(e)
+
+
+def test_inline_train_errors_carry_the_scenario_path(
+    metro: dict[str, Any], metro_route: dict[str, Any]
+) -> None:
+    train = copy.deepcopy(metro)
+    del train["formation"]
+    train.update(mass_t=288.2, length_m=114)
+    train["traction"] = {
+        "model": "power_limited",
+        "power_kw": 1000,
+        "efficiency": 0.9,
+        "adhesion_coefficient": 0.3,
+    }
+    data = {"schema": "trainsim/scenario", "version": 1, "name": "x", "train": train, "route": metro_route}
+    with pytest.raises(InputError) as err:
+        scenario_from_dict(data, "s.yaml")
+    assert err.value.field == "train.traction.adhesion_mass_t"
+    train["formation"] = [{"name": "A", "mass_t": 10, "length_m": 10, "bogus": 1}]
+    with pytest.raises(InputError) as err:
+        scenario_from_dict(data, "s.yaml")
+    assert "train.formation[0].bogus" in str(err.value)

@@ -426,7 +426,10 @@ def read_railtoolkit_train(path: str | Path, train_id: str | None = None) -> Rai
     m_loco = loco.data["mass"] * TONNE
     m_td = loco.data.get("mass_traction", loco.data["mass"]) * TONNE
     if "mass_traction" not in loco.data:
-        notes.append(f"'{loco.id}' has no mass_traction: all of its mass is on driven axles")
+        notes.append(
+            f"'{loco.id}' has no mass_traction: all of its mass taken as on driven axles (default; "
+            "TrainRuns.jl 1.0.4 refers to an undefined variable here)"
+        )
     if m_td > m_loco:
         raise InputError(
             "the mass on driven axles exceeds the vehicle's mass",

@@ -1083,6 +1083,12 @@ class TrainSpec(_Spec):
             vehicles = self.formation
             seen: dict[str, int] = {}
             for i, v in enumerate(vehicles):
+                if v.name == "train":
+                    _fail(
+                        "'train' is reserved ('applies_to: train' means the whole train)",
+                        field=f"formation[{i}].name",
+                        value=v.name,
+                    )
                 if v.name in seen:
                     _fail(
                         f"vehicle name already used by formation[{seen[v.name]}]",
@@ -1294,7 +1300,13 @@ class _Section(_Spec):
     from_m: float
     to_m: float | None = None
 
+    def stop(self) -> float:
+        """End of a section that must have one (curves, tunnels) [m]."""
+        end = self.end()
+        return self.from_m if end is None else end
+
     def end(self) -> float | None:
+        """End [m] from ``to_m`` or ``from_m + length_m``; None if neither is given."""
         length = getattr(self, "length_m", None)
         if self.to_m is not None:
             return self.to_m
@@ -1344,7 +1356,7 @@ class CurveSpec(_Section):
         if self.radius_m is not None:
             return self.radius_m
         return line_resistance.curve_radius_from_angle(
-            (self.end() or 0.0) - self.from_m, self.central_angle_deg or 0.0
+            self.stop() - self.from_m, self.central_angle_deg or 0.0
         )
 
 
@@ -1487,7 +1499,7 @@ class RouteSpec(_Spec):
 
     def _check_spans(self, name: str, items: Sequence[_Section], end: float) -> None:
         for i, item in enumerate(items):
-            stop = item.end() or item.from_m
+            stop = item.stop()
             if item.from_m < self.start_m or stop > end + 1e-9:
                 _fail(
                     "section outside the route",
@@ -1496,7 +1508,7 @@ class RouteSpec(_Spec):
                     allowed=f"{self.start_m:g} .. {end:g} m",
                 )
             if i > 0:
-                prev_end = items[i - 1].end() or 0.0
+                prev_end = items[i - 1].stop()
                 if item.from_m < prev_end - 1e-9:
                     _fail(
                         f"{name} must be listed in order and must not overlap",
@@ -1545,8 +1557,8 @@ class RouteSpec(_Spec):
                 if b > a and grade != 0:
                     gradients.append(GradientSection(a, b, grade))
         with _located(file, "curves"):
-            curves = [Curve(c.from_m, c.end() or c.from_m, c.radius()) for c in self.curves]
-        tunnels = [Tunnel(t.from_m, t.end() or t.from_m, t.limiting_gradient) for t in self.tunnels]
+            curves = [Curve(c.from_m, c.stop(), c.radius()) for c in self.curves]
+        tunnels = [Tunnel(t.from_m, t.stop(), t.limiting_gradient) for t in self.tunnels]
         electrification = [
             ElectrificationSection(a, b, x.voltage_v)
             for (a, b), x in zip(self._ends(self.electrification, end), self.electrification, strict=True)

@@ -40,21 +40,29 @@ class PiecewiseLinear:
 
     def __call__(self, s: np.ndarray | float) -> np.ndarray:
         s = np.asarray(s, dtype=float)
-        k = np.clip(np.searchsorted(self.x, s, side="right") - 1, 0, len(self.left) - 1)
-        width = self.x[k + 1] - self.x[k]
-        frac = np.clip((s - self.x[k]) / width, 0.0, 1.0)
-        return self.left[k] + (self.right[k] - self.left[k]) * frac
+        k = np.searchsorted(self.x, s, side="right") - 1
+        k = np.minimum(np.maximum(k, 0), len(self.left) - 1)
+        x0 = self.x[k]
+        frac = np.minimum(np.maximum((s - x0) / (self.x[k + 1] - x0), 0.0), 1.0)
+        left = self.left[k]
+        return left + (self.right[k] - left) * frac
 
 
 def step_function(starts: list[float], ends: list[float], values: list[float], lo: float, hi: float) -> PiecewiseLinear:
     """A piecewise constant function on [lo, hi] that is ``values[k]`` on ``[starts[k], ends[k])``
-    and 0 elsewhere."""
-    pts = sorted({lo, hi, *[min(max(p, lo), hi) for p in starts + ends]})
-    x = np.array(pts)
+    and 0 elsewhere (the sections do not overlap)."""
+    a = np.asarray(starts, dtype=float)
+    b = np.asarray(ends, dtype=float)
+    val_in = np.broadcast_to(np.asarray(values, dtype=float), a.shape)
+    x = np.unique(np.clip(np.concatenate([[lo, hi], a, b]), lo, hi))
     mid = 0.5 * (x[:-1] + x[1:])
     val = np.zeros(len(mid))
-    for a, b, v in zip(starts, ends, values, strict=True):
-        val[(mid >= a) & (mid < b)] = v
+    if len(a):
+        order = np.argsort(a)
+        a, b, val_in = a[order], b[order], val_in[order]
+        k = np.searchsorted(a, mid, side="right") - 1
+        inside = (k >= 0) & (mid < b[np.maximum(k, 0)])
+        val[inside] = val_in[k[inside]]
     return PiecewiseLinear(x, val.copy(), val.copy())
 
 
@@ -116,7 +124,7 @@ def line_resistance_profile(route: Route, train: Train) -> LineResistanceProfile
     grad = step_function(
         [g.start_m for g in route.gradients],
         [g.end_m for g in route.gradients],
-        [lr.gradient_ratio(g.gradient_permille, settings.gradient_formula) for g in route.gradients],
+        lr.gradient_ratio(np.array([g.gradient_permille for g in route.gradients]), settings.gradient_formula),
         lo,
         hi,
     )
