@@ -160,7 +160,7 @@ def test_check_trainsim_files(examples_dir: Path) -> None:
     text = report.to_text()
     assert "288.2 t" in text and "note:" in text
     route = check_file(examples_dir / "metro_b" / "route.yaml")
-    assert route.figures["stations"].startswith("4: S1 @ 0 m, S2 @ 1553 m")
+    assert route.figures["stations"].startswith("4: S1 @ 0 m, S2 @ 1600.68 m")
     freight = check_file(examples_dir / "freight_000" / "scenario.yaml")
     assert freight.kind == "scenario" and freight.figures["train mass"] == "4276.0 t"
     assert any("0.75" in n for n in freight.notes)

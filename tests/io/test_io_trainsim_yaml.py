@@ -86,7 +86,7 @@ def test_metro_b_train_is_source_002(examples_dir: Path) -> None:
 def test_metro_b_route_and_scenario(examples_dir: Path) -> None:
     route = load_route_yaml(examples_dir / "metro_b" / "route.yaml")
     assert route.length_m == pytest.approx(4590.97)
-    assert [s.position_m for s in route.stations] == [0.0, 1553.0, 3075.0, 4590.97]
+    assert [s.position_m for s in route.stations] == [0.0, 1600.68, 3139.8, 4590.97]
     assert [s.dwell_s for s in route.stations] == [0, 51, 49, 0]
     assert all(s.stop for s in route.stations)
     assert [(x.start_m, x.end_m, x.limit_mps) for x in route.speed_limits] == [

@@ -21,7 +21,7 @@ def make_train(
     *,
     traction_n: float = 200e3,
     braking_n: float = 300e3,
-    resistance: Quadratic = Quadratic(0.0),
+    resistance: Quadratic | None = None,
     mass_kg: float = 300e3,
     rho: float = 1.1,
     length_m: float = 100.0,
@@ -37,7 +37,7 @@ def make_train(
         max_speed_mps=vmax_kmh * KMH,
         traction=traction or EffortCurve.constant(traction_n),
         braking=braking or Braking(service_force=EffortCurve.constant(braking_n)),
-        resistance=(ResistanceTerm("test", resistance),),
+        resistance=(ResistanceTerm("test", resistance or Quadratic(0.0)),),
     )
 
 
@@ -59,5 +59,7 @@ def make_route(
         stations=tuple(Station(n, p, d) for n, p, d in stations),
         speed_limits=tuple(SpeedLimit(a, b, v * KMH) for a, b, v in limits),
         gradients=grads,
-        line_resistance=LineResistanceSettings(curve_formula="none", tunnel_formula="none", apply_over=apply_over),
+        line_resistance=LineResistanceSettings(
+            curve_formula="none", tunnel_formula="none", apply_over=apply_over
+        ),
     )

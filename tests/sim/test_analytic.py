@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from simcases import make_route, make_train
 
-from trainsim.constants import G, KMH
+from trainsim.constants import KMH, G
 from trainsim.model import Quadratic
 from trainsim.model.scenario import RunSettings
 from trainsim.sim.fastest import run_fastest
@@ -146,7 +146,9 @@ def test_stall_part_way_ends_the_trace_where_the_train_stops():
 
     train = make_train(traction_n=120e3, mass_kg=600e3, resistance=Quadratic(3000.0, 0.0, 5.0))
     # the train enters the grade at 100 km/h and runs out of momentum about 7.7 km up it
-    route = dataclasses.replace(make_route(length_m=16_000.0), gradients=(GradientSection(3000.0, 16_000.0, 25.0),))
+    route = dataclasses.replace(
+        make_route(length_m=16_000.0), gradients=(GradientSection(3000.0, 16_000.0, 25.0),)
+    )
     result = run_fastest(train, route)
     assert result.status == "stalled"
     tr = result.trace

@@ -12,7 +12,7 @@ import pytest
 import trainsim
 from trainsim.constants import KMH
 from trainsim.io.loader import load_route, load_train
-from trainsim.sim.kernel import BRAKE, TRACTION
+from trainsim.sim.kernel import BRAKE
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "trainruns"
 TRAINS = ["freight.yaml", "local.yaml", "longdistance.yaml"]
@@ -22,7 +22,9 @@ PATHS = ["const.yaml", "slope.yaml", "speed.yaml", "realworld.yaml"]
 def load(train_file: str, path_file: str, mass_model: str = "mass_point"):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the default-deceleration notice is tested in tests/io
-        return load_train(DATA / "trains" / train_file), load_route(DATA / "paths" / path_file, mass_model=mass_model)
+        return load_train(DATA / "trains" / train_file), load_route(
+            DATA / "paths" / path_file, mass_model=mass_model
+        )
 
 
 @pytest.mark.parametrize("mass_model", ["mass_point", "homogeneous_strip"])

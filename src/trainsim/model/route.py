@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from itertools import pairwise
 from typing import Literal
 
 import numpy as np
@@ -146,7 +147,7 @@ class Route:
                 value=(self.start_m, self.end_m),
             )
         positions = [s.position_m for s in self.stations]
-        if any(b < a for a, b in zip(positions, positions[1:], strict=False)):
+        if any(b < a for a, b in pairwise(positions)):
             raise InputError("stations must be in increasing position", field="stations", value=positions)
         for s in self.stations:
             if not self.start_m - 1e-9 <= s.position_m <= self.end_m + 1e-9:
@@ -193,7 +194,7 @@ class Route:
         for a, b in spans:
             if not b > a:
                 raise InputError(f"{name}: a section must end after it starts", field=name, value=(a, b))
-        for (a0, b0), (a1, _b1) in zip(spans, spans[1:], strict=False):
+        for (a0, b0), (a1, _b1) in pairwise(spans):
             if a1 < b0 - 1e-6:
                 raise InputError(f"{name}: sections overlap", field=name, value=((a0, b0), (a1, _b1)))
             if full and a1 > b0 + 1e-6:

@@ -28,7 +28,10 @@ class RunSettings:
     def __post_init__(self) -> None:
         if not 0.01 <= self.max_step_m <= 1000:
             raise InputError(
-                "invalid integration step", field="settings.max_step_m", value=self.max_step_m, allowed="0.01 .. 1000 m"
+                "invalid integration step",
+                field="settings.max_step_m",
+                value=self.max_step_m,
+                allowed="0.01 .. 1000 m",
             )
         if not 0 < self.braking_fraction <= 1:
             raise InputError(

@@ -112,7 +112,11 @@ class Electrical:
     def __post_init__(self) -> None:
         checks = {
             "line_voltage_v": (self.line_voltage_v, self.line_voltage_v > 0, "> 0 V"),
-            "traction_efficiency": (self.traction_efficiency, 0 < self.traction_efficiency <= 1, "0 < x <= 1"),
+            "traction_efficiency": (
+                self.traction_efficiency,
+                0 < self.traction_efficiency <= 1,
+                "0 < x <= 1",
+            ),
             "regenerative_efficiency": (
                 self.regenerative_efficiency,
                 0 <= self.regenerative_efficiency <= 1,
@@ -124,7 +128,9 @@ class Electrical:
         }
         for name, (value, ok, allowed) in checks.items():
             if not ok:
-                raise InputError("invalid electrical data", field=f"electrical.{name}", value=value, allowed=allowed)
+                raise InputError(
+                    "invalid electrical data", field=f"electrical.{name}", value=value, allowed=allowed
+                )
 
 
 @dataclass(frozen=True)

@@ -180,7 +180,9 @@ class DrivingSession:
                     self.dwell_remaining_s = 0.0
                     self._message = f"departing {self._stops[self._next_stop - 1].name}"
             else:
-                self._log(TRACTION if command > 0 else BRAKE if command < 0 else COAST, abs(command), replace=True)
+                self._log(
+                    TRACTION if command > 0 else BRAKE if command < 0 else COAST, abs(command), replace=True
+                )
                 self._energy_j += self._line_power_w(command) * h
                 self._substep(command, h)
                 self._after_move()
@@ -245,7 +247,9 @@ class DrivingSession:
             time_s=self.time_s,
             position_m=s,
             speed_mps=v,
-            acceleration_mps2=(traction - braking - resistance) / self.train.inertial_mass_kg if v > 0 else 0.0,
+            acceleration_mps2=(traction - braking - resistance) / self.train.inertial_mass_kg
+            if v > 0
+            else 0.0,
             command=command,
             regime=regime,
             traction_force_n=traction,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 
 from trainsim.errors import InputError
@@ -65,7 +67,7 @@ def stops_of(route: Route) -> list[float]:
             value=[s.name for s in route.stops],
             allowed="two or more stations with stop: true",
         )
-    if any(b - a < 1.0 for a, b in zip(stops, stops[1:], strict=False)):
+    if any(b - a < 1.0 for a, b in pairwise(stops)):
         raise InputError(
             "two consecutive stops are less than 1 m apart", field="stations.position", value=stops
         )

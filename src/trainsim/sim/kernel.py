@@ -145,11 +145,15 @@ def distance_to_speed(E, u, Et, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc,
         if k1 * sign <= 0.0:
             return np.inf
         r1 = 1.0 / k1
-        k2 = acceleration(mode, E + 0.5 * dE, u + s + 0.5 * dE * r1, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        k2 = acceleration(
+            mode, E + 0.5 * dE, u + s + 0.5 * dE * r1, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp
+        )
         if k2 * sign <= 0.0:
             return np.inf
         r2 = 1.0 / k2
-        k3 = acceleration(mode, E + 0.5 * dE, u + s + 0.5 * dE * r2, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        k3 = acceleration(
+            mode, E + 0.5 * dE, u + s + 0.5 * dE * r2, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp
+        )
         if k3 * sign <= 0.0:
             return np.inf
         r3 = 1.0 / k3
@@ -231,7 +235,9 @@ def step_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp
 
 
 @njit(cache=True)
-def find_speed_crossing_split(E, u, H, target_E, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks):
+def find_speed_crossing_split(
+    E, u, H, target_E, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks
+):
     """Signed distance in (0, H] (H may be negative) where E reaches target_E along ``mode``,
     chaining speed-domain integrations across the kinks in between; H if it is not reached."""
     v_t = np.sqrt(2.0 * target_E) if target_E > 0.0 else 0.0
@@ -266,9 +272,9 @@ def find_curve_meeting(E, u, Er, w, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, b
         if f_hi == f_lo:
             break
         x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
-        f = step_energy(E, u, x - u, TRACTION, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk) - step_energy(
-            Er, w, x - w, BRAKE, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk
-        )
+        f = step_energy(
+            E, u, x - u, TRACTION, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
+        ) - step_energy(Er, w, x - w, BRAKE, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk)
         if (f > 0.0) == (f_hi > 0.0):
             hi, f_hi = x, f
             if side == 1:
@@ -285,7 +291,33 @@ def find_curve_meeting(E, u, Er, w, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, b
 
 
 @njit(cache=True)
-def fastest_segment(x, a0, a1, b0, b1, vlim, i0, i1, t0, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, out_s, out_v, out_t, out_m, n):
+def fastest_segment(
+    x,
+    a0,
+    a1,
+    b0,
+    b1,
+    vlim,
+    i0,
+    i1,
+    t0,
+    P,
+    ts,
+    tc,
+    tf,
+    tp,
+    bs,
+    bc,
+    bf,
+    bp,
+    tk,
+    bk,
+    out_s,
+    out_v,
+    out_t,
+    out_m,
+    n,
+):
     """Fastest run from standstill at x[i0] to standstill at x[i1]; appends points to the out
     arrays from index n. Returns (new n, status, position of a stall)."""
     m_int = i1 - i0
@@ -301,7 +333,8 @@ def fastest_segment(x, a0, a1, b0, b1, vlim, i0, i1, t0, P, ts, tc, tf, tp, bs, 
         Er = 0.5 * cr * cr
         if cr >= vlim[i] and (
             acceleration(BRAKE, Er, 0.0, a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp) < 0.0
-            and acceleration(BRAKE, Er, w, a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp) < 0.0
+            and acceleration(BRAKE, Er, w, a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp)
+            < 0.0
         ):
             # braking backwards from the limit only rises above it: the whole interval is at the limit
             US[k] = w
@@ -319,7 +352,25 @@ def fastest_segment(x, a0, a1, b0, b1, vlim, i0, i1, t0, P, ts, tc, tf, tp, bs, 
                 US[k] = w
             else:
                 h = find_speed_crossing_split(
-                    Er, w, -w, 0.5 * vlim[i] * vlim[i], BRAKE, a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp, bk
+                    Er,
+                    w,
+                    -w,
+                    0.5 * vlim[i] * vlim[i],
+                    BRAKE,
+                    a0[i],
+                    a1[i],
+                    b0[i],
+                    b1[i],
+                    P,
+                    ts,
+                    tc,
+                    tf,
+                    tp,
+                    bs,
+                    bc,
+                    bf,
+                    bp,
+                    bk,
                 )
                 US[k] = w + h
             Cl[k] = vlim[i]
@@ -360,7 +411,9 @@ def fastest_segment(x, a0, a1, b0, b1, vlim, i0, i1, t0, P, ts, tc, tf, tp, bs, 
                         u = stop_at
                         continue
                 # traction towards the end of this part
-                E1, dt = step_energy_time(E, u, end - u, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk)
+                E1, dt = step_energy_time(
+                    E, u, end - u, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
+                )
                 if E1 <= 0.0:
                     h = find_speed_crossing_split(
                         E, u, end - u, 0.0, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
@@ -384,9 +437,29 @@ def fastest_segment(x, a0, a1, b0, b1, vlim, i0, i1, t0, P, ts, tc, tf, tp, bs, 
                 n += 1
                 if v1 > vl_i and v < vl_i:
                     h = find_speed_crossing_split(
-                        E, u, end - u, 0.5 * vl_i * vl_i, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
+                        E,
+                        u,
+                        end - u,
+                        0.5 * vl_i * vl_i,
+                        TRACTION,
+                        A0,
+                        A1,
+                        B0,
+                        B1,
+                        P,
+                        ts,
+                        tc,
+                        tf,
+                        tp,
+                        bs,
+                        bc,
+                        bf,
+                        bp,
+                        tk,
                     )
-                    _, dt = step_energy_time(E, u, h, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk)
+                    _, dt = step_energy_time(
+                        E, u, h, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
+                    )
                     t += dt
                     u += h
                     v = vl_i
@@ -398,16 +471,22 @@ def fastest_segment(x, a0, a1, b0, b1, vlim, i0, i1, t0, P, ts, tc, tf, tp, bs, 
                 # under the braking curve that ends at (w, Cr[k])
                 Er = 0.5 * Cr[k] * Cr[k]
                 Eb = step_energy(Er, w, u - w, BRAKE, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk)
-                if E < Eb * (1.0 - 1e-9) - 1e-12:
-                    E1, dt = step_energy_time(E, u, w - u, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk)
+                if Eb * (1.0 - 1e-9) - 1e-12 > E:
+                    E1, dt = step_energy_time(
+                        E, u, w - u, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
+                    )
                     out_s[n] = x[i] + u
                     out_v[n] = v
                     out_t[n] = t
                     out_m[n] = TRACTION
                     n += 1
-                    if E1 > Er:
-                        xm = find_curve_meeting(E, u, Er, w, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk)
-                        Em, dt = step_energy_time(E, u, xm - u, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk)
+                    if Er < E1:
+                        xm = find_curve_meeting(
+                            E, u, Er, w, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk
+                        )
+                        Em, dt = step_energy_time(
+                            E, u, xm - u, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
+                        )
                         t += dt
                         u = xm
                         v = np.sqrt(2.0 * Em) if Em > 0 else 0.0
@@ -423,7 +502,9 @@ def fastest_segment(x, a0, a1, b0, b1, vlim, i0, i1, t0, P, ts, tc, tf, tp, bs, 
                     out_t[n] = t
                     out_m[n] = BRAKE
                     n += 1
-                    _, dt = step_energy_time(0.5 * v * v, u, w - u, BRAKE, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk)
+                    _, dt = step_energy_time(
+                        0.5 * v * v, u, w - u, BRAKE, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk
+                    )
                     t += dt
                     u = w
                     v = Cr[k]
@@ -482,10 +563,14 @@ def insert_kink_points(x, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk,
             vk = _next_kink(vc, rising, v[k + 1], kinks)
             if vk < 0.0:
                 break
-            hk = distance_to_speed(E, u, 0.5 * vk * vk, m[k], a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp)
+            hk = distance_to_speed(
+                E, u, 0.5 * vk * vk, m[k], a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp
+            )
             if not (0.0 < hk < remaining):
                 break
-            _, dt = rk4_energy_time(E, u, hk, m[k], a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp)
+            _, dt = rk4_energy_time(
+                E, u, hk, m[k], a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp
+            )
             E = 0.5 * vk * vk
             u += hk
             remaining -= hk

@@ -10,6 +10,7 @@ both ways of applying line resistance share one representation.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 
@@ -48,7 +49,9 @@ class PiecewiseLinear:
         return left + (self.right[k] - left) * frac
 
 
-def step_function(starts: list[float], ends: list[float], values: list[float], lo: float, hi: float) -> PiecewiseLinear:
+def step_function(
+    starts: list[float], ends: list[float], values: list[float], lo: float, hi: float
+) -> PiecewiseLinear:
     """A piecewise constant function on [lo, hi] that is ``values[k]`` on ``[starts[k], ends[k])``
     and 0 elsewhere (the sections do not overlap)."""
     a = np.asarray(starts, dtype=float)
@@ -78,7 +81,11 @@ def averaged_over_length(f: PiecewiseLinear, length_m: float) -> PiecewiseLinear
         s_c = np.clip(s, lo, hi)
         k = np.clip(np.searchsorted(x, s_c, side="right") - 1, 0, len(f.left) - 1)
         inside = cum[k] + f.left[k] * (s_c - x[k])
-        return inside + np.where(s < lo, (s - lo) * f.left[0], 0.0) + np.where(s > hi, (s - hi) * f.left[-1], 0.0)
+        return (
+            inside
+            + np.where(s < lo, (s - lo) * f.left[0], 0.0)
+            + np.where(s > hi, (s - hi) * f.left[-1], 0.0)
+        )
 
     nodes = np.unique(np.clip(np.concatenate([x, x + length_m]), lo, hi))
     mean = (integral(nodes) - integral(nodes - length_m)) / length_m
@@ -124,7 +131,9 @@ def line_resistance_profile(route: Route, train: Train) -> LineResistanceProfile
     grad = step_function(
         [g.start_m for g in route.gradients],
         [g.end_m for g in route.gradients],
-        lr.gradient_ratio(np.array([g.gradient_permille for g in route.gradients]), settings.gradient_formula),
+        lr.gradient_ratio(
+            np.array([g.gradient_permille for g in route.gradients]), settings.gradient_formula
+        ),
         lo,
         hi,
     )
@@ -135,12 +144,22 @@ def line_resistance_profile(route: Route, train: Train) -> LineResistanceProfile
         lo,
         hi,
     )
-    tunnel_terms = [lr.tunnel_ratio(t.length_m, settings.tunnel_formula, t.limiting_gradient) for t in route.tunnels]
+    tunnel_terms = [
+        lr.tunnel_ratio(t.length_m, settings.tunnel_formula, t.limiting_gradient) for t in route.tunnels
+    ]
     tun0 = step_function(
-        [t.start_m for t in route.tunnels], [t.end_m for t in route.tunnels], [c for c, _ in tunnel_terms], lo, hi
+        [t.start_m for t in route.tunnels],
+        [t.end_m for t in route.tunnels],
+        [c for c, _ in tunnel_terms],
+        lo,
+        hi,
     )
     tun2 = step_function(
-        [t.start_m for t in route.tunnels], [t.end_m for t in route.tunnels], [k for _, k in tunnel_terms], lo, hi
+        [t.start_m for t in route.tunnels],
+        [t.end_m for t in route.tunnels],
+        [k for _, k in tunnel_terms],
+        lo,
+        hi,
     )
     if settings.apply_over == "train_length":
         grad, curve, tun0, tun2 = (averaged_over_length(f, train.length_m) for f in (grad, curve, tun0, tun2))
@@ -186,7 +205,9 @@ def _graded(a: float, b: float, max_step: float, grade_left: bool, grade_right: 
     return sorted(pts)
 
 
-def compile_track(route: Route, train: Train, stops_m: list[float], max_step_m: float) -> tuple[KernelTrack, LineResistanceProfile, PiecewiseLinear]:
+def compile_track(
+    route: Route, train: Train, stops_m: list[float], max_step_m: float
+) -> tuple[KernelTrack, LineResistanceProfile, PiecewiseLinear]:
     """Build the kernel grid for a run between the first and last of ``stops_m``."""
     profile = line_resistance_profile(route, train)
     ceiling = speed_ceiling(route, train)
@@ -201,7 +222,7 @@ def compile_track(route: Route, train: Train, stops_m: list[float], max_step_m: 
     # uniform subdivision of every coarse interval, vectorised; grading only next to stops
     widths = np.diff(coarse)
     counts = np.maximum(np.ceil(widths / max_step_m - 1e-9).astype(np.int64), 1)
-    graded = np.array([a in stop_set or b in stop_set for a, b in zip(coarse[:-1], coarse[1:], strict=True)])
+    graded = np.array([a in stop_set or b in stop_set for a, b in pairwise(coarse)])
     counts[graded] = 1
     starts = np.repeat(coarse[:-1], counts)
     within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)

@@ -7,12 +7,12 @@ from typing import Any
 
 import numpy as np
 
-from trainsim.constants import G, KMH, KWH
+from trainsim.constants import KMH, KWH, G
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
 from trainsim.physics import electrical as el
-from trainsim.sim.kernel import BRAKE, COAST, CRUISE, DWELL, REGIME_NAMES, TRACTION
+from trainsim.sim.kernel import BRAKE, CRUISE, DWELL, REGIME_NAMES, TRACTION
 from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear
 
 
@@ -196,7 +196,9 @@ def _regime_forces(
     is_b = regime == BRAKE
     if train.braking.deceleration_mps2 is not None:
         decel = train.braking.deceleration_mps2 * settings.braking_fraction
-        braking[is_b] = level[is_b] * np.maximum(train.inertial_mass_kg * decel - running[is_b] - line[is_b], 0.0)
+        braking[is_b] = level[is_b] * np.maximum(
+            train.inertial_mass_kg * decel - running[is_b] - line[is_b], 0.0
+        )
     else:
         braking[is_b] = level[is_b] * settings.braking_fraction * train.braking.service_force(v[is_b])
     return traction, braking
@@ -215,7 +217,9 @@ def _section_ends(regime: np.ndarray) -> list[int]:
     return ends
 
 
-def _line_forces(profile: LineResistanceProfile, mass_kg: float, s: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, ...]:
+def _line_forces(
+    profile: LineResistanceProfile, mass_kg: float, s: np.ndarray, v: np.ndarray
+) -> tuple[np.ndarray, ...]:
     weight = mass_kg * G
     return (
         weight * profile.gradient(s),
@@ -294,7 +298,9 @@ def build_result(
     e_paper = w_traction * (elec.traction_efficiency if elec else 1.0)
 
     mech_power = traction * v
-    el_power = el.traction_line_power_w(traction, v, eta_t) + aux_w - el.regenerated_line_power_w(regen, v, eta_r)
+    el_power = (
+        el.traction_line_power_w(traction, v, eta_t) + aux_w - el.regenerated_line_power_w(regen, v, eta_r)
+    )
     paper_power = el.paper_power_w(traction, v, eta_t)
     if elec:
         current = el.line_current_a(el_power, elec.line_voltage_v, elec.power_factor)
