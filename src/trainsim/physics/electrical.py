@@ -86,7 +86,7 @@ def paper_power_w(force_n: ArrayLike, speed_mps: ArrayLike, efficiency: float) -
     return _as_output(np.asarray(mechanical_power_w(force_n, speed_mps)) * efficiency)
 
 
-def line_current_a(power_w: ArrayLike, voltage_v: float, power_factor: float = 1.0) -> np.ndarray | float:
+def line_current_a(power_w: ArrayLike, voltage_v: ArrayLike, power_factor: float = 1.0) -> np.ndarray | float:
     """Line current ``I = P / (U cos phi)`` [A] (source 002 eq. 15).
 
     The paper prints ``I = P / U x cos phi``; it is read as ``P / (U cos phi)``, the current of a
@@ -95,10 +95,10 @@ def line_current_a(power_w: ArrayLike, voltage_v: float, power_factor: float = 1
 
     Args:
         power_w: electrical power [W] (negative when feeding back).
-        voltage_v: line voltage U [V], > 0.
+        voltage_v: line voltage U [V], > 0 (one value, or one per power value).
         power_factor: cos phi, 0 < cos phi <= 1 [-].
     """
-    if not voltage_v > 0:
+    if not np.all(np.asarray(voltage_v) > 0):
         raise InputError("line voltage must be > 0", field="electrical.line_voltage_v", value=voltage_v)
     _check_ratio("power_factor", power_factor)
     return _as_output(np.asarray(power_w, dtype=float) / (voltage_v * power_factor))

@@ -20,7 +20,7 @@ from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings, Scenario
 from trainsim.model.train import Train
 from trainsim.sim.kernel import BRAKE, COAST, DWELL, TRACTION
-from trainsim.sim.profile import line_resistance_profile, speed_ceiling
+from trainsim.sim.profile import line_resistance_profile, line_voltage, speed_ceiling, traction_availability
 from trainsim.sim.result import RunResult, build_result
 
 #: Largest internal time step [s]; a command may span many of them.
@@ -78,6 +78,8 @@ class DrivingSession:
         self.stop_window_m = stop_window_m
         self._profile = line_resistance_profile(route, train)
         self._ceiling = speed_ceiling(route, train)
+        self._available = traction_availability(route, train)
+        self._voltage = line_voltage(route, train)
         stops = route.stops
         if not stops:
             raise InputError("the route has no stop to start from", field="stations")
@@ -99,7 +101,9 @@ class DrivingSession:
     def _forces(self, command: float, v: float, s: float) -> tuple[float, float, float]:
         """(traction, braking, resistance) [N] for a command at speed v and head position s."""
         train = self.train
-        traction = command * float(train.traction(v)) if command > 0 else 0.0
+        traction = (
+            command * float(self._available(s + 1e-7)) * float(train.traction(v)) if command > 0 else 0.0
+        )
         running = float(train.running_resistance_n(v)) if v > 0 else 0.0
         p = self._profile
         ratio = float(p.gradient(s) + p.curve(s) + p.tunnel(s) + p.tunnel_v2(s) * v * v)
@@ -231,9 +235,11 @@ class DrivingSession:
         nxt = self._stops[self._next_stop] if self._next_stop < len(self._stops) else None
         elec = self.train.electrical
         current = None
-        if elec:
-            p = traction * v / elec.traction_efficiency + elec.auxiliary_power_w
-            current = p / (elec.line_voltage_v * elec.power_factor)
+        u_line = float(self._voltage(s + 1e-7))
+        if elec and u_line > 0:
+            current = self._line_power_w(command if self.dwell_remaining_s == 0 else 0.0) / (
+                u_line * elec.power_factor
+            )
         regime = (
             "dwell"
             if self.dwell_remaining_s > 0

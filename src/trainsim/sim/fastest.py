@@ -33,6 +33,7 @@ def kernel_parameters(train: Train, settings: RunSettings) -> tuple:
     else:
         brake_curve = braking.service_force.as_arrays()
     P[kernel.P_BRAKE_FRACTION] = settings.braking_fraction
+    P[kernel.P_TRACTION_SCALE] = 1.0
     return P, train.traction.as_arrays(), brake_curve
 
 
@@ -102,7 +103,7 @@ def run_fastest(train: Train, route: Route, settings: RunSettings | None = None)
     for k in range(len(stops) - 1):
         i0, i1 = int(track.stop_index[k]), int(track.stop_index[k + 1])
         n, status, stall_at = kernel.fastest_segment(
-            track.x, track.a0, track.a1, track.b0, track.b1, track.vlim,
+            track.x, track.a0, track.a1, track.b0, track.b1, track.vlim, track.traction_scale,
             i0, i1, t, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, out_s, out_v, out_t, out_m, n,
         )  # fmt: skip
         if status != kernel.STATUS_OK:
@@ -114,7 +115,7 @@ def run_fastest(train: Train, route: Route, settings: RunSettings | None = None)
     s, v, t, regime = drop_empty_stretches(out_s[:n], out_v[:n], out_t[:n], out_m[:n])
     # a point at every effort-curve kink makes the trapezoidal work integrals exact there
     s, v, t, regime = kernel.insert_kink_points(
-        track.x, track.a0, track.a1, track.b0, track.b1,
+        track.x, track.a0, track.a1, track.b0, track.b1, track.traction_scale,
         P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, s, v, t, regime,
     )  # fmt: skip
     return build_result(

@@ -28,7 +28,11 @@ P_R1 = 3  # c1 [N s/m]
 P_R2 = 4  # c2 [N s^2/m^2]
 P_DECEL = 5  # constant service deceleration [m/s^2], 0 when braking is a force law
 P_BRAKE_FRACTION = 6  # share of the service braking force used [-]
-N_PARAMS = 7
+# Share of the tractive effort available in the interval being integrated (0 on a non-electrified
+# part for an electric train). It changes per interval, so the walkers set it before each interval
+# rather than threading one more argument through every integrator.
+P_TRACTION_SCALE = 7
+N_PARAMS = 8
 
 #: Two speeds closer than this are the same speed [m/s] (far below any physical meaning).
 SPEED_TOLERANCE = 1e-7
@@ -70,7 +74,7 @@ def acceleration(mode, E, u, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
     res = resistance_force(v, u, a0, a1, b0, b1, P)
     M = P[P_INERTIAL_MASS]
     if mode == TRACTION:
-        return (effort(v, ts, tc, tf, tp) - res) / M
+        return (P[P_TRACTION_SCALE] * effort(v, ts, tc, tf, tp) - res) / M
     if mode == BRAKE:
         if P[P_DECEL] > 0.0:
             a_res = res / M
@@ -298,6 +302,7 @@ def fastest_segment(
     b0,
     b1,
     vlim,
+    tscale,
     i0,
     i1,
     t0,
@@ -384,6 +389,7 @@ def fastest_segment(
         i = i0 + k
         w = x[i + 1] - x[i]
         A0, A1, B0, B1, vl_i = a0[i], a1[i], b0[i], b1[i], vlim[i]
+        P[P_TRACTION_SCALE] = tscale[i]
         u = 0.0
         while u < w:
             E = 0.5 * v * v
@@ -394,7 +400,7 @@ def fastest_segment(
                     # cruise as long as the traction can hold the speed
                     need_u = resistance_force(v, u, A0, A1, B0, B1, P)
                     need_end = resistance_force(v, end, A0, A1, B0, B1, P)
-                    fmax = effort(v, ts, tc, tf, tp)
+                    fmax = P[P_TRACTION_SCALE] * effort(v, ts, tc, tf, tp)
                     if need_u > fmax * (1.0 + 1e-12):
                         stop_at = u
                     elif need_end > fmax:
@@ -523,7 +529,7 @@ def _kinks_between(v0, v1, kinks):
 
 
 @njit(cache=True)
-def insert_kink_points(x, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, s, v, t, m):
+def insert_kink_points(x, a0, a1, b0, b1, tscale, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, s, v, t, m):
     """The trace with a point added wherever a traction or braking stretch crosses a kink of its
     effort curve, so that trapezoidal work integrals over the trace are exact at kinks."""
     n = len(s)
@@ -553,6 +559,7 @@ def insert_kink_points(x, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk,
         i = np.searchsorted(x, s[k], side="right") - 1
         if i > n_int - 1:
             i = n_int - 1
+        P[P_TRACTION_SCALE] = tscale[i]
         u = s[k] - x[i]
         E = 0.5 * v[k] * v[k]
         time = t[k]

@@ -166,6 +166,34 @@ def line_resistance_profile(route: Route, train: Train) -> LineResistanceProfile
     return LineResistanceProfile(grad, curve, tun0, tun2)
 
 
+def line_voltage(route: Route, train: Train) -> PiecewiseLinear:
+    """Line voltage over head position [V]: the route's electrification sections, the train's
+    nominal voltage where the route says nothing (a route without electrification data is
+    electrified throughout), 0 on parts electrified with 0 V (not electrified)."""
+    nominal = train.electrical.line_voltage_v if train.electrical else 0.0
+    lo, hi = route.start_m, route.end_m
+    sections = route.electrification
+    covered = step_function(
+        [e.start_m for e in sections], [e.end_m for e in sections], [1.0] * len(sections), lo, hi
+    )
+    voltage = step_function(
+        [e.start_m for e in sections], [e.end_m for e in sections], [e.voltage_v for e in sections], lo, hi
+    )
+    value = np.where(covered.left > 0, voltage.left, nominal)
+    return PiecewiseLinear(voltage.x, value.copy(), value.copy())
+
+
+def traction_availability(route: Route, train: Train) -> PiecewiseLinear:
+    """Share of the tractive effort available over head position [-]: an electric train (one with
+    electrical data) has none where the line is not electrified; other trains have it everywhere."""
+    voltage = line_voltage(route, train)
+    if train.electrical is None:
+        ones = np.ones(len(voltage.left))
+        return PiecewiseLinear(voltage.x, ones, ones.copy())
+    on = (voltage.left > 0).astype(float)
+    return PiecewiseLinear(voltage.x, on, on.copy())
+
+
 @dataclass(frozen=True)
 class KernelTrack:
     """The arrays the kernel walks: grid of head positions and per-interval laws."""
@@ -176,6 +204,7 @@ class KernelTrack:
     b0: np.ndarray  # v^2 coefficient at the start of each interval [s^2/m^2]
     b1: np.ndarray  # its slope [s^2/m^3]
     vlim: np.ndarray  # speed ceiling on each interval [m/s]
+    traction_scale: np.ndarray  # share of the tractive effort available on each interval [-]
     stop_index: np.ndarray  # grid index of each stop, increasing
 
 
@@ -211,9 +240,10 @@ def compile_track(
     """Build the kernel grid for a run between the first and last of ``stops_m``."""
     profile = line_resistance_profile(route, train)
     ceiling = speed_ceiling(route, train)
+    available = traction_availability(route, train)
     lo, hi = stops_m[0], stops_m[-1]
     breaks = {lo, hi, *stops_m}
-    for f in (profile.gradient, profile.curve, profile.tunnel, profile.tunnel_v2, ceiling):
+    for f in (profile.gradient, profile.curve, profile.tunnel, profile.tunnel_v2, ceiling, available):
         breaks.update(float(p) for p in f.x if lo < p < hi)
     coarse = np.array(sorted(breaks))
     keep = np.concatenate([[True], np.diff(coarse) > POSITION_TOLERANCE_M])
@@ -251,5 +281,6 @@ def compile_track(
     a0, a1 = g0 + c0 + t0, g1 + c1 + t1
     b0, b1 = law(profile.tunnel_v2)
     vlim = ceiling(0.5 * (left + right))
+    traction_scale = available(0.5 * (left + right))
     stop_index = np.searchsorted(x, np.array(stops_m) - POSITION_TOLERANCE_M)
-    return KernelTrack(x, a0, a1, b0, b1, vlim, stop_index.astype(np.int64)), profile, ceiling
+    return KernelTrack(x, a0, a1, b0, b1, vlim, traction_scale, stop_index.astype(np.int64)), profile, ceiling

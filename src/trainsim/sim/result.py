@@ -181,14 +181,18 @@ def _regime_forces(
     running: np.ndarray,
     line: np.ndarray,
     level: np.ndarray | None = None,
+    available: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Traction and braking force [N] in each point's regime at speed v; ``level`` is the
-    driver's command magnitude (0..1) in traction and braking, 1 for the envelope regimes."""
+    driver's command magnitude (0..1) in traction and braking, 1 for the envelope regimes;
+    ``available`` the share of tractive effort the line allows (0 where an electric train has no
+    supply)."""
     traction = np.zeros_like(v)
     braking = np.zeros_like(v)
     level = np.ones_like(v) if level is None else level
+    available = np.ones_like(v) if available is None else available
     is_t = regime == TRACTION
-    traction[is_t] = level[is_t] * train.traction(v[is_t])
+    traction[is_t] = level[is_t] * available[is_t] * train.traction(v[is_t])
     is_c = regime == CRUISE
     need = running[is_c] + line[is_c]
     traction[is_c] = np.maximum(need, 0.0)
@@ -246,6 +250,8 @@ def build_result(
     level: np.ndarray | None = None,
     stop_names: list[str] | None = None,
 ) -> RunResult:
+    from trainsim.sim.profile import line_voltage, traction_availability
+
     """Evaluate forces, powers, currents and energies along a run given as points."""
     warnings = list(warnings or [])
     m = train.mass_kg
@@ -257,7 +263,11 @@ def build_result(
     grad, curve, tunnel = _line_forces(profile, m, s_right, v)
     line = grad + curve + tunnel
     level = np.ones(n) if level is None else np.asarray(level, dtype=float)
-    traction, braking = _regime_forces(train, settings, regime, v, running, line, level)
+    availability = traction_availability(route, train)
+    voltage = line_voltage(route, train)
+    traction, braking = _regime_forces(
+        train, settings, regime, v, running, line, level, availability(s_right)
+    )
     regen_cap = train.braking.regenerative(v) if train.braking.regenerative is not None else np.zeros(n)
     regen = np.minimum(braking, regen_cap)
     friction = braking - regen
@@ -274,8 +284,9 @@ def build_result(
     run1 = np.asarray(train.running_resistance_n(v1), dtype=float)
     g_mid, c_mid, t_mid = _line_forces(profile, m, mid, np.sqrt(0.5 * (v0**2 + v1**2)))
     line_mid = g_mid + c_mid + t_mid
-    f0t, f0b = _regime_forces(train, settings, r, v0, run0, line_mid, level[:-1])
-    f1t, f1b = _regime_forces(train, settings, r, v1, run1, line_mid, level[:-1])
+    avail_mid = availability(mid)
+    f0t, f0b = _regime_forces(train, settings, r, v0, run0, line_mid, level[:-1], avail_mid)
+    f1t, f1b = _regime_forces(train, settings, r, v1, run1, line_mid, level[:-1], avail_mid)
     w_traction = 0.5 * (f0t + f1t) * ds
     w_braking = 0.5 * (f0b + f1b) * ds
     if train.braking.regenerative is not None:
@@ -303,8 +314,11 @@ def build_result(
     )
     paper_power = el.paper_power_w(traction, v, eta_t)
     if elec:
-        current = el.line_current_a(el_power, elec.line_voltage_v, elec.power_factor)
-        paper_current = el.line_current_a(paper_power, elec.line_voltage_v, elec.power_factor)
+        # on a non-electrified part (0 V) the train draws nothing: current 0, not a division by 0
+        u_line = voltage(s_right)
+        safe = np.where(u_line > 0, u_line, 1.0)
+        current = np.where(u_line > 0, el.line_current_a(el_power, safe, elec.power_factor), 0.0)
+        paper_current = np.where(u_line > 0, el.line_current_a(paper_power, safe, elec.power_factor), 0.0)
     else:
         current = np.full(n, np.nan)
         paper_current = np.full(n, np.nan)
@@ -374,10 +388,25 @@ def build_result(
         )
         a = d
     if status == "stalled":
-        warnings.append(
-            f"the train stalls at {stall_position_m:.1f} m: its maximum tractive effort cannot overcome the "
-            "running and line resistance there; the result ends at that point"
+        at = np.array([min(stall_position_m + 1e-7, route.end_m)])
+        effort_kn = float(availability(at)[0] * train.traction(0.0)) / 1e3
+        g_n, c_n, t_n = (float(x[0]) for x in _line_forces(profile, m, at, np.zeros(1)))
+        resist_kn = (float(train.running_resistance_n(0.0)) + g_n + c_n + t_n) / 1e3
+        why = (
+            "the line there is not electrified"
+            if effort_kn == 0.0 and train.electrical is not None
+            else f"its maximum tractive effort at standstill, {effort_kn:.1f} kN, is below the "
+            f"{resist_kn:.1f} kN of running and line resistance"
         )
+        warnings.append(
+            f"the train stalls at {stall_position_m:.1f} m: {why}; the result ends there (the best "
+            "feasible run); a stronger train, a lighter load or a lower grade is needed"
+        )
+        if sections:
+            last = sections[-1]
+            sections[-1] = SectionSummary(
+                **{**last.__dict__, "to_station": f"(stalled at {stall_position_m:.0f} m)"}
+            )
     total_time = float(t[-1] - t[0]) if n else 0.0
     dwell_total = float(sum(sec.dwell_s for sec in sections))
     running_time = total_time - dwell_total
