@@ -78,8 +78,10 @@ def _step_xy(
 
 
 def _title(result: RunResult, what: str) -> str:
-    # names can be long (source descriptions): the second line keeps the title inside the figure
-    return f"{what}\n{result.train_name} on {result.route_name}"
+    # names can be long (source descriptions): wrap them so the title stays inside the figure
+    import textwrap
+
+    return "\n".join([what, *textwrap.wrap(f"{result.train_name} on {result.route_name}", width=95)])
 
 
 # ====================================================================== run plots

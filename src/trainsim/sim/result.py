@@ -208,6 +208,20 @@ def _regime_forces(
     return traction, braking
 
 
+def _invariant_violations(s: np.ndarray, v: np.ndarray, t: np.ndarray) -> list[str]:
+    """What is wrong with a trace: NaN, negative speed, position or time going backwards."""
+    problems = []
+    if not (np.all(np.isfinite(s)) and np.all(np.isfinite(v)) and np.all(np.isfinite(t))):
+        problems.append("non-finite position, speed or time")
+    if np.any(v < 0.0):
+        problems.append("negative speed")
+    if np.any(np.diff(s) < -1e-9):
+        problems.append("position decreasing")
+    if np.any(np.diff(t) < -1e-9):
+        problems.append("time decreasing")
+    return problems
+
+
 def _section_ends(regime: np.ndarray) -> list[int]:
     """Index of the arrival point of each section: the first point of each run of DWELL points,
     and the last point if the run ends without a stop."""
@@ -254,6 +268,11 @@ def build_result(
 
     """Evaluate forces, powers, currents and energies along a run given as points."""
     warnings = list(warnings or [])
+    problems = _invariant_violations(s, v, t)
+    if problems:
+        # never hand out a broken trace as if it were fine
+        status = "error"
+        warnings.append("internal consistency check failed: " + "; ".join(problems))
     m = train.mass_kg
     n = len(s)
     elec = train.electrical
@@ -319,9 +338,27 @@ def build_result(
         safe = np.where(u_line > 0, u_line, 1.0)
         current = np.where(u_line > 0, el.line_current_a(el_power, safe, elec.power_factor), 0.0)
         paper_current = np.where(u_line > 0, el.line_current_a(paper_power, safe, elec.power_factor), 0.0)
+        # a point carries the forces of the stretch it starts, so the end of a traction stretch (full
+        # effort at its highest speed, often the peak) is only seen from the stretch: take it too
+        u_mid = voltage(mid)
+        safe_mid = np.where(u_mid > 0, u_mid, 1.0)
+        end_power = np.maximum(
+            el.traction_line_power_w(f0t * v0, 1.0, eta_t)
+            - el.regenerated_line_power_w(rg0 * v0, 1.0, eta_r),
+            el.traction_line_power_w(f1t * v1, 1.0, eta_t)
+            - el.regenerated_line_power_w(rg1 * v1, 1.0, eta_r),
+        )
+        end_current = np.where(u_mid > 0, (end_power + aux_w) / (safe_mid * elec.power_factor), 0.0)
+        end_paper = np.where(
+            u_mid > 0, eta_t * np.maximum(f0t * v0, f1t * v1) / (safe_mid * elec.power_factor), 0.0
+        )
+        # stretch k's end belongs to point k for the peaks (both lie in the same section)
+        peak_current = np.maximum(current, np.concatenate([end_current, [-np.inf]]))
+        peak_paper = np.maximum(paper_current, np.concatenate([end_paper, [-np.inf]]))
     else:
         current = np.full(n, np.nan)
         paper_current = np.full(n, np.nan)
+        peak_current = peak_paper = current
 
     def cumulative(x: np.ndarray) -> np.ndarray:
         return np.concatenate([[0.0], np.cumsum(x)])
@@ -375,7 +412,7 @@ def build_result(
                 dwell_s=dwell,
                 max_speed_kmh=float(v[a : b + 1].max() / KMH),
                 average_speed_kmh=dist / run_time / KMH if run_time > 0 else 0.0,
-                peak_current_a=float(np.nanmax(current[a : b + 1])) if elec else float("nan"),
+                peak_current_a=float(np.nanmax(peak_current[a : b + 1])) if elec else float("nan"),
                 energy_kwh=EnergyFigures(
                     traction=float(w_traction[run].sum() / KWH),
                     braking=float(w_braking[run].sum() / KWH),
@@ -435,8 +472,8 @@ def build_result(
         max_speed_kmh=float(v.max() / KMH) if n else 0.0,
         average_speed_kmh=distance / total_time / KMH if total_time > 0 else 0.0,
         average_running_speed_kmh=distance / running_time / KMH if running_time > 0 else 0.0,
-        peak_current_a=float(np.nanmax(current)) if elec and n else float("nan"),
-        peak_paper_current_a=float(np.nanmax(paper_current)) if elec and n else float("nan"),
+        peak_current_a=float(np.nanmax(peak_current)) if elec and n else float("nan"),
+        peak_paper_current_a=float(np.nanmax(peak_paper)) if elec and n else float("nan"),
         energy_kwh=EnergyFigures(
             traction=float(w_traction.sum() / KWH),
             braking=float(w_braking.sum() / KWH),
