@@ -10,7 +10,7 @@ import pytest
 from simcases import make_route, make_train
 
 import trainsim
-from trainsim.constants import G, KMH, KWH
+from trainsim.constants import KMH, KWH, G
 from trainsim.model import Braking, Curve, EffortCurve, Electrical, LineResistanceSettings, Tunnel
 from trainsim.sim.kernel import BRAKE
 
