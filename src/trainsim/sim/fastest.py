@@ -90,6 +90,7 @@ def run_fastest(train: Train, route: Route, settings: RunSettings | None = None)
     P, (ts, tc, tf, tp), (bs, bc, bf, bp) = kernel_parameters(train, settings)
     tk = kink_speeds(ts, tc, tf, tp)
     bk = kink_speeds(bs, bc, bf, bp)
+    curves = (ts, tc, tf, tp, bs, bc, bf, bp)
     n_max = 4 * len(track.x) + 8 * len(stops) + 16
     out_s = np.empty(n_max)
     out_v = np.empty(n_max)
@@ -104,7 +105,7 @@ def run_fastest(train: Train, route: Route, settings: RunSettings | None = None)
         i0, i1 = int(track.stop_index[k]), int(track.stop_index[k + 1])
         n, status, stall_at = kernel.fastest_segment(
             track.x, track.a0, track.a1, track.b0, track.b1, track.vlim, track.traction_scale,
-            i0, i1, t, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, out_s, out_v, out_t, out_m, n,
+            i0, i1, t, P, curves, tk, bk, out_s, out_v, out_t, out_m, n,
         )  # fmt: skip
         if status != kernel.STATUS_OK:
             break
@@ -116,7 +117,7 @@ def run_fastest(train: Train, route: Route, settings: RunSettings | None = None)
     # a point at every effort-curve kink makes the trapezoidal work integrals exact there
     s, v, t, regime = kernel.insert_kink_points(
         track.x, track.a0, track.a1, track.b0, track.b1, track.traction_scale,
-        P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, s, v, t, regime,
+        P, curves, tk, bk, s, v, t, regime,
     )  # fmt: skip
     return build_result(
         train=train,

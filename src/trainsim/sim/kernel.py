@@ -60,18 +60,21 @@ def effort(v, starts, coefs, fcap, pcap):
 
 
 @njit(cache=True)
-def resistance_force(v, u, a0, a1, b0, b1, P):
-    """Running plus line resistance [N] at speed v and offset u into the interval."""
+def resistance_force(v, u, line, P):
+    """Running plus line resistance [N] at speed v and offset u into the interval whose line
+    resistance laws are ``line = (a0, a1, b0, b1)`` (ratio a0 + a1 u, v^2 coefficient b0 + b1 u)."""
+    a0, a1, b0, b1 = line
     running = P[P_R0] + P[P_R1] * v + P[P_R2] * v * v
-    line = P[P_WEIGHT] * ((a0 + a1 * u) + (b0 + b1 * u) * v * v)
-    return running + line
+    return running + P[P_WEIGHT] * ((a0 + a1 * u) + (b0 + b1 * u) * v * v)
 
 
 @njit(cache=True)
-def acceleration(mode, E, u, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
-    """dE/ds = acceleration [m/s^2] in a regime with maximum effort."""
+def acceleration(mode, E, u, line, P, curves):
+    """dE/ds = acceleration [m/s^2] in a regime with maximum effort. ``curves`` holds the compiled
+    traction and braking EffortCurves, ``(ts, tc, tf, tp, bs, bc, bf, bp)``."""
+    ts, tc, tf, tp, bs, bc, bf, bp = curves
     v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
-    res = resistance_force(v, u, a0, a1, b0, b1, P)
+    res = resistance_force(v, u, line, P)
     M = P[P_INERTIAL_MASS]
     if mode == TRACTION:
         return (P[P_TRACTION_SCALE] * effort(v, ts, tc, tf, tp) - res) / M
@@ -84,12 +87,12 @@ def acceleration(mode, E, u, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
 
 
 @njit(cache=True)
-def rk4_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
+def rk4_energy(E, u, h, mode, line, P, curves):
     """E after a step h [m] (negative: backwards) from offset u; not clipped at 0."""
-    k1 = acceleration(mode, E, u, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
-    k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
-    k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
-    k4 = acceleration(mode, E + h * k3, u + h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+    k1 = acceleration(mode, E, u, line, P, curves)
+    k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, line, P, curves)
+    k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, line, P, curves)
+    k4 = acceleration(mode, E + h * k3, u + h, line, P, curves)
     return E + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
 
@@ -98,19 +101,19 @@ TIME_SUBSTEPS = 4
 
 
 @njit(cache=True)
-def rk4_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
+def rk4_energy_time(E, u, h, mode, line, P, curves):
     """(E, elapsed time) after a forward step h [m] from offset u.
 
     Time is the integral of ds / v, singular at standstill. E(s) over the step is taken as the
     cubic Hermite interpolant of its end values and slopes, and on each sub-interval, where E is
     nearly linear, dt = 2 ds / (v_a + v_b), exact for linear E (constant acceleration).
     """
-    k1 = acceleration(mode, E, u, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
-    k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
-    k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
-    k4 = acceleration(mode, E + h * k3, u + h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+    k1 = acceleration(mode, E, u, line, P, curves)
+    k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, line, P, curves)
+    k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, line, P, curves)
+    k4 = acceleration(mode, E + h * k3, u + h, line, P, curves)
     E1 = E + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-    d1 = acceleration(mode, E1 if E1 > 0.0 else 0.0, u + h, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+    d1 = acceleration(mode, E1 if E1 > 0.0 else 0.0, u + h, line, P, curves)
     dt = 0.0
     v_prev = np.sqrt(2.0 * E) if E > 0.0 else 0.0
     for j in range(1, TIME_SUBSTEPS + 1):
@@ -131,7 +134,7 @@ SPEED_DOMAIN_STEP = 0.5
 
 
 @njit(cache=True)
-def distance_to_speed(E, u, Et, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp):
+def distance_to_speed(E, u, Et, mode, line, P, curves):
     """Signed distance [m] from (u, E) along ``mode`` until E reaches Et, integrating
     ds/dE = 1/a(E, s) in the speed domain (exact event location, no root finding). The law must be
     smooth between E and Et (no kink inside). Returns inf when the acceleration vanishes or changes
@@ -143,25 +146,21 @@ def distance_to_speed(E, u, Et, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc,
     s = 0.0
     sign = 0.0
     for _ in range(n):
-        k1 = acceleration(mode, E, u + s, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        k1 = acceleration(mode, E, u + s, line, P, curves)
         if sign == 0.0:
             sign = 1.0 if k1 > 0.0 else -1.0
         if k1 * sign <= 0.0:
             return np.inf
         r1 = 1.0 / k1
-        k2 = acceleration(
-            mode, E + 0.5 * dE, u + s + 0.5 * dE * r1, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp
-        )
+        k2 = acceleration(mode, E + 0.5 * dE, u + s + 0.5 * dE * r1, line, P, curves)
         if k2 * sign <= 0.0:
             return np.inf
         r2 = 1.0 / k2
-        k3 = acceleration(
-            mode, E + 0.5 * dE, u + s + 0.5 * dE * r2, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp
-        )
+        k3 = acceleration(mode, E + 0.5 * dE, u + s + 0.5 * dE * r2, line, P, curves)
         if k3 * sign <= 0.0:
             return np.inf
         r3 = 1.0 / k3
-        k4 = acceleration(mode, E + dE, u + s + dE * r3, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        k4 = acceleration(mode, E + dE, u + s + dE * r3, line, P, curves)
         if k4 * sign <= 0.0:
             return np.inf
         r4 = 1.0 / k4
@@ -186,7 +185,7 @@ def _next_kink(v0, rising, v_far, kinks):
 
 
 @njit(cache=True)
-def step_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks):
+def step_energy_time(E, u, h, mode, line, P, curves, kinks):
     """(E, elapsed time) after a step h [m] from offset u, restarted at every kink of the
     effort curve on the way: one RK4 step across a kink (e.g. source 002's braking force jumping
     from 150 to 335 kN between 5 and 6 km/h) loses its accuracy, so the kink is located in the
@@ -194,7 +193,7 @@ def step_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, b
     remaining = h
     total_dt = 0.0
     for _ in range(64):
-        E1, dt = rk4_energy_time(E, u, remaining, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        E1, dt = rk4_energy_time(E, u, remaining, mode, line, P, curves)
         v0 = np.sqrt(2.0 * E) if E > 0.0 else 0.0
         v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
         rising = v1 > v0
@@ -203,10 +202,10 @@ def step_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, b
         vk = _next_kink(v0, rising, v_far, kinks)
         if vk < 0.0:
             return E1, total_dt + dt
-        hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, line, P, curves)
         if not (hk * remaining > 0.0 and abs(hk) < abs(remaining) - POSITION_TOLERANCE):
             return E1, total_dt + dt
-        _, dtk = rk4_energy_time(E, u, hk, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        _, dtk = rk4_energy_time(E, u, hk, mode, line, P, curves)
         total_dt += dtk
         E = 0.5 * vk * vk
         u += hk
@@ -215,13 +214,13 @@ def step_energy_time(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, b
 
 
 @njit(cache=True)
-def step_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks):
+def step_energy(E, u, h, mode, line, P, curves, kinks):
     """E after a kink-aware step h [m] (negative: backwards) from offset u; like
     ``step_energy_time`` without the time, for the backward braking curves."""
     remaining = h
     E1 = E
     for _ in range(64):
-        E1 = rk4_energy(E, u, remaining, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        E1 = rk4_energy(E, u, remaining, mode, line, P, curves)
         v0 = np.sqrt(2.0 * E) if E > 0.0 else 0.0
         v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
         rising = v1 > v0
@@ -229,7 +228,7 @@ def step_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp
         vk = _next_kink(v0, rising, v_far, kinks)
         if vk < 0.0:
             return E1
-        hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, line, P, curves)
         if not (hk * remaining > 0.0 and abs(hk) < abs(remaining) - POSITION_TOLERANCE):
             return E1
         E = 0.5 * vk * vk
@@ -239,9 +238,7 @@ def step_energy(E, u, h, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp
 
 
 @njit(cache=True)
-def find_speed_crossing_split(
-    E, u, H, target_E, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, kinks
-):
+def find_speed_crossing_split(E, u, H, target_E, mode, line, P, curves, kinks):
     """Signed distance in (0, H] (H may be negative) where E reaches target_E along ``mode``,
     chaining speed-domain integrations across the kinks in between; H if it is not reached."""
     v_t = np.sqrt(2.0 * target_E) if target_E > 0.0 else 0.0
@@ -251,7 +248,7 @@ def find_speed_crossing_split(
     for _ in range(64):
         vk = _next_kink(v, rising, v_t, kinks)
         Ek = 0.5 * vk * vk if vk >= 0.0 else target_E
-        hk = distance_to_speed(E, u + total, Ek, mode, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp)
+        hk = distance_to_speed(E, u + total, Ek, mode, line, P, curves)
         if not np.isfinite(hk):
             return H
         total += hk
@@ -264,21 +261,21 @@ def find_speed_crossing_split(
 
 
 @njit(cache=True)
-def find_curve_meeting(E, u, Er, w, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk):
+def find_curve_meeting(E, u, Er, w, line, P, curves, tk, bk):
     """Offset in (u, w] where the traction curve from (u, E) meets the braking curve ending at
     (w, Er) (Illinois method on their difference)."""
     lo, hi = u, w
-    f_lo = E - step_energy(Er, w, u - w, BRAKE, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk)
-    f_hi = step_energy(E, u, w - u, TRACTION, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk) - Er
+    f_lo = E - step_energy(Er, w, u - w, BRAKE, line, P, curves, bk)
+    f_hi = step_energy(E, u, w - u, TRACTION, line, P, curves, tk) - Er
     side = 0
     x = hi
     for _ in range(100):
         if f_hi == f_lo:
             break
         x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
-        f = step_energy(
-            E, u, x - u, TRACTION, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
-        ) - step_energy(Er, w, x - w, BRAKE, a0, a1, b0, b1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk)
+        f = step_energy(E, u, x - u, TRACTION, line, P, curves, tk) - step_energy(
+            Er, w, x - w, BRAKE, line, P, curves, bk
+        )
         if (f > 0.0) == (f_hi > 0.0):
             hi, f_hi = x, f
             if side == 1:
@@ -307,14 +304,7 @@ def fastest_segment(
     i1,
     t0,
     P,
-    ts,
-    tc,
-    tf,
-    tp,
-    bs,
-    bc,
-    bf,
-    bp,
+    curves,
     tk,
     bk,
     out_s,
@@ -336,10 +326,10 @@ def fastest_segment(
         w = x[i + 1] - x[i]
         cr = min(vlim[i], c_next)
         Er = 0.5 * cr * cr
+        line = (a0[i], a1[i], b0[i], b1[i])
         if cr >= vlim[i] and (
-            acceleration(BRAKE, Er, 0.0, a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp) < 0.0
-            and acceleration(BRAKE, Er, w, a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp)
-            < 0.0
+            acceleration(BRAKE, Er, 0.0, line, P, curves) < 0.0
+            and acceleration(BRAKE, Er, w, line, P, curves) < 0.0
         ):
             # braking backwards from the limit only rises above it: the whole interval is at the limit
             US[k] = w
@@ -347,7 +337,7 @@ def fastest_segment(
             Cr[k] = cr
             c_next = vlim[i]
             continue
-        El = step_energy(Er, w, -w, BRAKE, a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp, bk)
+        El = step_energy(Er, w, -w, BRAKE, line, P, curves, bk)
         vl = np.sqrt(2.0 * El) if El > 0.0 else 0.0
         if vl <= vlim[i]:
             US[k] = 0.0
@@ -362,19 +352,9 @@ def fastest_segment(
                     -w,
                     0.5 * vlim[i] * vlim[i],
                     BRAKE,
-                    a0[i],
-                    a1[i],
-                    b0[i],
-                    b1[i],
+                    line,
                     P,
-                    ts,
-                    tc,
-                    tf,
-                    tp,
-                    bs,
-                    bc,
-                    bf,
-                    bp,
+                    curves,
                     bk,
                 )
                 US[k] = w + h
@@ -388,7 +368,8 @@ def fastest_segment(
     for k in range(m_int):
         i = i0 + k
         w = x[i + 1] - x[i]
-        A0, A1, B0, B1, vl_i = a0[i], a1[i], b0[i], b1[i], vlim[i]
+        line = (a0[i], a1[i], b0[i], b1[i])
+        vl_i = vlim[i]
         P[P_TRACTION_SCALE] = tscale[i]
         u = 0.0
         while u < w:
@@ -398,9 +379,9 @@ def fastest_segment(
                 if v >= vl_i - SPEED_TOLERANCE:
                     v = vl_i
                     # cruise as long as the traction can hold the speed
-                    need_u = resistance_force(v, u, A0, A1, B0, B1, P)
-                    need_end = resistance_force(v, end, A0, A1, B0, B1, P)
-                    fmax = P[P_TRACTION_SCALE] * effort(v, ts, tc, tf, tp)
+                    need_u = resistance_force(v, u, line, P)
+                    need_end = resistance_force(v, end, line, P)
+                    fmax = P[P_TRACTION_SCALE] * effort(v, curves[0], curves[1], curves[2], curves[3])
                     if need_u > fmax * (1.0 + 1e-12):
                         stop_at = u
                     elif need_end > fmax:
@@ -417,13 +398,9 @@ def fastest_segment(
                         u = stop_at
                         continue
                 # traction towards the end of this part
-                E1, dt = step_energy_time(
-                    E, u, end - u, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
-                )
+                E1, dt = step_energy_time(E, u, end - u, TRACTION, line, P, curves, tk)
                 if E1 <= 0.0:
-                    h = find_speed_crossing_split(
-                        E, u, end - u, 0.0, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
-                    )
+                    h = find_speed_crossing_split(E, u, end - u, 0.0, TRACTION, line, P, curves, tk)
                     out_s[n] = x[i] + u
                     out_v[n] = v
                     out_t[n] = t
@@ -448,24 +425,12 @@ def fastest_segment(
                         end - u,
                         0.5 * vl_i * vl_i,
                         TRACTION,
-                        A0,
-                        A1,
-                        B0,
-                        B1,
+                        line,
                         P,
-                        ts,
-                        tc,
-                        tf,
-                        tp,
-                        bs,
-                        bc,
-                        bf,
-                        bp,
+                        curves,
                         tk,
                     )
-                    _, dt = step_energy_time(
-                        E, u, h, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
-                    )
+                    _, dt = step_energy_time(E, u, h, TRACTION, line, P, curves, tk)
                     t += dt
                     u += h
                     v = vl_i
@@ -476,23 +441,17 @@ def fastest_segment(
             else:
                 # under the braking curve that ends at (w, Cr[k])
                 Er = 0.5 * Cr[k] * Cr[k]
-                Eb = step_energy(Er, w, u - w, BRAKE, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk)
+                Eb = step_energy(Er, w, u - w, BRAKE, line, P, curves, bk)
                 if Eb * (1.0 - 1e-9) - 1e-12 > E:
-                    E1, dt = step_energy_time(
-                        E, u, w - u, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
-                    )
+                    E1, dt = step_energy_time(E, u, w - u, TRACTION, line, P, curves, tk)
                     out_s[n] = x[i] + u
                     out_v[n] = v
                     out_t[n] = t
                     out_m[n] = TRACTION
                     n += 1
                     if Er < E1:
-                        xm = find_curve_meeting(
-                            E, u, Er, w, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk
-                        )
-                        Em, dt = step_energy_time(
-                            E, u, xm - u, TRACTION, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, tk
-                        )
+                        xm = find_curve_meeting(E, u, Er, w, line, P, curves, tk, bk)
+                        Em, dt = step_energy_time(E, u, xm - u, TRACTION, line, P, curves, tk)
                         t += dt
                         u = xm
                         v = np.sqrt(2.0 * Em) if Em > 0 else 0.0
@@ -508,9 +467,7 @@ def fastest_segment(
                     out_t[n] = t
                     out_m[n] = BRAKE
                     n += 1
-                    _, dt = step_energy_time(
-                        0.5 * v * v, u, w - u, BRAKE, A0, A1, B0, B1, P, ts, tc, tf, tp, bs, bc, bf, bp, bk
-                    )
+                    _, dt = step_energy_time(0.5 * v * v, u, w - u, BRAKE, line, P, curves, bk)
                     t += dt
                     u = w
                     v = Cr[k]
@@ -529,7 +486,7 @@ def _kinks_between(v0, v1, kinks):
 
 
 @njit(cache=True)
-def insert_kink_points(x, a0, a1, b0, b1, tscale, P, ts, tc, tf, tp, bs, bc, bf, bp, tk, bk, s, v, t, m):
+def insert_kink_points(x, a0, a1, b0, b1, tscale, P, curves, tk, bk, s, v, t, m):
     """The trace with a point added wherever a traction or braking stretch crosses a kink of its
     effort curve, so that trapezoidal work integrals over the trace are exact at kinks."""
     n = len(s)
@@ -560,6 +517,7 @@ def insert_kink_points(x, a0, a1, b0, b1, tscale, P, ts, tc, tf, tp, bs, bc, bf,
         if i > n_int - 1:
             i = n_int - 1
         P[P_TRACTION_SCALE] = tscale[i]
+        line = (a0[i], a1[i], b0[i], b1[i])
         u = s[k] - x[i]
         E = 0.5 * v[k] * v[k]
         time = t[k]
@@ -570,14 +528,10 @@ def insert_kink_points(x, a0, a1, b0, b1, tscale, P, ts, tc, tf, tp, bs, bc, bf,
             vk = _next_kink(vc, rising, v[k + 1], kinks)
             if vk < 0.0:
                 break
-            hk = distance_to_speed(
-                E, u, 0.5 * vk * vk, m[k], a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp
-            )
+            hk = distance_to_speed(E, u, 0.5 * vk * vk, m[k], line, P, curves)
             if not (0.0 < hk < remaining):
                 break
-            _, dt = rk4_energy_time(
-                E, u, hk, m[k], a0[i], a1[i], b0[i], b1[i], P, ts, tc, tf, tp, bs, bc, bf, bp
-            )
+            _, dt = rk4_energy_time(E, u, hk, m[k], line, P, curves)
             E = 0.5 * vk * vk
             u += hk
             remaining -= hk
