@@ -65,12 +65,15 @@ class Tunnel:
     """A tunnel on ``[start_m, end_m)`` [m].
 
     ``limiting_gradient`` selects source 000's law for tunnels on a limiting (ruling) gradient,
-    whose resistance grows with speed squared.
+    whose resistance grows with speed squared. ``extra_drag_n_s2_per_m2``, when given, is a
+    measured additional aerodynamic drag of the train in this tunnel, ``F = k v^2`` [N s^2/m^2]
+    (TTOBench gives it per train and tunnel cross-section); it is added to the formula's value.
     """
 
     start_m: float
     end_m: float
     limiting_gradient: bool = False
+    extra_drag_n_s2_per_m2: float = 0.0
 
     @property
     def length_m(self) -> float:

@@ -37,6 +37,12 @@ def kernel_parameters(train: Train, settings: RunSettings) -> tuple:
     return P, train.traction.as_arrays(), brake_curve
 
 
+def regenerative_arrays(train: Train) -> tuple:
+    """The compiled regenerative braking curve (zero force when the train has none)."""
+    regen = train.braking.regenerative
+    return regen.as_arrays() if regen is not None else _NO_CURVE
+
+
 def kink_speeds(starts: np.ndarray, coefs: np.ndarray, force_cap: float, power_cap: float) -> np.ndarray:
     """Speeds where an effort curve is not smooth: interval starts and where the power cap takes
     over from the force cap [m/s]."""
@@ -90,7 +96,7 @@ def run_fastest(train: Train, route: Route, settings: RunSettings | None = None)
     P, (ts, tc, tf, tp), (bs, bc, bf, bp) = kernel_parameters(train, settings)
     tk = kink_speeds(ts, tc, tf, tp)
     bk = kink_speeds(bs, bc, bf, bp)
-    curves = (ts, tc, tf, tp, bs, bc, bf, bp)
+    curves = (ts, tc, tf, tp, bs, bc, bf, bp, *regenerative_arrays(train))
     n_max = 4 * len(track.x) + 8 * len(stops) + 16
     out_s = np.empty(n_max)
     out_v = np.empty(n_max)

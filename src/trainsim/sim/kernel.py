@@ -17,8 +17,9 @@ CRUISE = 1
 COAST = 2
 BRAKE = 3
 DWELL = 4
+REGEN = 5  # maximum regenerative braking only (no friction brakes), used by energy-efficient driving
 
-REGIME_NAMES = ("traction", "cruising", "coasting", "braking", "dwell")
+REGIME_NAMES = ("traction", "cruising", "coasting", "braking", "dwell", "regenerative braking")
 
 # Indices into the scalar parameter vector P.
 P_INERTIAL_MASS = 0  # rho m [kg]
@@ -71,8 +72,9 @@ def resistance_force(v, u, line, P):
 @njit(cache=True)
 def acceleration(mode, E, u, line, P, curves):
     """dE/ds = acceleration [m/s^2] in a regime with maximum effort. ``curves`` holds the compiled
-    traction and braking EffortCurves, ``(ts, tc, tf, tp, bs, bc, bf, bp)``."""
-    ts, tc, tf, tp, bs, bc, bf, bp = curves
+    traction, service braking and regenerative braking EffortCurves,
+    ``(ts, tc, tf, tp, bs, bc, bf, bp, rs, rc, rf, rp)``."""
+    ts, tc, tf, tp, bs, bc, bf, bp, rs, rc, rf, rp = curves
     v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
     res = resistance_force(v, u, line, P)
     M = P[P_INERTIAL_MASS]
@@ -83,6 +85,8 @@ def acceleration(mode, E, u, line, P, curves):
             a_res = res / M
             return -a_res if a_res > P[P_DECEL] else -P[P_DECEL]
         return -(P[P_BRAKE_FRACTION] * effort(v, bs, bc, bf, bp) + res) / M
+    if mode == REGEN:
+        return -(effort(v, rs, rc, rf, rp) + res) / M
     return -res / M
 
 
@@ -292,34 +296,15 @@ def find_curve_meeting(E, u, Er, w, line, P, curves, tk, bk):
 
 
 @njit(cache=True)
-def fastest_segment(
-    x,
-    a0,
-    a1,
-    b0,
-    b1,
-    vlim,
-    tscale,
-    i0,
-    i1,
-    t0,
-    P,
-    curves,
-    tk,
-    bk,
-    out_s,
-    out_v,
-    out_t,
-    out_m,
-    n,
-):
-    """Fastest run from standstill at x[i0] to standstill at x[i1]; appends points to the out
-    arrays from index n. Returns (new n, status, position of a stall)."""
+def braking_ceiling(x, a0, a1, b0, b1, vlim, i0, i1, P, curves, bk):
+    """Backward pass from standstill at x[i1] to x[i0]: the speed ceiling made of the limits and
+    the service braking curves to every lower limit and to the stop. For interval k = i - i0 it
+    is the limit vlim[i] on offsets below US[k] and the braking curve ending at (width, Cr[k])
+    above; Cl[k] is its value at the interval's start."""
     m_int = i1 - i0
     Cr = np.empty(m_int)
     Cl = np.empty(m_int)
     US = np.empty(m_int)
-    # backward pass: the speed ceiling including braking curves to every drop and to the stop
     c_next = 0.0
     for k in range(m_int - 1, -1, -1):
         i = i0 + k
@@ -361,6 +346,36 @@ def fastest_segment(
             Cl[k] = vlim[i]
         Cr[k] = cr
         c_next = Cl[k]
+
+    return Cr, Cl, US
+
+
+@njit(cache=True)
+def fastest_segment(
+    x,
+    a0,
+    a1,
+    b0,
+    b1,
+    vlim,
+    tscale,
+    i0,
+    i1,
+    t0,
+    P,
+    curves,
+    tk,
+    bk,
+    out_s,
+    out_v,
+    out_t,
+    out_m,
+    n,
+):
+    """Fastest run from standstill at x[i0] to standstill at x[i1]; appends points to the out
+    arrays from index n. Returns (new n, status, position of a stall)."""
+    m_int = i1 - i0
+    Cr, _, US = braking_ceiling(x, a0, a1, b0, b1, vlim, i0, i1, P, curves, bk)
 
     # forward pass: maximum traction under the ceiling
     v = 0.0

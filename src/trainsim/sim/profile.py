@@ -14,6 +14,7 @@ from itertools import pairwise
 
 import numpy as np
 
+from trainsim.constants import G
 from trainsim.errors import InputError
 from trainsim.model.route import Route
 from trainsim.model.train import Train
@@ -144,8 +145,12 @@ def line_resistance_profile(route: Route, train: Train) -> LineResistanceProfile
         lo,
         hi,
     )
+    weight = train.mass_kg * G
+    # a measured train-specific tunnel drag (TTOBench) adds to the formula's v^2 term
     tunnel_terms = [
-        lr.tunnel_ratio(t.length_m, settings.tunnel_formula, t.limiting_gradient) for t in route.tunnels
+        (c, k + t.extra_drag_n_s2_per_m2 / weight)
+        for t in route.tunnels
+        for c, k in [lr.tunnel_ratio(t.length_m, settings.tunnel_formula, t.limiting_gradient)]
     ]
     tun0 = step_function(
         [t.start_m for t in route.tunnels],

@@ -12,7 +12,7 @@ from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
 from trainsim.physics import electrical as el
-from trainsim.sim.kernel import BRAKE, CRUISE, DWELL, REGIME_NAMES, TRACTION
+from trainsim.sim.kernel import BRAKE, CRUISE, DWELL, REGEN, REGIME_NAMES, TRACTION
 from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear
 
 
@@ -205,6 +205,9 @@ def _regime_forces(
         )
     else:
         braking[is_b] = level[is_b] * settings.braking_fraction * train.braking.service_force(v[is_b])
+    is_r = regime == REGEN
+    if is_r.any() and train.braking.regenerative is not None:
+        braking[is_r] = train.braking.regenerative(v[is_r])
     return traction, braking
 
 

@@ -1,0 +1,194 @@
+"""Expanding a study into its runs: parameters per run, seeded samples and stable run ids.
+
+Order of the runs (``run_index``): explicit runs (or the base) in the order written, then their
+departures, then the sweep points (the first axis varies slowest), then the samples. A run id is the
+SHA-256 of the run's parameters as canonical JSON (first 24 hex digits): the same run of the same study
+always has the same id, whatever the executor, the chunking or the order in which runs finish, which is
+what resuming an interrupted study relies on.
+
+Samples are drawn in the process that expands the study, from NumPy's PCG64 seeded with
+``[seed, k]`` for the k-th sampled field: the values depend only on the study file. Sample ``i`` has the
+same values at every sweep point and for every explicit run (common random numbers: differences
+between design points are not blurred by different draws).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from trainsim.batch.study import MAX_RUNS, DistributionSpec, ParamColumn, SamplesSpec, Study
+from trainsim.errors import InputError
+
+__all__ = ["Expansion", "RunTask", "draw_samples", "expand", "run_id"]
+
+#: What a worker needs to compute one run: (run_index, entry index, departure [s] or None,
+#: ((path, value, relative), ...)).
+RunTask = tuple[int, int, float | None, tuple[tuple[str, Any, bool], ...]]
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return str(obj)
+
+
+def run_id(params: dict[str, Any]) -> str:
+    """Stable id of a run: SHA-256 of its parameters as canonical JSON, 24 hex digits."""
+    text = json.dumps(params, sort_keys=True, separators=(",", ":"), ensure_ascii=False, default=_json_default)
+    return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+def _draw(dist: DistributionSpec, rng: np.random.Generator, count: int) -> list[Any]:
+    if dist.distribution == "choice":
+        values = list(dist.values or [])
+        p = None
+        if dist.weights is not None:
+            w = np.asarray(dist.weights, dtype=float)
+            p = w / w.sum()
+        idx = rng.choice(len(values), size=count, p=p)
+        return [values[int(i)] for i in idx]
+    if dist.distribution == "uniform":
+        x = rng.uniform(dist.low, dist.high, size=count)
+    elif dist.distribution == "triangular":
+        if dist.low == dist.high:
+            x = np.full(count, float(dist.low))  # type: ignore[arg-type]
+        else:
+            x = rng.triangular(dist.low, dist.mode, dist.high, size=count)
+    else:
+        x = rng.normal(dist.mean, dist.std, size=count)
+        lo = -np.inf if dist.min is None else dist.min
+        hi = np.inf if dist.max is None else dist.max
+        # truncated normal by redrawing what falls outside [min, max]: still a pure function of the seed
+        for _ in range(10_000):
+            out = (x < lo) | (x > hi)
+            if not out.any():
+                break
+            x[out] = rng.normal(dist.mean, dist.std, size=int(out.sum()))
+        else:
+            raise InputError(
+                "the normal distribution has almost no probability between min and max",
+                field="samples",
+                value=(dist.mean, dist.std, dist.min, dist.max),
+            )
+    return [float(v) for v in x]
+
+
+def draw_samples(samples: SamplesSpec) -> dict[str, list[Any]]:
+    """The sampled values of every field, ``count`` each, from the study's seed."""
+    out = {}
+    for k, (path, dist) in enumerate(samples.fields.items()):
+        rng = np.random.Generator(np.random.PCG64([samples.seed, k]))
+        out[path] = _draw(dist, rng, samples.count)
+    return out
+
+
+@dataclass
+class Expansion:
+    """The runs of a study, column by column (index = run_index).
+
+    Attributes:
+        columns: the parameter columns, in order.
+        values: column name -> value of each run (as written in the study or drawn).
+        entry: index of each run's entry (base or explicit run).
+        departure_s: departure time of each run [s since midnight] or None.
+        run_ids: stable id of each run.
+    """
+
+    study_name: str
+    fingerprint: str
+    columns: list[ParamColumn]
+    values: dict[str, list[Any]]
+    entry: list[int]
+    departure_s: list[float | None]
+    run_ids: list[str]
+    _overrides: list[ParamColumn] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self._overrides = [c for c in self.columns if c.path is not None]
+
+    def __len__(self) -> int:
+        return len(self.run_ids)
+
+    def task(self, i: int) -> RunTask:
+        """What a worker needs to compute run ``i``."""
+        overrides = tuple((c.path, self.values[c.name][i], c.relative) for c in self._overrides)
+        return (i, self.entry[i], self.departure_s[i], overrides)  # type: ignore[return-value]
+
+    def params(self, i: int) -> dict[str, Any]:
+        """The parameters of run ``i`` by column name."""
+        return {c.name: self.values[c.name][i] for c in self.columns}
+
+
+def expand(study: Study) -> Expansion:
+    """Every run of ``study``; InputError if the axes do not fit together, the study is too large or two
+    runs would have the same parameters."""
+    spec = study.spec
+    axes_points = [axis.points() for axis in spec.axes]
+    if spec.combine == "zip" and axes_points:
+        lengths = {len(p) for p in axes_points}
+        if len(lengths) > 1:
+            raise InputError(
+                "with 'combine: zip' every axis needs the same number of values",
+                file=study.file,
+                field="axes",
+                value=[len(p) for p in axes_points],
+            )
+        combos = [tuple(itertools.chain.from_iterable(t)) for t in zip(*axes_points, strict=True)]
+    else:
+        combos = [tuple(itertools.chain.from_iterable(t)) for t in itertools.product(*axes_points)]
+    sampled = draw_samples(spec.samples) if spec.samples is not None else None
+    n_samples = spec.samples.count if spec.samples is not None else 1
+    n_departures = sum(len(e.departures or (None,)) for e in study.entries)
+    total = n_departures * len(combos) * n_samples
+    if total > MAX_RUNS:
+        raise InputError(
+            f"the study expands to {total} runs, more than the {MAX_RUNS} allowed in one study",
+            file=study.file,
+            allowed="split it into several studies",
+        )
+    names = [c.name for c in study.columns]
+    axis_cols = [c.name for c in study.columns if c.path is not None][: len(combos[0]) if combos else 0]
+    sample_cols = [(c.name, c.path) for c in study.columns if c.path is not None][len(axis_cols) :]
+    has_run = "run" in names
+    has_dep = "departure_s" in names
+    has_sample = "sample" in names
+    values: dict[str, list[Any]] = {n: [] for n in names}
+    entries: list[int] = []
+    departures: list[float | None] = []
+    ids: list[str] = []
+    seen: dict[str, int] = {}
+    for e, entry in enumerate(study.entries):
+        for dep in entry.departures or (None,):
+            for combo in combos:
+                for s in range(n_samples):
+                    row: dict[str, Any] = {}
+                    if has_run:
+                        row["run"] = entry.name
+                    if has_dep:
+                        row["departure_s"] = dep
+                    if has_sample:
+                        row["sample"] = s
+                    row.update(zip(axis_cols, combo, strict=True))
+                    if sampled is not None:
+                        for name, path in sample_cols:
+                            row[name] = sampled[path][s]  # type: ignore[index]
+                    rid = run_id(row)
+                    if rid in seen:
+                        raise InputError(
+                            f"runs {seen[rid]} and {len(ids)} have the same parameters {row}: every run "
+                            "must differ (repeated axis values?)",
+                            file=study.file,
+                        )
+                    seen[rid] = len(ids)
+                    for k, v in row.items():
+                        values[k].append(v)
+                    entries.append(e)
+                    departures.append(dep)
+                    ids.append(rid)
+    return Expansion(study.name, study.fingerprint, list(study.columns), values, entries, departures, ids)

@@ -1,0 +1,685 @@
+"""The study file (``schema: trainsim/study``): a base scenario, axes, random samples, explicit runs.
+
+A study is read and checked once, in the process that starts it: the base scenario and every explicit
+run are validated by the normal scenario reader (an invalid base is an error of the study, not a
+thousand failed runs), every field path is checked against the data it points into, and the set of
+runs is expanded with its parameters and stable run ids (:mod:`trainsim.batch.expand`). What varies
+from run to run is validated per run in the workers; a value the reader rejects makes that run a
+failure row, never stops the study.
+
+The format is documented in docs/BATCH.md.
+"""
+
+from __future__ import annotations
+
+import copy
+import difflib
+import hashlib
+import json
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path as FsPath
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from trainsim.batch.paths import Path, get_values, parse_path, set_value
+from trainsim.errors import InputError
+
+__all__ = [
+    "PARTS",
+    "STUDY_SCHEMA",
+    "AxisSpec",
+    "DistributionSpec",
+    "Entry",
+    "RunEntrySpec",
+    "SamplesSpec",
+    "Study",
+    "StudySpec",
+    "load_study",
+    "parse_clock",
+    "study_from_dict",
+]
+
+STUDY_SCHEMA = "trainsim/study"
+#: The top-level keys of a scenario a path may start with.
+PARTS = ("train", "route", "settings", "stops", "dwell_s")
+#: Largest number of runs a study may expand to (its parameters are held in memory).
+MAX_RUNS = 5_000_000
+
+
+# ====================================================================== the file's model
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", populate_by_name=True, allow_inf_nan=False)
+
+
+class RangeSpec(_Model):
+    """``{from, to, step}`` (``to`` included when it falls on a step) or ``{from, to, count}``."""
+
+    from_: float = Field(alias="from")
+    to: float
+    step: Annotated[float, Field(gt=0)] | None = None
+    count: Annotated[int, Field(ge=1, le=MAX_RUNS)] | None = None
+
+    @model_validator(mode="after")
+    def _check(self) -> RangeSpec:
+        if (self.step is None) == (self.count is None):
+            raise ValueError("give exactly one of 'step' or 'count'")
+        if self.to < self.from_:
+            raise ValueError(f"'to' ({self.to:g}) is below 'from' ({self.from_:g})")
+        if self.step is not None and (self.to - self.from_) / self.step > MAX_RUNS:
+            raise ValueError(f"the range has more than {MAX_RUNS} values")
+        return self
+
+    def values(self) -> list[float | int]:
+        ints = all(float(x).is_integer() for x in (self.from_, self.to, self.step or 1.0))
+        if self.count is not None:
+            if self.count == 1:
+                out = [self.from_]
+            else:
+                out = [self.from_ + (self.to - self.from_) * k / (self.count - 1) for k in range(self.count)]
+            ints = ints and all(float(x).is_integer() for x in out)
+        else:
+            step = float(self.step or 1.0)
+            n = math.floor((self.to - self.from_) / step + 1e-9)
+            out = [self.from_ + k * step for k in range(n + 1)]
+        # 0.1 + 2 * 0.05 is 0.20000000000000004: values are rounded to 12 significant digits
+        return [int(round(x)) if ints else float(f"{x:.12g}") for x in out]
+
+
+class AxisSpec(_Model):
+    """One axis of a sweep: a field (or several fields moved together) and its values."""
+
+    field: str | None = None
+    fields: list[str] | None = Field(default=None, min_length=1)
+    values: list[Any] | None = Field(default=None, min_length=1)
+    range: RangeSpec | None = None
+    relative: bool = False
+
+    @model_validator(mode="after")
+    def _check(self) -> AxisSpec:
+        if (self.field is None) == (self.fields is None):
+            raise ValueError("give exactly one of 'field' (one path) or 'fields' (paths moved together)")
+        if (self.values is None) == (self.range is None):
+            raise ValueError("give exactly one of 'values' or 'range'")
+        if self.fields is not None:
+            if self.range is not None:
+                raise ValueError("'range' is for one field; with 'fields' give 'values' as lists")
+            for k, v in enumerate(self.values or []):
+                if not isinstance(v, list) or len(v) != len(self.fields):
+                    raise ValueError(
+                        f"values[{k}] must be a list of {len(self.fields)} values, one per field "
+                        f"(got {v!r})"
+                    )
+        return self
+
+    def paths(self) -> list[str]:
+        return list(self.fields) if self.fields is not None else [str(self.field)]
+
+    def points(self) -> list[tuple[Any, ...]]:
+        """The axis values, each as a tuple with one value per field."""
+        if self.range is not None:
+            return [(v,) for v in self.range.values()]
+        if self.fields is not None:
+            return [tuple(v) for v in self.values or []]
+        return [(v,) for v in self.values or []]
+
+
+#: The parameters each distribution needs.
+_NEEDS: dict[str, tuple[str, ...]] = {
+    "uniform": ("low", "high"),
+    "normal": ("mean", "std"),
+    "triangular": ("low", "mode", "high"),
+    "choice": ("values",),
+}
+
+
+class DistributionSpec(_Model):
+    """A random distribution of one field (Monte Carlo)."""
+
+    distribution: Literal["uniform", "normal", "triangular", "choice"]
+    low: float | None = None
+    high: float | None = None
+    mode: float | None = None
+    mean: float | None = None
+    std: Annotated[float, Field(ge=0)] | None = None
+    min: float | None = None
+    max: float | None = None
+    values: list[Any] | None = Field(default=None, min_length=1)
+    weights: list[Annotated[float, Field(ge=0)]] | None = None
+    relative: bool = False
+
+    @model_validator(mode="after")
+    def _check(self) -> DistributionSpec:
+        needs = _NEEDS[self.distribution]
+        missing = [k for k in needs if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"a {self.distribution} distribution needs {', '.join(missing)}")
+        allowed = {*needs, "distribution", "relative"}
+        allowed |= {"min", "max"} if self.distribution == "normal" else set()
+        allowed |= {"weights"} if self.distribution == "choice" else set()
+        extra = sorted(k for k in self.model_fields_set if k not in allowed)
+        if extra:
+            raise ValueError(
+                f"{', '.join(extra)} not used by a {self.distribution} distribution "
+                f"(it takes {', '.join(sorted(allowed - {'distribution'}))})"
+            )
+        if self.distribution in ("uniform", "triangular") and not self.low <= self.high:  # type: ignore[operator]
+            raise ValueError("'low' must not exceed 'high'")
+        if self.distribution == "triangular" and not self.low <= self.mode <= self.high:  # type: ignore[operator]
+            raise ValueError("'mode' must lie between 'low' and 'high'")
+        if self.min is not None and self.max is not None and self.min >= self.max:
+            raise ValueError("'min' must be below 'max'")
+        if self.weights is not None:
+            if len(self.weights) != len(self.values or []):
+                raise ValueError("'weights' needs one weight per value")
+            if sum(self.weights) <= 0:
+                raise ValueError("the weights must not all be 0")
+        if self.relative and self.distribution == "choice":
+            if not all(isinstance(v, int | float) and not isinstance(v, bool) for v in self.values or []):
+                raise ValueError("relative choices must be numbers (factors)")
+        return self
+
+
+class SamplesSpec(_Model):
+    """Seeded random samples (Monte Carlo): ``count`` runs, each with a value drawn for every field."""
+
+    count: Annotated[int, Field(ge=1, le=MAX_RUNS)]
+    seed: Annotated[int, Field(ge=0)]
+    fields: dict[str, DistributionSpec] = Field(min_length=1)
+
+
+class DeparturesSpec(_Model):
+    """Departures at a regular interval: ``first``, ``last`` (included) and ``every_min``."""
+
+    first: str | float
+    last: str | float
+    every_min: Annotated[float, Field(gt=0)]
+
+
+class RunEntrySpec(_Model):
+    """One explicit run (or several, one per departure): its train, route, stops and times."""
+
+    name: str = Field(min_length=1)
+    train: str | dict[str, Any] | None = None
+    route: str | dict[str, Any] | None = None
+    stops: list[str] | None = None
+    dwell_s: dict[str, Annotated[float, Field(ge=0)]] | None = None
+    settings: dict[str, Any] | None = None
+    set: dict[str, Any] | None = None
+    departure: str | float | None = None
+    departures: list[str | float] | DeparturesSpec | None = None
+
+    @model_validator(mode="after")
+    def _check(self) -> RunEntrySpec:
+        if self.departure is not None and self.departures is not None:
+            raise ValueError("give 'departure' (one run) or 'departures' (several), not both")
+        return self
+
+
+class StudySpec(_Model):
+    """A ``trainsim/study`` file (docs/BATCH.md)."""
+
+    schema_id: Literal["trainsim/study"] = Field(alias="schema")
+    version: Literal[1]
+    name: str = Field(min_length=1)
+    description: str | None = None
+    base: str | dict[str, Any] | None = None
+    runs: list[RunEntrySpec] | None = Field(default=None, min_length=1)
+    axes: list[AxisSpec] = Field(default_factory=list)
+    combine: Literal["product", "zip"] = "product"
+    samples: SamplesSpec | None = None
+    chunk_size: Annotated[int, Field(ge=1, le=100_000)] | None = None
+
+    @model_validator(mode="after")
+    def _check(self) -> StudySpec:
+        if self.base is None and self.runs is None:
+            raise ValueError("a study needs a 'base' scenario, a list of 'runs', or both")
+        return self
+
+
+_MODELS: tuple[type[BaseModel], ...] = (
+    StudySpec,
+    RunEntrySpec,
+    AxisSpec,
+    RangeSpec,
+    SamplesSpec,
+    DistributionSpec,
+    DeparturesSpec,
+)
+_KNOWN_FIELDS = sorted({info.alias or name for m in _MODELS for name, info in m.model_fields.items()})
+
+
+def _loc_text(loc: tuple[Any, ...]) -> str:
+    text = ""
+    for part in loc:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        elif part in ("str", "dict[str,any]", "list[union[str,float]]", "DeparturesSpec", "float"):
+            continue  # pydantic's union branch names are not fields of the file
+        else:
+            text += ("." if text else "") + str(part)
+    return text
+
+
+def _study_error(exc: ValidationError, file: str) -> InputError:
+    """One InputError naming every problem of the study file, with did-you-mean hints."""
+    problems: dict[str, str] = {}
+    for err in exc.errors(include_url=False):
+        loc = tuple(err["loc"])
+        field = _loc_text(loc)
+        kind = err["type"]
+        if kind == "extra_forbidden":
+            key = str(loc[-1]) if loc else ""
+            close = difflib.get_close_matches(key, _KNOWN_FIELDS, n=1, cutoff=0.6)
+            text = "unknown field" + (f" (did you mean '{close[0]}'?)" if close else "")
+        elif kind == "missing":
+            text = "required field is missing"
+        elif kind in ("value_error", "assertion_error"):
+            text = err["msg"].removeprefix("Value error, ")
+        else:
+            value = err.get("input")
+            shown = "" if isinstance(value, dict | list) else f" (got {value!r})"
+            text = err["msg"][0].lower() + err["msg"][1:] + shown
+        # a union reports one error per branch: keep the first of each field
+        problems.setdefault(field, text)
+    items = list(problems.items())
+    if len(items) == 1:
+        field, text = items[0]
+        return InputError(text, file=file, field=field or None)
+    joined = "; ".join(f"({i}) {f or '(top level)'}: {t}" for i, (f, t) in enumerate(items, 1))
+    error = InputError(f"{len(items)} problems: {joined}", file=file)
+    error.field = items[0][0] or None
+    return error
+
+
+# ====================================================================== clock times
+_CLOCK = re.compile(r"^\s*(\d{1,3}):([0-5]\d)(?::([0-5]\d(?:\.\d+)?))?\s*$")
+
+
+def parse_clock(value: str | float | int, *, field: str = "departure", file: str | None = None) -> float:
+    """Seconds since midnight from ``"HH:MM"``, ``"HH:MM:SS"`` (hours may pass 24) or a number of
+    seconds."""
+    if isinstance(value, bool):
+        raise InputError("not a time", file=file, field=field, value=value, allowed="HH:MM[:SS] or seconds")
+    if isinstance(value, int | float):
+        if not math.isfinite(value) or value < 0:
+            raise InputError("not a time", file=file, field=field, value=value, allowed=">= 0 s")
+        return float(value)
+    m = _CLOCK.match(str(value))
+    if not m:
+        raise InputError(
+            "not a time", file=file, field=field, value=value, allowed="HH:MM or HH:MM:SS, or seconds"
+        )
+    return int(m.group(1)) * 3600.0 + int(m.group(2)) * 60.0 + float(m.group(3) or 0.0)
+
+
+# ====================================================================== resolved study
+@dataclass(frozen=True)
+class Entry:
+    """A scenario every run of the study starts from: the base, or one explicit run.
+
+    Attributes:
+        name: the explicit run's name (None for the base of a sweep).
+        data: scenario data; ``train`` and ``route`` are inline mappings (trainsim files are read and
+            inlined) or the absolute path of a railtoolkit file, which cannot be varied.
+        departures: departure times [s since midnight], or None.
+    """
+
+    name: str | None
+    data: dict[str, Any]
+    departures: tuple[float, ...] | None
+
+
+@dataclass(frozen=True)
+class ParamColumn:
+    """A parameter column of the results: the run name, departure, sample index or a varied field.
+
+    ``path`` is the field written by the column's values (None for run / departure_s / sample);
+    ``relative`` columns hold factors applied to the value already there.
+    """
+
+    name: str
+    path: str | None = None
+    relative: bool = False
+
+
+def _canonical(obj: Any) -> str:
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=False, default=str)
+
+
+def _read_part(value: Any, kind: str, base_dir: FsPath, file: str, field: str) -> Any:
+    """Inline a trainsim train/route file as data; keep a railtoolkit file as its absolute path."""
+    from trainsim.io import loader
+    from trainsim.io import trainsim_yaml as tsy
+
+    if isinstance(value, dict):
+        data = copy.deepcopy(value)
+        data.setdefault("schema", f"trainsim/{kind}")
+        data.setdefault("version", 1)
+        return data
+    if not isinstance(value, str):
+        raise InputError(f"'{field}' must be a file name or a mapping", file=file, field=field, value=value)
+    path = FsPath(value)
+    path = path if path.is_absolute() else base_dir / path
+    if not path.exists():
+        raise InputError("referenced file not found", file=file, field=field, value=str(path))
+    detected = loader.detect_format(path)
+    if detected.kind != kind:
+        raise InputError(
+            f"this is a {detected.kind} file ({detected.format}), expected a {kind} file",
+            file=file,
+            field=field,
+            value=str(path),
+        )
+    if detected.format == f"trainsim/{kind}":
+        return tsy.read_yaml(path)
+    return str(path.resolve())
+
+
+def _file_digest(path: str) -> str:
+    return hashlib.sha256(FsPath(path).read_bytes()).hexdigest()
+
+
+class Study:
+    """A checked study: its entries (base or explicit runs), axes and samples.
+
+    Build it with :func:`load_study` or :func:`study_from_dict`; :meth:`expand` gives the runs.
+    """
+
+    def __init__(self, spec: StudySpec, file: str, base_dir: FsPath) -> None:
+        self.spec = spec
+        self.file = file
+        self.base_dir = base_dir
+        self.name = spec.name
+        self.entries = self._entries()
+        self.columns = self._columns()
+        self._check_paths()
+        self.fingerprint = self._fingerprint()
+
+    # ------------------------------------------------------------------ entries
+    def _base_data(self) -> dict[str, Any] | None:
+        from trainsim.io import loader
+        from trainsim.io import trainsim_yaml as tsy
+
+        base = self.spec.base
+        if base is None:
+            return None
+        if isinstance(base, str):
+            path = FsPath(base)
+            path = path if path.is_absolute() else self.base_dir / path
+            if not path.exists():
+                raise InputError("base scenario file not found", file=self.file, field="base", value=str(path))
+            detected = loader.detect_format(path)
+            if detected.kind != "scenario":
+                raise InputError(
+                    f"the base must be a scenario; this is a {detected.kind} file ({detected.format})",
+                    file=self.file,
+                    field="base",
+                    value=str(path),
+                )
+            data = tsy.read_yaml(path)
+            where, origin = str(path), path.parent
+        else:
+            data = copy.deepcopy(base)
+            data.setdefault("schema", "trainsim/scenario")
+            data.setdefault("version", 1)
+            data.setdefault("name", self.spec.name)
+            where, origin = f"{self.file}: base", self.base_dir
+        # the scenario reader reports everything else (unknown fields, bad values) with the file
+        for kind in ("train", "route"):
+            if kind in data:
+                data[kind] = _read_part(data[kind], kind, origin, where, kind)
+        _validate_scenario(data, where)
+        return data
+
+    def _entries(self) -> list[Entry]:
+        base = self._base_data()
+        if self.spec.runs is None:
+            assert base is not None
+            return [Entry(None, base, None)]
+        entries = []
+        names: set[str] = set()
+        for i, run in enumerate(self.spec.runs):
+            where = f"runs[{i}]"
+            if run.name in names:
+                raise InputError("two runs have the same name", file=self.file, field=f"{where}.name",
+                                 value=run.name)  # fmt: skip
+            names.add(run.name)
+            data = copy.deepcopy(base) if base is not None else {"schema": "trainsim/scenario", "version": 1}
+            data["name"] = run.name
+            for kind in ("train", "route"):
+                value = getattr(run, kind)
+                if value is not None:
+                    data[kind] = _read_part(value, kind, self.base_dir, self.file, f"{where}.{kind}")
+                elif kind not in data:
+                    raise InputError(
+                        f"the run has no {kind}: give one here or a 'base' scenario",
+                        file=self.file,
+                        field=f"{where}.{kind}",
+                    )
+            if run.stops is not None:
+                data["stops"] = list(run.stops)
+            if run.dwell_s is not None:
+                data["dwell_s"] = {**(data.get("dwell_s") or {}), **run.dwell_s}
+            if run.settings is not None:
+                data["settings"] = {**(data.get("settings") or {}), **run.settings}
+            for path, value in (run.set or {}).items():
+                self._check_root(path, f"{where}.set.{path}")
+                try:
+                    set_value(data, path, value)
+                except InputError as exc:
+                    raise _at(exc, self.file, f"{where}.set.{path}") from None
+            _validate_scenario(data, f"{self.file}: {where} ({run.name})")
+            departures: tuple[float, ...] | None = None
+            if run.departure is not None:
+                departures = (parse_clock(run.departure, field=f"{where}.departure", file=self.file),)
+            elif isinstance(run.departures, DeparturesSpec):
+                d = run.departures
+                first = parse_clock(d.first, field=f"{where}.departures.first", file=self.file)
+                last = parse_clock(d.last, field=f"{where}.departures.last", file=self.file)
+                if last < first:
+                    raise InputError("the last departure is before the first", file=self.file,
+                                     field=f"{where}.departures.last", value=d.last)  # fmt: skip
+                n = math.floor((last - first) / (d.every_min * 60.0) + 1e-9)
+                departures = tuple(round(first + k * d.every_min * 60.0, 6) for k in range(n + 1))
+            elif run.departures is not None:
+                departures = tuple(
+                    parse_clock(t, field=f"{where}.departures[{k}]", file=self.file)
+                    for k, t in enumerate(run.departures)
+                )
+                if len(set(departures)) != len(departures):
+                    raise InputError("the same departure is given twice", file=self.file,
+                                     field=f"{where}.departures")  # fmt: skip
+            entries.append(Entry(run.name, data, departures))
+        return entries
+
+    # ------------------------------------------------------------------ columns and paths
+    def _check_root(self, path: str, field: str) -> Path:
+        try:
+            parsed = parse_path(path)
+        except InputError as exc:
+            raise _at(exc, self.file, field) from None
+        if parsed.root not in PARTS:
+            raise InputError(
+                "a field path starts with the part of the scenario it changes",
+                file=self.file,
+                field=field,
+                value=path,
+                allowed=", ".join(PARTS),
+            )
+        return parsed
+
+    def _columns(self) -> list[ParamColumn]:
+        cols: list[ParamColumn] = []
+        if self.spec.runs is not None:
+            cols.append(ParamColumn("run"))
+        if any(e.departures is not None for e in self.entries):
+            cols.append(ParamColumn("departure_s"))
+        if self.spec.samples is not None:
+            cols.append(ParamColumn("sample"))
+        for i, axis in enumerate(self.spec.axes):
+            for k, path in enumerate(axis.paths()):
+                where = f"axes[{i}].field" if axis.field is not None else f"axes[{i}].fields[{k}]"
+                self._check_root(path, where)
+                cols.append(ParamColumn(f"{path}:factor" if axis.relative else path, path, axis.relative))
+        if self.spec.samples is not None:
+            for path, dist in self.spec.samples.fields.items():
+                self._check_root(path, f"samples.fields.{path}")
+                cols.append(ParamColumn(f"{path}:factor" if dist.relative else path, path, dist.relative))
+        seen: dict[str, str] = {}
+        for c in cols:
+            if c.path is None:
+                continue
+            key = parse_path(c.path).text
+            if key in seen:
+                raise InputError(
+                    "the same field is varied twice (by two axes, or by an axis and the samples)",
+                    file=self.file,
+                    value=c.path,
+                )
+            seen[key] = c.name
+        return cols
+
+    def _first_values(self) -> dict[str, Any]:
+        """A value of every varied field, to try each path on the data."""
+        out: dict[str, Any] = {}
+        for axis in self.spec.axes:
+            for path, v in zip(axis.paths(), axis.points()[0], strict=True):
+                out[path] = v
+        if self.spec.samples is not None:
+            for path, dist in self.spec.samples.fields.items():
+                if dist.distribution == "choice":
+                    out[path] = (dist.values or [None])[0]
+                elif dist.distribution == "normal":
+                    out[path] = dist.mean
+                elif dist.distribution == "triangular":
+                    out[path] = dist.mode
+                else:
+                    out[path] = 0.5 * (float(dist.low) + float(dist.high))  # type: ignore[arg-type]
+        return out
+
+    def _check_paths(self) -> None:
+        """Every varied path must lead into every entry's data, relative ones to numbers; a path that
+        adds a field must name a field the reader knows (a typo would fail every run)."""
+        first = self._first_values()
+        for col in self.columns:
+            if col.path is None:
+                continue
+            for entry in self.entries:
+                label = f"field '{col.path}'" + (f" of run '{entry.name}'" if entry.name else "")
+                part = parse_path(col.path).root
+                if isinstance(entry.data.get(part), str):
+                    raise InputError(
+                        f"{label}: the {part} is a railtoolkit file ({entry.data[part]}), whose fields "
+                        "cannot be varied; use a trainsim file",
+                        file=self.file,
+                        value=col.path,
+                    )
+                trial = copy.deepcopy(entry.data)
+                try:
+                    existing = get_values(trial, col.path)
+                except InputError:
+                    existing = None
+                if col.relative:
+                    if existing is None or not all(
+                        isinstance(v, int | float) and not isinstance(v, bool) for v in existing
+                    ):
+                        raise InputError(
+                            f"{label}: a relative value scales a number, and there is none there",
+                            file=self.file,
+                            value=existing,
+                        )
+                    continue
+                try:
+                    set_value(trial, col.path, first[col.path])
+                except InputError as exc:
+                    raise InputError(
+                        f"{label}: {exc.reason}", file=self.file, value=col.path, allowed=exc.allowed
+                    ) from None
+                if existing is not None:
+                    continue
+                try:
+                    _validate_scenario(trial, "trial")
+                except InputError as exc:
+                    problems = getattr(exc, "problems", None) or [(exc.field, exc.reason)]
+                    for field, reason in problems:
+                        if str(reason).startswith(("unknown field", "no station of that name")):
+                            raise InputError(
+                                f"{label} does not exist in the scenario: {reason}",
+                                file=self.file,
+                                field=str(field or ""),
+                                value=col.path,
+                            ) from None
+
+    # ------------------------------------------------------------------ fingerprint
+    def _fingerprint(self) -> str:
+        files = {}
+        for entry in self.entries:
+            for kind in ("train", "route"):
+                value = entry.data.get(kind)
+                if isinstance(value, str):
+                    files[value] = _file_digest(value)
+        blob = {
+            "entries": [(e.name, e.data, e.departures) for e in self.entries],
+            "files": files,
+            "axes": [a.model_dump(mode="json") for a in self.spec.axes],
+            "combine": self.spec.combine,
+            "samples": self.spec.samples.model_dump(mode="json") if self.spec.samples else None,
+        }
+        return hashlib.sha256(_canonical(blob).encode()).hexdigest()[:32]
+
+    def expand(self):  # -> trainsim.batch.expand.Expansion
+        """Every run of the study with its parameters and run id."""
+        from trainsim.batch.expand import expand
+
+        return expand(self)
+
+
+def _at(exc: InputError, file: str, field: str) -> InputError:
+    return InputError(exc.reason, file=file, field=field, value=exc.value, allowed=exc.allowed)
+
+
+def _validate_scenario(data: dict[str, Any], source: str) -> None:
+    """Build the scenario once: InputError if the reader rejects it."""
+    from trainsim.io import trainsim_yaml as tsy
+
+    tsy.scenario_from_dict(data, source)
+
+
+def _check_header(data: Any, file: str) -> None:
+    if not isinstance(data, dict):
+        raise InputError(
+            "expected a mapping of fields (key: value lines) at the top level",
+            file=file,
+            value=type(data).__name__,
+        )
+    if data.get("schema") != STUDY_SCHEMA:
+        raise InputError(
+            "not a study file" if "schema" in data else "missing 'schema' line",
+            file=file,
+            field="schema",
+            value=data.get("schema"),
+            allowed=STUDY_SCHEMA,
+        )
+    if data.get("version") != 1:
+        raise InputError("unsupported study version", file=file, field="version",
+                         value=data.get("version"), allowed="1")  # fmt: skip
+
+
+def study_from_dict(data: Any, source: str = "<study>", base_dir: str | FsPath | None = None) -> Study:
+    """A checked :class:`Study` from a ``trainsim/study`` mapping; file names relative to ``base_dir``."""
+    _check_header(data, source)
+    try:
+        spec = StudySpec.model_validate(data)
+    except ValidationError as exc:
+        raise _study_error(exc, source) from None
+    return Study(spec, source, FsPath(base_dir) if base_dir is not None else FsPath("."))
+
+
+def load_study(path: str | FsPath) -> Study:
+    """A checked :class:`Study` from a study file; scenario, train and route files relative to it."""
+    from trainsim.io import trainsim_yaml as tsy
+
+    return study_from_dict(tsy.read_yaml(path), str(path), FsPath(path).parent)

@@ -1,0 +1,155 @@
+"""Errors as JSON: every 4xx answer has a ``message`` and a ``detail`` list of field-level problems.
+
+Shape of an error answer::
+
+    {"message": "<train>, field 'formation[1].mass_t': out of range (got -3.0); allowed: > 0.",
+     "detail": [{"field": "formation[1].mass_t", "loc": ["formation", 1, "mass_t"],
+                 "msg": "out of range (got -3.0); allowed: > 0", "value": -3.0, "allowed": "> 0"}]}
+
+``field`` uses the path notation of the core's messages (``a.b[2].c``); ``loc`` is the same path as a
+list; ``msg`` is the core's validation message for that field. The page puts each ``msg`` next to
+the input whose path is ``field``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Any
+
+from fastapi import Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from trainsim.errors import InputError, TrainsimError
+
+
+class ApiError(Exception):
+    """An error answer with a status code, a message and optional field-level detail."""
+
+    def __init__(self, status: int, message: str, detail: list[dict[str, Any]] | None = None) -> None:
+        super().__init__(message)
+        self.status = status
+        self.message = message
+        self.detail = detail or []
+
+
+def parse_field(field: str | None) -> list[str | int]:
+    """``"a.b[1].c"`` -> ``["a", "b", 1, "c"]``."""
+    if not field:
+        return []
+    parts: list[str | int] = []
+    for piece in field.split("."):
+        name, *indices = piece.replace("]", "").split("[")
+        if name:
+            parts.append(name)
+        parts += [int(i) if i.isdigit() else i for i in indices]
+    return parts
+
+
+def format_loc(loc: list[str | int] | tuple[str | int, ...]) -> str:
+    """``["a", "b", 1, "c"]`` -> ``"a.b[1].c"``."""
+    text = ""
+    for part in loc:
+        text += f"[{part}]" if isinstance(part, int) else ("." if text else "") + str(part)
+    return text
+
+
+def _jsonable(value: Any) -> Any:
+    if value is None or isinstance(value, bool | int | str):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else str(value)
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value][:50]
+    return str(value)
+
+
+def _part_texts(message: str, count: int) -> list[str | None]:
+    """The text of each numbered problem of a several-problem message ``N problems: (1) ...; (2) ...``."""
+    out: list[str | None] = []
+    for i in range(1, count + 1):
+        nxt = rf"; \({i + 1}\) " if i < count else r"\.?$"
+        match = re.search(rf"\({i}\) (.*?)(?={nxt})", message, flags=re.S)
+        out.append(match.group(1) if match else None)
+    return out
+
+
+def input_error_detail(exc: InputError, prefix: list[str | int] | None = None) -> list[dict[str, Any]]:
+    """Field-level problems of a core InputError (one per problem for several-problem errors)."""
+    prefix = list(prefix or [])
+    problems = getattr(exc, "problems", None)
+    if problems and len(problems) > 1:
+        texts = _part_texts(exc.reason, len(problems))
+        detail = []
+        for (path, reason), text in zip(problems, texts, strict=True):
+            msg = reason
+            if text and path and text.startswith(f"{path}: "):
+                msg = text[len(path) + 2 :]
+            loc = [*prefix, *parse_field(path)]
+            detail.append({"field": format_loc(loc) or None, "loc": loc, "msg": msg})
+        return detail
+    msg = exc.reason
+    if exc.value is not None:
+        shown = repr(exc.value)
+        msg += f" (got {shown if len(shown) <= 80 else shown[:77] + '...'})"
+    if exc.allowed:
+        msg += f"; allowed: {exc.allowed}"
+    loc = [*prefix, *parse_field(exc.field)]
+    return [
+        {
+            "field": format_loc(loc) or None,
+            "loc": loc,
+            "msg": msg,
+            "value": _jsonable(exc.value),
+            "allowed": exc.allowed,
+        }
+    ]
+
+
+def input_error(exc: InputError, prefix: list[str | int] | None = None, file: str | None = None) -> ApiError:
+    """A 422 answer for a core InputError; ``file`` replaces a temporary file name in the message."""
+    message = str(exc)
+    if file is not None and exc.file and exc.file != file:
+        message = message.replace(exc.file, file)
+    return ApiError(422, message, input_error_detail(exc, prefix))
+
+
+def error_response(status: int, message: str, detail: list[dict[str, Any]] | None = None) -> JSONResponse:
+    return JSONResponse({"message": message, "detail": detail or []}, status_code=status)
+
+
+async def _api_error(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, ApiError)
+    return error_response(exc.status, exc.message, exc.detail)
+
+
+async def _trainsim_error(request: Request, exc: Exception) -> JSONResponse:
+    if isinstance(exc, InputError):
+        err = input_error(exc)
+        return error_response(err.status, err.message, err.detail)
+    return error_response(422, str(exc))
+
+
+async def _request_validation(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RequestValidationError)
+    detail = []
+    for err in exc.errors():
+        loc = [p for p in err.get("loc", ()) if p not in ("body", "query", "path")]
+        detail.append({"field": format_loc(loc) or None, "loc": loc, "msg": err.get("msg", "invalid")})
+    text = "; ".join(f"{d['field'] or 'request'}: {d['msg']}" for d in detail) or "invalid request"
+    return error_response(422, f"invalid request: {text}", detail)
+
+
+async def _http_error(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, StarletteHTTPException)
+    return error_response(exc.status_code, str(exc.detail))
+
+
+def install(app: Any) -> None:
+    """Register the JSON error handlers on a FastAPI app."""
+    app.add_exception_handler(ApiError, _api_error)
+    app.add_exception_handler(TrainsimError, _trainsim_error)
+    app.add_exception_handler(RequestValidationError, _request_validation)
+    app.add_exception_handler(StarletteHTTPException, _http_error)

@@ -1,0 +1,109 @@
+"""Driving strategies the web application can run, by name.
+
+A strategy turns a train, a route, run settings and its own parameters into a :class:`RunResult`.
+The run endpoint (``POST /api/runs``) takes ``{"strategy": NAME, "params": {...}}``; the page
+lists the registered strategies (``GET /api/strategies``) and builds a form for each one's
+parameters from their JSON schema. Only ``fastest`` exists today; the energy-efficient optimizer
+plugs in by registering itself, e.g.::
+
+    from pydantic import BaseModel, Field
+    from trainsim.web.strategies import Strategy, register
+
+    class EcoParams(BaseModel):
+        supplement_percent: float = Field(7.0, ge=0, le=50, description="running time supplement [%]")
+
+    register(Strategy(
+        name="energy_efficient",
+        label="Energy-efficient",
+        description="least energy within the fastest time plus a supplement",
+        params=EcoParams,
+        run=lambda train, route, settings, params: optimize(train, route, settings, params),
+    ))
+
+Parameters are validated by the strategy's pydantic model before the run; its messages come back
+to the page next to the field (``params.supplement_percent``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict
+
+from trainsim.model.route import Route
+from trainsim.model.scenario import RunSettings
+from trainsim.model.train import Train
+from trainsim.sim.fastest import run_fastest
+from trainsim.sim.result import RunResult
+
+__all__ = ["NoParams", "Strategy", "available", "get", "register", "unregister"]
+
+
+class NoParams(BaseModel):
+    """A strategy without parameters."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+@dataclass(frozen=True)
+class Strategy:
+    """A registered strategy.
+
+    Attributes:
+        name: identifier used by the API (``fastest``).
+        label: name shown in the page.
+        description: one sentence for the page and the API docs.
+        params: pydantic model of its parameters (``extra="forbid"`` recommended).
+        run: ``run(train, route, settings, params) -> RunResult``; may raise the core's errors.
+    """
+
+    name: str
+    label: str
+    description: str
+    params: type[BaseModel]
+    run: Callable[[Train, Route, RunSettings, Any], RunResult]
+
+    def describe(self) -> dict[str, Any]:
+        """What ``GET /api/strategies`` says about it."""
+        return {
+            "name": self.name,
+            "label": self.label,
+            "description": self.description,
+            "params_schema": self.params.model_json_schema(),
+        }
+
+
+_REGISTRY: dict[str, Strategy] = {}
+
+
+def register(strategy: Strategy) -> None:
+    """Add (or replace) a strategy."""
+    _REGISTRY[strategy.name] = strategy
+
+
+def unregister(name: str) -> None:
+    """Remove a strategy (tests)."""
+    _REGISTRY.pop(name, None)
+
+
+def get(name: str) -> Strategy | None:
+    """The strategy of that name, or None."""
+    return _REGISTRY.get(name)
+
+
+def available() -> list[Strategy]:
+    """The registered strategies, in registration order."""
+    return list(_REGISTRY.values())
+
+
+register(
+    Strategy(
+        name="fastest",
+        label="Fastest",
+        description="maximum traction, cruising at the limits, service braking to every lower limit and stop",
+        params=NoParams,
+        run=lambda train, route, settings, params: run_fastest(train, route, settings),
+    )
+)
