@@ -1,0 +1,1 @@
+"""Energy-efficient driving to a timetable."""

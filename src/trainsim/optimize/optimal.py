@@ -1,0 +1,221 @@
+"""The energy-optimal driving strategy of a section between two stops for a given running time.
+
+Structure from the theory of optimal train control (Albrecht, Howlett, Pudney, Vu, Zhou 2016,
+"The key principles of optimal train control", Parts 1 and 2, Transportation Research Part B 94):
+maximum traction, holding a speed V, coasting, regenerative braking, maximum braking. The holding
+speed V sets the price of time mu = V^2 R'(V) / eta_t (``price_of_time_w``); the final coasting
+and braking phase is driven by the adjoint (``pmp_kernel``) from the point where the train stops
+holding, found so that the train stops exactly at the next station; V is solved so that the
+section takes its scheduled time. Sections of a line that share mu share the marginal energy per
+second of running time, which makes a split of a line's supplement optimal.
+
+Scope of this implementation (see docs/OPTIMIZATION.md): holding arcs follow V or the speed
+limit where it is lower, with maximum traction where the train cannot hold V uphill and
+regenerative-then-friction braking where holding needs braking downhill; the coasting phases that
+the exact theory also places before steep downhill and before lower speed limits are not
+constructed, so on hilly lines the result is an upper bound close to the optimum.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+
+from trainsim.errors import InputError
+from trainsim.model.route import Route
+from trainsim.model.scenario import RunSettings
+from trainsim.model.train import Train
+from trainsim.optimize import pmp_kernel as pk
+from trainsim.sim import kernel
+from trainsim.sim.fastest import kernel_parameters, kink_speeds, regenerative_arrays
+from trainsim.sim.profile import compile_track
+
+#: Shooting on the coasting point stops when its bracket is shorter than this [m].
+COAST_POINT_TOLERANCE_M = 1e-3
+#: The section time is met to this [s] (far inside the max(0.5 s, 0.05 %) the schedule needs).
+TIME_TOLERANCE_S = 1e-3
+#: Largest step of the adjoint-driven phase [m].
+ADJOINT_STEP_M = 5.0
+
+
+def price_of_time_w(train: Train, holding_speed_mps: float) -> float:
+    """mu = V^2 R'(V) / eta_t [W]: the energy per second of running time saved at the margin when
+    the train holds speed V (Albrecht et al. 2016, Part 1, eq. for the singular arc; psi(V) / eta)."""
+    law = train.resistance_law
+    slope = law.c1 + 2.0 * law.c2 * holding_speed_mps
+    eta_t = train.electrical.traction_efficiency if train.electrical else 1.0
+    return holding_speed_mps**2 * slope / eta_t
+
+
+def key_equation_braking_speed(train: Train, holding_speed_mps: float) -> float:
+    """W = psi(V) / (R(V) + V R'(V)): on level track without regeneration the speed at which
+    coasting ends and braking begins (Albrecht et al. 2016; MARECO, SNCF 1981)."""
+    law = train.resistance_law
+    V = holding_speed_mps
+    slope = law.c1 + 2.0 * law.c2 * V
+    return V * V * slope / (law(V) + V * slope)
+
+
+@dataclass(frozen=True)
+class SectionPlan:
+    """The optimal run of one section: points (position [m], speed [m/s], time from departure
+    [s], regime code) and the parameters that define it."""
+
+    s: np.ndarray
+    v: np.ndarray
+    t: np.ndarray
+    regime: np.ndarray
+    running_time_s: float
+    holding_speed_mps: float
+    coast_start_m: float
+    price_of_time_w: float
+    fastest_time_s: float
+    feasible: bool
+
+
+class SectionSolver:
+    """Energy-optimal runs of one section [s0, s1] for any running time."""
+
+    def __init__(self, train: Train, route: Route, s0: float, s1: float, settings: RunSettings | None = None):
+        settings = settings or RunSettings()
+        self.train, self.route, self.s0, self.s1 = train, route, s0, s1
+        self.track, _, _ = compile_track(route, train, [s0, s1], settings.max_step_m)
+        P, trac, brk = kernel_parameters(train, settings)
+        self.P = P
+        self.curves = (*trac, *brk, *regenerative_arrays(train))
+        self.tk = kink_speeds(*trac)
+        self.bk = kink_speeds(*brk)
+        elec = train.electrical
+        self.inv_eta_t = 1.0 / (elec.traction_efficiency if elec else 1.0)
+        has_regen = train.braking.regenerative is not None and elec is not None
+        self.eta_r = elec.regenerative_efficiency * elec.receptivity if has_regen else 0.0
+        self.has_regen = has_regen and self.eta_r > 0.0
+        tr = self.track
+        self.i0, self.i1 = int(tr.stop_index[0]), int(tr.stop_index[-1])
+        self.Cr, _, self.US = kernel.braking_ceiling(
+            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, self.i0, self.i1, P, self.curves, self.bk
+        )
+        self.n_max = 8 * len(tr.x) + 64
+        fastest = self._phase_a(float(tr.vlim.max()) * 10.0)
+        self.fastest = fastest
+        self.fastest_time_s = float(fastest[2][-1])
+        if not np.isfinite(self.fastest_time_s) or fastest[1][-1] > 1e-6:
+            raise InputError(
+                f"the train cannot run from {s0:.0f} m to {s1:.0f} m (it stalls on the way)",
+                field="route",
+            )
+
+    # ------------------------------------------------------------------ phases
+    def _phase_a(self, holding_speed: float):
+        """Maximum traction to min(V, limit), hold it, brake to lower limits and the stop."""
+        tr = self.track
+        vcap = np.minimum(tr.vlim, holding_speed)
+        out_s = np.empty(self.n_max)
+        out_v = np.empty(self.n_max)
+        out_t = np.empty(self.n_max)
+        out_m = np.empty(self.n_max, dtype=np.int8)
+        n, status, _ = kernel.fastest_segment(
+            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vcap, tr.traction_scale, self.i0, self.i1, 0.0,
+            self.P, self.curves, self.tk, self.bk, out_s, out_v, out_t, out_m, 0,
+        )  # fmt: skip
+        if status != kernel.STATUS_OK:
+            return out_s[:n], np.append(out_v[: n - 1], 1.0), np.append(out_t[: n - 1], np.inf), out_m[:n]
+        return out_s[:n], out_v[:n], out_t[:n], out_m[:n]
+
+    def _state_at(self, phase_a, s_c: float) -> tuple[int, float, float, float, int]:
+        """(interval, offset, speed, time, index of the last phase-A point before) at s_c."""
+        s, v, t, m = phase_a
+        j = int(np.searchsorted(s, s_c, side="right")) - 1
+        j = min(max(j, 0), len(s) - 2)
+        tr = self.track
+        i = min(int(np.searchsorted(tr.x, s[j], side="right")) - 1, self.i1 - 1)
+        u0 = s[j] - tr.x[i]
+        h = s_c - s[j]
+        mode = int(m[j])
+        self.P[kernel.P_TRACTION_SCALE] = tr.traction_scale[i]
+        if h <= 0.0:
+            return i, u0, float(v[j]), float(t[j]), j
+        if mode == kernel.CRUISE or mode == kernel.DWELL:
+            return i, u0 + h, float(v[j]), float(t[j] + h / v[j]) if v[j] > 0 else float(t[j]), j
+        line = (tr.a0[i], tr.a1[i], tr.b0[i], tr.b1[i])
+        kinks = self.tk if mode == kernel.TRACTION else self.bk
+        E1, dt = kernel.step_energy_time(0.5 * v[j] ** 2, u0, h, mode, line, self.P, self.curves, kinks)
+        return i, u0 + h, float(np.sqrt(max(2.0 * E1, 0.0))), float(t[j] + dt), j
+
+    def _phase_b(self, phase_a, s_c: float, mu: float):
+        tr = self.track
+        i, u, v, t, j = self._state_at(phase_a, s_c)
+        if u >= tr.x[i + 1] - tr.x[i] - 1e-12 and i + 1 < self.i1:
+            i, u = i + 1, 0.0
+        out_s = np.empty(self.n_max)
+        out_v = np.empty(self.n_max)
+        out_t = np.empty(self.n_max)
+        out_m = np.empty(self.n_max, dtype=np.int8)
+        n, status = pk.final_phase(
+            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, tr.traction_scale, i, u, v, t, self.i1,
+            self.P, self.curves, self.tk, self.bk, self.Cr, self.US, mu, self.inv_eta_t, self.eta_r,
+            self.has_regen, ADJOINT_STEP_M, out_s, out_v, out_t, out_m, 0,
+        )  # fmt: skip
+        s, vv, tt, m = phase_a
+        keep = slice(0, j + 1)
+        return (
+            np.concatenate([s[keep], out_s[:n]]),
+            np.concatenate([vv[keep], out_v[:n]]),
+            np.concatenate([tt[keep], out_t[:n]]),
+            np.concatenate([m[keep], out_m[:n]]),
+        ), status
+
+    def plan(self, holding_speed_mps: float) -> SectionPlan:
+        """The optimal run for holding speed V: the coasting point found by bisection so that the
+        train stops exactly at the next station."""
+        mu = price_of_time_w(self.train, holding_speed_mps)
+        phase_a = self._phase_a(holding_speed_mps)
+        lo, hi = self.s0, self.s1
+        best = None
+        while hi - lo > COAST_POINT_TOLERANCE_M:
+            mid = 0.5 * (lo + hi)
+            points, status = self._phase_b(phase_a, mid, mu)
+            if status == pk.HIT_CEILING:
+                hi, best = mid, points
+            else:
+                lo = mid
+        if best is None:
+            best, _ = self._phase_b(phase_a, hi, mu)
+        s, v, t, m = best
+        # the stop point closes the section
+        m = m.copy()
+        m[-1] = kernel.DWELL
+        return SectionPlan(
+            s, v, t, m, float(t[-1]), holding_speed_mps, hi, mu, self.fastest_time_s, True
+        )
+
+    def solve(self, running_time_s: float) -> SectionPlan:
+        """The least-energy run that takes ``running_time_s``; the fastest run (``feasible`` False)
+        when that is shorter than the fastest possible."""
+        if running_time_s <= self.fastest_time_s + TIME_TOLERANCE_S:
+            s, v, t, m = self.fastest
+            m = m.copy()
+            m[-1] = kernel.DWELL
+            return SectionPlan(
+                s, v, t, m, self.fastest_time_s, np.inf, self.s1, np.inf, self.fastest_time_s,
+                running_time_s >= self.fastest_time_s - TIME_TOLERANCE_S,
+            )  # fmt: skip
+        vmax = float(self.track.vlim.max())
+
+        def excess(log_v: float) -> float:
+            return self.plan(float(np.exp(log_v))).running_time_s - running_time_s
+
+        lo, hi = np.log(0.5), np.log(vmax * 20.0)
+        if excess(lo) < 0:
+            raise InputError(
+                "the scheduled time is longer than a run at walking pace; split the section or add a stop",
+                field="timetable",
+                value=running_time_s,
+            )
+        if excess(hi) > 0:
+            hi = np.log(vmax * 1000.0)
+        log_v = brentq(excess, lo, hi, xtol=1e-10, rtol=1e-10, maxiter=200)
+        plan = self.plan(float(np.exp(log_v)))
+        return plan

@@ -1,0 +1,507 @@
+"""The JSON API of the web application (the page uses nothing else; OpenAPI at ``/docs``).
+
+Every endpoint works on the caller's session (cookie ``trainsim_session`` or header
+``X-Trainsim-Session``; a new session is made and returned in both when none is given). Errors are
+JSON ``{"message", "detail": [{"field", "loc", "msg"}...]}`` (see :mod:`trainsim.web.errors`).
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Body, File, Request, UploadFile
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import PlainTextResponse, Response
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+import trainsim
+from trainsim.errors import InputError, TrainsimError
+from trainsim.io import trainsim_yaml as tsy
+from trainsim.model.scenario import RunSettings
+from trainsim.web import strategies
+from trainsim.web.config import WebSettings
+from trainsim.web.convert import (
+    load_route_upload,
+    load_train_upload,
+    loaded_route,
+    loaded_train,
+    spec_dict,
+)
+from trainsim.web.errors import ApiError, format_loc, input_error
+from trainsim.web.examples import examples
+from trainsim.web.payloads import route_payload, run_brief, run_payload, train_payload
+from trainsim.web.sessions import Loaded, SessionStore, StoredRun, WebSession
+
+router = APIRouter(prefix="/api")
+
+_ERRORS: dict[int | str, dict[str, Any]] = {
+    422: {"description": "invalid input: `message` and field-level `detail` with the core's messages"},
+}
+
+
+# ====================================================================== helpers
+def store_of(request: Request) -> SessionStore:
+    return request.app.state.store
+
+
+def settings_of(request: Request) -> WebSettings:
+    return request.app.state.web_settings
+
+
+def session_of(request: Request) -> WebSession:
+    """The caller's session (made by the session middleware on first use)."""
+    return request.app.state.session_for(request)
+
+
+def _check_lists(data: Any, limit: int, path: list[str | int] | None = None) -> None:
+    """422 if any list in a mapping is longer than ``limit`` (bounds the size of a spec)."""
+    path = path or []
+    if isinstance(data, dict):
+        for key, value in data.items():
+            _check_lists(value, limit, [*path, str(key)])
+    elif isinstance(data, list):
+        if len(data) > limit:
+            field = format_loc(path)
+            raise ApiError(
+                422,
+                f"field '{field}': too many entries ({len(data)}); allowed: at most {limit}",
+                [{"field": field, "loc": path, "msg": f"too many entries ({len(data)}); at most {limit}"}],
+            )
+        for i, value in enumerate(data):
+            _check_lists(value, limit, [*path, i])
+
+
+def _check_route_length(loaded: Loaded, limits: WebSettings) -> None:
+    length = loaded.model.length_m
+    if length > limits.max_route_length_m:
+        msg = f"route too long for the web application ({length:g} m); allowed: <= {limits.max_route_length_m:g} m"
+        raise ApiError(422, msg, [{"field": "length_m", "loc": ["length_m"], "msg": msg}])
+
+
+def _slug(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9]+", "_", name).strip("_")[:60] or "trainsim"
+
+
+def _settings_dict(s: RunSettings) -> dict[str, Any]:
+    return {"max_step_m": s.max_step_m, "braking_fraction": s.braking_fraction}
+
+
+def _train_out(session: WebSession) -> dict[str, Any]:
+    if session.train is None:
+        raise ApiError(404, "no train loaded: load an example, open a file or PUT a train")
+    return train_payload(spec_dict(session.train.spec), session.train)
+
+
+def _route_out(session: WebSession) -> dict[str, Any]:
+    if session.route is None:
+        raise ApiError(404, "no route loaded: load an example, open a file or PUT a route")
+    return route_payload(spec_dict(session.route.spec), session.route)
+
+
+def _example(name: str):
+    found = examples().get(name)
+    if found is None:
+        raise ApiError(
+            404,
+            f"no example named '{name}'; allowed: {', '.join(examples())}",
+            [{"field": "name", "loc": ["name"], "msg": f"unknown example; allowed: {', '.join(examples())}"}],
+        )
+    return found
+
+
+async def _read_upload(file: UploadFile, limits: WebSettings) -> tuple[bytes, str]:
+    content = await file.read(limits.max_body_bytes + 1)
+    if len(content) > limits.max_body_bytes:
+        raise ApiError(413, f"file too large; allowed: at most {limits.max_body_bytes} bytes")
+    return content, file.filename or "upload.yaml"
+
+
+# ====================================================================== models (for the docs)
+class SessionInfo(BaseModel):
+    id: str
+    train: str | None = Field(description="name of the session's train")
+    route: str | None = Field(description="name of the session's route")
+    settings: dict[str, float] = Field(description="run settings: max_step_m, braking_fraction")
+    runs: list[dict[str, Any]]
+
+
+class ExampleInfo(BaseModel):
+    name: str
+    title: str
+    description: str
+
+
+class RunRequest(BaseModel):
+    """A run of the session's train over its route."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    strategy: str = Field("fastest", description="a name from GET /api/strategies")
+    params: dict[str, Any] = Field(default_factory=dict, description="the strategy's parameters")
+    settings: dict[str, Any] | None = Field(
+        None,
+        description="run settings (max_step_m [m], braking_fraction [-]); default: the session's",
+        examples=[{"max_step_m": 5, "braking_fraction": 1.0}],
+    )
+    label: str | None = Field(None, max_length=80, description="name shown in the page")
+
+
+_TRAIN_BODY = Body(
+    description="a `trainsim/train` mapping (docs/FORMAT.md; JSON schema at GET /api/schema/train)",
+    openapi_examples={
+        "minimal": {
+            "summary": "a train given by its mass",
+            "value": {
+                "schema": "trainsim/train",
+                "version": 1,
+                "name": "Test train",
+                "mass_t": 200,
+                "length_m": 100,
+                "gamma": 0.1,
+                "max_speed_kmh": 80,
+                "traction": {"model": "table", "speed_kmh": [0, 40, 80], "force_kn": [200, 200, 100]},
+                "braking": {"model": "deceleration", "deceleration_mps2": 0.8},
+                "resistance": [
+                    {"family": "davis_kn_kmh", "applies_to": "train", "a_kn": 2, "b_kn_per_kmh": 0.02,
+                     "c_kn_per_kmh2": 0.0006}
+                ],
+            },
+        }
+    },
+)
+_ROUTE_BODY = Body(
+    description="a `trainsim/route` mapping (docs/FORMAT.md; JSON schema at GET /api/schema/route)",
+    openapi_examples={
+        "minimal": {
+            "summary": "two stations 2 km apart",
+            "value": {
+                "schema": "trainsim/route",
+                "version": 1,
+                "name": "Test line",
+                "length_m": 2000,
+                "stations": [{"name": "A", "position_m": 0}, {"name": "B", "position_m": 2000}],
+                "speed_limits": [{"from_m": 0, "limit_kmh": 80}],
+                "line_resistance": {"curve_formula": "tbt1407", "tunnel_formula": "tbt1407"},
+            },
+        }
+    },
+)
+
+
+# ====================================================================== session, examples, schemas
+@router.get("/health", tags=["session"], summary="Server status")
+def health(request: Request) -> dict[str, Any]:
+    store = store_of(request)
+    return {"status": "ok", "version": trainsim.__version__, "sessions": len(store), "drives": store.active_drives}
+
+
+@router.get("/session", tags=["session"], response_model=SessionInfo, summary="The caller's session")
+def get_session(request: Request) -> dict[str, Any]:
+    session = session_of(request)
+    with session.lock:
+        return {
+            "id": session.id,
+            "train": session.train.model.name if session.train else None,
+            "route": session.route.model.name if session.route else None,
+            "settings": _settings_dict(session.settings),
+            "runs": [run_brief(r) for r in list(session.runs.values())],
+        }
+
+
+@router.get("/examples", tags=["examples"], response_model=list[ExampleInfo], summary="Shipped examples")
+def list_examples() -> list[dict[str, Any]]:
+    return [{"name": e.name, "title": e.title, "description": e.description} for e in examples().values()]
+
+
+@router.post(
+    "/examples/{name}",
+    tags=["examples"],
+    responses={404: {"description": "unknown example"}},
+    summary="Load an example's train, route and run settings into the session",
+)
+def load_example(name: str, request: Request) -> dict[str, Any]:
+    ex = _example(name)
+    session = session_of(request)
+    train_spec = tsy.read_train_spec(ex.train_path)
+    route_spec = tsy.read_route_spec(ex.route_path)
+    train = Loaded(train_spec, train_spec.to_train(ex.name), f"example {ex.name}", train_spec.notes())
+    route = Loaded(route_spec, route_spec.to_route(ex.name), f"example {ex.name}", route_spec.notes())
+    with session.lock:
+        session.train, session.route, session.settings = train, route, ex.settings
+        return {
+            "train": _train_out(session),
+            "route": _route_out(session),
+            "settings": _settings_dict(session.settings),
+        }
+
+
+@router.get("/schema/{kind}", tags=["examples"], summary="JSON schema of a trainsim/train or trainsim/route mapping")
+def schema(kind: str) -> dict[str, Any]:
+    models = {"train": tsy.TrainSpec, "route": tsy.RouteSpec}
+    if kind not in models:
+        raise ApiError(404, f"no schema '{kind}'; allowed: train, route")
+    return models[kind].model_json_schema(by_alias=True)
+
+
+# ====================================================================== train
+@router.get("/train", tags=["train"], responses={404: {"description": "no train loaded"}},
+            summary="The session's train: spec, figures, effort and resistance curves")
+def get_train(request: Request) -> dict[str, Any]:
+    session = session_of(request)
+    with session.lock:
+        return _train_out(session)
+
+
+@router.put("/train", tags=["train"], responses=_ERRORS, summary="Replace the session's train (validated)")
+def put_train(request: Request, spec: Annotated[dict[str, Any], _TRAIN_BODY]) -> dict[str, Any]:
+    limits = settings_of(request)
+    _check_lists(spec, limits.max_list_items)
+    session = session_of(request)
+    try:
+        loaded = loaded_train(spec, "edited train")
+    except InputError as exc:
+        raise input_error(exc) from exc
+    with session.lock:
+        source = session.train.source if session.train else "edited"
+        loaded.source = source if source.endswith("(edited)") else f"{source} (edited)"
+        session.train = loaded
+        return _train_out(session)
+
+
+@router.post("/train/example/{name}", tags=["train"], responses={404: {"description": "unknown example"}},
+             summary="Load an example's train")
+def train_example(name: str, request: Request) -> dict[str, Any]:
+    ex = _example(name)
+    spec = tsy.read_train_spec(ex.train_path)
+    loaded = Loaded(spec, spec.to_train(ex.name), f"example {ex.name}", spec.notes(), spec.warnings())
+    session = session_of(request)
+    with session.lock:
+        session.train = loaded
+        return _train_out(session)
+
+
+@router.post("/train/upload", tags=["train"], responses={**_ERRORS, 413: {"description": "file too large"}},
+             summary="Open a train file of any format trainsim reads")
+async def train_upload(request: Request, file: Annotated[UploadFile, File(description="YAML file")]) -> dict[str, Any]:
+    content, name = await _read_upload(file, settings_of(request))
+    try:
+        _, loaded = await run_in_threadpool(load_train_upload, content, name)
+    except InputError as exc:
+        raise input_error(exc, file=name) from exc
+    session = session_of(request)
+    with session.lock:
+        session.train = loaded
+        return _train_out(session)
+
+
+@router.get("/train/yaml", tags=["train"], response_class=PlainTextResponse,
+            responses={404: {"description": "no train loaded"}}, summary="The train as a trainsim YAML file")
+def train_yaml(request: Request) -> Response:
+    session = session_of(request)
+    with session.lock:
+        if session.train is None:
+            raise ApiError(404, "no train loaded")
+        text = tsy.dump_yaml(session.train.spec)
+        name = _slug(session.train.model.name)
+    return PlainTextResponse(
+        text, media_type="application/yaml",
+        headers={"Content-Disposition": f'attachment; filename="{name}.train.yaml"'},
+    )
+
+
+# ====================================================================== route
+@router.get("/route", tags=["route"], responses={404: {"description": "no route loaded"}},
+            summary="The session's route: spec, figures and line profile")
+def get_route(request: Request) -> dict[str, Any]:
+    session = session_of(request)
+    with session.lock:
+        return _route_out(session)
+
+
+@router.put("/route", tags=["route"], responses=_ERRORS, summary="Replace the session's route (validated)")
+def put_route(request: Request, spec: Annotated[dict[str, Any], _ROUTE_BODY]) -> dict[str, Any]:
+    limits = settings_of(request)
+    _check_lists(spec, limits.max_list_items)
+    try:
+        loaded = loaded_route(spec, "edited route")
+    except InputError as exc:
+        raise input_error(exc) from exc
+    _check_route_length(loaded, limits)
+    session = session_of(request)
+    with session.lock:
+        source = session.route.source if session.route else "edited"
+        loaded.source = source if source.endswith("(edited)") else f"{source} (edited)"
+        session.route = loaded
+        return _route_out(session)
+
+
+@router.post("/route/example/{name}", tags=["route"], responses={404: {"description": "unknown example"}},
+             summary="Load an example's route (and its run settings)")
+def route_example(name: str, request: Request) -> dict[str, Any]:
+    ex = _example(name)
+    spec = tsy.read_route_spec(ex.route_path)
+    loaded = Loaded(spec, spec.to_route(ex.name), f"example {ex.name}", spec.notes())
+    session = session_of(request)
+    with session.lock:
+        session.route, session.settings = loaded, ex.settings
+        return _route_out(session)
+
+
+@router.post("/route/upload", tags=["route"], responses={**_ERRORS, 413: {"description": "file too large"}},
+             summary="Open a route file of any format trainsim reads")
+async def route_upload(request: Request, file: Annotated[UploadFile, File(description="YAML file")]) -> dict[str, Any]:
+    limits = settings_of(request)
+    content, name = await _read_upload(file, limits)
+    try:
+        _, loaded = await run_in_threadpool(load_route_upload, content, name)
+    except InputError as exc:
+        raise input_error(exc, file=name) from exc
+    _check_route_length(loaded, limits)
+    session = session_of(request)
+    with session.lock:
+        session.route = loaded
+        return _route_out(session)
+
+
+@router.get("/route/yaml", tags=["route"], response_class=PlainTextResponse,
+            responses={404: {"description": "no route loaded"}}, summary="The route as a trainsim YAML file")
+def route_yaml(request: Request) -> Response:
+    session = session_of(request)
+    with session.lock:
+        if session.route is None:
+            raise ApiError(404, "no route loaded")
+        text = tsy.dump_yaml(session.route.spec)
+        name = _slug(session.route.model.name)
+    return PlainTextResponse(
+        text, media_type="application/yaml",
+        headers={"Content-Disposition": f'attachment; filename="{name}.route.yaml"'},
+    )
+
+
+# ====================================================================== runs
+@router.get("/strategies", tags=["runs"], summary="Strategies a run can use, with their parameter schemas")
+def list_strategies() -> list[dict[str, Any]]:
+    return [s.describe() for s in strategies.available()]
+
+
+def run_settings_for(session: WebSession, given: dict[str, Any] | None, limits: WebSettings) -> RunSettings:
+    """Validated run settings (the session's when not given), within the run-length bound."""
+    if given is None:
+        settings = session.settings
+    else:
+        merged = {**_settings_dict(session.settings), **given}
+        try:
+            settings = tsy.settings_from_dict(merged, "run settings")
+        except InputError as exc:
+            raise input_error(exc) from exc
+    if session.route is not None:
+        length = session.route.model.length_m
+        if length / settings.max_step_m > limits.max_grid_points:
+            least = length / limits.max_grid_points
+            msg = (f"integration step too small for a {length:g} m route in the web application "
+                   f"(got {settings.max_step_m:g}); allowed: >= {least:.3g} m")
+            raise ApiError(422, msg, [{"field": "settings.max_step_m", "loc": ["settings", "max_step_m"],
+                                       "msg": msg}])
+    return settings
+
+
+@router.post("/runs", tags=["runs"], status_code=201, responses={**_ERRORS, 409: {"description": "no train or route"}},
+             summary="Run the session's train over its route with a strategy")
+def create_run(request: Request, body: RunRequest) -> dict[str, Any]:
+    limits = settings_of(request)
+    session = session_of(request)
+    strategy = strategies.get(body.strategy)
+    if strategy is None:
+        names = ", ".join(s.name for s in strategies.available())
+        raise ApiError(422, f"unknown strategy '{body.strategy}'; allowed: {names}",
+                       [{"field": "strategy", "loc": ["strategy"], "msg": f"unknown strategy; allowed: {names}",
+                         "value": body.strategy}])
+    try:
+        params = strategy.params.model_validate(body.params)
+    except ValidationError as exc:
+        detail = [{"field": format_loc(["params", *e["loc"]]), "loc": ["params", *e["loc"]], "msg": e["msg"]}
+                  for e in exc.errors(include_url=False)]
+        raise ApiError(422, "invalid strategy parameters: " + "; ".join(
+            f"{d['field']}: {d['msg']}" for d in detail), detail) from exc
+    with session.lock:
+        if session.train is None or session.route is None:
+            raise ApiError(409, "load a train and a route before running")
+        settings = run_settings_for(session, body.settings, limits)
+        train, route = session.train.model, session.route.model
+        try:
+            result = strategy.run(train, route, settings, params)
+        except InputError as exc:
+            raise input_error(exc) from exc
+        except TrainsimError as exc:
+            raise ApiError(422, str(exc)) from exc
+        run_id = session.next_run_id()
+        run = StoredRun(
+            id=run_id,
+            label=body.label or f"{strategy.label} ({run_id})",
+            strategy=strategy.name,
+            created=time.time(),
+            result=result,
+            route=route,
+            train=train,
+            params={"strategy": params.model_dump(), "settings": _settings_dict(settings)},
+        )
+        store_of(request).add_run(session, run)
+        return run_payload(run, limits.max_plot_points)
+
+
+@router.get("/runs", tags=["runs"], summary="The session's runs and recorded drives")
+def list_runs(request: Request) -> list[dict[str, Any]]:
+    session = session_of(request)
+    with session.lock:
+        return [run_brief(r) for r in list(session.runs.values())]
+
+
+def _run(session: WebSession, run_id: str) -> StoredRun:
+    run = session.runs.get(run_id)
+    if run is None:
+        raise ApiError(404, f"no run '{run_id}' in this session (runs: {', '.join(session.runs) or 'none'})")
+    return run
+
+
+@router.get("/runs/{run_id}", tags=["runs"], responses={404: {"description": "no such run"}},
+            summary="A run: summary, plot data and line profile")
+def get_run(run_id: str, request: Request) -> dict[str, Any]:
+    session = session_of(request)
+    with session.lock:
+        return run_payload(_run(session, run_id), settings_of(request).max_plot_points)
+
+
+@router.delete("/runs/{run_id}", tags=["runs"], status_code=204, responses={404: {"description": "no such run"}},
+               summary="Forget a run")
+def delete_run(run_id: str, request: Request) -> Response:
+    session = session_of(request)
+    with session.lock:
+        _run(session, run_id)
+        del session.runs[run_id]
+    return Response(status_code=204)
+
+
+@router.get("/runs/{run_id}/trace.csv", tags=["runs"], response_class=PlainTextResponse,
+            responses={404: {"description": "no such run"}}, summary="The run's full trace as CSV")
+def run_trace_csv(run_id: str, request: Request) -> Response:
+    session = session_of(request)
+    with session.lock:
+        run = _run(session, run_id)
+    text = run.result.to_dataframe().to_csv(index=False)
+    return PlainTextResponse(text, media_type="text/csv",
+                             headers={"Content-Disposition": f'attachment; filename="{_slug(run.label)}.trace.csv"'})
+
+
+@router.get("/runs/{run_id}/summary.json", tags=["runs"], responses={404: {"description": "no such run"}},
+            summary="The run's summary (as `trainsim run --json`)")
+def run_summary_json(run_id: str, request: Request) -> Response:
+    import json
+
+    session = session_of(request)
+    with session.lock:
+        run = _run(session, run_id)
+    text = json.dumps(run.result.summary(), indent=2, allow_nan=False)
+    return Response(text, media_type="application/json",
+                    headers={"Content-Disposition": f'attachment; filename="{_slug(run.label)}.summary.json"'})

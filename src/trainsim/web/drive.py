@@ -1,0 +1,376 @@
+"""Live driving over a WebSocket (``/api/drive``), on the core's step-by-step driving API.
+
+The browser opens the socket (its session cookie says whose train and route are driven) and sends
+JSON messages; the server answers with JSON messages. In real time the server steps the core's
+:class:`~trainsim.sim.driving.DrivingSession` every ``drive_tick_s`` of wall-clock time by that
+time times the time scale (1x, 5x, 20x) with the driver's current command, and sends the state.
+
+Client -> server:
+
+* ``{"type": "start", "time_scale": 1, "clock": "realtime"}`` starts a drive from the first stop
+  (again: a new drive). ``clock: "manual"`` makes the server step only on ``step`` messages.
+* ``{"type": "command", "value": c}``: the driver's command in [-1, 1] (positive: that share of
+  the maximum tractive effort; negative: that share of service braking; 0: coasting).
+* ``{"type": "time_scale", "value": 1 | 5 | 20}``, ``{"type": "pause"}``, ``{"type": "resume"}``.
+* ``{"type": "step", "dt_s": 0.5, "command": c}``: manual clock only: advance by dt_s (0 < dt_s <= 60).
+* ``{"type": "finish"}``: end the drive now and record it.
+
+Server -> client:
+
+* ``{"type": "init", "profile": {...}, "reference": {...} | null, ...}`` once per drive: the line
+  profile and the fastest run's speed over distance to drive against;
+* ``{"type": "state", ...}`` after every step (speed, position, limits, next stop, current, energy...);
+* ``{"type": "finished", "run": {...}, "summary": {...}}`` when the drive ends: it is recorded in
+  the session's runs (``GET /api/runs``) and can be compared with any other run;
+* ``{"type": "error", "message": ..., "detail": [...]}`` for a message it cannot follow (the
+  connection stays open), and ``{"type": "ended", "reason": ...}`` before the server closes.
+
+Each session has at most one live drive (a new one, e.g. from a second tab, replaces it); the
+number of live drives over all sessions and their wall-clock duration are bounded.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import threading
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any
+from urllib.parse import urlsplit
+
+from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+
+from trainsim.constants import KMH, KN, KWH
+from trainsim.errors import InputError, TrainsimError
+from trainsim.sim.driving import DrivingSession, DrivingState
+from trainsim.sim.fastest import run_fastest
+from trainsim.web.config import WebSettings
+from trainsim.web.errors import input_error_detail
+from trainsim.web.payloads import floats, route_profile, run_brief
+from trainsim.web.sessions import COOKIE_NAME, HEADER_NAME, SessionStore, StoredRun, WebSession
+
+router = APIRouter()
+
+TIME_SCALES = (1, 5, 20)
+#: largest message a client may send [characters]
+MAX_MESSAGE_CHARS = 4096
+
+
+def _clean(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def state_message(state: DrivingState, drive: _Drive) -> dict[str, Any]:
+    """A driving state in the units the page shows."""
+    d = asdict(state)
+    out = {
+        "type": "state",
+        "time_s": d["time_s"],
+        "position_m": d["position_m"],
+        "speed_kmh": d["speed_mps"] / KMH,
+        "acceleration_mps2": d["acceleration_mps2"],
+        "command": d["command"],
+        "regime": d["regime"],
+        "traction_force_kn": d["traction_force_n"] / KN,
+        "braking_force_kn": d["braking_force_n"] / KN,
+        "speed_limit_kmh": d["speed_limit_mps"] / KMH,
+        "next_limit_position_m": d["next_limit_position_m"],
+        "next_limit_kmh": d["next_limit_mps"] / KMH if d["next_limit_mps"] is not None else None,
+        "next_stop_name": d["next_stop_name"],
+        "next_stop_distance_m": d["next_stop_distance_m"],
+        "dwell_remaining_s": d["dwell_remaining_s"],
+        "line_current_a": d["line_current_a"],
+        "energy_kwh": d["electrical_energy_j"] / KWH,
+        "overspeed": d["overspeed"],
+        "finished": d["finished"],
+        "message": d["message"],
+        "time_scale": drive.scale,
+        "paused": drive.paused,
+        "clock": drive.clock,
+    }
+    return {k: _clean(v) for k, v in out.items()}
+
+
+@dataclass
+class _Drive:
+    """One drive of a connection."""
+
+    number: int
+    core: DrivingSession
+    token: object
+    clock: str
+    scale: int
+    started: float
+    command: float = 0.0
+    paused: bool = False
+    recorded: bool = False
+    ticker: asyncio.Task | None = field(default=None, repr=False)
+    #: the core session is used from worker threads: one at a time (a cancelled await does not
+    #: stop its thread, so a step may still run when the drive is recorded)
+    core_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    async def call(self, fn: Any, *args: Any) -> Any:
+        def locked() -> Any:
+            with self.core_lock:
+                return fn(*args)
+
+        return await asyncio.to_thread(locked)
+
+    def state(self) -> DrivingState:
+        with self.core_lock:
+            return self.core.state(self.command)
+
+
+class _BadMessage(Exception):
+    def __init__(self, message: str, field: str | None = None) -> None:
+        super().__init__(message)
+        self.message = message
+        self.field = field
+
+
+def _number(msg: dict[str, Any], key: str, lo: float, hi: float, *, low_open: bool = False) -> float:
+    value = msg.get(key)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise _BadMessage(f"'{key}' must be a number", key)
+    if value < lo or value > hi or (low_open and value <= lo):
+        bounds = f"{lo:g} < {key} <= {hi:g}" if low_open else f"{lo:g} <= {key} <= {hi:g}"
+        raise _BadMessage(f"'{key}' out of range (got {value!r}); allowed: {bounds}", key)
+    return float(value)
+
+
+class DriveConnection:
+    """The drives of one WebSocket connection."""
+
+    def __init__(self, ws: WebSocket, store: SessionStore, session: WebSession, limits: WebSettings) -> None:
+        self.ws = ws
+        self.store = store
+        self.session = session
+        self.limits = limits
+        self.drive: _Drive | None = None
+        self._send_lock = asyncio.Lock()
+
+    async def send(self, message: dict[str, Any]) -> None:
+        async with self._send_lock:
+            await self.ws.send_text(json.dumps(message, allow_nan=False))
+
+    async def error(self, message: str, field: str | None = None, detail: list | None = None) -> None:
+        detail = detail if detail is not None else [{"field": field, "loc": [field] if field else [], "msg": message}]
+        await self.send({"type": "error", "message": message, "detail": detail})
+
+    # ------------------------------------------------------------------ main loop
+    async def serve(self) -> None:
+        try:
+            while True:
+                text = await self.ws.receive_text()
+                try:
+                    if len(text) > MAX_MESSAGE_CHARS:
+                        raise _BadMessage(f"message too long; allowed: at most {MAX_MESSAGE_CHARS} characters")
+                    try:
+                        msg = json.loads(text)
+                    except json.JSONDecodeError as exc:
+                        raise _BadMessage(f"not JSON: {exc.msg}") from exc
+                    if not isinstance(msg, dict):
+                        raise _BadMessage("a message must be a JSON object with a 'type'", "type")
+                    await self.handle(msg)
+                except _BadMessage as exc:
+                    await self.error(exc.message, exc.field)
+                except InputError as exc:
+                    await self.error(str(exc), detail=input_error_detail(exc))
+        except WebSocketDisconnect:
+            pass
+        finally:
+            await self.stop(record=True, notify=False)
+
+    async def handle(self, msg: dict[str, Any]) -> None:
+        kind = msg.get("type")
+        if kind == "start":
+            await self.start(msg)
+            return
+        if kind == "ping":
+            await self.send({"type": "pong"})
+            return
+        drive = self.drive
+        if kind not in ("command", "time_scale", "pause", "resume", "step", "finish"):
+            raise _BadMessage(
+                f"unknown message type {kind!r}; allowed: start, command, time_scale, pause, resume, step, "
+                "finish, ping",
+                "type",
+            )
+        if drive is None:
+            raise _BadMessage("no drive: send {\"type\": \"start\"} first", "type")
+        if kind == "command":
+            drive.command = _number(msg, "value", -1.0, 1.0)
+        elif kind == "time_scale":
+            value = msg.get("value")
+            if value not in TIME_SCALES or isinstance(value, bool):
+                raise _BadMessage(
+                    f"time scale must be one of {', '.join(map(str, TIME_SCALES))} (got {value!r})", "value"
+                )
+            drive.scale = int(value)
+        elif kind == "pause":
+            drive.paused = True
+        elif kind == "resume":
+            drive.paused = False
+        elif kind == "step":
+            if drive.clock != "manual":
+                raise _BadMessage("'step' needs a drive started with clock 'manual'", "type")
+            dt = _number(msg, "dt_s", 0.0, 60.0, low_open=True)
+            if "command" in msg:
+                drive.command = _number(msg, "command", -1.0, 1.0)
+            await self.advance(drive, dt)
+            return
+        elif kind == "finish":
+            await self.stop(record=True, notify=True)
+            return
+        # acknowledge with the current state so the page shows the change at once
+        await self.send(state_message(drive.state(), drive))
+
+    # ------------------------------------------------------------------ drives
+    async def start(self, msg: dict[str, Any]) -> None:
+        clock = msg.get("clock", "realtime")
+        if clock not in ("realtime", "manual"):
+            raise _BadMessage(f"clock must be 'realtime' or 'manual' (got {clock!r})", "clock")
+        scale = msg.get("time_scale", 1)
+        if scale not in TIME_SCALES or isinstance(scale, bool):
+            raise _BadMessage(f"time scale must be one of 1, 5, 20 (got {scale!r})", "time_scale")
+        await self.stop(record=True, notify=False)
+        session = self.session
+        with session.lock:
+            if session.train is None or session.route is None:
+                raise _BadMessage("load a train and a route before driving", "type")
+            train, route, settings = session.train.model, session.route.model, session.settings
+        if self.store.active_drives >= self.limits.max_drives:
+            await self.send({"type": "ended", "reason": "too many live drives on this server; try again later"})
+            await self.ws.close(code=1013)
+            raise WebSocketDisconnect(1013)
+        core = await asyncio.to_thread(DrivingSession, train=train, route=route, settings=settings)
+        reference = await asyncio.to_thread(self._reference, train, route, settings)
+        token = object()
+        with session.lock:
+            session.drive_counter += 1
+            number = session.drive_counter
+            session.drive_token = token
+        self.store.active_drives += 1
+        drive = _Drive(number, core, token, clock, int(scale), time.monotonic())
+        self.drive = drive
+        await self.send(
+            {
+                "type": "init",
+                "drive": number,
+                "train": train.name,
+                "route": route.name,
+                "max_speed_kmh": train.max_speed_mps / KMH,
+                "clock": clock,
+                "time_scales": list(TIME_SCALES),
+                "profile": route_profile(route),
+                "reference": reference,
+            }
+        )
+        await self.send(state_message(drive.state(), drive))
+        if clock == "realtime":
+            drive.ticker = asyncio.create_task(self._tick(drive))
+
+    @staticmethod
+    def _reference(train: Any, route: Any, settings: Any) -> dict[str, Any] | None:
+        """The fastest run's speed over distance, to drive against (None if it cannot be run)."""
+        try:
+            result = run_fastest(train, route, settings)
+        except TrainsimError:
+            return None
+        tr = result.trace
+        step = max(1, len(tr) // 1500)
+        return {
+            "running_time_s": result.running_time_s,
+            "position_m": floats(tr.position_m[::step], 2),
+            "speed_kmh": floats(tr.speed_mps[::step] / KMH, 2),
+        }
+
+    async def advance(self, drive: _Drive, dt_s: float) -> None:
+        state = await drive.call(drive.core.step, drive.command, dt_s)
+        if drive is not self.drive:
+            return
+        await self.send(state_message(state, drive))
+        if state.finished:
+            await self.stop(record=True, notify=True)
+
+    async def _tick(self, drive: _Drive) -> None:
+        tick = self.limits.drive_tick_s
+        last = time.monotonic()
+        while self.drive is drive:
+            await asyncio.sleep(tick)
+            now = time.monotonic()
+            # a late tick advances by the wall time it stood for, but never by more than 1 s
+            dt_wall, last = min(now - last, 1.0), now
+            if self.session.drive_token is not drive.token:
+                await self.stop(record=True, notify=False)
+                await self.send({"type": "ended", "reason": "replaced by a drive in another window"})
+                return
+            if now - drive.started > self.limits.max_drive_wall_s:
+                await self.stop(record=True, notify=True, reason="the drive reached the time limit")
+                return
+            if drive.paused or dt_wall <= 0:
+                continue
+            await self.advance(drive, min(dt_wall * drive.scale, 60.0))
+
+    async def stop(self, *, record: bool, notify: bool, reason: str | None = None) -> None:
+        """End the current drive, record it in the session's runs if the train moved."""
+        drive, self.drive = self.drive, None
+        if drive is None:
+            return
+        if drive.ticker is not None and drive.ticker is not asyncio.current_task():
+            drive.ticker.cancel()
+        self.store.active_drives -= 1
+        with self.session.lock:
+            if self.session.drive_token is drive.token:
+                self.session.drive_token = None
+        run = None
+        moved = drive.core.position_m != drive.core.route.stops[0].position_m or drive.core.time_s > 0
+        if record and moved and not drive.recorded:
+            drive.recorded = True
+            result = await drive.call(drive.core.result)
+            with self.session.lock:
+                run = StoredRun(
+                    id=self.session.next_run_id(),
+                    label=f"Drive {drive.number}",
+                    strategy="drive",
+                    created=time.time(),
+                    result=result,
+                    route=drive.core.route,
+                    train=drive.core.train,
+                    params={"settings": {"braking_fraction": drive.core.settings.braking_fraction}},
+                )
+                self.store.add_run(self.session, run)
+        if notify:
+            await self.send(
+                {
+                    "type": "finished",
+                    "reason": reason or drive.state().message,
+                    "run": run_brief(run) if run else None,
+                    "summary": run.result.summary() if run else None,
+                }
+            )
+
+
+@router.websocket("/api/drive")
+async def drive_socket(ws: WebSocket) -> None:
+    """Live driving (see the module docstring for the messages)."""
+    store: SessionStore = ws.app.state.store
+    limits: WebSettings = ws.app.state.web_settings
+    sid = ws.query_params.get("session") or ws.headers.get(HEADER_NAME) or ws.cookies.get(COOKIE_NAME)
+    session = store.get(sid)
+    await ws.accept()
+    origin = ws.headers.get("origin")
+    if origin is not None and urlsplit(origin).netloc != ws.headers.get("host"):
+        # another web site's page must not drive with this browser's session
+        await ws.send_text(json.dumps({"type": "ended", "reason": "cross-origin connection refused"}))
+        await ws.close(code=4403)
+        return
+    if session is None:
+        await ws.send_text(json.dumps({"type": "ended", "reason": "unknown or expired session: reload the page"}))
+        await ws.close(code=4401)
+        return
+    await DriveConnection(ws, store, session, limits).serve()
