@@ -7,9 +7,9 @@ an interrupted study loses little work. The rows of a run depend only on its par
 executor gives the same results.
 
 * ``serial``: in this process, chunk after chunk (debugging, tiny studies, the reference).
-* ``processes``: a :class:`concurrent.futures.ProcessPoolExecutor` with ``workers`` processes started
-  by a fork server that has trainsim imported; each process receives the payload once (initializer)
-  and loads the compiled kernel before its first chunk.
+* ``processes``: a :class:`concurrent.futures.ProcessPoolExecutor` with ``workers`` processes
+  (forked, see :func:`_pool_context`); each process receives the payload once (initializer) and loads
+  the compiled kernel before its first chunk.
 * ``dask``: a ``distributed`` cluster: the scheduler at ``scheduler`` (an address or a
   ``distributed.Client``), or Dask's configured ``scheduler-address``, or else a local cluster of
   ``workers`` processes. The payload is scattered to every worker once.
@@ -19,14 +19,16 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import threading
 from collections.abc import Iterator
+from contextlib import contextmanager
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any, Literal
 
 from trainsim.batch.expand import RunTask
 from trainsim.batch.worker import Payload, init_process, run_chunk, run_chunk_in_process
 
-__all__ = ["EXECUTORS", "ExecutorName", "configured_scheduler", "default_workers", "execute"]
+__all__ = ["EXECUTORS", "ExecutorName", "configured_scheduler", "default_workers", "executor_for"]
 
 ExecutorName = Literal["serial", "processes", "dask"]
 EXECUTORS: tuple[str, ...] = ("serial", "processes", "dask")
@@ -53,64 +55,107 @@ def configured_scheduler() -> str | None:
     return str(address) if address else None
 
 
-def _serial(payload: Payload, chunks: Iterator[list[RunTask]]) -> Iterator[Rows]:
-    for chunk in chunks:
-        yield run_chunk(payload, chunk)
+class _Serial:
+    def __init__(self, payload: Payload) -> None:
+        self.payload = payload
+
+    def start(self) -> None:
+        pass
+
+    def results(self, chunks: Iterator[list[RunTask]]) -> Iterator[Rows]:
+        for chunk in chunks:
+            yield run_chunk(self.payload, chunk)
+
+    def close(self) -> None:
+        pass
 
 
 def _pool_context():
-    # A fork server forks each worker from a clean single-threaded process with trainsim already
-    # imported: fast to start like fork, without forking the threads of the parent (progress bar,
-    # Dask client...) like spawn.
-    if "forkserver" in multiprocessing.get_all_start_methods():
+    # fork when this process has one thread: workers start at once with trainsim imported and the
+    # kernel compiled, and nothing of __main__ is run again. With other threads alive (a progress bar,
+    # a Dask client...) forking could copy a lock held by one of them: then a fork server, which
+    # forks each worker from a clean single-threaded process (it re-imports __main__, which must then
+    # guard its code with `if __name__ == "__main__":`, as for any multiprocessing program).
+    methods = multiprocessing.get_all_start_methods()
+    if "fork" in methods and threading.active_count() == 1:
+        return multiprocessing.get_context("fork")
+    if "forkserver" in methods:
         ctx = multiprocessing.get_context("forkserver")
         ctx.set_forkserver_preload(["trainsim.batch.worker", "trainsim.sim.fastest", "trainsim.io.loader"])
         return ctx
     return multiprocessing.get_context("spawn")
 
 
-def _processes(payload: Payload, chunks: Iterator[list[RunTask]], workers: int) -> Iterator[Rows]:
-    pool = ProcessPoolExecutor(
-        max_workers=workers, mp_context=_pool_context(), initializer=init_process, initargs=(payload,)
-    )
-    pending: set[Future] = set()
-    try:
+class _Processes:
+    def __init__(self, payload: Payload, workers: int) -> None:
+        self.payload = payload
+        self.workers = workers
+        self.pool: ProcessPoolExecutor | None = None
+        self.pending: set[Future] = set()
+
+    def start(self) -> None:
+        self.pool = ProcessPoolExecutor(
+            max_workers=self.workers,
+            mp_context=_pool_context(),
+            initializer=init_process,
+            initargs=(self.payload,),
+        )
+        # the first submission starts the worker processes, before the caller starts any thread
+        self.pool.submit(os.getpid).result()
+
+    def results(self, chunks: Iterator[list[RunTask]]) -> Iterator[Rows]:
+        assert self.pool is not None
         for chunk in chunks:
-            pending.add(pool.submit(run_chunk_in_process, chunk))
-            if len(pending) >= 2 * workers:
-                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            self.pending.add(self.pool.submit(run_chunk_in_process, chunk))
+            if len(self.pending) >= 2 * self.workers:
+                done, self.pending = wait(self.pending, return_when=FIRST_COMPLETED)
                 for fut in done:
                     yield fut.result()
-        while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+        while self.pending:
+            done, self.pending = wait(self.pending, return_when=FIRST_COMPLETED)
             for fut in done:
                 yield fut.result()
-    finally:
-        # on an error or Ctrl-C in the parent: drop the queued chunks, do not wait for them
-        pool.shutdown(wait=not pending, cancel_futures=True)
+
+    def close(self) -> None:
+        if self.pool is not None:
+            # after an error or Ctrl-C in the parent: drop the queued chunks, do not wait for them
+            self.pool.shutdown(wait=not self.pending, cancel_futures=True)
+            self.pool = None
 
 
-def _dask(
-    payload: Payload, chunks: Iterator[list[RunTask]], scheduler: Any, workers: int | None
-) -> Iterator[Rows]:
-    from distributed import Client, as_completed
+class _Dask:
+    def __init__(self, payload: Payload, scheduler: Any, workers: int | None) -> None:
+        self.payload = payload
+        self.scheduler = scheduler
+        self.workers = workers
+        self.client: Any = None
+        self.own = False
 
-    own = not isinstance(scheduler, Client)
-    if not own:
-        client = scheduler
-    elif scheduler is not None:
-        client = Client(str(scheduler))
-    elif configured_scheduler() is not None:
-        client = Client()  # Dask's configuration names the scheduler
-    else:
-        client = Client(n_workers=workers or default_workers(), threads_per_worker=1, processes=True)
-    try:
-        threads = sum(client.nthreads().values()) or (workers or 1)
-        future_payload = client.scatter(payload, broadcast=True, hash=False)
+    def start(self) -> None:
+        from distributed import Client
+
+        if isinstance(self.scheduler, Client):
+            self.client = self.scheduler
+            return
+        self.own = True
+        if self.scheduler is not None:
+            self.client = Client(str(self.scheduler))
+        elif configured_scheduler() is not None:
+            self.client = Client()  # Dask's configuration names the scheduler
+        else:
+            n = self.workers or default_workers()
+            self.client = Client(n_workers=n, threads_per_worker=1, processes=True)
+
+    def results(self, chunks: Iterator[list[RunTask]]) -> Iterator[Rows]:
+        from distributed import as_completed
+
+        client = self.client
+        threads = sum(client.nthreads().values()) or (self.workers or 1)
+        payload = client.scatter(self.payload, broadcast=True, hash=False)
         running = as_completed()
         inflight = 0
         for chunk in chunks:
-            running.add(client.submit(run_chunk, future_payload, chunk, pure=False))
+            running.add(client.submit(run_chunk, payload, chunk, pure=False))
             inflight += 1
             if inflight >= 2 * threads:
                 fut = next(running)
@@ -118,24 +163,33 @@ def _dask(
                 yield fut.result()
         for fut in running:
             yield fut.result()
-    finally:
-        if own:
-            client.close()
+
+    def close(self) -> None:
+        if self.own and self.client is not None:
+            self.client.close()
+        self.client = None
 
 
-def execute(
+@contextmanager
+def executor_for(
     payload: Payload,
-    chunks: Iterator[list[RunTask]],
     executor: ExecutorName = "processes",
     *,
     workers: int | None = None,
     scheduler: Any = None,
-) -> Iterator[Rows]:
-    """Rows of every chunk, as chunks complete."""
+) -> Iterator[Any]:
+    """A started executor (``.results(chunks)`` yields the rows of every chunk as chunks complete),
+    shut down on leaving the block."""
     if executor == "serial":
-        return _serial(payload, chunks)
-    if executor == "processes":
-        return _processes(payload, chunks, workers or default_workers())
-    if executor == "dask":
-        return _dask(payload, chunks, scheduler, workers)
-    raise ValueError(f"unknown executor {executor!r}; allowed: {', '.join(EXECUTORS)}")
+        ex: Any = _Serial(payload)
+    elif executor == "processes":
+        ex = _Processes(payload, workers or default_workers())
+    elif executor == "dask":
+        ex = _Dask(payload, scheduler, workers)
+    else:
+        raise ValueError(f"unknown executor {executor!r}; allowed: {', '.join(EXECUTORS)}")
+    try:
+        ex.start()
+        yield ex
+    finally:
+        ex.close()

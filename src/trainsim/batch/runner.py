@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from trainsim.batch.executors import ExecutorName, default_workers, execute
+from trainsim.batch.executors import ExecutorName, default_workers, executor_for
 from trainsim.batch.expand import Expansion, RunTask
 from trainsim.batch.sink import MemorySink, ParquetSink, read_results
 from trainsim.batch.study import Study, load_study
@@ -32,7 +32,8 @@ class StudyOutcome:
         failed: failed runs among those computed by this call (failure rows, status ``failed``).
         stalled: runs computed by this call whose train stalled.
         elapsed_s: wall time of the computation (after the study was read and expanded) [s].
-        chunks: chunks computed; chunk_size: runs per chunk; executor, workers: where.
+        chunks: chunks computed; chunk_size: runs per chunk (the largest, when automatic);
+        executor, workers: where.
     """
 
     study: str
@@ -74,16 +75,28 @@ class StudyOutcome:
         return read_results(self.out, as_table=True)
 
 
-def auto_chunk_size(pending: int, workers: int) -> int:
-    """Runs per chunk: about 8 chunks per worker, between 10 and 200 runs. Chunks of a few tenths of a
-    second keep the per-chunk cost (scheduling, pickling, one Parquet file) below a few % while a
-    killed study loses little work and the progress bar moves smoothly."""
-    return max(10, min(200, math.ceil(pending / max(1, 8 * workers))))
+#: Smallest and largest automatic chunk [runs].
+MIN_CHUNK, MAX_CHUNK = 10, 200
 
 
-def _chunks(expansion: Expansion, todo: list[int], size: int) -> Iterator[list[RunTask]]:
-    for k in range(0, len(todo), size):
-        yield [expansion.task(i) for i in todo[k : k + size]]
+def auto_chunk_size(remaining: int, workers: int) -> int:
+    """Runs of the next chunk when ``remaining`` runs are left: a quarter of each worker's share,
+    between 10 and 200 runs.
+
+    Chunks of up to 200 metro runs (about half a second) keep the per-chunk cost (scheduling,
+    pickling, one Parquet file) below 1 % while a killed study loses little work; chunks shrink
+    towards the end of the study ("guided" scheduling) so that no worker waits long for the last
+    one to finish.
+    """
+    return max(MIN_CHUNK, min(MAX_CHUNK, math.ceil(remaining / max(1, 4 * workers))))
+
+
+def _chunks(expansion: Expansion, todo: list[int], size: int | None, workers: int) -> Iterator[list[RunTask]]:
+    k = 0
+    while k < len(todo):
+        n = size or auto_chunk_size(len(todo) - k, workers)
+        yield [expansion.task(i) for i in todo[k : k + n]]
+        k += n
 
 
 class _Progress:
@@ -178,26 +191,26 @@ def run_study(
     done = sink.open(restart=restart)
     todo = [i for i, rid in enumerate(expansion.run_ids) if rid not in done]
     n_workers = 1 if executor == "serial" else (workers or default_workers())
-    size = chunk_size or study.spec.chunk_size or auto_chunk_size(len(todo), n_workers)
+    size = chunk_size or study.spec.chunk_size  # None: automatic, shrinking towards the end
     payload = Payload(study.fingerprint, study.name, tuple(e.data for e in study.entries))
     already = len(expansion) - len(todo)
-    bar = _Progress(study.name, len(expansion), already, progress and bool(todo))
     computed = failed = stalled = chunks = 0
     t0 = time.perf_counter()
-    try:
-        if todo:
-            for rows in execute(
-                payload, _chunks(expansion, todo, size), executor, workers=workers, scheduler=scheduler
-            ):
-                sink.write(rows)
-                n_failed = sum(1 for _, r in rows if r["status"] == "failed")
-                computed += len(rows)
-                failed += n_failed
-                stalled += sum(1 for _, r in rows if r["status"] == "stalled")
-                chunks += 1
-                bar.advance(len(rows), n_failed)
-    finally:
-        bar.close()
+    if todo:
+        with executor_for(payload, executor, workers=workers, scheduler=scheduler) as ex:
+            # the bar (a thread) starts once the workers are running
+            bar = _Progress(study.name, len(expansion), already, progress)
+            try:
+                for rows in ex.results(_chunks(expansion, todo, size, n_workers)):
+                    sink.write(rows)
+                    n_failed = sum(1 for _, r in rows if r["status"] == "failed")
+                    computed += len(rows)
+                    failed += n_failed
+                    stalled += sum(1 for _, r in rows if r["status"] == "stalled")
+                    chunks += 1
+                    bar.advance(len(rows), n_failed)
+            finally:
+                bar.close()
     elapsed = time.perf_counter() - t0
     return StudyOutcome(
         study=study.name,
@@ -209,7 +222,7 @@ def run_study(
         stalled=stalled,
         elapsed_s=elapsed,
         chunks=chunks,
-        chunk_size=size,
+        chunk_size=size or auto_chunk_size(len(todo), n_workers),
         executor=executor,
         workers=n_workers,
         _table=sink.table() if isinstance(sink, MemorySink) else None,

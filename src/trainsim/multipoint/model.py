@@ -232,8 +232,8 @@ class MultiPointSettings:
             ``bunched`` (slack taken up in draft or buff) at the start.
         time_step_s: step of the implicit integrator [s].
         record_interval_s: interval between recorded states [s] (extremes are taken at every step).
-        speed_gain_per_mps: gain of the speed controller that follows a reference profile: change of
-            command (1 = full traction or full service braking) per m/s of speed error [s/m].
+        speed_time_constant_s: the controller that follows a reference profile closes a speed error
+            with this time constant [s] (within the traction and braking limits).
         standstill_speed_mps: resistance and brakes oppose motion through ``tanh(v / this)``, a
             regularised dry friction that holds a vehicle at rest without a switch [m/s].
         stop_window_m: a stop counts when the train is at rest with its head this close to the stop [m].
@@ -252,7 +252,7 @@ class MultiPointSettings:
     initial_couplers: Literal["neutral", "stretched", "bunched"] = "neutral"
     time_step_s: float = 0.05
     record_interval_s: float = 1.0
-    speed_gain_per_mps: float = 1.0
+    speed_time_constant_s: float = 1.0
     standstill_speed_mps: float = 0.01
     stop_window_m: float = 2.0
     lookahead: bool = True
@@ -261,7 +261,11 @@ class MultiPointSettings:
         checks = {
             "time_step_s": (self.time_step_s, 1e-4 <= self.time_step_s <= 1.0, "1e-4 .. 1 s"),
             "record_interval_s": (self.record_interval_s, self.record_interval_s > 0, "> 0 s"),
-            "speed_gain_per_mps": (self.speed_gain_per_mps, self.speed_gain_per_mps > 0, "> 0 s/m"),
+            "speed_time_constant_s": (
+                self.speed_time_constant_s,
+                self.speed_time_constant_s >= 2 * self.time_step_s,
+                ">= 2 x time_step_s",
+            ),
             "standstill_speed_mps": (
                 self.standstill_speed_mps,
                 1e-4 <= self.standstill_speed_mps <= 0.1,

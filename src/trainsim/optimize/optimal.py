@@ -49,6 +49,20 @@ def price_of_time_w(train: Train, holding_speed_mps: float) -> float:
     return holding_speed_mps**2 * slope / eta_t
 
 
+def regenerative_holding_speed(train: Train, mu: float, eta_r: float) -> float:
+    """W with mu = eta_r W^2 R'(W): the speed at which the optimal strategy holds with
+    regenerative braking on a steep descent (phi = eta_r on a singular arc); inf without
+    regeneration."""
+    if eta_r <= 0.0 or not np.isfinite(mu):
+        return float("inf")
+    law = train.resistance_law
+    if law.c2 <= 0.0 and law.c1 <= 0.0:
+        return float("inf")
+    # psi(W) = W^2 (c1 + 2 c2 W) = mu / eta_r, increasing in W
+    target = mu / eta_r
+    return float(brentq(lambda w: w * w * (law.c1 + 2.0 * law.c2 * w) - target, 0.0, 1e4))
+
+
 def key_equation_braking_speed(train: Train, holding_speed_mps: float) -> float:
     """W = psi(V) / (R(V) + V R'(V)): on level track without regeneration the speed at which
     coasting ends and braking begins (Albrecht et al. 2016; MARECO, SNCF 1981)."""
@@ -98,7 +112,7 @@ class SectionSolver:
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, self.i0, self.i1, P, self.curves, self.bk
         )
         self.n_max = 8 * len(tr.x) + 64
-        fastest = self._phase_a(float(tr.vlim.max()) * 10.0)
+        fastest = self._fastest_points()
         self.fastest = fastest
         self.fastest_time_s = float(fastest[2][-1])
         if not np.isfinite(self.fastest_time_s) or fastest[1][-1] > 1e-6:
@@ -109,15 +123,35 @@ class SectionSolver:
 
     # ------------------------------------------------------------------ phases
     def _phase_a(self, holding_speed: float):
-        """Maximum traction to min(V, limit), hold it, brake to lower limits and the stop."""
+        """Maximum traction to min(V, limit), hold it; coast down steep descents up to min(limit, W)
+        and hold there with braking; brake to lower limits and the stop."""
         tr = self.track
-        vcap = np.minimum(tr.vlim, holding_speed)
+        if not np.isfinite(holding_speed) or holding_speed >= 10.0 * float(tr.vlim.max()):
+            return self.fastest
+        vhold = np.minimum(tr.vlim, holding_speed)
+        W = regenerative_holding_speed(self.train, price_of_time_w(self.train, holding_speed), self.eta_r)
+        vtop = np.maximum(np.minimum(tr.vlim, W), vhold)
+        Cr, _, US = kernel.braking_ceiling(
+            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, self.i0, self.i1, self.P, self.curves, self.bk
+        )
+        out = [np.empty(self.n_max) for _ in range(3)] + [np.empty(self.n_max, dtype=np.int8)]
+        n, status = pk.holding_segment(
+            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vhold, vtop, tr.traction_scale, self.i0, self.i1,
+            self.P, self.curves, self.tk, self.bk, Cr, US, *out,
+        )  # fmt: skip
+        s, v, t, m = (a[:n] for a in out)
+        if status != 0:
+            return s, np.append(v[:-1], 1.0), np.append(t[:-1], np.inf), m
+        return s, v, t, m
+
+    def _fastest_points(self):
+        tr = self.track
         out_s = np.empty(self.n_max)
         out_v = np.empty(self.n_max)
         out_t = np.empty(self.n_max)
         out_m = np.empty(self.n_max, dtype=np.int8)
         n, status, _ = kernel.fastest_segment(
-            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vcap, tr.traction_scale, self.i0, self.i1, 0.0,
+            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, tr.traction_scale, self.i0, self.i1, 0.0,
             self.P, self.curves, self.tk, self.bk, out_s, out_v, out_t, out_m, 0,
         )  # fmt: skip
         if status != kernel.STATUS_OK:
@@ -137,10 +171,10 @@ class SectionSolver:
         self.P[kernel.P_TRACTION_SCALE] = tr.traction_scale[i]
         if h <= 0.0:
             return i, u0, float(v[j]), float(t[j]), j
-        if mode == kernel.CRUISE or mode == kernel.DWELL:
+        if mode in (kernel.CRUISE, kernel.DWELL):
             return i, u0 + h, float(v[j]), float(t[j] + h / v[j]) if v[j] > 0 else float(t[j]), j
         line = (tr.a0[i], tr.a1[i], tr.b0[i], tr.b1[i])
-        kinks = self.tk if mode == kernel.TRACTION else self.bk
+        kinks = self.tk if mode == kernel.TRACTION else self.bk  # coasting has no kinks: any list works
         E1, dt = kernel.step_energy_time(0.5 * v[j] ** 2, u0, h, mode, line, self.P, self.curves, kinks)
         return i, u0 + h, float(np.sqrt(max(2.0 * E1, 0.0))), float(t[j] + dt), j
 
@@ -172,8 +206,20 @@ class SectionSolver:
         train stops exactly at the next station."""
         mu = price_of_time_w(self.train, holding_speed_mps)
         phase_a = self._phase_a(holding_speed_mps)
-        lo, hi = self.s0, self.s1
-        best = None
+        # The last coasting point from which the train still reaches the stop: on a hilly line the
+        # outcome is not monotone in the coasting point, and the optimum leaves the holding arc as
+        # late as possible, so search backwards from the stop first, then bisect.
+        hi, best = self.s1, None
+        step = max(50.0, (self.s1 - self.s0) / 200.0)
+        lo = hi - step
+        while True:
+            lo = max(lo, self.s0)
+            points, status = self._phase_b(phase_a, lo, mu)
+            if status != pk.HIT_CEILING or lo <= self.s0:
+                break
+            hi, best = lo, points
+            step *= 1.5
+            lo = hi - step
         while hi - lo > COAST_POINT_TOLERANCE_M:
             mid = 0.5 * (lo + hi)
             points, status = self._phase_b(phase_a, mid, mu)

@@ -33,6 +33,8 @@ from trainsim.sim.kernel import (
     REGEN,
     TRACTION,
     distance_to_speed,
+    effort,
+    resistance_force,
     rk4_energy_time,
     step_energy,
     step_energy_time,
@@ -95,11 +97,11 @@ def final_phase(
     P, curves, tk, bk, Cr, US, mu, inv_eta_t, eta_r, has_regen, h_max,
     out_s, out_v, out_t, out_m, n,
 ):  # fmt: skip
-    """From (x[i_start] + u_start, v_start) with phi = 1/eta_t, drive by the adjoint to the stop at
-    x[i_end]. Appends points; returns (n, status): HIT_CEILING when the train meets the braking
-    curve to the stop (it then follows it and stops exactly at x[i_end]), STOPPED_SHORT when it
-    comes to rest before (the last point is where it stopped)."""
-    # just below the traction threshold: the train leaves the holding arc into coasting
+    """From (x[i_start] + u_start, v_start), leaving the holding arc (phi just below 1/eta_t), drive
+    by the adjoint to the stop at x[i_end], holding the speed limit ``vcap`` if the train reaches
+    it. Appends points; returns (n, status): HIT_CEILING when the train meets the braking curve
+    to the stop (it then follows it and stops exactly at x[i_end]), STOPPED_SHORT when it comes
+    to rest before (the last point is where it stopped)."""
     phi = inv_eta_t * (1.0 - 1e-9)
     E = 0.5 * v_start * v_start
     t = t_start
@@ -112,97 +114,229 @@ def final_phase(
         while u < w - 1e-12:
             v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
             mode = mode_of(phi, inv_eta_t, eta_r, has_regen)
-            if mode == TRACTION and v >= vcap[i] - 1e-9:
+            at_limit = v >= vcap[i] - 1e-9
+            if at_limit and (mode == TRACTION or mode == COAST):
+                # the speed limit binds: hold it while the adjoint asks for traction or coasting
                 mode = CRUISE
-            out_s[n] = x[i] + u
-            out_v[n] = v
-            out_t[n] = t
-            out_m[n] = mode
-            n += 1
             h = min(h_max, w - u)
+            if US[kk] > u:
+                h = min(h, US[kk] - u)  # the braking curve part starts at US
+            kinks = tk if mode == TRACTION else bk
             if mode == CRUISE:
                 E1, dt = E, h / v
             else:
-                E1, dt = step_energy_time(E, u, h, mode, line, P, curves, tk if mode == TRACTION else bk)
+                E1, dt = step_energy_time(E, u, h, mode, line, P, curves, kinks)
             if E1 <= 0.0:
                 # comes to rest inside the step
                 hs = distance_to_speed(E, u, 0.0, mode, line, P, curves)
                 if not np.isfinite(hs) or hs > h:
                     hs = h
                 _, dts = rk4_energy_time(E, u, hs, mode, line, P, curves)
-                out_s[n] = x[i] + u + hs
-                out_v[n] = 0.0
-                out_t[n] = t + dts
-                out_m[n] = mode
-                n += 1
+                n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
+                n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u + hs, 0.0, t + dts, mode)
                 if x[i] + u + hs >= x[i_end] - 1e-6:
                     return n, HIT_CEILING
                 return n, STOPPED_SHORT
+            v1 = np.sqrt(2.0 * E1)
+            if mode != CRUISE and v1 > vcap[i] and v < vcap[i] and u + h <= US[kk]:
+                # reaches the limit inside the step: stop the step there
+                hc = distance_to_speed(E, u, 0.5 * vcap[i] * vcap[i], mode, line, P, curves)
+                if np.isfinite(hc) and 0.0 < hc < h:
+                    h = hc
+                    E1, dt = step_energy_time(E, u, h, mode, line, P, curves, kinks)
+                    v1 = vcap[i]
+                    E1 = 0.5 * v1 * v1
             phi1 = phi_step(phi, E, E1, u, h, b0[i], b1[i], P, mu) if v > PHI_MIN_SPEED else phi
             new_mode = mode_of(phi1, inv_eta_t, eta_r, has_regen)
-            if new_mode != mode and not (mode == CRUISE and new_mode == TRACTION):
-                # switch inside the step: cut it where phi crosses the threshold
-                thr = inv_eta_t if max(phi, phi1) >= inv_eta_t and min(phi, phi1) < inv_eta_t else (
-                    eta_r if max(phi, phi1) > eta_r and min(phi, phi1) <= eta_r else 0.0
-                )
+            base_mode = mode_of(phi, inv_eta_t, eta_r, has_regen)
+            if new_mode != base_mode:
+                # the adjoint crosses a switching threshold inside the step: cut the step there
+                lo_phi, hi_phi = min(phi, phi1), max(phi, phi1)
+                if lo_phi < inv_eta_t <= hi_phi:
+                    thr = inv_eta_t
+                elif lo_phi <= eta_r < hi_phi and has_regen:
+                    thr = eta_r
+                else:
+                    thr = 0.0
                 frac = (thr - phi) / (phi1 - phi) if phi1 != phi else 1.0
                 frac = min(max(frac, 1e-6), 1.0)
                 h = frac * h
                 if mode == CRUISE:
                     E1, dt = E, h / v
                 else:
-                    E1, dt = step_energy_time(E, u, h, mode, line, P, curves, tk if mode == TRACTION else bk)
+                    E1, dt = step_energy_time(E, u, h, mode, line, P, curves, kinks)
+                v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
                 phi1 = thr - 1e-12 if phi1 < phi else thr + 1e-12
-            # the braking curve to the stop must not be crossed
-            v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
-            c1 = ceiling_at(u + h, w, kk, Cr, US, vcap[i], line, P, curves, bk)
-            if v1 > c1 + 1e-9 and mode != BRAKE:
-                lo, hi = 0.0, h
-                for _ in range(40):
-                    mid = 0.5 * (lo + hi)
-                    Em, _ = step_energy_time(E, u, mid, mode, line, P, curves, bk)
-                    vm = np.sqrt(2.0 * Em) if Em > 0.0 else 0.0
-                    if vm > ceiling_at(u + mid, w, kk, Cr, US, vcap[i], line, P, curves, bk):
-                        hi = mid
-                    else:
-                        lo = mid
-                Em, dtm = step_energy_time(E, u, lo, mode, line, P, curves, bk)
-                t += dtm
-                u += lo
-                E = Em
-                return _follow_ceiling(
-                    x, a0, a1, b0, b1, tscale, i, u, E, t, i_end, P, curves, bk, Cr, kk, out_s, out_v, out_t, out_m, n
-                ), HIT_CEILING
+            # the braking curve to the stop (and to lower limits) must not be crossed
+            if mode != BRAKE and u + h > US[kk]:
+                c1 = _brake_curve_speed(u + h, w, Cr[kk], line, P, curves, bk)
+                if v1 > c1 + 1e-9:
+                    hm = _meet_brake_curve(E, u, u + h, mode, w, Cr[kk], line, P, curves, kinks, bk)
+                    Em, dtm = step_energy_time(E, u, hm - u, mode, line, P, curves, kinks)
+                    n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
+                    return _follow_ceiling(
+                        x, a0, a1, b0, b1, i, hm, Em, t + dtm, i_end, P, curves, bk, Cr, US, kk, vcap,
+                        out_s, out_v, out_t, out_m, n,
+                    ), HIT_CEILING  # fmt: skip
+            n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
             E, t, u, phi = E1, t + dt, u + h, phi1
         u = 0.0
-    out_s[n] = x[i_end]
-    out_v[n] = np.sqrt(2.0 * E) if E > 0.0 else 0.0
-    out_t[n] = t
-    out_m[n] = BRAKE
-    n += 1
+    n = _emit(out_s, out_v, out_t, out_m, n, x[i_end], np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, BRAKE)
     return n, HIT_CEILING
 
 
 @njit(cache=True)
-def _follow_ceiling(x, a0, a1, b0, b1, tscale, i, u, E, t, i_end, P, curves, bk, Cr, kk, out_s, out_v, out_t, out_m, n):
-    """Maximum service braking along the braking curve from (x[i] + u) to the stop at x[i_end]."""
+def _follow_ceiling(
+    x, a0, a1, b0, b1, i, u, E, t, i_end, P, curves, bk, Cr, US, kk, vcap, out_s, out_v, out_t, out_m, n
+):  # fmt: skip
+    """Along the speed ceiling from (x[i] + u) to the stop at x[i_end]: maximum service braking on
+    its braking curves, holding the limit on its plateaus."""
     k = kk
     for j in range(i, i_end):
         w = x[j + 1] - x[j]
         line = (a0[j], a1[j], b0[j], b1[j])
-        out_s[n] = x[j] + u
-        out_v[n] = np.sqrt(2.0 * E) if E > 0.0 else 0.0
-        out_t[n] = t
-        out_m[n] = BRAKE
-        n += 1
-        _, dt = step_energy_time(E, u, w - u, BRAKE, line, P, curves, bk)
-        t += dt
+        if u < US[k]:
+            v = vcap[j]
+            n = _emit(out_s, out_v, out_t, out_m, n, x[j] + u, v, t, CRUISE)
+            t += (US[k] - u) / v
+            u = US[k]
+            E = 0.5 * v * v
+        if u < w:
+            n = _emit(out_s, out_v, out_t, out_m, n, x[j] + u, np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, BRAKE)
+            _, dt = step_energy_time(E, u, w - u, BRAKE, line, P, curves, bk)
+            t += dt
         E = 0.5 * Cr[k] * Cr[k]
         u = 0.0
         k += 1
-    out_s[n] = x[i_end]
-    out_v[n] = 0.0
-    out_t[n] = t
-    out_m[n] = BRAKE
-    n += 1
+    n = _emit(out_s, out_v, out_t, out_m, n, x[i_end], 0.0, t, BRAKE)
     return n
+
+
+@njit(cache=True)
+def _emit(out_s, out_v, out_t, out_m, n, s, v, t, m):
+    out_s[n] = s
+    out_v[n] = v
+    out_t[n] = t
+    out_m[n] = m
+    return n + 1
+
+
+@njit(cache=True)
+def _brake_curve_speed(u, w, Crk, line, P, curves, bk):
+    Eb = step_energy(0.5 * Crk * Crk, w, u - w, BRAKE, line, P, curves, bk)
+    return np.sqrt(2.0 * Eb) if Eb > 0.0 else 0.0
+
+
+@njit(cache=True)
+def _meet_brake_curve(E, u, end, mode, w, Crk, line, P, curves, kinks, bk):
+    """Offset in (u, end] where the trajectory of ``mode`` from (u, E) meets the braking curve that
+    ends at (w, Crk) (bisection; the trajectory is below it at u and above it at end)."""
+    lo, hi = u, end
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        Em, _ = step_energy_time(E, u, mid - u, mode, line, P, curves, kinks)
+        vm = np.sqrt(2.0 * Em) if Em > 0.0 else 0.0
+        if vm >= _brake_curve_speed(mid, w, Crk, line, P, curves, bk):
+            hi = mid
+        else:
+            lo = mid
+        if hi - lo < 1e-7:
+            break
+    return hi
+
+
+@njit(cache=True)
+def holding_segment(
+    x, a0, a1, b0, b1, vhold, vtop, tscale, i0, i1, P, curves, tk, bk, Cr, US,
+    out_s, out_v, out_t, out_m,
+):  # fmt: skip
+    """The holding phases of the optimal strategy from standstill at x[i0] to the stop at x[i1].
+
+    Maximum traction up to the holding speed ``vhold`` (V, or the limit where lower); hold it with
+    partial traction; where holding would need more than maximum traction (steep uphill) keep
+    maximum traction; where it would need braking (steep downhill) coast instead and let the speed
+    rise, up to ``vtop`` (the limit, or the regenerative holding speed W), where the train holds
+    with braking; after such a descent coast back down to ``vhold``; follow the braking curves
+    (``Cr``/``US``, computed for ``vtop``) to lower limits and to the stop. Returns (n, status)."""
+    n = 0
+    E = 0.0
+    t = 0.0
+    tol = 1e-7
+    for k in range(i1 - i0):
+        i = i0 + k
+        w = x[i + 1] - x[i]
+        line = (a0[i], a1[i], b0[i], b1[i])
+        P[P_TRACTION_SCALE] = tscale[i]
+        vh, vt = vhold[i], vtop[i]
+        u = 0.0
+        for _guard in range(10000):
+            if u >= w - 1e-12:
+                break
+            v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+            in_curve = u >= US[k]
+            end = w if in_curve else US[k]
+            if in_curve and v >= _brake_curve_speed(u, w, Cr[k], line, P, curves, bk) - 1e-6:
+                # on the braking curve: brake along it to the interval's end
+                n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, BRAKE)
+                _, dt = step_energy_time(E, u, w - u, BRAKE, line, P, curves, bk)
+                t += dt
+                E = 0.5 * Cr[k] * Cr[k]
+                u = w
+                break
+            need_u = resistance_force(v, u, line, P)
+            need_e = resistance_force(v, end, line, P)
+            fmax = P[P_TRACTION_SCALE] * effort(v, curves[0], curves[1], curves[2], curves[3])
+            at_hold = abs(v - vh) <= tol * max(1.0, vh)
+            at_top = v >= vt - tol * max(1.0, vt)
+            hold_lo, hold_hi = 1.0, -1.0  # empty: no holding
+            if at_top and need_u <= 0.0:
+                hold_lo, hold_hi = -np.inf, 0.0  # hold the top speed with braking
+            elif at_hold and 0.0 <= need_u <= fmax:
+                hold_lo, hold_hi = 0.0, fmax  # hold the holding speed with partial traction
+            if hold_lo <= hold_hi:
+                stop_at = end
+                if need_e > hold_hi:
+                    stop_at = u + (end - u) * (hold_hi - need_u) / (need_e - need_u)
+                elif need_e < hold_lo:
+                    stop_at = u + (end - u) * (hold_lo - need_u) / (need_e - need_u)
+                if stop_at > u + 1e-9:
+                    n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, CRUISE)
+                    t += (stop_at - u) / v
+                    u = stop_at
+                    E = 0.5 * v * v
+                    continue
+            if v < vh - tol * max(1.0, vh) or (at_hold and need_u > 0.0):
+                mode = TRACTION
+                kinks = tk
+                target = vh
+            else:
+                mode = COAST
+                kinks = bk
+                target = vh if (v > vh and need_u > 0.0) else vt
+            E1, dt = step_energy_time(E, u, end - u, mode, line, P, curves, kinks)
+            v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
+            h = end - u
+            # events: reaching the target speed, meeting the braking curve, coming to rest
+            if (v < target and v1 > target) or (v > target and v1 < target):
+                hc = distance_to_speed(E, u, 0.5 * target * target, mode, line, P, curves)
+                if np.isfinite(hc) and 0.0 < hc < h:
+                    h = hc
+                    E1, dt = step_energy_time(E, u, h, mode, line, P, curves, kinks)
+                    E1 = 0.5 * target * target
+                    v1 = target
+            if in_curve:
+                vb = _brake_curve_speed(u + h, w, Cr[k], line, P, curves, bk)
+                if v1 > vb + 1e-9:
+                    hm = _meet_brake_curve(E, u, u + h, mode, w, Cr[k], line, P, curves, kinks, bk) - u
+                    h = hm
+                    E1, dt = step_energy_time(E, u, h, mode, line, P, curves, kinks)
+            if E1 <= 0.0:
+                return n, 1
+            if v1 > vt + 1e-6 and not in_curve:
+                E1 = 0.5 * vt * vt
+            n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
+            t += dt
+            u += h
+            E = E1
+    n = _emit(out_s, out_v, out_t, out_m, n, x[i1], 0.0, t, 4)
+    return n, 0

@@ -1,0 +1,177 @@
+// Plotly figures: effort/resistance over speed, line profile, run plots, live driving profile.
+// Plotly is served by the server from the installed plotly Python package (no CDN).
+
+const CONFIG = { responsive: true, displaylogo: false, modeBarButtonsToRemove: ["lasso2d", "select2d"] };
+const COLORS = { a: "#1f77b4", b: "#ff7f0e", limit: "#d62728", grade: "#8c564b", ref: "#7f7f7f" };
+const BASE = {
+  margin: { l: 60, r: 60, t: 36, b: 44 },
+  font: { size: 12 },
+  legend: { orientation: "h", y: -0.2 },
+  hovermode: "x unified",
+};
+
+const stepXY = (sections, lo, hi, scale = 1) => {
+  // x, y of a piecewise constant function given as [from, to, value] (0 where none)
+  const xs = [];
+  const ys = [];
+  let pos = lo;
+  for (const [a, b, v] of [...sections].sort((p, q) => p[0] - q[0])) {
+    if (a > pos) xs.push(pos / scale, a / scale), ys.push(0, 0);
+    xs.push(a / scale, b / scale);
+    ys.push(v, v);
+    pos = b;
+  }
+  if (pos < hi) xs.push(pos / scale, hi / scale), ys.push(0, 0);
+  return { x: xs, y: ys };
+};
+
+function stationShapes(profile) {
+  const shapes = [];
+  const annotations = [];
+  for (const s of profile.stations) {
+    const x = s.position_m / 1000;
+    shapes.push({ type: "line", xref: "x", yref: "paper", x0: x, x1: x, y0: 0, y1: 1,
+      line: { color: "#444", width: 1, dash: s.stop ? "solid" : "dot" } });
+    annotations.push({ x, y: 1, xref: "x", yref: "paper", text: s.name, showarrow: false,
+      textangle: -90, xanchor: "left", yanchor: "top", font: { size: 10, color: "#333" } });
+  }
+  for (const [a, b] of profile.tunnels) {
+    shapes.push({ type: "rect", xref: "x", yref: "paper", x0: a / 1000, x1: b / 1000, y0: 0, y1: 0.04,
+      fillcolor: "#555", opacity: 0.5, line: { width: 0 } });
+  }
+  for (const [a, b] of profile.curves) {
+    shapes.push({ type: "rect", xref: "x", yref: "paper", x0: a / 1000, x1: b / 1000, y0: 0.04, y1: 0.07,
+      fillcolor: "#2ca02c", opacity: 0.5, line: { width: 0 } });
+  }
+  return { shapes, annotations };
+}
+
+function profileTraces(profile, { withLimits = true } = {}) {
+  const grade = stepXY(profile.gradients, profile.start_m, profile.end_m, 1000);
+  const traces = [
+    { x: grade.x, y: grade.y, yaxis: "y2", name: "gradient [‰]", mode: "lines", fill: "tozeroy",
+      line: { color: COLORS.grade, width: 1 }, fillcolor: "rgba(140,86,75,0.15)", hovertemplate: "%{y:.1f} ‰" },
+  ];
+  if (withLimits) {
+    const lim = stepXY(profile.speed_limits, profile.start_m, profile.end_m, 1000);
+    traces.push({ x: lim.x, y: lim.y, name: "line speed limit", mode: "lines",
+      line: { color: COLORS.limit, width: 1.5, dash: "dot" }, hovertemplate: "%{y:.0f} km/h" });
+  }
+  return traces;
+}
+
+function profileLayout(profile, title, extra = {}) {
+  const grades = profile.gradients.map((g) => Math.abs(g[2]));
+  const span = Math.max(1, ...grades);
+  const limits = profile.speed_limits.map((s) => s[2]);
+  const { shapes, annotations } = stationShapes(profile);
+  return {
+    ...BASE,
+    title: { text: title, font: { size: 14 } },
+    // speed above, the gradient profile in a band below it on the same distance axis
+    xaxis: { title: { text: "distance [km]" }, range: [profile.start_m / 1000, profile.end_m / 1000] },
+    yaxis: { title: { text: "speed [km/h]" }, range: [0, Math.max(...limits, 10) * 1.15], domain: [0.3, 1] },
+    yaxis2: { title: { text: "gradient [‰]" }, range: [-1.2 * span, 1.2 * span], domain: [0, 0.22], zeroline: true },
+    shapes,
+    annotations,
+    ...extra,
+  };
+}
+
+export function plotProfile(div, profile) {
+  Plotly.react(div, profileTraces(profile), profileLayout(profile, `Line profile — ${profile.name}`), CONFIG);
+}
+
+export function plotTrainCurves(div, curves, name) {
+  const x = curves.speed_kmh;
+  const traces = [
+    { x, y: curves.traction_kn, name: "maximum traction", line: { color: COLORS.a, width: 2 } },
+    { x, y: curves.braking_kn, name: curves.braking_label, line: { color: COLORS.limit, width: 2 } },
+    { x, y: curves.resistance_kn, name: "running resistance (level)", line: { color: "#000", width: 1.5 } },
+    { x, y: curves.resistance_10_permille_kn, name: "resistance on 10 ‰", line: { color: "#000", width: 1, dash: "dash" } },
+  ];
+  if (curves.regenerative_kn) traces.push({ x, y: curves.regenerative_kn, name: "regenerative braking", line: { color: "#2ca02c" } });
+  Plotly.react(div, traces, {
+    ...BASE,
+    title: { text: `Effort and resistance — ${name}`, font: { size: 14 } },
+    xaxis: { title: { text: "speed [km/h]" } },
+    yaxis: { title: { text: "force [kN]" }, rangemode: "tozero" },
+  }, CONFIG);
+}
+
+// ------------------------------------------------------------ runs
+export function plotRuns(divs, runs) {
+  const [a] = runs;
+  const name = (r) => r.label;
+  const color = (i) => (i === 0 ? COLORS.a : COLORS.b);
+  // speed over distance with the line profile of the first run
+  const sd = [...profileTraces(a.profile)];
+  sd.push({ x: a.plot.position_m.map((x) => x / 1000), y: a.plot.speed_limit_kmh, name: "speed ceiling (train)",
+    line: { color: COLORS.limit, width: 1, shape: "hv" }, opacity: 0.6 });
+  runs.forEach((r, i) => sd.push({ x: r.plot.position_m.map((x) => x / 1000), y: r.plot.speed_kmh, name: `speed: ${name(r)}`,
+    line: { color: color(i), width: 2 } }));
+  Plotly.react(divs.speedDistance, sd, profileLayout(a.profile, "Speed over distance"), CONFIG);
+
+  const st = runs.map((r, i) => ({ x: r.plot.time_s, y: r.plot.speed_kmh, name: name(r), line: { color: color(i), width: 2 } }));
+  Plotly.react(divs.speedTime, st, { ...BASE, title: { text: "Speed over time", font: { size: 14 } },
+    xaxis: { title: { text: "time [s]" } }, yaxis: { title: { text: "speed [km/h]" }, rangemode: "tozero" } }, CONFIG);
+
+  const pc = [];
+  runs.forEach((r, i) => {
+    pc.push({ x: r.plot.time_s, y: r.plot.electrical_power_kw.map((v) => (v === null ? null : v / 1000)), name: `line power: ${name(r)}`,
+      line: { color: color(i), width: 1.5 } });
+    pc.push({ x: r.plot.time_s, y: r.plot.line_current_a, name: `line current: ${name(r)}`, yaxis: "y2", xaxis: "x2",
+      line: { color: color(i), width: 1.5, dash: "dot" } });
+  });
+  Plotly.react(divs.power, pc, { ...BASE, title: { text: "Power and line current", font: { size: 14 } },
+    grid: { rows: 2, columns: 1, pattern: "independent" },
+    xaxis: { title: { text: "" }, matches: "x2" }, yaxis: { title: { text: "power [MW]" } },
+    xaxis2: { title: { text: "time [s]" } }, yaxis2: { title: { text: "current [A]" } } }, CONFIG);
+
+  const en = [];
+  runs.forEach((r, i) => {
+    const sections = r.summary.sections;
+    const labels = sections.map((s) => `${s.from} → ${s.to}`);
+    en.push({ type: "bar", x: labels, y: sections.map((s) => s.energy_kwh.net), name: `net from line: ${name(r)}`,
+      marker: { color: color(i) }, texttemplate: "%{y:.1f}", textposition: "outside" });
+    en.push({ type: "bar", x: labels, y: sections.map((s) => s.energy_kwh.traction), name: `traction at wheel: ${name(r)}`,
+      marker: { color: color(i), opacity: 0.45 } });
+  });
+  Plotly.react(divs.energy, en, { ...BASE, hovermode: "closest", barmode: "group",
+    title: { text: "Energy by section", font: { size: 14 } }, yaxis: { title: { text: "energy [kWh]" } } }, CONFIG);
+}
+
+// ------------------------------------------------------------ live driving
+export class DrivePlot {
+  constructor(div) {
+    this.div = div;
+    this.pending = null;
+    this.last = 0;
+  }
+
+  init(profile, reference) {
+    const traces = profileTraces(profile);
+    if (reference) traces.push({ x: reference.position_m.map((x) => x / 1000), y: reference.speed_kmh,
+      name: `fastest run (${reference.running_time_s.toFixed(1)} s)`, line: { color: COLORS.ref, width: 1.5, dash: "dash" } });
+    traces.push({ x: [], y: [], name: "your drive", line: { color: COLORS.a, width: 2 } });
+    traces.push({ x: [profile.stations[0].position_m / 1000], y: [0], name: "train", mode: "markers",
+      marker: { size: 14, symbol: "triangle-right", color: "#000" } });
+    this.driveIndex = traces.length - 2;
+    Plotly.react(this.div, traces, profileLayout(profile, "Your drive on the line", { hovermode: "closest" }), CONFIG);
+  }
+
+  update(state) {
+    // drawn at most 5 times a second; the points in between are kept
+    const x = state.position_m / 1000;
+    this.pending = this.pending || { x: [], y: [] };
+    this.pending.x.push(x);
+    this.pending.y.push(state.speed_kmh);
+    const now = performance.now();
+    if (now - this.last < 200 && !state.finished) return;
+    this.last = now;
+    const { x: xs, y: ys } = this.pending;
+    this.pending = null;
+    Plotly.extendTraces(this.div, { x: [xs], y: [ys] }, [this.driveIndex]);
+    Plotly.restyle(this.div, { x: [[x]], y: [[state.speed_kmh]] }, [this.driveIndex + 1]);
+  }
+}
