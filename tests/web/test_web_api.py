@@ -43,8 +43,15 @@ def test_docs_are_offline_and_openapi_lists_the_endpoints(client: TestClient) ->
     assert client.get("/vendor/docs/swagger-ui-bundle.js").status_code == 200
     assert client.get("/redoc").status_code == 200
     spec = client.get("/openapi.json").json()
-    for path in ("/api/train", "/api/route", "/api/runs", "/api/runs/{run_id}/trace.csv", "/api/examples/{name}",
-                 "/api/train/upload", "/api/strategies"):
+    for path in (
+        "/api/train",
+        "/api/route",
+        "/api/runs",
+        "/api/runs/{run_id}/trace.csv",
+        "/api/examples/{name}",
+        "/api/train/upload",
+        "/api/strategies",
+    ):
         assert path in spec["paths"], path
 
 
@@ -169,7 +176,12 @@ def test_put_train_model_level_errors_and_bad_bodies(metro: TestClient) -> None:
     r = metro.put("/api/train", json=spec)
     assert r.status_code == 422 and "davis_kn_kmh" in r.json()["detail"][0]["msg"]
     assert metro.put("/api/train", json=[1, 2]).status_code == 422
-    assert metro.put("/api/train", content=b"{not json", headers={"content-type": "application/json"}).status_code == 422
+    assert (
+        metro.put(
+            "/api/train", content=b"{not json", headers={"content-type": "application/json"}
+        ).status_code
+        == 422
+    )
     assert metro.put("/api/train", json={"schema": "trainsim/route", "version": 1}).status_code == 422
 
 
@@ -207,12 +219,20 @@ def test_train_upload_trainsim_and_scenario_files(client: TestClient) -> None:
     r = client.post("/api/train/upload", files={"file": ("loco.yaml", text)})
     assert r.status_code == 200 and r.json()["spec"]["traction"]["model"] == "power_limited"
     assert r.json()["source"] == "loco.yaml"
-    inline = {"schema": "trainsim/scenario", "version": 1, "name": "s",
-              "train": yaml.safe_load(text), "route": "route.yaml"}
+    inline = {
+        "schema": "trainsim/scenario",
+        "version": 1,
+        "name": "s",
+        "train": yaml.safe_load(text),
+        "route": "route.yaml",
+    }
     r = client.post("/api/train/upload", files={"file": ("s.yaml", yaml.safe_dump(inline).encode())})
     assert r.status_code == 200
     # a scenario naming its train file cannot be opened alone
-    r = client.post("/api/train/upload", files={"file": ("s.yaml", (REPO / "examples/loco_001/scenario.yaml").read_bytes())})
+    r = client.post(
+        "/api/train/upload",
+        files={"file": ("s.yaml", (REPO / "examples/loco_001/scenario.yaml").read_bytes())},
+    )
     assert r.status_code == 422 and r.json()["detail"][0]["field"] == "train"
 
 
@@ -221,7 +241,10 @@ def test_train_upload_railtoolkit_runs_as_the_file(client: TestClient) -> None:
     r = client.post("/api/train/upload", files={"file": ("freight.yaml", path.read_bytes())})
     assert r.status_code == 200, r.text
     assert any("railtoolkit" in n for n in r.json()["notes"])
-    client.post("/api/route/upload", files={"file": ("const.yaml", (REPO / "tests/data/trainruns/paths/const.yaml").read_bytes())})
+    client.post(
+        "/api/route/upload",
+        files={"file": ("const.yaml", (REPO / "tests/data/trainruns/paths/const.yaml").read_bytes())},
+    )
     web = client.post("/api/runs", json={"settings": {"max_step_m": 10}}).json()["summary"]
     direct = trainsim.run_fastest(
         trainsim.load_train(path),
@@ -230,7 +253,6 @@ def test_train_upload_railtoolkit_runs_as_the_file(client: TestClient) -> None:
     )
     assert web["running_time_s"] == pytest.approx(direct.running_time_s, rel=1e-9)
     # and the converted train saves as a trainsim file
-    assert trainsim.load_train  # noqa: B018
     assert "schema: trainsim/train" in client.get("/api/train/yaml").text
 
 
@@ -243,7 +265,9 @@ def test_train_upload_errors_name_the_file_and_line(client: TestClient) -> None:
     bad["formation"][0]["mass_t"] = 0
     r = client.post("/api/train/upload", files={"file": ("t.yaml", yaml.safe_dump(bad).encode())})
     assert r.status_code == 422 and _fields(r) == ["formation[0].mass_t"]
-    r = client.post("/api/train/upload", files={"file": ("r.yaml", (REPO / "examples/metro_b/route.yaml").read_bytes())})
+    r = client.post(
+        "/api/train/upload", files={"file": ("r.yaml", (REPO / "examples/metro_b/route.yaml").read_bytes())}
+    )
     assert r.status_code == 422 and "expected a train file" in r.json()["message"]
     r = client.post("/api/train/upload", files={"file": ("bin.yaml", b"\xff\xfe\x00")})
     assert r.status_code == 422 and "UTF-8" in r.json()["message"]
@@ -303,7 +327,9 @@ def test_route_upload_railtoolkit_and_yaml_download(client: TestClient, tmp_path
     out.write_text(client.get("/api/route/yaml").text)
     again = trainsim.load_route(out)
     assert again.speed_limits == direct.speed_limits and again.gradients == direct.gradients
-    r = client.post("/api/route/upload", files={"file": ("t.yaml", (REPO / "examples/metro_b/train.yaml").read_bytes())})
+    r = client.post(
+        "/api/route/upload", files={"file": ("t.yaml", (REPO / "examples/metro_b/train.yaml").read_bytes())}
+    )
     assert r.status_code == 422 and "expected a route file" in r.json()["message"]
 
 
@@ -327,7 +353,9 @@ def test_run_metro_gives_the_cli_running_time(metro: TestClient) -> None:
     assert run["summary"]["running_time_s"] == pytest.approx(METRO_RUNNING_TIME_S, rel=1e-9)
     assert run["label"] == "metro" and run["status"] == "ok"
     plot = run["plot"]
-    assert len(plot["time_s"]) == len(plot["speed_kmh"]) == len(plot["line_current_a"]) == plot["shown_points"]
+    assert (
+        len(plot["time_s"]) == len(plot["speed_kmh"]) == len(plot["line_current_a"]) == plot["shown_points"]
+    )
     assert max(plot["speed_kmh"]) == pytest.approx(80, abs=0.01)
     assert [s["from"] for s in run["summary"]["sections"]] == ["S1", "S2", "S3"]
     assert run["profile"]["end_m"] == pytest.approx(4590.97)
@@ -417,7 +445,9 @@ def test_a_registered_strategy_runs_with_validated_params(metro: TestClient) -> 
     def run(train, route, settings, params):
         import dataclasses
 
-        return trainsim.run_fastest(train, route, dataclasses.replace(settings, braking_fraction=params.braking_share))
+        return trainsim.run_fastest(
+            train, route, dataclasses.replace(settings, braking_fraction=params.braking_share)
+        )
 
     strategies.register(strategies.Strategy("gentle", "Gentle", "half braking", Params, run))
     try:

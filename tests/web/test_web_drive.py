@@ -39,7 +39,7 @@ def stop_at_next_station(ws, state: dict) -> dict:
         d = state["next_stop_distance_m"]
         if state["dwell_remaining_s"] > 0 or state["finished"]:
             return state
-        if v > 0 and v * v / (2 * d) >= decel * 0.8 or d < 3:
+        if (v > 0 and v * v / (2 * d) >= decel * 0.8) or d < 3:
             need = v * v / (2 * max(d, 0.1))
             command = -min(1.0, need / 0.97 * 1.05) if v > 0.05 else (0.2 if d > 3 else -1)
         else:

@@ -103,10 +103,13 @@ class _Progress:
     """A rich progress bar on stderr: runs done of all, failures, rate and time left."""
 
     def __init__(self, name: str, total: int, done: int, enabled: bool) -> None:
-        self.enabled = enabled
-        if not enabled:
-            return
         from rich.console import Console
+
+        console = Console(stderr=True)
+        # a bar redrawn into a log file or a pipe is noise: only on a terminal
+        self.enabled = enabled and console.is_terminal
+        if not self.enabled:
+            return
         from rich.progress import (
             BarColumn,
             MofNCompleteColumn,
@@ -126,7 +129,7 @@ class _Progress:
             TimeElapsedColumn(),
             TextColumn("left"),
             TimeRemainingColumn(),
-            console=Console(stderr=True),
+            console=console,
             transient=False,
         )
         self.t0 = time.perf_counter()

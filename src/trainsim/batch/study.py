@@ -343,6 +343,7 @@ class ParamColumn:
     name: str
     path: str | None = None
     relative: bool = False
+    where: str = ""  # where the study file sets it, for error messages
 
 
 def _canonical(obj: Any) -> str:
@@ -523,11 +524,14 @@ class Study:
             for k, path in enumerate(axis.paths()):
                 where = f"axes[{i}].field" if axis.field is not None else f"axes[{i}].fields[{k}]"
                 self._check_root(path, where)
-                cols.append(ParamColumn(f"{path}:factor" if axis.relative else path, path, axis.relative))
+                name = f"{path}:factor" if axis.relative else path
+                cols.append(ParamColumn(name, path, axis.relative, where))
         if self.spec.samples is not None:
             for path, dist in self.spec.samples.fields.items():
-                self._check_root(path, f"samples.fields.{path}")
-                cols.append(ParamColumn(f"{path}:factor" if dist.relative else path, path, dist.relative))
+                where = f"samples.fields.{path}"
+                self._check_root(path, where)
+                name = f"{path}:factor" if dist.relative else path
+                cols.append(ParamColumn(name, path, dist.relative, where))
         seen: dict[str, str] = {}
         for c in cols:
             if c.path is None:
@@ -535,9 +539,9 @@ class Study:
             key = parse_path(c.path).text
             if key in seen:
                 raise InputError(
-                    "the same field is varied twice (by two axes, or by an axis and the samples)",
+                    f"'{c.path}' is varied twice (by two axes, or by an axis and the samples)",
                     file=self.file,
-                    value=c.path,
+                    field=c.where,
                 )
             seen[key] = c.name
         return cols
@@ -568,15 +572,15 @@ class Study:
             if col.path is None:
                 continue
             for entry in self.entries:
-                label = f"field '{col.path}'" + (f" of run '{entry.name}'" if entry.name else "")
+                what = f"'{col.path}'" + (f" (run '{entry.name}')" if entry.name else "")
+
+                def fail(reason: str, allowed: str | None = None, what: str = what, col=col) -> InputError:
+                    return InputError(f"{what}: {reason}", file=self.file, field=col.where, allowed=allowed)
+
                 part = parse_path(col.path).root
                 if isinstance(entry.data.get(part), str):
-                    raise InputError(
-                        f"{label}: the {part} is a railtoolkit file ({entry.data[part]}), whose fields "
-                        "cannot be varied; use a trainsim file",
-                        file=self.file,
-                        value=col.path,
-                    )
+                    raise fail(f"the {part} is a railtoolkit file ({entry.data[part]}), whose fields "
+                               "cannot be varied; use a trainsim file")  # fmt: skip
                 trial = copy.deepcopy(entry.data)
                 try:
                     existing = get_values(trial, col.path)
@@ -586,18 +590,12 @@ class Study:
                     if existing is None or not all(
                         isinstance(v, int | float) and not isinstance(v, bool) for v in existing
                     ):
-                        raise InputError(
-                            f"{label}: a relative value scales a number, and there is none there",
-                            file=self.file,
-                            value=existing,
-                        )
+                        raise fail(f"a relative value scales a number, and there is none there (found {existing!r})")
                     continue
                 try:
                     set_value(trial, col.path, first[col.path])
                 except InputError as exc:
-                    raise InputError(
-                        f"{label}: {exc.reason}", file=self.file, value=col.path, allowed=exc.allowed
-                    ) from None
+                    raise fail(exc.reason, exc.allowed) from None
                 if existing is not None:
                     continue
                 try:
@@ -606,12 +604,8 @@ class Study:
                     problems = getattr(exc, "problems", None) or [(exc.field, exc.reason)]
                     for field, reason in problems:
                         if str(reason).startswith(("unknown field", "no station of that name")):
-                            raise InputError(
-                                f"{label} does not exist in the scenario: {reason}",
-                                file=self.file,
-                                field=str(field or ""),
-                                value=col.path,
-                            ) from None
+                            raise fail(f"no such field in the scenario: '{field}': {reason}",
+                                       exc.allowed) from None  # fmt: skip
 
     # ------------------------------------------------------------------ fingerprint
     def _fingerprint(self) -> str:

@@ -535,6 +535,7 @@ class _Reader:
             stations[-1] = rc.StationAt(
                 stations[-1].name, stations[-1].position_m, stations[-1].dwell_s, True, stations[-1].element
             )
+        self.content.station_elements = [st.element for st in stations]
         data = self.line_data(net)
         self.problems.raise_if_any()
         lr = rc.line_resistance_choice(

@@ -850,6 +850,8 @@ class Content:
         origins: dict field prefix (``speed_limits[2]``) -> where it came from (``<speedChange
             id='sc3'> at line 40``), to point errors found later at the source.
         figures: what was read, for ``trainsim check``.
+        station_elements: the element each route station comes from (railML ``ocpTT``,
+            ``baseItineraryPoint``), for writing running times back.
     """
 
     format: str
@@ -862,6 +864,7 @@ class Content:
     figures: dict[str, str] = field(default_factory=dict)
     train_error: InputError | None = None
     route_error: InputError | None = None
+    station_elements: list[etree._Element] = field(default_factory=list)
 
     def located(self, exc: InputError) -> InputError:
         """An error of the trainsim validation pointed at the element the field came from."""

@@ -126,7 +126,9 @@ def _quantity(data: dict[str, Any], key: str, file: str, *, required: bool = Tru
     elif unit in _UNITS:
         factor = _UNITS[unit]
     else:
-        raise InputError("unknown unit", file=file, field=f"{key}.unit", value=unit, allowed=", ".join(_UNITS))
+        raise InputError(
+            "unknown unit", file=file, field=f"{key}.unit", value=unit, allowed=", ".join(_UNITS)
+        )
     if not isinstance(value, int | float) or not math.isfinite(value):
         raise InputError("expected a finite number", file=file, field=f"{key}.value", value=value)
     return float(value) * factor
@@ -240,7 +242,11 @@ def read_ttobench_track(path: str | Path, train: TTOBenchTrain | None = None) ->
     stops = [float(x) for x in stops_item["values"]]
     if len(stops) < 2 or stops[0] != 0.0 or any(b <= a for a, b in zip(stops, stops[1:], strict=False)):
         raise InputError(
-            "stops must start at 0 and increase", file=file, field="stops", value=stops, allowed="0 < s1 < ..."
+            "stops must start at 0 and increase",
+            file=file,
+            field="stops",
+            value=stops,
+            allowed="0 < s1 < ...",
         )
     length = stops[-1]
     limits = _pairs(data, "speed limits", file, 2)
@@ -313,5 +319,11 @@ def read_ttobench_journey(path: str | Path) -> Journey:
             )
         )
     if not (points[0].is_stop and points[-1].is_stop):
-        raise InputError("the first and last timing points must be stopping points", file=file, field="timing points")
-    return Journey(name=str(meta.get("id", Path(path).stem)), track_id=str(meta.get("associated track", "")), points=tuple(points))
+        raise InputError(
+            "the first and last timing points must be stopping points", file=file, field="timing points"
+        )
+    return Journey(
+        name=str(meta.get("id", Path(path).stem)),
+        track_id=str(meta.get("associated track", "")),
+        points=tuple(points),
+    )

@@ -76,7 +76,8 @@ S_G = 14  # gravity [m/s^2]
 S_STALL_S = 15  # at rest in traction this long: stalled [s]
 S_NEWTON_TOL = 16  # Newton tolerance on the midpoint speeds [m/s]
 S_TRACK_PROFILE = 17  # 1: in traction follow the reference speed; 0: full traction up to the ceiling
-N_S = 18
+S_RAMP = 18  # time to raise the traction command from 0 to full [s], 0: at once
+N_S = 19
 
 # command array CMD: friction brake level, blend flag, signed command for the record, then per vehicle
 # traction level (N) and electric brake level (N)
@@ -137,6 +138,10 @@ ST_HISTORY_FULL = 4
 ST_FAILED = 5  # Newton failed even on the smallest sub-step
 ST_END_OF_ROUTE = 6
 
+#: Below this speed the electric (regenerative) brake fades linearly to 0 at standstill and the
+#: friction brakes take over its share [m/s]: an electric brake cannot hold a train at rest, and
+#: without the fade the locomotives would hold the whole train while the wagons roll away from them.
+ELECTRIC_FADE_MPS = 1.0
 #: Largest number of halvings of a step whose Newton iterations do not converge.
 MAX_HALVINGS = 10
 #: Newton iterations per (sub-)step before halving.
@@ -224,13 +229,17 @@ def coupler_energy(delta, cp):
 
 # ============================================================================ effort curves, profiles
 @njit(cache=True)
-def effort_slope(v, c, cs, cc, coff, cfc, cpc):
+def effort_slope(v, c, cs, cc, coff, cfc, cpc, vsel=-1.0):
     """Force [N] and its slope d F / d v [N s/m] of curve ``c`` of the bank at speed v >= 0 [m/s]
-    (the law of ``trainsim.sim.kernel.effort``)."""
+    (the law of ``trainsim.sim.kernel.effort``). The law's interval is the one of speed ``vsel`` if
+    given (>= 0): within a step the integrator keeps the interval of the step's start, since a law
+    may jump where two intervals meet (e.g. a quadratic starting range followed by a hyperbola) and
+    Newton's method finds no root on a jump."""
     lo = coff[c]
     hi = coff[c + 1]
     j = lo
-    while j + 1 < hi and cs[j + 1] <= v:
+    sel = v if vsel < 0.0 else vsel
+    while j + 1 < hi and cs[j + 1] <= sel:
         j += 1
     c0 = cc[j, 0]
     c1 = cc[j, 1]
@@ -316,9 +325,10 @@ def linear_value(s, x, left, right):
 # ============================================================================ forces
 @njit(cache=True)
 def vehicle_forces(
-    xm, w, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, out, D, detail, parts
+    xm, w, vsel, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, out, D, detail, parts
 ):
-    """External force on every vehicle [N] at midpoint positions ``xm`` and speeds ``w`` into ``out``,
+    """External force on every vehicle [N] at midpoint positions ``xm`` and speeds ``w`` (effort-law
+    intervals chosen at speeds ``vsel``) into ``out``,
     minus its derivative with respect to the vehicle's own speed into ``D``; with ``detail`` the
     parts (traction, electric brake, friction brake, running, gradient, curve, tunnel) into
     ``parts`` (n x 7), signed so that part x displacement is the work done by (traction) or against
@@ -360,7 +370,7 @@ def vehicle_forces(
         dtr = 0.0
         c = int(VP[i, V_CURVE])
         if c >= 0 and trac[i] > 0.0:
-            f, df = effort_slope(av, c, cs, cc, coff, cfc, cpc)
+            f, df = effort_slope(av, c, cs, cc, coff, cfc, cpc, abs(vsel[i]))
             a = trac[i] * step_value(xm[i] - 0.5 * L, ax, aval)
             traction = a * f
             dtr = a * df * (1.0 if v >= 0.0 else -1.0)
@@ -374,13 +384,17 @@ def vehicle_forces(
                 if need > 0.0:
                     friction = bm[i] * need
         else:
-            s_f, s_df = effort_slope(av, sc, cs, cc, coff, cfc, cpc)
+            s_f, s_df = effort_slope(av, sc, cs, cc, coff, cfc, cpc, abs(vsel[i]))
             demand = frac * s_f
             d_demand = frac * s_df
             regen = 0.0
             d_regen = 0.0
             if rc >= 0:
-                regen, d_regen = effort_slope(av, rc, cs, cc, coff, cfc, cpc)
+                regen, d_regen = effort_slope(av, rc, cs, cc, coff, cfc, cpc, abs(vsel[i]))
+                if av < ELECTRIC_FADE_MPS:
+                    # electric braking fades out towards standstill; the friction brakes take over
+                    d_regen = d_regen * av / ELECTRIC_FADE_MPS + regen / ELECTRIC_FADE_MPS
+                    regen *= av / ELECTRIC_FADE_MPS
             share_r = VP[i, V_REGEN]
             if share_r > 0.0 and elec[i] > 0.0 and rc >= 0:
                 if blend:
@@ -459,7 +473,7 @@ def implicit_step(x0, v0, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, ava
     for it in range(MAX_NEWTON):
         for i in range(n):
             xm[i] = x0[i] + 0.5 * h * w[i]
-        vehicle_forces(xm, w, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, F, D, False, parts)
+        vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, F, D, False, parts)
         coupler_forces(xm, w, VP, CP, Ts, Td, K, C)
         for i in range(n):
             T_front = Ts[i - 1] + Td[i - 1] if i > 0 else 0.0
@@ -485,7 +499,7 @@ def implicit_step(x0, v0, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, ava
             # forces consistent with the final w, for the energy accounting
             for i in range(n):
                 xm[i] = x0[i] + 0.5 * h * w[i]
-            vehicle_forces(xm, w, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, F, D, True, parts)
+            vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, F, D, True, parts)
             coupler_forces(xm, w, VP, CP, Ts, Td, K, C)
             return it + 1
     return -1
@@ -696,6 +710,11 @@ def run(
         # ---- command for this step
         if mode == 1:
             u, regime, vc = control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling)
+            if SP[S_RAMP] > 0.0 and u > 0.0:
+                # the driver (or the traction control) raises the effort gradually
+                u_max = max(CMD[K_COMMAND], 0.0) + h_main / SP[S_RAMP]
+                if u > u_max:
+                    u = u_max
             CMD[K_COMMAND] = u
             CMD[K_REGIME] = regime
             CMD[K_BLEND] = 1.0

@@ -239,6 +239,9 @@ class MultiPointSettings:
         stop_window_m: a stop counts when the train is at rest with its head this close to the stop [m].
         lookahead: anticipate the brake delay when following a reference (start braking the mean
             delay earlier).
+        traction_ramp_s: when following a reference, the traction command rises from 0 to full in
+            this time at the fastest [s] (0: at once, as the single-point model); drivers of long
+            trains notch up gradually to take up the slack without snatches.
     """
 
     couplers: CouplerModel = field(default_factory=CouplerModel)
@@ -253,9 +256,10 @@ class MultiPointSettings:
     time_step_s: float = 0.05
     record_interval_s: float = 1.0
     speed_time_constant_s: float = 1.0
-    standstill_speed_mps: float = 0.01
+    standstill_speed_mps: float = 0.001
     stop_window_m: float = 2.0
     lookahead: bool = True
+    traction_ramp_s: float = 0.0
 
     def __post_init__(self) -> None:
         checks = {
@@ -272,6 +276,7 @@ class MultiPointSettings:
                 "1e-4 .. 0.1 m/s",
             ),
             "stop_window_m": (self.stop_window_m, self.stop_window_m > 0, "> 0 m"),
+            "traction_ramp_s": (self.traction_ramp_s, 0 <= self.traction_ramp_s <= 600, "0 .. 600 s"),
         }
         for name, (value, ok, allowed) in checks.items():
             if not (ok and math.isfinite(value)):

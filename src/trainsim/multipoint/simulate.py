@@ -246,6 +246,7 @@ class _Compiled:
         SP[K.S_DECEL] = braking.deceleration_mps2 or 0.0
         SP[K.S_BUILD_UP] = settings.brake_propagation.build_up_s
         SP[K.S_TAU] = settings.speed_time_constant_s
+        SP[K.S_RAMP] = settings.traction_ramp_s
         mean_delay = float(np.sum(mp.brake_delay_s * mp.mass_kg) / mp.mass_kg.sum())
         SP[K.S_LOOKAHEAD] = (mean_delay + settings.brake_propagation.build_up_s) if settings.lookahead else 0.0
         SP[K.S_REST_SPEED] = REST_SPEED_MPS

@@ -101,6 +101,7 @@ class SectionSolver:
         self.curves = (*trac, *brk, *regenerative_arrays(train))
         self.tk = kink_speeds(*trac)
         self.bk = kink_speeds(*brk)
+        self.rk = kink_speeds(*regenerative_arrays(train))
         elec = train.electrical
         self.inv_eta_t = 1.0 / (elec.traction_efficiency if elec else 1.0)
         has_regen = train.braking.regenerative is not None and elec is not None
@@ -131,13 +132,16 @@ class SectionSolver:
         vhold = np.minimum(tr.vlim, holding_speed)
         W = regenerative_holding_speed(self.train, price_of_time_w(self.train, holding_speed), self.eta_r)
         vtop = np.maximum(np.minimum(tr.vlim, W), vhold)
+        # lower limits are approached with regenerative braking only where the train has it: the
+        # friction brakes would waste what the electric brake returns
+        mode, kinks = (kernel.REGEN, self.rk) if self.has_regen else (kernel.BRAKE, self.bk)
         Cr, _, US = kernel.braking_ceiling(
-            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, self.i0, self.i1, self.P, self.curves, self.bk
+            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, self.i0, self.i1, self.P, self.curves, kinks, mode
         )
         out = [np.empty(self.n_max) for _ in range(3)] + [np.empty(self.n_max, dtype=np.int8)]
         n, status = pk.holding_segment(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vhold, vtop, tr.traction_scale, self.i0, self.i1,
-            self.P, self.curves, self.tk, self.bk, Cr, US, *out,
+            self.P, self.curves, self.tk, kinks, Cr, US, mode, *out,
         )  # fmt: skip
         s, v, t, m = (a[:n] for a in out)
         if status != 0:
@@ -233,9 +237,7 @@ class SectionSolver:
         # the stop point closes the section
         m = m.copy()
         m[-1] = kernel.DWELL
-        return SectionPlan(
-            s, v, t, m, float(t[-1]), holding_speed_mps, hi, mu, self.fastest_time_s, True
-        )
+        return SectionPlan(s, v, t, m, float(t[-1]), holding_speed_mps, hi, mu, self.fastest_time_s, True)
 
     def solve(self, running_time_s: float) -> SectionPlan:
         """The least-energy run that takes ``running_time_s``; the fastest run (``feasible`` False)

@@ -222,21 +222,32 @@ def _emit(out_s, out_v, out_t, out_m, n, s, v, t, m):
 
 
 @njit(cache=True)
-def _brake_curve_speed(u, w, Crk, line, P, curves, bk):
-    Eb = step_energy(0.5 * Crk * Crk, w, u - w, BRAKE, line, P, curves, bk)
+def _curve_speed(u, w, Crk, brake_mode, line, P, curves, bk):
+    """Speed [m/s] at offset u of the braking curve of ``brake_mode`` ending at (w, Crk)."""
+    Eb = step_energy(0.5 * Crk * Crk, w, u - w, brake_mode, line, P, curves, bk)
     return np.sqrt(2.0 * Eb) if Eb > 0.0 else 0.0
 
 
 @njit(cache=True)
+def _brake_curve_speed(u, w, Crk, line, P, curves, bk):
+    return _curve_speed(u, w, Crk, BRAKE, line, P, curves, bk)
+
+
+@njit(cache=True)
 def _meet_brake_curve(E, u, end, mode, w, Crk, line, P, curves, kinks, bk):
-    """Offset in (u, end] where the trajectory of ``mode`` from (u, E) meets the braking curve that
-    ends at (w, Crk) (bisection; the trajectory is below it at u and above it at end)."""
+    return _meet_curve(E, u, end, mode, w, Crk, BRAKE, line, P, curves, kinks, bk)
+
+
+@njit(cache=True)
+def _meet_curve(E, u, end, mode, w, Crk, brake_mode, line, P, curves, kinks, bk):
+    """Offset in (u, end] where the trajectory of ``mode`` from (u, E) meets the braking curve of
+    ``brake_mode`` that ends at (w, Crk) (bisection; below it at u, above it at end)."""
     lo, hi = u, end
     for _ in range(60):
         mid = 0.5 * (lo + hi)
         Em, _ = step_energy_time(E, u, mid - u, mode, line, P, curves, kinks)
         vm = np.sqrt(2.0 * Em) if Em > 0.0 else 0.0
-        if vm >= _brake_curve_speed(mid, w, Crk, line, P, curves, bk):
+        if vm >= _curve_speed(mid, w, Crk, brake_mode, line, P, curves, bk):
             hi = mid
         else:
             lo = mid
@@ -247,7 +258,7 @@ def _meet_brake_curve(E, u, end, mode, w, Crk, line, P, curves, kinks, bk):
 
 @njit(cache=True)
 def holding_segment(
-    x, a0, a1, b0, b1, vhold, vtop, tscale, i0, i1, P, curves, tk, bk, Cr, US,
+    x, a0, a1, b0, b1, vhold, vtop, tscale, i0, i1, P, curves, tk, bk, Cr, US, brake_mode,
     out_s, out_v, out_t, out_m,
 ):  # fmt: skip
     """The holding phases of the optimal strategy from standstill at x[i0] to the stop at x[i1].
@@ -275,10 +286,10 @@ def holding_segment(
             v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
             in_curve = u >= US[k]
             end = w if in_curve else US[k]
-            if in_curve and v >= _brake_curve_speed(u, w, Cr[k], line, P, curves, bk) - 1e-6:
+            if in_curve and v >= _curve_speed(u, w, Cr[k], brake_mode, line, P, curves, bk) - 1e-6:
                 # on the braking curve: brake along it to the interval's end
-                n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, BRAKE)
-                _, dt = step_energy_time(E, u, w - u, BRAKE, line, P, curves, bk)
+                n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, brake_mode)
+                _, dt = step_energy_time(E, u, w - u, brake_mode, line, P, curves, bk)
                 t += dt
                 E = 0.5 * Cr[k] * Cr[k]
                 u = w
@@ -325,9 +336,9 @@ def holding_segment(
                     E1 = 0.5 * target * target
                     v1 = target
             if in_curve:
-                vb = _brake_curve_speed(u + h, w, Cr[k], line, P, curves, bk)
+                vb = _curve_speed(u + h, w, Cr[k], brake_mode, line, P, curves, bk)
                 if v1 > vb + 1e-9:
-                    hm = _meet_brake_curve(E, u, u + h, mode, w, Cr[k], line, P, curves, kinks, bk) - u
+                    hm = _meet_curve(E, u, u + h, mode, w, Cr[k], brake_mode, line, P, curves, kinks, bk) - u
                     h = hm
                     E1, dt = step_energy_time(E, u, h, mode, line, P, curves, kinks)
             if E1 <= 0.0:

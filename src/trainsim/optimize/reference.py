@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trainsim.constants import G, KWH
+from trainsim.constants import KWH, G
 from trainsim.errors import InputError, TrainsimError
 from trainsim.model.effort import EffortCurve
 from trainsim.model.route import Route
@@ -65,7 +65,9 @@ def _grid(breaks: np.ndarray, s0: float, s1: float, intervals: int, smallest: fl
     return pts[np.concatenate([[True], np.diff(pts) > 1e-6])]
 
 
-def _initial_speeds(train: Train, route: Route, s0: float, s1: float, s: np.ndarray, running_time_s: float) -> np.ndarray:
+def _initial_speeds(
+    train: Train, route: Route, s0: float, s1: float, s: np.ndarray, running_time_s: float
+) -> np.ndarray:
     """The fastest run's speeds at the grid nodes, scaled down to the scheduled time."""
     import dataclasses
 
@@ -122,7 +124,9 @@ def solve_reference(
     regen = train.braking.regenerative
     eta_r = elec.regenerative_efficiency * elec.receptivity if (elec and regen is not None) else 0.0
     if train.braking.service_force is None:
-        raise InputError("the reference needs a braking force law, not a constant deceleration", field="braking")
+        raise InputError(
+            "the reference needs a braking force law, not a constant deceleration", field="braking"
+        )
 
     opti = ca.Opti()
     v = opti.variable(n + 1)
@@ -133,7 +137,9 @@ def solve_reference(
     ut, ur, uf = FORCE_SCALE * ut_s, FORCE_SCALE * ur_s, FORCE_SCALE * uf_s
     vm = 0.5 * (v[:-1] + v[1:])
     resist = law.c0 + law.c1 * vm + law.c2 * vm**2 + m * G * (a_mid + b_mid * vm**2)
-    opti.subject_to(M * (v[1:] ** 2 - v[:-1] ** 2) / (2 * FORCE_SCALE) == h * (ut - ur - uf - resist) / FORCE_SCALE)
+    opti.subject_to(
+        M * (v[1:] ** 2 - v[:-1] ** 2) / (2 * FORCE_SCALE) == h * (ut - ur - uf - resist) / FORCE_SCALE
+    )
     opti.subject_to(v[0] == 0)
     opti.subject_to(v[n] == 0)
     opti.subject_to(opti.bounded(0, v[1:n], node_lim[1:n]))

@@ -296,11 +296,12 @@ def find_curve_meeting(E, u, Er, w, line, P, curves, tk, bk):
 
 
 @njit(cache=True)
-def braking_ceiling(x, a0, a1, b0, b1, vlim, i0, i1, P, curves, bk):
+def braking_ceiling(x, a0, a1, b0, b1, vlim, i0, i1, P, curves, bk, mode=BRAKE):
     """Backward pass from standstill at x[i1] to x[i0]: the speed ceiling made of the limits and
     the service braking curves to every lower limit and to the stop. For interval k = i - i0 it
     is the limit vlim[i] on offsets below US[k] and the braking curve ending at (width, Cr[k])
-    above; Cl[k] is its value at the interval's start."""
+    above; Cl[k] is its value at the interval's start. ``mode`` is BRAKE (service braking) or
+    REGEN (regenerative braking only, for energy-efficient approaches to lower limits)."""
     m_int = i1 - i0
     Cr = np.empty(m_int)
     Cl = np.empty(m_int)
@@ -313,8 +314,8 @@ def braking_ceiling(x, a0, a1, b0, b1, vlim, i0, i1, P, curves, bk):
         Er = 0.5 * cr * cr
         line = (a0[i], a1[i], b0[i], b1[i])
         if cr >= vlim[i] and (
-            acceleration(BRAKE, Er, 0.0, line, P, curves) < 0.0
-            and acceleration(BRAKE, Er, w, line, P, curves) < 0.0
+            acceleration(mode, Er, 0.0, line, P, curves) < 0.0
+            and acceleration(mode, Er, w, line, P, curves) < 0.0
         ):
             # braking backwards from the limit only rises above it: the whole interval is at the limit
             US[k] = w
@@ -322,7 +323,7 @@ def braking_ceiling(x, a0, a1, b0, b1, vlim, i0, i1, P, curves, bk):
             Cr[k] = cr
             c_next = vlim[i]
             continue
-        El = step_energy(Er, w, -w, BRAKE, line, P, curves, bk)
+        El = step_energy(Er, w, -w, mode, line, P, curves, bk)
         vl = np.sqrt(2.0 * El) if El > 0.0 else 0.0
         if vl <= vlim[i]:
             US[k] = 0.0
@@ -336,7 +337,7 @@ def braking_ceiling(x, a0, a1, b0, b1, vlim, i0, i1, P, curves, bk):
                     w,
                     -w,
                     0.5 * vlim[i] * vlim[i],
-                    BRAKE,
+                    mode,
                     line,
                     P,
                     curves,

@@ -13,7 +13,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, File, Request, UploadFile
 from fastapi.concurrency import run_in_threadpool
-from fastapi.responses import PlainTextResponse, Response
+from fastapi.responses import JSONResponse, PlainTextResponse, Response
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 import trainsim
@@ -30,7 +30,7 @@ from trainsim.web.convert import (
     spec_dict,
 )
 from trainsim.web.errors import ApiError, format_loc, input_error
-from trainsim.web.examples import examples
+from trainsim.web.examples import examples, route_spec, train_spec
 from trainsim.web.payloads import route_payload, run_brief, run_payload, train_payload
 from trainsim.web.sessions import Loaded, SessionStore, StoredRun, WebSession
 
@@ -76,8 +76,16 @@ def _check_lists(data: Any, limit: int, path: list[str | int] | None = None) -> 
 def _check_route_length(loaded: Loaded, limits: WebSettings) -> None:
     length = loaded.model.length_m
     if length > limits.max_route_length_m:
-        msg = f"route too long for the web application ({length:g} m); allowed: <= {limits.max_route_length_m:g} m"
+        msg = (
+            f"route too long for the web application ({length:g} m); "
+            f"allowed: <= {limits.max_route_length_m:g} m"
+        )
         raise ApiError(422, msg, [{"field": "length_m", "loc": ["length_m"], "msg": msg}])
+
+
+def _json(payload: Any, status: int = 200) -> JSONResponse:
+    # straight to json.dumps: FastAPI's generic encoder is slow on the long lists of a trace
+    return JSONResponse(payload, status_code=status)
 
 
 def _slug(name: str) -> str:
@@ -88,16 +96,16 @@ def _settings_dict(s: RunSettings) -> dict[str, Any]:
     return {"max_step_m": s.max_step_m, "braking_fraction": s.braking_fraction}
 
 
-def _train_out(session: WebSession) -> dict[str, Any]:
+def _train_out(session: WebSession) -> Any:
     if session.train is None:
         raise ApiError(404, "no train loaded: load an example, open a file or PUT a train")
-    return train_payload(spec_dict(session.train.spec), session.train)
+    return _json(train_payload(spec_dict(session.train.spec), session.train))
 
 
-def _route_out(session: WebSession) -> dict[str, Any]:
+def _route_out(session: WebSession) -> Any:
     if session.route is None:
         raise ApiError(404, "no route loaded: load an example, open a file or PUT a route")
-    return route_payload(spec_dict(session.route.spec), session.route)
+    return _json(route_payload(spec_dict(session.route.spec), session.route))
 
 
 def _example(name: str):
@@ -164,8 +172,13 @@ _TRAIN_BODY = Body(
                 "traction": {"model": "table", "speed_kmh": [0, 40, 80], "force_kn": [200, 200, 100]},
                 "braking": {"model": "deceleration", "deceleration_mps2": 0.8},
                 "resistance": [
-                    {"family": "davis_kn_kmh", "applies_to": "train", "a_kn": 2, "b_kn_per_kmh": 0.02,
-                     "c_kn_per_kmh2": 0.0006}
+                    {
+                        "family": "davis_kn_kmh",
+                        "applies_to": "train",
+                        "a_kn": 2,
+                        "b_kn_per_kmh": 0.02,
+                        "c_kn_per_kmh2": 0.0006,
+                    }
                 ],
             },
         }
@@ -194,7 +207,12 @@ _ROUTE_BODY = Body(
 @router.get("/health", tags=["session"], summary="Server status")
 def health(request: Request) -> dict[str, Any]:
     store = store_of(request)
-    return {"status": "ok", "version": trainsim.__version__, "sessions": len(store), "drives": store.active_drives}
+    return {
+        "status": "ok",
+        "version": trainsim.__version__,
+        "sessions": len(store),
+        "drives": store.active_drives,
+    }
 
 
 @router.get("/session", tags=["session"], response_model=SessionInfo, summary="The caller's session")
@@ -221,23 +239,26 @@ def list_examples() -> list[dict[str, Any]]:
     responses={404: {"description": "unknown example"}},
     summary="Load an example's train, route and run settings into the session",
 )
-def load_example(name: str, request: Request) -> dict[str, Any]:
+def load_example(name: str, request: Request) -> Any:
     ex = _example(name)
     session = session_of(request)
-    train_spec = tsy.read_train_spec(ex.train_path)
-    route_spec = tsy.read_route_spec(ex.route_path)
-    train = Loaded(train_spec, train_spec.to_train(ex.name), f"example {ex.name}", train_spec.notes())
-    route = Loaded(route_spec, route_spec.to_route(ex.name), f"example {ex.name}", route_spec.notes())
+    t_spec, r_spec = train_spec(ex.name), route_spec(ex.name)
+    train = Loaded(t_spec, t_spec.to_train(ex.name), f"example {ex.name}", t_spec.notes(), t_spec.warnings())
+    route = Loaded(r_spec, r_spec.to_route(ex.name), f"example {ex.name}", r_spec.notes())
     with session.lock:
         session.train, session.route, session.settings = train, route, ex.settings
-        return {
-            "train": _train_out(session),
-            "route": _route_out(session),
-            "settings": _settings_dict(session.settings),
-        }
+        return _json(
+            {
+                "train": train_payload(spec_dict(session.train.spec), session.train),
+                "route": route_payload(spec_dict(session.route.spec), session.route),
+                "settings": _settings_dict(session.settings),
+            }
+        )
 
 
-@router.get("/schema/{kind}", tags=["examples"], summary="JSON schema of a trainsim/train or trainsim/route mapping")
+@router.get(
+    "/schema/{kind}", tags=["examples"], summary="JSON schema of a trainsim/train or trainsim/route mapping"
+)
 def schema(kind: str) -> dict[str, Any]:
     models = {"train": tsy.TrainSpec, "route": tsy.RouteSpec}
     if kind not in models:
@@ -246,16 +267,20 @@ def schema(kind: str) -> dict[str, Any]:
 
 
 # ====================================================================== train
-@router.get("/train", tags=["train"], responses={404: {"description": "no train loaded"}},
-            summary="The session's train: spec, figures, effort and resistance curves")
-def get_train(request: Request) -> dict[str, Any]:
+@router.get(
+    "/train",
+    tags=["train"],
+    responses={404: {"description": "no train loaded"}},
+    summary="The session's train: spec, figures, effort and resistance curves",
+)
+def get_train(request: Request) -> Any:
     session = session_of(request)
     with session.lock:
         return _train_out(session)
 
 
 @router.put("/train", tags=["train"], responses=_ERRORS, summary="Replace the session's train (validated)")
-def put_train(request: Request, spec: Annotated[dict[str, Any], _TRAIN_BODY]) -> dict[str, Any]:
+def put_train(request: Request, spec: Annotated[dict[str, Any], _TRAIN_BODY]) -> Any:
     limits = settings_of(request)
     _check_lists(spec, limits.max_list_items)
     session = session_of(request)
@@ -270,11 +295,15 @@ def put_train(request: Request, spec: Annotated[dict[str, Any], _TRAIN_BODY]) ->
         return _train_out(session)
 
 
-@router.post("/train/example/{name}", tags=["train"], responses={404: {"description": "unknown example"}},
-             summary="Load an example's train")
-def train_example(name: str, request: Request) -> dict[str, Any]:
+@router.post(
+    "/train/example/{name}",
+    tags=["train"],
+    responses={404: {"description": "unknown example"}},
+    summary="Load an example's train",
+)
+def train_example(name: str, request: Request) -> Any:
     ex = _example(name)
-    spec = tsy.read_train_spec(ex.train_path)
+    spec = train_spec(ex.name)
     loaded = Loaded(spec, spec.to_train(ex.name), f"example {ex.name}", spec.notes(), spec.warnings())
     session = session_of(request)
     with session.lock:
@@ -282,9 +311,13 @@ def train_example(name: str, request: Request) -> dict[str, Any]:
         return _train_out(session)
 
 
-@router.post("/train/upload", tags=["train"], responses={**_ERRORS, 413: {"description": "file too large"}},
-             summary="Open a train file of any format trainsim reads")
-async def train_upload(request: Request, file: Annotated[UploadFile, File(description="YAML file")]) -> dict[str, Any]:
+@router.post(
+    "/train/upload",
+    tags=["train"],
+    responses={**_ERRORS, 413: {"description": "file too large"}},
+    summary="Open a train file of any format trainsim reads",
+)
+async def train_upload(request: Request, file: Annotated[UploadFile, File(description="YAML file")]) -> Any:
     content, name = await _read_upload(file, settings_of(request))
     try:
         _, loaded = await run_in_threadpool(load_train_upload, content, name)
@@ -296,8 +329,13 @@ async def train_upload(request: Request, file: Annotated[UploadFile, File(descri
         return _train_out(session)
 
 
-@router.get("/train/yaml", tags=["train"], response_class=PlainTextResponse,
-            responses={404: {"description": "no train loaded"}}, summary="The train as a trainsim YAML file")
+@router.get(
+    "/train/yaml",
+    tags=["train"],
+    response_class=PlainTextResponse,
+    responses={404: {"description": "no train loaded"}},
+    summary="The train as a trainsim YAML file",
+)
 def train_yaml(request: Request) -> Response:
     session = session_of(request)
     with session.lock:
@@ -306,22 +344,27 @@ def train_yaml(request: Request) -> Response:
         text = tsy.dump_yaml(session.train.spec)
         name = _slug(session.train.model.name)
     return PlainTextResponse(
-        text, media_type="application/yaml",
+        text,
+        media_type="application/yaml",
         headers={"Content-Disposition": f'attachment; filename="{name}.train.yaml"'},
     )
 
 
 # ====================================================================== route
-@router.get("/route", tags=["route"], responses={404: {"description": "no route loaded"}},
-            summary="The session's route: spec, figures and line profile")
-def get_route(request: Request) -> dict[str, Any]:
+@router.get(
+    "/route",
+    tags=["route"],
+    responses={404: {"description": "no route loaded"}},
+    summary="The session's route: spec, figures and line profile",
+)
+def get_route(request: Request) -> Any:
     session = session_of(request)
     with session.lock:
         return _route_out(session)
 
 
 @router.put("/route", tags=["route"], responses=_ERRORS, summary="Replace the session's route (validated)")
-def put_route(request: Request, spec: Annotated[dict[str, Any], _ROUTE_BODY]) -> dict[str, Any]:
+def put_route(request: Request, spec: Annotated[dict[str, Any], _ROUTE_BODY]) -> Any:
     limits = settings_of(request)
     _check_lists(spec, limits.max_list_items)
     try:
@@ -337,11 +380,15 @@ def put_route(request: Request, spec: Annotated[dict[str, Any], _ROUTE_BODY]) ->
         return _route_out(session)
 
 
-@router.post("/route/example/{name}", tags=["route"], responses={404: {"description": "unknown example"}},
-             summary="Load an example's route (and its run settings)")
-def route_example(name: str, request: Request) -> dict[str, Any]:
+@router.post(
+    "/route/example/{name}",
+    tags=["route"],
+    responses={404: {"description": "unknown example"}},
+    summary="Load an example's route (and its run settings)",
+)
+def route_example(name: str, request: Request) -> Any:
     ex = _example(name)
-    spec = tsy.read_route_spec(ex.route_path)
+    spec = route_spec(ex.name)
     loaded = Loaded(spec, spec.to_route(ex.name), f"example {ex.name}", spec.notes())
     session = session_of(request)
     with session.lock:
@@ -349,9 +396,13 @@ def route_example(name: str, request: Request) -> dict[str, Any]:
         return _route_out(session)
 
 
-@router.post("/route/upload", tags=["route"], responses={**_ERRORS, 413: {"description": "file too large"}},
-             summary="Open a route file of any format trainsim reads")
-async def route_upload(request: Request, file: Annotated[UploadFile, File(description="YAML file")]) -> dict[str, Any]:
+@router.post(
+    "/route/upload",
+    tags=["route"],
+    responses={**_ERRORS, 413: {"description": "file too large"}},
+    summary="Open a route file of any format trainsim reads",
+)
+async def route_upload(request: Request, file: Annotated[UploadFile, File(description="YAML file")]) -> Any:
     limits = settings_of(request)
     content, name = await _read_upload(file, limits)
     try:
@@ -365,8 +416,13 @@ async def route_upload(request: Request, file: Annotated[UploadFile, File(descri
         return _route_out(session)
 
 
-@router.get("/route/yaml", tags=["route"], response_class=PlainTextResponse,
-            responses={404: {"description": "no route loaded"}}, summary="The route as a trainsim YAML file")
+@router.get(
+    "/route/yaml",
+    tags=["route"],
+    response_class=PlainTextResponse,
+    responses={404: {"description": "no route loaded"}},
+    summary="The route as a trainsim YAML file",
+)
 def route_yaml(request: Request) -> Response:
     session = session_of(request)
     with session.lock:
@@ -375,7 +431,8 @@ def route_yaml(request: Request) -> Response:
         text = tsy.dump_yaml(session.route.spec)
         name = _slug(session.route.model.name)
     return PlainTextResponse(
-        text, media_type="application/yaml",
+        text,
+        media_type="application/yaml",
         headers={"Content-Disposition": f'attachment; filename="{name}.route.yaml"'},
     )
 
@@ -400,31 +457,53 @@ def run_settings_for(session: WebSession, given: dict[str, Any] | None, limits: 
         length = session.route.model.length_m
         if length / settings.max_step_m > limits.max_grid_points:
             least = length / limits.max_grid_points
-            msg = (f"integration step too small for a {length:g} m route in the web application "
-                   f"(got {settings.max_step_m:g}); allowed: >= {least:.3g} m")
-            raise ApiError(422, msg, [{"field": "settings.max_step_m", "loc": ["settings", "max_step_m"],
-                                       "msg": msg}])
+            msg = (
+                f"integration step too small for a {length:g} m route in the web application "
+                f"(got {settings.max_step_m:g}); allowed: >= {least:.3g} m"
+            )
+            raise ApiError(
+                422, msg, [{"field": "settings.max_step_m", "loc": ["settings", "max_step_m"], "msg": msg}]
+            )
     return settings
 
 
-@router.post("/runs", tags=["runs"], status_code=201, responses={**_ERRORS, 409: {"description": "no train or route"}},
-             summary="Run the session's train over its route with a strategy")
-def create_run(request: Request, body: RunRequest) -> dict[str, Any]:
+@router.post(
+    "/runs",
+    tags=["runs"],
+    status_code=201,
+    responses={**_ERRORS, 409: {"description": "no train or route"}},
+    summary="Run the session's train over its route with a strategy",
+)
+def create_run(request: Request, body: RunRequest) -> Response:
     limits = settings_of(request)
     session = session_of(request)
     strategy = strategies.get(body.strategy)
     if strategy is None:
         names = ", ".join(s.name for s in strategies.available())
-        raise ApiError(422, f"unknown strategy '{body.strategy}'; allowed: {names}",
-                       [{"field": "strategy", "loc": ["strategy"], "msg": f"unknown strategy; allowed: {names}",
-                         "value": body.strategy}])
+        raise ApiError(
+            422,
+            f"unknown strategy '{body.strategy}'; allowed: {names}",
+            [
+                {
+                    "field": "strategy",
+                    "loc": ["strategy"],
+                    "msg": f"unknown strategy; allowed: {names}",
+                    "value": body.strategy,
+                }
+            ],
+        )
     try:
         params = strategy.params.model_validate(body.params)
     except ValidationError as exc:
-        detail = [{"field": format_loc(["params", *e["loc"]]), "loc": ["params", *e["loc"]], "msg": e["msg"]}
-                  for e in exc.errors(include_url=False)]
-        raise ApiError(422, "invalid strategy parameters: " + "; ".join(
-            f"{d['field']}: {d['msg']}" for d in detail), detail) from exc
+        detail = [
+            {"field": format_loc(["params", *e["loc"]]), "loc": ["params", *e["loc"]], "msg": e["msg"]}
+            for e in exc.errors(include_url=False)
+        ]
+        raise ApiError(
+            422,
+            "invalid strategy parameters: " + "; ".join(f"{d['field']}: {d['msg']}" for d in detail),
+            detail,
+        ) from exc
     with session.lock:
         if session.train is None or session.route is None:
             raise ApiError(409, "load a train and a route before running")
@@ -448,7 +527,7 @@ def create_run(request: Request, body: RunRequest) -> dict[str, Any]:
             params={"strategy": params.model_dump(), "settings": _settings_dict(settings)},
         )
         store_of(request).add_run(session, run)
-        return run_payload(run, limits.max_plot_points)
+        return _json(run_payload(run, limits.max_plot_points), 201)
 
 
 @router.get("/runs", tags=["runs"], summary="The session's runs and recorded drives")
@@ -465,16 +544,25 @@ def _run(session: WebSession, run_id: str) -> StoredRun:
     return run
 
 
-@router.get("/runs/{run_id}", tags=["runs"], responses={404: {"description": "no such run"}},
-            summary="A run: summary, plot data and line profile")
-def get_run(run_id: str, request: Request) -> dict[str, Any]:
+@router.get(
+    "/runs/{run_id}",
+    tags=["runs"],
+    responses={404: {"description": "no such run"}},
+    summary="A run: summary, plot data and line profile",
+)
+def get_run(run_id: str, request: Request) -> Response:
     session = session_of(request)
     with session.lock:
-        return run_payload(_run(session, run_id), settings_of(request).max_plot_points)
+        return _json(run_payload(_run(session, run_id), settings_of(request).max_plot_points))
 
 
-@router.delete("/runs/{run_id}", tags=["runs"], status_code=204, responses={404: {"description": "no such run"}},
-               summary="Forget a run")
+@router.delete(
+    "/runs/{run_id}",
+    tags=["runs"],
+    status_code=204,
+    responses={404: {"description": "no such run"}},
+    summary="Forget a run",
+)
 def delete_run(run_id: str, request: Request) -> Response:
     session = session_of(request)
     with session.lock:
@@ -483,19 +571,31 @@ def delete_run(run_id: str, request: Request) -> Response:
     return Response(status_code=204)
 
 
-@router.get("/runs/{run_id}/trace.csv", tags=["runs"], response_class=PlainTextResponse,
-            responses={404: {"description": "no such run"}}, summary="The run's full trace as CSV")
+@router.get(
+    "/runs/{run_id}/trace.csv",
+    tags=["runs"],
+    response_class=PlainTextResponse,
+    responses={404: {"description": "no such run"}},
+    summary="The run's full trace as CSV",
+)
 def run_trace_csv(run_id: str, request: Request) -> Response:
     session = session_of(request)
     with session.lock:
         run = _run(session, run_id)
     text = run.result.to_dataframe().to_csv(index=False)
-    return PlainTextResponse(text, media_type="text/csv",
-                             headers={"Content-Disposition": f'attachment; filename="{_slug(run.label)}.trace.csv"'})
+    return PlainTextResponse(
+        text,
+        media_type="text/csv",
+        headers={"Content-Disposition": f'attachment; filename="{_slug(run.label)}.trace.csv"'},
+    )
 
 
-@router.get("/runs/{run_id}/summary.json", tags=["runs"], responses={404: {"description": "no such run"}},
-            summary="The run's summary (as `trainsim run --json`)")
+@router.get(
+    "/runs/{run_id}/summary.json",
+    tags=["runs"],
+    responses={404: {"description": "no such run"}},
+    summary="The run's summary (as `trainsim run --json`)",
+)
 def run_summary_json(run_id: str, request: Request) -> Response:
     import json
 
@@ -503,5 +603,8 @@ def run_summary_json(run_id: str, request: Request) -> Response:
     with session.lock:
         run = _run(session, run_id)
     text = json.dumps(run.result.summary(), indent=2, allow_nan=False)
-    return Response(text, media_type="application/json",
-                    headers={"Content-Disposition": f'attachment; filename="{_slug(run.label)}.summary.json"'})
+    return Response(
+        text,
+        media_type="application/json",
+        headers={"Content-Disposition": f'attachment; filename="{_slug(run.label)}.summary.json"'},
+    )

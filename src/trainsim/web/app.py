@@ -37,7 +37,7 @@ def docs_assets_dir() -> Path:
     return Path(str(resources.files("fastapi_offline") / "static"))
 
 
-class _BodyTooLarge(Exception):
+class _BodyTooLargeError(Exception):
     pass
 
 
@@ -68,7 +68,7 @@ class BoundedBodyAndSession:
             if message["type"] == "http.request":
                 received += len(message.get("body", b""))
                 if received > self.max_bytes:
-                    raise _BodyTooLarge
+                    raise _BodyTooLargeError
             return message
 
         async def session_send(message: Message) -> None:
@@ -90,7 +90,7 @@ class BoundedBodyAndSession:
 
         try:
             await self.app(scope, limited_receive, session_send)
-        except _BodyTooLarge:
+        except _BodyTooLargeError:
             if not started:
                 await self._too_large(send)
 
@@ -102,7 +102,10 @@ class BoundedBodyAndSession:
             {
                 "type": "http.response.start",
                 "status": 413,
-                "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())],
+                "headers": [
+                    (b"content-type", b"application/json"),
+                    (b"content-length", str(len(body)).encode()),
+                ],
             }
         )
         await send({"type": "http.response.body", "body": body})
@@ -157,7 +160,9 @@ def create_app(settings: WebSettings | None = None) -> FastAPI:
 
     @app.api_route("/", methods=["GET", "HEAD"], include_in_schema=False)
     def index() -> FileResponse:
-        return FileResponse(STATIC_DIR / "index.html", media_type="text/html", headers={"Cache-Control": "no-cache"})
+        return FileResponse(
+            STATIC_DIR / "index.html", media_type="text/html", headers={"Cache-Control": "no-cache"}
+        )
 
     @app.get("/docs", include_in_schema=False)
     def swagger() -> HTMLResponse:

@@ -91,6 +91,21 @@ def _curve_dict(curve: EffortCurve) -> dict[str, Any]:
     return out
 
 
+def _fraction_of(curve: EffortCurve, base: EffortCurve) -> float | None:
+    """k if ``curve`` is ``base`` scaled by k (regenerative braking as a share of traction), else None."""
+    s1, c1, f1, p1 = curve.as_arrays()
+    s0, c0, f0, p0 = base.as_arrays()
+    if s1.shape != s0.shape or not np.allclose(s1, s0) or not np.any(c0):
+        return None
+    k = float(c1.flat[np.flatnonzero(c0)[0]] / c0.flat[np.flatnonzero(c0)[0]])
+    same = np.allclose(c1, k * c0, rtol=1e-12, atol=1e-9)
+    caps = all(
+        (math.isinf(a) and math.isinf(b)) or math.isclose(a, k * b, rel_tol=1e-12)
+        for a, b in ((f1, f0), (p1, p0))
+    )
+    return k if same and caps and 0 < k <= 1 else None
+
+
 def _force_table(curve: EffortCurve, what: str) -> dict[str, Any]:
     """Speed/force table of a braking curve; curves that are not tables are sampled finely."""
     table = _table_points(curve)
@@ -146,7 +161,15 @@ def train_to_dict(train: Train) -> tuple[dict[str, Any], list[str]]:
     if braking.regenerative is None:
         brake["regenerative"] = "none"
     else:
-        brake["regenerative"] = {"model": "table", **_force_table(braking.regenerative, "regenerative")}
+        fraction = _fraction_of(braking.regenerative, train.traction)
+        if fraction is not None:
+            brake["regenerative"] = {"model": "fraction_of_traction", "fraction": _clean(fraction)}
+        else:
+            brake["regenerative"] = {"model": "table", **_force_table(braking.regenerative, "regenerative")}
+            if _table_points(braking.regenerative) is None:
+                notes.append("regenerative braking curve sampled every 1.8 km/h into a table")
+    if braking.service_force is not None and _table_points(braking.service_force) is None:
+        notes.append("service braking curve sampled every 1.8 km/h into a table")
     out["braking"] = brake
     law = train.resistance_law
     out["resistance"] = [

@@ -125,7 +125,7 @@ class _Drive:
             return self.core.state(self.command)
 
 
-class _BadMessage(Exception):
+class _BadMessageError(Exception):
     def __init__(self, message: str, field: str | None = None) -> None:
         super().__init__(message)
         self.message = message
@@ -135,10 +135,10 @@ class _BadMessage(Exception):
 def _number(msg: dict[str, Any], key: str, lo: float, hi: float, *, low_open: bool = False) -> float:
     value = msg.get(key)
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise _BadMessage(f"'{key}' must be a number", key)
+        raise _BadMessageError(f"'{key}' must be a number", key)
     if value < lo or value > hi or (low_open and value <= lo):
         bounds = f"{lo:g} < {key} <= {hi:g}" if low_open else f"{lo:g} <= {key} <= {hi:g}"
-        raise _BadMessage(f"'{key}' out of range (got {value!r}); allowed: {bounds}", key)
+        raise _BadMessageError(f"'{key}' out of range (got {value!r}); allowed: {bounds}", key)
     return float(value)
 
 
@@ -158,7 +158,11 @@ class DriveConnection:
             await self.ws.send_text(json.dumps(message, allow_nan=False))
 
     async def error(self, message: str, field: str | None = None, detail: list | None = None) -> None:
-        detail = detail if detail is not None else [{"field": field, "loc": [field] if field else [], "msg": message}]
+        detail = (
+            detail
+            if detail is not None
+            else [{"field": field, "loc": [field] if field else [], "msg": message}]
+        )
         await self.send({"type": "error", "message": message, "detail": detail})
 
     # ------------------------------------------------------------------ main loop
@@ -168,15 +172,17 @@ class DriveConnection:
                 text = await self.ws.receive_text()
                 try:
                     if len(text) > MAX_MESSAGE_CHARS:
-                        raise _BadMessage(f"message too long; allowed: at most {MAX_MESSAGE_CHARS} characters")
+                        raise _BadMessageError(
+                            f"message too long; allowed: at most {MAX_MESSAGE_CHARS} characters"
+                        )
                     try:
                         msg = json.loads(text)
                     except json.JSONDecodeError as exc:
-                        raise _BadMessage(f"not JSON: {exc.msg}") from exc
+                        raise _BadMessageError(f"not JSON: {exc.msg}") from exc
                     if not isinstance(msg, dict):
-                        raise _BadMessage("a message must be a JSON object with a 'type'", "type")
+                        raise _BadMessageError("a message must be a JSON object with a 'type'", "type")
                     await self.handle(msg)
-                except _BadMessage as exc:
+                except _BadMessageError as exc:
                     await self.error(exc.message, exc.field)
                 except InputError as exc:
                     await self.error(str(exc), detail=input_error_detail(exc))
@@ -195,19 +201,19 @@ class DriveConnection:
             return
         drive = self.drive
         if kind not in ("command", "time_scale", "pause", "resume", "step", "finish"):
-            raise _BadMessage(
+            raise _BadMessageError(
                 f"unknown message type {kind!r}; allowed: start, command, time_scale, pause, resume, step, "
                 "finish, ping",
                 "type",
             )
         if drive is None:
-            raise _BadMessage("no drive: send {\"type\": \"start\"} first", "type")
+            raise _BadMessageError('no drive: send {"type": "start"} first', "type")
         if kind == "command":
             drive.command = _number(msg, "value", -1.0, 1.0)
         elif kind == "time_scale":
             value = msg.get("value")
             if value not in TIME_SCALES or isinstance(value, bool):
-                raise _BadMessage(
+                raise _BadMessageError(
                     f"time scale must be one of {', '.join(map(str, TIME_SCALES))} (got {value!r})", "value"
                 )
             drive.scale = int(value)
@@ -217,7 +223,7 @@ class DriveConnection:
             drive.paused = False
         elif kind == "step":
             if drive.clock != "manual":
-                raise _BadMessage("'step' needs a drive started with clock 'manual'", "type")
+                raise _BadMessageError("'step' needs a drive started with clock 'manual'", "type")
             dt = _number(msg, "dt_s", 0.0, 60.0, low_open=True)
             if "command" in msg:
                 drive.command = _number(msg, "command", -1.0, 1.0)
@@ -233,18 +239,20 @@ class DriveConnection:
     async def start(self, msg: dict[str, Any]) -> None:
         clock = msg.get("clock", "realtime")
         if clock not in ("realtime", "manual"):
-            raise _BadMessage(f"clock must be 'realtime' or 'manual' (got {clock!r})", "clock")
+            raise _BadMessageError(f"clock must be 'realtime' or 'manual' (got {clock!r})", "clock")
         scale = msg.get("time_scale", 1)
         if scale not in TIME_SCALES or isinstance(scale, bool):
-            raise _BadMessage(f"time scale must be one of 1, 5, 20 (got {scale!r})", "time_scale")
+            raise _BadMessageError(f"time scale must be one of 1, 5, 20 (got {scale!r})", "time_scale")
         await self.stop(record=True, notify=False)
         session = self.session
         with session.lock:
             if session.train is None or session.route is None:
-                raise _BadMessage("load a train and a route before driving", "type")
+                raise _BadMessageError("load a train and a route before driving", "type")
             train, route, settings = session.train.model, session.route.model, session.settings
         if self.store.active_drives >= self.limits.max_drives:
-            await self.send({"type": "ended", "reason": "too many live drives on this server; try again later"})
+            await self.send(
+                {"type": "ended", "reason": "too many live drives on this server; try again later"}
+            )
             await self.ws.close(code=1013)
             raise WebSocketDisconnect(1013)
         core = await asyncio.to_thread(DrivingSession, train=train, route=route, settings=settings)
@@ -370,7 +378,9 @@ async def drive_socket(ws: WebSocket) -> None:
         await ws.close(code=4403)
         return
     if session is None:
-        await ws.send_text(json.dumps({"type": "ended", "reason": "unknown or expired session: reload the page"}))
+        await ws.send_text(
+            json.dumps({"type": "ended", "reason": "unknown or expired session: reload the page"})
+        )
         await ws.close(code=4401)
         return
     await DriveConnection(ws, store, session, limits).serve()

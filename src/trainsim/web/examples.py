@@ -35,6 +35,18 @@ class Example:
     settings: RunSettings
 
 
+@lru_cache(maxsize=16)
+def train_spec(name: str) -> tsy.TrainSpec:
+    """The validated train spec of an example (read once; never modified)."""
+    return tsy.read_train_spec(examples()[name].train_path)
+
+
+@lru_cache(maxsize=16)
+def route_spec(name: str) -> tsy.RouteSpec:
+    """The validated route spec of an example (read once; never modified)."""
+    return tsy.read_route_spec(examples()[name].route_path)
+
+
 @lru_cache(maxsize=1)
 def examples() -> dict[str, Example]:
     """The shipped examples by name, in the order of :data:`DESCRIPTIONS`."""

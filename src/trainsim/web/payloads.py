@@ -39,8 +39,10 @@ def train_figures(train: Train) -> dict[str, Any]:
         "max_speed_kmh": v_max / KMH,
         "traction_at_0_kn": float(train.traction(0.0)) / KN,
         "traction_at_max_speed_kn": float(train.traction(v_max)) / KN,
-        "max_traction_power_kw": float(np.max(np.asarray(train.traction(np.linspace(0, v_max, 200)))
-                                              * np.linspace(0, v_max, 200))) / KW,
+        "max_traction_power_kw": float(
+            np.max(np.asarray(train.traction(np.linspace(0, v_max, 200))) * np.linspace(0, v_max, 200))
+        )
+        / KW,
         "resistance_at_max_speed_kn": float(train.running_resistance_n(v_max)) / KN,
         "braking": (
             f"constant deceleration {braking.deceleration_mps2:g} m/s²"

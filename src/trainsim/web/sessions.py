@@ -112,7 +112,9 @@ class SessionStore:
     # ------------------------------------------------------------------ sessions
     def _expire(self, now: float) -> None:
         ttl = self.settings.session_ttl_s
-        for sid in [s for s, x in self._sessions.items() if now - x.last_used > ttl and x.drive_token is None]:
+        for sid in [
+            s for s, x in self._sessions.items() if now - x.last_used > ttl and x.drive_token is None
+        ]:
             del self._sessions[sid]
 
     def get(self, sid: str | None) -> WebSession | None:

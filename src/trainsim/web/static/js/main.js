@@ -15,7 +15,11 @@ const h = (tag, attrs = {}, ...children) => {
   for (const c of children) if (c !== null && c !== undefined) node.append(c);
   return node;
 };
-const fmt = (x, digits = 1) => (x === null || x === undefined || Number.isNaN(x) ? "–" : Number(x).toFixed(digits));
+const fmt = (x, digits = 1) => {
+  if (x === null || x === undefined || Number.isNaN(Number(x))) return "–";
+  const text = Number(x).toFixed(digits);
+  return Number(text) === 0 ? Number(0).toFixed(digits) : text; // no "-0.0"
+};
 
 const state = {
   tab: "train",
@@ -238,6 +242,7 @@ function autoRun() {
     const previous = state.runA;
     const run = await doRun("auto");
     if (run && previous) state.runB = previous; // the new run against the one before the change
+    state.runsDirty = true;
     renderRuns();
   }, 200);
 }
@@ -452,7 +457,7 @@ function startDrive() {
   ws.addEventListener("message", (ev) => {
     const msg = JSON.parse(ev.data);
     if (msg.type === "init") {
-      drive.plot.init(msg.profile, msg.reference);
+      drive.plot.init(msg.profile, msg.reference, msg.max_speed_kmh);
       drive.running = true;
       drive.paused = false;
       $("#drive-pause").textContent = "Pause";

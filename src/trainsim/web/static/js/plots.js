@@ -69,12 +69,13 @@ function profileLayout(profile, title, extra = {}) {
     ...BASE,
     title: { text: title, font: { size: 14 } },
     // speed above, the gradient profile in a band below it on the same distance axis
-    xaxis: { title: { text: "distance [km]" }, range: [profile.start_m / 1000, profile.end_m / 1000] },
-    yaxis: { title: { text: "speed [km/h]" }, range: [0, Math.max(...limits, 10) * 1.15], domain: [0.3, 1] },
+    xaxis: { title: { text: "distance [km]" }, range: [profile.start_m / 1000, profile.end_m / 1000], anchor: "y2" },
+    yaxis: { title: { text: "speed [km/h]" }, range: [0, Math.max(...limits, extra.topSpeed || 0, 10) * 1.15],
+      domain: [0.3, 1] },
     yaxis2: { title: { text: "gradient [‰]" }, range: [-1.2 * span, 1.2 * span], domain: [0, 0.22], zeroline: true },
     shapes,
     annotations,
-    ...extra,
+    ...Object.fromEntries(Object.entries(extra).filter(([k]) => k !== "topSpeed")),
   };
 }
 
@@ -110,7 +111,8 @@ export function plotRuns(divs, runs) {
     line: { color: COLORS.limit, width: 1, shape: "hv" }, opacity: 0.6 });
   runs.forEach((r, i) => sd.push({ x: r.plot.position_m.map((x) => x / 1000), y: r.plot.speed_kmh, name: `speed: ${name(r)}`,
     line: { color: color(i), width: 2 } }));
-  Plotly.react(divs.speedDistance, sd, profileLayout(a.profile, "Speed over distance"), CONFIG);
+  const topSpeed = Math.max(...runs.flatMap((r) => [...r.plot.speed_kmh, ...r.plot.speed_limit_kmh]).filter((v) => v !== null));
+  Plotly.react(divs.speedDistance, sd, profileLayout(a.profile, "Speed over distance", { topSpeed }), CONFIG);
 
   const st = runs.map((r, i) => ({ x: r.plot.time_s, y: r.plot.speed_kmh, name: name(r), line: { color: color(i), width: 2 } }));
   Plotly.react(divs.speedTime, st, { ...BASE, title: { text: "Speed over time", font: { size: 14 } },
@@ -149,7 +151,7 @@ export class DrivePlot {
     this.last = 0;
   }
 
-  init(profile, reference) {
+  init(profile, reference, maxSpeed) {
     const traces = profileTraces(profile);
     if (reference) traces.push({ x: reference.position_m.map((x) => x / 1000), y: reference.speed_kmh,
       name: `fastest run (${reference.running_time_s.toFixed(1)} s)`, line: { color: COLORS.ref, width: 1.5, dash: "dash" } });
@@ -157,7 +159,7 @@ export class DrivePlot {
     traces.push({ x: [profile.stations[0].position_m / 1000], y: [0], name: "train", mode: "markers",
       marker: { size: 14, symbol: "triangle-right", color: "#000" } });
     this.driveIndex = traces.length - 2;
-    Plotly.react(this.div, traces, profileLayout(profile, "Your drive on the line", { hovermode: "closest" }), CONFIG);
+    Plotly.react(this.div, traces, profileLayout(profile, "Your drive on the line", { hovermode: "closest", topSpeed: maxSpeed }), CONFIG);
   }
 
   update(state) {

@@ -1,0 +1,247 @@
+"""Command functions for data interchange: ``convert``, ``check`` (every format, railML and
+spreadsheets included), ``export-results`` and ``runtimes``.
+
+Registered by ``trainsim.cli`` (``app.command()(convert)`` ...). User errors end with one
+``error: ...`` paragraph on stderr and exit code 2, as the other commands.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from contextlib import contextmanager
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from trainsim.errors import InputError, TrainsimError
+
+__all__ = ["check", "convert", "export_results", "runtimes"]
+
+USER_ERROR = 2
+
+
+class Kind(StrEnum):
+    train = "train"
+    route = "route"
+    scenario = "scenario"
+
+
+class CurveFormula(StrEnum):
+    roeckl = "roeckl"
+    wang = "wang"
+    tbt1407 = "tbt1407"
+    french800 = "french800"
+    none = "none"
+
+
+class TunnelFormula(StrEnum):
+    wang = "wang"
+    tbt1407 = "tbt1407"
+    none = "none"
+
+
+class GradientFormula(StrEnum):
+    small_angle = "small_angle"
+    exact = "exact"
+
+
+class ApplyOver(StrEnum):
+    head = "head"
+    train_length = "train_length"
+
+
+@contextmanager
+def _user_errors() -> Iterator[None]:
+    try:
+        yield
+    except TrainsimError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(code=USER_ERROR) from None
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        typer.echo(f"error: {where}{exc.strerror or exc}", err=True)
+        raise typer.Exit(code=USER_ERROR) from None
+
+
+TrainId = Annotated[
+    str | None, typer.Option("--train-id", help="railML: the timetable train (id, number or name) whose path is the route.")
+]
+FormationId = Annotated[str | None, typer.Option("--formation-id", help="railML: the formation to read.")]
+Ocps = Annotated[
+    str | None,
+    typer.Option("--ocps", help="railML: the operational points of the route, comma-separated ids or names (instead of a timetable)."),
+]
+Curve = Annotated[CurveFormula | None, typer.Option("--curve-formula", help="Curve resistance formula of the route.")]
+Tunnel = Annotated[TunnelFormula | None, typer.Option("--tunnel-formula", help="Tunnel resistance formula of the route.")]
+Gradient = Annotated[GradientFormula | None, typer.Option("--gradient-formula", help="Gradient resistance: small_angle or exact.")]
+Over = Annotated[ApplyOver | None, typer.Option("--apply-over", help="Line resistance at the head or over the train length.")]
+Rho = Annotated[
+    float | None,
+    typer.Option("--rotating-mass-factor", help="railML: the train's rotating mass factor when the vehicles give none."),
+]
+
+
+def _options(
+    train_id: str | None,
+    formation_id: str | None,
+    ocps: str | None,
+    curve: CurveFormula | None,
+    tunnel: TunnelFormula | None,
+    gradient: GradientFormula | None,
+    over: ApplyOver | None,
+    rho: float | None,
+) -> dict[str, Any]:
+    options = {
+        "train_id": train_id,
+        "formation_id": formation_id,
+        "ocps": ocps,
+        "curve_formula": curve.value if curve else None,
+        "tunnel_formula": tunnel.value if tunnel else None,
+        "gradient_formula": gradient.value if gradient else None,
+        "apply_over": over.value if over else None,
+        "rotating_mass_factor": rho,
+    }
+    return {k: v for k, v in options.items() if v is not None}
+
+
+def convert(
+    inp: Annotated[Path, typer.Argument(help="railML 2/3, a workbook or CSV folder, trainsim or railtoolkit YAML.")],
+    out: Annotated[Path, typer.Argument(help="The trainsim YAML file to write.")],
+    kind: Annotated[Kind | None, typer.Option("--kind", help="What to write (default: scenario if the input has a train and a route).")] = None,
+    train_id: TrainId = None,
+    formation_id: FormationId = None,
+    ocps: Ocps = None,
+    curve_formula: Curve = None,
+    tunnel_formula: Tunnel = None,
+    gradient_formula: Gradient = None,
+    apply_over: Over = None,
+    rotating_mass_factor: Rho = None,
+) -> None:
+    """Convert any readable input to trainsim's YAML (a train, a route, or a scenario with both)."""
+    from trainsim.io import convert as conv
+
+    with _user_errors():
+        if not inp.exists():
+            raise InputError("input not found", file=str(inp))
+        options = _options(train_id, formation_id, ocps, curve_formula, tunnel_formula, gradient_formula, apply_over, rotating_mass_factor)
+        path, notes = conv.convert(inp, out, kind=kind.value if kind else None, **options)
+    for note in notes:
+        typer.echo(f"note: {note}")
+    typer.echo(f"wrote {path}")
+
+
+def check(
+    file: Annotated[Path, typer.Argument(help="Train, route or scenario file, any supported format (railML, spreadsheets too).")],
+    train_id: TrainId = None,
+    formation_id: FormationId = None,
+    ocps: Ocps = None,
+    curve_formula: Curve = None,
+    tunnel_formula: Tunnel = None,
+    gradient_formula: Gradient = None,
+    apply_over: Over = None,
+    rotating_mass_factor: Rho = None,
+) -> None:
+    """Read a file and print what it holds, what was read and what was not (with lines), or why it cannot be used."""
+    from trainsim.io import convert as conv
+    from trainsim.io import loader
+
+    with _user_errors():
+        if not file.exists():
+            raise InputError("file not found", file=str(file))
+        options = _options(train_id, formation_id, ocps, curve_formula, tunnel_formula, gradient_formula, apply_over, rotating_mass_factor)
+        report = conv.check_file(file, **options)
+        if report is None:
+            if options:
+                raise InputError("these options apply to railML and spreadsheet files", file=str(file), field=next(iter(options)))
+            report = loader.check_file(file)
+    typer.echo(report.to_text())
+
+
+def _scenario(inputs: list[Path], options: dict[str, Any]) -> Any:
+    """A scenario from one file (scenario, or railML / spreadsheet with train and route) or from
+    a train file and a route file."""
+    from trainsim.io import convert as conv
+    from trainsim.io import loader
+    from trainsim.model.scenario import Scenario
+
+    for p in inputs:
+        if not p.exists():
+            raise InputError("input not found", file=str(p))
+    if len(inputs) == 1:
+        loaded = conv.detect_and_load(inputs[0], "scenario", **options)
+        return loaded if loaded is not None else loader.load_scenario(inputs[0])
+    if len(inputs) != 2:
+        raise InputError("give one scenario file, or a train file and a route file")
+    train = conv.detect_and_load(inputs[0], "train", **options) or loader.load_train(inputs[0])
+    route = conv.detect_and_load(inputs[1], "route", **options) or loader.load_route(inputs[1])
+    return Scenario(name=f"{train.name} on {route.name}", train=train, route=route)
+
+
+def export_results(
+    inputs: Annotated[list[Path], typer.Argument(help="A scenario (any format), or a train file and a route file.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Directory for trace.* and summary.*.")],
+    formats: Annotated[str, typer.Option("--format", help="Comma-separated: csv, parquet, json.")] = "csv,parquet,json",
+    train_id: TrainId = None,
+    formation_id: FormationId = None,
+    ocps: Ocps = None,
+    curve_formula: Curve = None,
+    tunnel_formula: Tunnel = None,
+    gradient_formula: Gradient = None,
+    apply_over: Over = None,
+    rotating_mass_factor: Rho = None,
+) -> None:
+    """Run the fastest run and write its trace and summary as CSV, Parquet and/or JSON."""
+    import trainsim
+    from trainsim.io import results_export
+
+    with _user_errors():
+        chosen = [f.strip().lower() for f in formats.split(",") if f.strip()]
+        for f in chosen:
+            if f not in results_export.FORMATS:
+                raise InputError("unknown format", field="--format", value=f, allowed=", ".join(results_export.FORMATS))
+        options = _options(train_id, formation_id, ocps, curve_formula, tunnel_formula, gradient_formula, apply_over, rotating_mass_factor)
+        scenario = _scenario(inputs, options)
+        result = trainsim.run(scenario)
+        written = results_export.write_results(result, out, chosen)
+    typer.echo(json.dumps({"running_time_s": result.running_time_s, "energy_net_kwh": result.energy_kwh.net}))
+    for p in written:
+        typer.echo(f"wrote {p}")
+
+
+def runtimes(
+    railml: Annotated[Path, typer.Argument(help="railML 2 or 3 file with infrastructure, rolling stock and a timetable.")],
+    out: Annotated[Path, typer.Argument(help="The railML file to write (a copy with the running times).")],
+    train_id: TrainId = None,
+    formation_id: FormationId = None,
+    curve_formula: Curve = None,
+    tunnel_formula: Tunnel = None,
+    gradient_formula: Gradient = None,
+    apply_over: Over = None,
+    rotating_mass_factor: Rho = None,
+    train: Annotated[Path | None, typer.Option("--train", help="Run another train (any format) on the timetable's path.")] = None,
+) -> None:
+    """Run the fastest run of a railML timetable train and write its running times back into the timetable
+    (runTimes@minimalTime and times@scope='calculated')."""
+    import trainsim
+    from trainsim.io import convert as conv
+    from trainsim.io import loader, results_export
+    from trainsim.model.scenario import Scenario
+
+    with _user_errors():
+        if not railml.exists():
+            raise InputError("input not found", file=str(railml))
+        options = _options(train_id, formation_id, None, curve_formula, tunnel_formula, gradient_formula, apply_over, rotating_mass_factor)
+        route = conv.detect_and_load(railml, "route", **options)
+        if route is None:
+            raise InputError("not a railML file", file=str(railml))
+        if train is not None:
+            t = conv.detect_and_load(train, "train") or loader.load_train(train)
+        else:
+            t = conv.detect_and_load(railml, "train", **options)
+        result = trainsim.run(Scenario(name=f"{t.name} on {route.name}", train=t, route=route))
+        path = results_export.write_running_times_railml(result, railml, out, train_id=train_id)
+    typer.echo(f"running time {result.running_time_s:.1f} s, net energy {result.energy_kwh.net:.2f} kWh")
+    typer.echo(f"wrote {path}")

@@ -1,0 +1,264 @@
+"""The ``multi_point`` block of a scenario file and running a scenario with the multi-point model.
+
+A scenario chooses the model with ``model: multi_point`` and gives the model's settings in a
+``multi_point`` block (all optional; see docs/MULTIPOINT.md)::
+
+    model: multi_point
+    multi_point:
+      locomotive_positions: [0, 53]        # head + middle (distributed power)
+      time_step_s: 0.05
+      couplers: {draft_stiffness_n_per_m: 1.4e7, slack_m: 0.025}
+      coupler_overrides: [{coupler: 0, slack_m: 0}]
+      braking: {propagation_speed_mps: 250, propagation_from: locomotives, build_up_s: 3}
+      strategy: fastest                    # or: follow (with profile: a CSV of position_m, speed_kmh)
+
+Until the scenario reader knows these keys, :func:`load_multipoint_scenario` reads such a file: it
+takes ``model`` and ``multi_point`` out and hands the rest to the scenario reader.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import Field, ValidationError, model_validator
+
+from trainsim.errors import InputError
+from trainsim.io.trainsim_yaml import _fail, _Spec, _validation_error
+from trainsim.model.scenario import Scenario
+from trainsim.multipoint.model import (
+    BrakePropagation,
+    CouplerModel,
+    Locomotive,
+    MultiPointSettings,
+)
+from trainsim.multipoint.result import MultiPointResult
+from trainsim.multipoint.simulate import SpeedProfile, follow_profile, run_multipoint_fastest
+
+__all__ = [
+    "MultiPointSpec",
+    "load_multipoint_scenario",
+    "multipoint_settings_from_dict",
+    "run_multipoint_scenario",
+]
+
+Positive = Annotated[float, Field(gt=0)]
+NonNegative = Annotated[float, Field(ge=0)]
+_DEFAULT = CouplerModel()
+
+
+class CouplerSpec(_Spec):
+    """Coupler parameters; every field defaults to the freight draft-gear values of docs/MULTIPOINT.md."""
+
+    draft_stiffness_n_per_m: Positive = _DEFAULT.draft_stiffness_n_per_m
+    buff_stiffness_n_per_m: Positive = _DEFAULT.buff_stiffness_n_per_m
+    draft_damping_n_s_per_m: NonNegative = _DEFAULT.draft_damping_n_s_per_m
+    buff_damping_n_s_per_m: NonNegative = _DEFAULT.buff_damping_n_s_per_m
+    slack_m: NonNegative = _DEFAULT.slack_m
+    draft_travel_m: Positive = _DEFAULT.draft_travel_m
+    buff_travel_m: Positive = _DEFAULT.buff_travel_m
+    solid_stiffness_n_per_m: Positive = _DEFAULT.solid_stiffness_n_per_m
+    smoothing_m: Positive = _DEFAULT.smoothing_m
+
+    def build(self) -> CouplerModel:
+        return CouplerModel(**{k: getattr(self, k) for k in CouplerSpec.model_fields})
+
+
+class CouplerOverrideSpec(CouplerSpec):
+    """Other parameters for one coupling (index 0 = between vehicles 0 and 1); fields not given are
+    those of the ``couplers`` block."""
+
+    coupler: Annotated[int, Field(ge=0)]
+
+    def build_over(self, base: CouplerSpec) -> CouplerModel:
+        values = {k: getattr(base, k) for k in CouplerSpec.model_fields}
+        values.update({k: getattr(self, k) for k in self.model_fields_set if k != "coupler"})
+        return CouplerModel(**values)
+
+
+class LocomotiveSpec(_Spec):
+    """A powered vehicle: its index in the (arranged) formation and its share of the train's effort."""
+
+    vehicle: Annotated[int, Field(ge=0)]
+    share: Annotated[float, Field(ge=0, le=1)] | None = None
+
+
+class BrakingSpec(_Spec):
+    distribution: Literal["mass", "equal"] = "mass"
+    electric_at: Literal["locomotives", "train"] = "locomotives"
+    propagation_speed_mps: Positive | None = None
+    propagation_from: Literal["head", "locomotives"] = "head"
+    build_up_s: NonNegative = 0.0
+
+
+class MultiPointSpec(_Spec):
+    """The ``multi_point`` block of a scenario (see the module doc and docs/MULTIPOINT.md)."""
+
+    strategy: Literal["fastest", "follow"] = "fastest"
+    profile: str | None = None
+    locomotive_positions: list[Annotated[int, Field(ge=0)]] | None = None
+    locomotives: list[LocomotiveSpec] | None = None
+    couplers: CouplerSpec = Field(default_factory=CouplerSpec)
+    coupler_overrides: list[CouplerOverrideSpec] = Field(default_factory=list)
+    braking: BrakingSpec = Field(default_factory=BrakingSpec)
+    resistance_split: Literal["terms", "mass"] = "terms"
+    initial_couplers: Literal["neutral", "stretched", "bunched"] = "neutral"
+    time_step_s: Annotated[float, Field(ge=1e-4, le=1.0)] = 0.05
+    record_interval_s: Positive = 1.0
+    speed_time_constant_s: Positive = 1.0
+    standstill_speed_mps: Annotated[float, Field(ge=1e-4, le=0.1)] = 0.001
+    stop_window_m: Positive = 2.0
+    lookahead: bool = True
+    traction_ramp_s: Annotated[float, Field(ge=0, le=600)] = 0.0
+
+    @model_validator(mode="after")
+    def _check(self) -> MultiPointSpec:
+        if self.strategy == "follow" and not self.profile:
+            _fail("strategy 'follow' needs a 'profile' (CSV file of position_m and speed_kmh)", field="profile")
+        if self.strategy == "fastest" and self.profile:
+            _fail("a 'profile' is only read with strategy: follow", field="profile")
+        seen: set[int] = set()
+        for i, o in enumerate(self.coupler_overrides):
+            if o.coupler in seen:
+                _fail("coupler given twice", field=f"coupler_overrides[{i}].coupler", value=o.coupler)
+            seen.add(o.coupler)
+        return self
+
+    def build(self) -> MultiPointSettings:
+        """The :class:`MultiPointSettings` (SI)."""
+        b = self.braking
+        return MultiPointSettings(
+            couplers=self.couplers.build(),
+            coupler_overrides={o.coupler: o.build_over(self.couplers) for o in self.coupler_overrides},
+            locomotive_positions=tuple(self.locomotive_positions) if self.locomotive_positions else None,
+            locomotives=(
+                tuple(Locomotive(lo.vehicle, lo.share) for lo in self.locomotives) if self.locomotives else None
+            ),
+            braking_distribution=b.distribution,
+            electric_braking_at=b.electric_at,
+            brake_propagation=BrakePropagation(b.propagation_speed_mps, b.propagation_from, b.build_up_s),
+            resistance_split=self.resistance_split,
+            initial_couplers=self.initial_couplers,
+            time_step_s=self.time_step_s,
+            record_interval_s=self.record_interval_s,
+            speed_time_constant_s=self.speed_time_constant_s,
+            standstill_speed_mps=self.standstill_speed_mps,
+            stop_window_m=self.stop_window_m,
+            lookahead=self.lookahead,
+            traction_ramp_s=self.traction_ramp_s,
+        )
+
+
+def multipoint_settings_from_dict(data: Any, source: str = "<scenario>", *, path: str | Path | None = None):
+    """Validate a ``multi_point`` block; returns the :class:`MultiPointSpec`. Errors name the file and
+    ``multi_point.<field>``."""
+    try:
+        spec = MultiPointSpec.model_validate(data if data is not None else {})
+    except ValidationError as exc:
+        raise _validation_error(exc, source, path, prefix="multi_point") from None
+    try:
+        spec.build()
+    except InputError as exc:
+        raise InputError(
+            exc.reason,
+            file=source,
+            field=f"multi_point.{exc.field}" if exc.field else "multi_point",
+            value=exc.value,
+            allowed=exc.allowed,
+        ) from None
+    return spec
+
+
+def _read_profile(path: Path, source: str) -> SpeedProfile:
+    """A speed profile from a CSV file with columns ``position_m`` and ``speed_kmh`` (or ``speed_mps``),
+    optionally ``regime`` (names as in trainsim traces) and ``time_s``; a ``trace.csv`` written by
+    ``trainsim run`` qualifies."""
+    import pandas as pd
+
+    from trainsim.constants import KMH
+    from trainsim.sim.kernel import REGIME_NAMES
+
+    if not path.exists():
+        raise InputError("profile file not found", file=source, field="multi_point.profile", value=str(path))
+    df = pd.read_csv(path)
+    if "position_m" not in df or not ({"speed_kmh", "speed_mps"} & set(df.columns)):
+        raise InputError(
+            "a profile needs the columns position_m and speed_kmh (or speed_mps)",
+            file=str(path),
+            value=list(df.columns),
+        )
+    speed = df["speed_mps"].to_numpy(float) if "speed_mps" in df else df["speed_kmh"].to_numpy(float) * KMH
+    regime = None
+    if "regime" in df:
+        codes = {name: k for k, name in enumerate(REGIME_NAMES)}
+        try:
+            regime = df["regime"].map(lambda r: codes[str(r)]).to_numpy("int8")
+        except KeyError as exc:
+            raise InputError(
+                "unknown regime", file=str(path), field="regime", value=str(exc), allowed=", ".join(REGIME_NAMES)
+            ) from None
+    time_s = df["time_s"].to_numpy(float) if "time_s" in df else None
+    return SpeedProfile(df["position_m"].to_numpy(float), speed, regime, time_s)
+
+
+def run_multipoint_scenario(
+    scenario: Scenario,
+    settings: MultiPointSpec | MultiPointSettings | dict | None = None,
+    *,
+    base_dir: str | Path | None = None,
+    profile: SpeedProfile | None = None,
+) -> MultiPointResult:
+    """Run a scenario with the multi-point model.
+
+    Args:
+        scenario: the scenario (train with its formation, route, run settings).
+        settings: the ``multi_point`` block (a mapping as in the file, a validated
+            :class:`MultiPointSpec`) or :class:`MultiPointSettings`; None: defaults.
+        base_dir: directory the block's ``profile`` file is relative to.
+        profile: a speed profile to follow (instead of the block's ``profile`` file).
+    """
+    strategy = "fastest"
+    profile_file = None
+    if settings is None or isinstance(settings, dict):
+        settings = multipoint_settings_from_dict(settings or {})
+    if isinstance(settings, MultiPointSpec):
+        strategy, profile_file = settings.strategy, settings.profile
+        mp_settings = settings.build()
+    else:
+        mp_settings = settings
+    if profile is not None:
+        strategy = "follow"
+    elif profile_file:
+        path = Path(profile_file)
+        if not path.is_absolute():
+            path = Path(base_dir or ".") / path
+        profile = _read_profile(path, str(path))
+    if strategy == "follow":
+        assert profile is not None
+        return follow_profile(scenario.train, scenario.route, profile, mp_settings, scenario.settings)
+    return run_multipoint_fastest(scenario.train, scenario.route, mp_settings, scenario.settings)
+
+
+def load_multipoint_scenario(path: str | Path) -> tuple[Scenario, MultiPointSpec | None]:
+    """Read a scenario file that may choose ``model: multi_point``: the scenario and its validated
+    ``multi_point`` block (None for ``model: single_point`` or no ``model`` key)."""
+    from trainsim.io.trainsim_yaml import read_yaml, scenario_from_dict
+
+    path = Path(path)
+    data = read_yaml(path)
+    if not isinstance(data, dict):
+        raise InputError("expected a mapping of fields at the top level", file=str(path))
+    data = dict(data)
+    model = data.pop("model", "single_point")
+    block = data.pop("multi_point", None)
+    if model not in ("single_point", "multi_point"):
+        raise InputError(
+            "unknown model", file=str(path), field="model", value=model, allowed="single_point, multi_point"
+        )
+    if model == "single_point" and block is not None:
+        raise InputError(
+            "a 'multi_point' block needs 'model: multi_point'", file=str(path), field="multi_point"
+        )
+    scenario = scenario_from_dict(data, str(path), base_dir=path.parent)
+    spec = multipoint_settings_from_dict(block, str(path), path=path) if model == "multi_point" else None
+    return scenario, spec
