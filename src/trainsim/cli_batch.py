@@ -78,16 +78,16 @@ def batch(
     """
     from trainsim.batch import executors, load_study, run_study
 
+    out_dir = out if out is not None else Path("out") / study.stem
+    chosen = executor.value if executor is not None else None
+    if scheduler is not None:
+        if chosen not in (None, "dask"):
+            raise _fail("--scheduler runs on Dask: leave out --executor or give --executor dask")
+        chosen = "dask"
     try:
-        spec = load_study(study)
-        out_dir = out if out is not None else Path("out") / study.stem
-        chosen = executor.value if executor is not None else None
-        if scheduler is not None:
-            if chosen not in (None, "dask"):
-                raise _fail("--scheduler runs on Dask: leave out --executor or give --executor dask")
-            chosen = "dask"
-        elif chosen is None:
+        if chosen is None:
             chosen = "dask" if executors.configured_scheduler() is not None else "processes"
+        spec = load_study(study)
         if dry_run:
             _dry_run(spec, out_dir, chosen, workers)
             return

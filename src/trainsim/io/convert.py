@@ -291,7 +291,7 @@ _Dumper.add_representer(dict, _represent_dict)
 
 def dump_yaml(doc: dict[str, Any], header: Sequence[str] = ()) -> str:
     """A mapping as YAML text, with ``header`` lines as comments at the top."""
-    text = yaml.dump(doc, Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=110)
+    text = yaml.dump(rc.plain(doc), Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=110)
     comments = "".join(f"# {line}\n" for line in header)
     return comments + text
 

@@ -235,6 +235,8 @@ class _Reader:
         if minimal is not None:
             return minimal, stop
         times = children(ocp_tt, "times")
+        for t in times:
+            self.usage.use(t)
         chosen = [t for t in times if t.get("scope") == "scheduled"] or times
         if chosen:
             t = chosen[0]
@@ -293,7 +295,13 @@ class _Reader:
             for end_node, leave, arrive, at in ((begin_el, (-1,), (1,), begin), (end_el, (1,), (-1,), end)):
                 for conn in children(end_node, "connection"):
                     net.add_port(rc.Port(conn.get("id") or "", tid, at, leave, arrive, conn.get("ref"), conn))
-            for sw in [c for c in child(topo, "connections") or [] if local(c) in ("switch", "crossing")]:
+            switches = [
+                e
+                for group in children(topo, "connections")
+                for e in group
+                if local(e) in ("switch", "crossing")
+            ]
+            for sw in switches:
                 pos = attr_float(sw, "pos", p, required=True, what=f"position of the {local(sw)} [m]")
                 if pos is None:
                     continue

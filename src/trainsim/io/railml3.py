@@ -431,6 +431,7 @@ class _Reader:
             if id(el) in seen:
                 continue
             seen.add(id(el))
+            self.usage.use(el, deep=True)
             if local(el) == want:
                 return el
             for d in el.iter():
@@ -442,41 +443,57 @@ class _Reader:
         return None
 
     def itinerary(self, train_id: str | None) -> tuple[etree._Element | None, etree._Element | None, str]:
+        """The base itinerary of the chosen train (by id or name; default: the first operational or
+        commercial train, else the first base itinerary), its formation if referenced, its name."""
         tt = self.timetable
         if tt is None:
             return None, None, ""
         bases = descendants(tt, "baseItinerary")
+        start = None
         if train_id is not None:
             start = self.ids.get(train_id)
             if start is None:
-                named = [e for e in tt.iter() if local(e) and e.get("name") == train_id]
+                named = [e for e in tt.iter() if local(e) and _name(e) == train_id]
                 start = named[0] if named else None
             if start is None:
+                trains = [e.get("id") for e in tt.iter() if local(e) in ("operationalTrain", "commercialTrain")]
                 raise InputError(
                     "no element of that id or name in the timetable",
                     file=self.file,
                     field="train_id",
                     value=train_id,
-                    allowed=", ".join(str(b.get("id")) for b in bases),
+                    allowed=", ".join(str(x) for x in [*trains, *(b.get("id") for b in bases)]),
                 )
+        else:
+            trains = [e for e in tt.iter() if local(e) in ("operationalTrain", "commercialTrain")]
+            if trains:
+                start = trains[0]
+                if len(trains) > 1:
+                    self.content.notes.append(
+                        f"{len(trains)} trains in the timetable: the first, {label(start)}, is read (choose with --train-id)"
+                    )
+                for other in trains[1:]:
+                    self.usage.skip(other, "another train")
+        if start is not None:
             base = self._follow(start, "baseItinerary")
             if base is None:
-                raise self.problems.error(
-                    start, "no baseItinerary reached from this element through its references"
-                )
+                raise self.problems.error(start, "no baseItinerary reached from this element through its references")
             formation = self._follow(start, "formation")
-            name = start.get("name") or train_id
+            name = _name(start, self.usage) or start.get("id") or ""
             self.usage.use(start, deep=True)
-            return base, formation, name
-        if not bases:
+        elif bases:
+            base, formation = bases[0], None
+            name = base.get("id") or ""
+            if len(bases) > 1:
+                self.content.notes.append(
+                    f"{len(bases)} base itineraries: the first, {label(base)}, is the route (choose with --train-id)"
+                )
+        else:
             return None, None, ""
-        if len(bases) > 1:
-            self.content.notes.append(
-                f"{len(bases)} base itineraries: the first, {label(bases[0])}, is the route (choose with --train-id)"
-            )
-        for other in descendants(tt, "baseItinerary")[1:]:
-            self.usage.skip(other, "another train's path")
-        return bases[0], None, bases[0].get("name") or bases[0].get("id") or ""
+        for other in bases:
+            if other is not base:
+                self.usage.skip(other, "another train's path")
+        return base, formation, name
 
     def _times(self, point: etree._Element) -> tuple[float | None, float | None]:
         sets = children(point, "times")

@@ -530,6 +530,7 @@ class Usage:
         """Record that an element was deliberately not used, and why."""
         self.reasons.append((el, reason))
         self._used.add(el)  # reported with its reason, not again as unread
+        self._deep.add(el)
 
     def ignored(self, root: etree._Element, *, limit: int = 40) -> list[str]:
         """The topmost elements nothing was read from, with their line, and the skipped ones."""
@@ -1047,7 +1048,7 @@ def route_mapping(
     if elec:
         route["electrification"] = elec
     route["line_resistance"] = dict(line_resistance)
-    return route
+    return plain(route)
 
 
 LINE_RESISTANCE_KEYS = {
@@ -1294,7 +1295,20 @@ def train_mapping(src: FormationSource, content: Content, problems: Problems) ->
     for key in ("traction", "braking", "resistance", "electrical", "rotating_mass_factor", "max_speed_kmh"):
         c.origin(key, src.element)
     c.figures["vehicles"] = ", ".join(f"{e['count']} x {e['name']}" for e in entries)
-    return train
+    return plain(train)
+
+
+def plain(obj: Any) -> Any:
+    """A mapping with numpy numbers turned into Python ones (for YAML and JSON)."""
+    if isinstance(obj, dict):
+        return {k: plain(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [plain(v) for v in obj]
+    if isinstance(obj, np.floating):
+        return float(obj)
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
 
 
 def _traction(src: FormationSource, content: Content, problems: Problems) -> dict[str, Any]:

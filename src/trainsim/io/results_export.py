@@ -279,6 +279,7 @@ def write_running_times_railml(
             minimal.set("runTime", run)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
+    etree.indent(tree, space="  ")  # the inserted elements have no layout of their own
     tree.write(str(out), xml_declaration=True, encoding="UTF-8", pretty_print=True)
     return out
 

@@ -805,6 +805,8 @@ def read_spreadsheet(path: str | Path, *, line_resistance: dict[str, str] | None
             allowed="train: " + ", ".join(TRAIN_SHEETS) + "; track: " + ", ".join(ROUTE_SHEETS),
         )
     content.figures["tables"] = ", ".join(sorted(sheets))
+    content.train = rc.plain(content.train) if content.train is not None else None
+    content.route = rc.plain(content.route) if content.route is not None else None
     return content
 
 

@@ -58,7 +58,7 @@ C_EPS = 8  # smoothing width [m]
 N_C = 9
 
 # scalar parameters SP
-S_STEP = 0  # time step h [s]
+S_STEP = 0  # largest time step [s]
 S_VEPS = 1  # standstill regularisation speed [m/s]
 S_BRAKE_FRACTION = 2  # share of the service braking force used [-]
 S_DECEL = 3  # constant service deceleration [m/s^2], 0 for a braking force law
@@ -77,7 +77,9 @@ S_STALL_S = 15  # at rest in traction this long: stalled [s]
 S_NEWTON_TOL = 16  # Newton tolerance on the midpoint speeds [m/s]
 S_TRACK_PROFILE = 17  # 1: in traction follow the reference speed; 0: full traction up to the ceiling
 S_RAMP = 18  # time to raise the traction command from 0 to full [s], 0: at once
-N_S = 19
+S_STEP_MIN = 19  # smallest step [s]
+S_FORCE_TOL = 20  # tolerance of the coupler-force error estimate per step [N], 0: fixed steps
+N_S = 21
 
 # command array CMD: friction brake level, blend flag, signed command for the record, then per vehicle
 # traction level (N) and electric brake level (N)
@@ -100,11 +102,14 @@ A_SPRING_WORK = 8  # work of the spring forces (= -change of spring energy, up t
 A_HELD = 9  # kinetic energy removed when the train is declared at rest (counted as braking)
 N_WORKS = 10  # A_TRACTION .. A_HELD are recorded
 A_PEAK_POWER = 10  # largest line-side power (before auxiliaries) since the last record [W]
-A_SUBSTEPS = 11  # sub-steps after a halving
+A_SUBSTEPS = 11  # steps halved because Newton did not converge
 A_NEWTON = 12  # Newton iterations
 A_STEPS = 13  # steps
 A_REST_SINCE = 14  # time since when the train is at rest in traction [s], -1 when moving
-N_A = 15
+A_H = 15  # size of the next step [s]
+A_NMEM = 16  # number of step-end coupler forces remembered (up to 3)
+A_REJECTED = 17  # steps repeated shorter for the force tolerance
+N_A = 18
 
 # aggregated record columns REC_AGG
 R_HEAD = 0
@@ -142,8 +147,6 @@ ST_END_OF_ROUTE = 6
 #: friction brakes take over its share [m/s]: an electric brake cannot hold a train at rest, and
 #: without the fade the locomotives would hold the whole train while the wagons roll away from them.
 ELECTRIC_FADE_MPS = 1.0
-#: Largest number of halvings of a step whose Newton iterations do not converge.
-MAX_HALVINGS = 10
 #: Newton iterations per (sub-)step before halving.
 MAX_NEWTON = 12
 
@@ -642,6 +645,25 @@ def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
 
 # ============================================================================ the main loop
 @njit(cache=True)
+def force_error(Tend, tmem, tmem_t, nmem, t1):
+    """Largest deviation of the coupler forces at the end of a step (time t1) from their quadratic
+    extrapolation through the ends of the three previous steps [N]: a third difference (about
+    h^3 d3T/dt3), small while the forces vary smoothly, large at impacts and sudden force changes."""
+    if nmem < 3:
+        return 0.0
+    ta, tb, tc = tmem_t[0], tmem_t[1], tmem_t[2]
+    la = (t1 - tb) * (t1 - tc) / ((ta - tb) * (ta - tc))
+    lb = (t1 - ta) * (t1 - tc) / ((tb - ta) * (tb - tc))
+    lc = (t1 - ta) * (t1 - tb) / ((tc - ta) * (tc - tb))
+    err = 0.0
+    for k in range(len(Tend)):
+        e = abs(Tend[k] - (la * tmem[0, k] + lb * tmem[1, k] + lc * tmem[2, k]))
+        if e > err:
+            err = e
+    return err
+
+
+@njit(cache=True)
 def run(
     mode,
     t_end,
@@ -671,23 +693,32 @@ def run(
     route_end,
 ):
     """Integrate until ``t_end`` (mode 0: fixed commands in CMD / trac / elec; mode 1: follow the
-    reference ``ref`` and stop at its end). ``state`` = (x, v, b, t, a, next_record_time, pcache):
-    positions, speeds, brake levels, time (array of 1), last accelerations, next record time (array
-    of 1), profile cache. Returns ``(status, nh, nrec)``."""
-    x, v, b, tt, a_last, next_rec, pcache = state
+    reference ``ref`` and stop at its end). ``state`` = (x, v, b, t, a, next_record_time, pcache,
+    tmem, tmem_t): positions, speeds, brake levels, time (array of 1), last accelerations, next record
+    time (array of 1), profile cache, coupler forces at the ends of the last three steps and their
+    times. Returns ``(status, nh, nrec)``.
+
+    Step size: at most ``S_STEP``; with a force tolerance ``S_FORCE_TOL`` > 0 a step whose coupler
+    forces leave their extrapolation (``force_error``) by more than the tolerance is repeated shorter,
+    and the next step is sized for the tolerance (third-order law), down to ``S_STEP_MIN``. A step
+    whose Newton iterations do not converge is halved."""
+    x, v, b, tt, a_last, next_rec, pcache, tmem, tmem_t = state
     n = len(x)
-    h0 = SP[S_STEP]
+    nc = max(n - 1, 1)
+    h_max = SP[S_STEP]
+    h_min = SP[S_STEP_MIN]
+    tol = SP[S_FORCE_TOL]
     # work arrays
     xm = np.empty(n)
     F = np.empty(n)
     D = np.empty(n)
-    Ts = np.empty(max(n - 1, 1))
-    Td = np.empty(max(n - 1, 1))
-    K = np.empty(max(n - 1, 1))
-    C = np.empty(max(n - 1, 1))
+    Ts = np.empty(nc)
+    Td = np.empty(nc)
+    K = np.empty(nc)
+    C = np.empty(nc)
     G = np.empty(n)
     diag = np.empty(n)
-    off = np.empty(max(n - 1, 1))
+    off = np.empty(nc)
     dw = np.empty(n)
     cprime = np.empty(n)
     parts = np.zeros((n, 7))
@@ -696,23 +727,23 @@ def run(
     bm = np.empty(n)
     x1 = np.empty(n)
     v1 = np.empty(n)
-    x_save = np.empty(n)
-    v_save = np.empty(n)
-    b_save = np.empty(n)
+    Tend = np.zeros(nc)
     build = SP[S_BUILD_UP]
     eta_t = SP[S_ETA_T]
     eta_r = SP[S_ETA_R]
     rest_speed = SP[S_REST_SPEED]
     t = tt[0]
     status = ST_TIME
+    if acc[A_H] <= 0.0:
+        acc[A_H] = h_max if tol <= 0.0 else max(h_min, 0.25 * h_max)
     while t < t_end - 1e-12:
-        h_main = min(h0, t_end - t)
+        h = min(acc[A_H], t_end - t)
         # ---- command for this step
         if mode == 1:
             u, regime, vc = control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling)
             if SP[S_RAMP] > 0.0 and u > 0.0:
                 # the driver (or the traction control) raises the effort gradually
-                u_max = max(CMD[K_COMMAND], 0.0) + h_main / SP[S_RAMP]
+                u_max = max(CMD[K_COMMAND], 0.0) + h / SP[S_RAMP]
                 if u > u_max:
                     u = u_max
             CMD[K_COMMAND] = u
@@ -730,17 +761,11 @@ def run(
             hist[nh, 0] = t
             hist[nh, 1] = CMD[K_FRICTION]
             nh += 1
-        # ---- the step, divided if Newton does not converge
-        for i in range(n):
-            x_save[i] = x[i]
-            v_save[i] = v[i]
-            b_save[i] = b[i]
-        done = 0.0
-        halvings = 0
-        failed = False
-        while done < h_main - 1e-12:
-            h = min(h_main / (2.0**halvings), h_main - done)
-            tm = t + done + 0.5 * h
+        # ---- one step, shortened until Newton converges and the force error is within tolerance
+        err = 0.0
+        tm = t
+        while True:
+            tm = t + 0.5 * h
             for i in range(n):
                 target = history_value(tm - VP[i, V_DELAY], hist, nh)
                 if build > 0.0:
@@ -750,64 +775,79 @@ def run(
                 w[i] = v[i] + 0.5 * h * a_last[i]
             its = implicit_step(x, v, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, ws)
             if its < 0:
-                if halvings >= MAX_HALVINGS:
-                    failed = True
+                if h <= h_min * 1.000001:
                     break
-                halvings += 1
+                h = max(0.5 * h, h_min)
                 acc[A_SUBSTEPS] += 1
                 continue
             acc[A_NEWTON] += its
-            acc[A_STEPS] += 1
-            # ---- energy accounting with the midpoint forces (exact for the midpoint rule)
-            p_tr = 0.0
-            p_el = 0.0
-            for i in range(n):
-                dx = h * w[i]
-                acc[A_TRACTION] += parts[i, 0] * dx
-                acc[A_ELECTRIC] += parts[i, 1] * dx
-                acc[A_FRICTION] += parts[i, 2] * dx
-                acc[A_RUNNING] += parts[i, 3] * dx
-                acc[A_GRADIENT] += parts[i, 4] * dx
-                acc[A_CURVE] += parts[i, 5] * dx
-                acc[A_TUNNEL] += parts[i, 6] * dx
-                p_tr += parts[i, 0] * w[i]
-                p_el += parts[i, 1] * w[i]
-            for k in range(n - 1):
-                ddelta = h * (w[k] - w[k + 1])
-                acc[A_DAMPER] += Td[k] * ddelta
-                acc[A_SPRING_WORK] -= Ts[k] * ddelta
-            line_power = p_tr / eta_t - p_el * eta_r
-            if line_power > acc[A_PEAK_POWER]:
-                acc[A_PEAK_POWER] = line_power
             for i in range(n):
                 x1[i] = x[i] + h * w[i]
                 v1[i] = 2.0 * w[i] - v[i]
-                a_last[i] = (v1[i] - v[i]) / h
-                x[i] = x1[i]
-                v[i] = v1[i]
-                if build > 0.0:
-                    target = history_value(tm - VP[i, V_DELAY], hist, nh)
-                    b[i] = target + (b[i] - target) * np.exp(-h / build)
-                else:
-                    b[i] = history_value(tm - VP[i, V_DELAY], hist, nh)
-            done += h
-            if halvings > 0 and done < h_main - 1e-12:
-                # try a longer step again after a successful sub-step
-                halvings -= 1
-        if failed:
-            for i in range(n):
-                x[i] = x_save[i]
-                v[i] = v_save[i]
-                b[i] = b_save[i]
+            for k in range(n - 1):
+                s_, d_, _, _ = coupler_force(x1[k] - VP[k, V_LENGTH] - x1[k + 1], v1[k] - v1[k + 1], CP[k])
+                Tend[k] = s_ + d_
+            if tol > 0.0:
+                err = force_error(Tend, tmem, tmem_t, int(acc[A_NMEM]), t + h)
+                if err > tol and h > h_min * 1.000001:
+                    h = max(h_min, h * max(0.2, 0.9 * (tol / err) ** (1.0 / 3.0)))
+                    acc[A_REJECTED] += 1
+                    continue
+            break
+        if its < 0:
             status = ST_FAILED
             break
-        t += h_main
+        acc[A_STEPS] += 1
+        # ---- accept: energy accounting with the midpoint forces (exact for the midpoint rule)
+        p_tr = 0.0
+        p_el = 0.0
+        for i in range(n):
+            dx = h * w[i]
+            acc[A_TRACTION] += parts[i, 0] * dx
+            acc[A_ELECTRIC] += parts[i, 1] * dx
+            acc[A_FRICTION] += parts[i, 2] * dx
+            acc[A_RUNNING] += parts[i, 3] * dx
+            acc[A_GRADIENT] += parts[i, 4] * dx
+            acc[A_CURVE] += parts[i, 5] * dx
+            acc[A_TUNNEL] += parts[i, 6] * dx
+            p_tr += parts[i, 0] * w[i]
+            p_el += parts[i, 1] * w[i]
+        for k in range(n - 1):
+            ddelta = h * (w[k] - w[k + 1])
+            acc[A_DAMPER] += Td[k] * ddelta
+            acc[A_SPRING_WORK] -= Ts[k] * ddelta
+        line_power = p_tr / eta_t - p_el * eta_r
+        if line_power > acc[A_PEAK_POWER]:
+            acc[A_PEAK_POWER] = line_power
+        for i in range(n):
+            a_last[i] = (v1[i] - v[i]) / h
+            x[i] = x1[i]
+            v[i] = v1[i]
+            target = history_value(tm - VP[i, V_DELAY], hist, nh)
+            if build > 0.0:
+                b[i] = target + (b[i] - target) * np.exp(-h / build)
+            else:
+                b[i] = target
+        t += h
         tt[0] = t
+        # ---- size of the next step
+        if tol > 0.0:
+            grow = 2.0 if err <= 0.0 else min(2.0, 0.9 * (tol / err) ** (1.0 / 3.0))
+            acc[A_H] = min(h_max, max(h_min, h * max(grow, 0.2)))
+        else:
+            acc[A_H] = h_max
+        for j in range(2):
+            tmem_t[j] = tmem_t[j + 1]
+            for k in range(n - 1):
+                tmem[j, k] = tmem[j + 1, k]
+        tmem_t[2] = t
+        for k in range(n - 1):
+            tmem[2, k] = Tend[k]
+        if acc[A_NMEM] < 3:
+            acc[A_NMEM] += 1
         # ---- extremes of the coupler forces at the end of the step
         for k in range(n - 1):
-            delta = x[k] - VP[k, V_LENGTH] - x[k + 1]
-            s_, d_, _, _ = coupler_force(delta, v[k] - v[k + 1], CP[k])
-            tension = s_ + d_
+            tension = Tend[k]
             if tension > ext[E_DRAFT]:
                 ext[E_DRAFT] = tension
                 ext[E_DRAFT_K] = k
@@ -852,7 +892,7 @@ def run(
             nrec = record(
                 nrec, t, x, v, a_last, VP, CP, CMD, parts, acc, rec_t, rec_x, rec_v, rec_a, rec_T, rec_agg
             )
-            next_rec[0] = t + SP[S_RECORD_DT]
+            next_rec[0] = max(next_rec[0] + SP[S_RECORD_DT], t)
         if status != ST_TIME:
             break
     return status, nh, nrec

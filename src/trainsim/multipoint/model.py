@@ -230,7 +230,11 @@ class MultiPointSettings:
             whole-train terms by mass; ``mass``: the train's whole law by mass.
         initial_couplers: ``neutral`` (every coupling in the middle of its slack), ``stretched`` or
             ``bunched`` (slack taken up in draft or buff) at the start.
-        time_step_s: step of the implicit integrator [s].
+        time_step_s: largest step of the implicit integrator [s].
+        force_tolerance_n: step-size control: a step whose coupler forces at its end depart from their
+            quadratic extrapolation through the three previous step ends by more than this is repeated
+            shorter, and the next step is sized for it [N]; None: fixed steps of ``time_step_s``.
+        min_time_step_s: smallest step of the step-size control [s].
         record_interval_s: interval between recorded states [s] (extremes are taken at every step).
         speed_time_constant_s: the controller that follows a reference profile closes a speed error
             with this time constant [s] (within the traction and braking limits).
@@ -253,7 +257,9 @@ class MultiPointSettings:
     brake_propagation: BrakePropagation = field(default_factory=BrakePropagation)
     resistance_split: Literal["terms", "mass"] = "terms"
     initial_couplers: Literal["neutral", "stretched", "bunched"] = "neutral"
-    time_step_s: float = 0.05
+    time_step_s: float = 0.2
+    force_tolerance_n: float | None = 5.0e3
+    min_time_step_s: float = 1.0e-3
     record_interval_s: float = 1.0
     speed_time_constant_s: float = 1.0
     standstill_speed_mps: float = 0.001
@@ -265,6 +271,12 @@ class MultiPointSettings:
         checks = {
             "time_step_s": (self.time_step_s, 1e-4 <= self.time_step_s <= 1.0, "1e-4 .. 1 s"),
             "record_interval_s": (self.record_interval_s, self.record_interval_s > 0, "> 0 s"),
+            "min_time_step_s": (self.min_time_step_s, 1e-5 <= self.min_time_step_s <= 1.0, "1e-5 .. 1 s"),
+            "force_tolerance_n": (
+                self.force_tolerance_n or 1.0,
+                self.force_tolerance_n is None or self.force_tolerance_n > 0,
+                "> 0 N, or none for fixed steps",
+            ),
             "speed_time_constant_s": (
                 self.speed_time_constant_s,
                 self.speed_time_constant_s >= 2 * self.time_step_s,

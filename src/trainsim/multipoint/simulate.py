@@ -241,6 +241,8 @@ class _Compiled:
         elec = train.electrical
         SP = np.zeros(K.N_S)
         SP[K.S_STEP] = settings.time_step_s
+        SP[K.S_STEP_MIN] = min(settings.min_time_step_s, settings.time_step_s)
+        SP[K.S_FORCE_TOL] = settings.force_tolerance_n or 0.0
         SP[K.S_VEPS] = settings.standstill_speed_mps
         SP[K.S_BRAKE_FRACTION] = run_settings.braking_fraction
         SP[K.S_DECEL] = braking.deceleration_mps2 or 0.0
@@ -285,6 +287,8 @@ class _Runner:
         self.a = np.zeros(n)
         self.next_rec = np.zeros(1)
         self.pcache = np.zeros(n, dtype=np.int64)
+        self.tmem = np.zeros((3, max(n - 1, 1)))
+        self.tmem_t = np.zeros(3)
         self.CMD = np.zeros(K.N_K)
         self.trac = np.zeros(n)
         self.elec = np.zeros(n)
@@ -334,6 +338,8 @@ class _Runner:
             self.rec_t, self.rec_x, self.rec_v, self.rec_a, self.rec_T, self.rec_agg,
         )  # fmt: skip
         self.next_rec[0] = self.t[0] + self.c.SP[K.S_RECORD_DT]
+        # the step-size control extrapolates the coupler forces of the last steps: not across a jump in time
+        self.acc[K.A_NMEM] = 0
 
     def advance(self, mode: int, t_end: float, ref=None) -> int:
         """Run the kernel until ``t_end`` or an event; returns the status."""
@@ -343,7 +349,9 @@ class _Runner:
         t0 = time.perf_counter()
         try:
             while True:
-                state = (self.x, self.v, self.b, self.t, self.a, self.next_rec, self.pcache)
+                state = (
+                    self.x, self.v, self.b, self.t, self.a, self.next_rec, self.pcache, self.tmem, self.tmem_t
+                )  # fmt: skip
                 status, self.nh, self.nrec = K.run(
                     mode, t_end, state, c.VP, c.CP, c.SP, self.CMD, self.trac, self.elec, c.bank, c.prof,
                     c.avail, ref, c.ceiling_arrays, self.hist, self.nh, self.acc, self.rec_t, self.rec_x,
@@ -365,6 +373,7 @@ class _Runner:
         self.acc[K.A_HELD] += float(np.sum(0.5 * mi * self.v**2))
         self.v[:] = 0.0
         self.a[:] = 0.0
+        self.acc[K.A_NMEM] = 0
 
     def set_brake_command(self, level: float) -> None:
         if self.nh >= len(self.hist):
@@ -384,8 +393,10 @@ class _Runner:
             "steps": float(self.acc[K.A_STEPS]),
             "newton_iterations": float(self.acc[K.A_NEWTON]),
             "halved_steps": float(self.acc[K.A_SUBSTEPS]),
+            "rejected_steps": float(self.acc[K.A_REJECTED]),
             "wall_time_s": self.wall_s,
-            "time_step_s": float(self.c.SP[K.S_STEP]),
+            "largest_time_step_s": float(self.c.SP[K.S_STEP]),
+            "mean_time_step_s": float(self.t[0] / max(self.acc[K.A_STEPS], 1.0)),
         }
 
     def result(self, status: str, kind: str, warnings: list[str], stop_names=None) -> MultiPointResult:

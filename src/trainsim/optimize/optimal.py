@@ -33,11 +33,11 @@ from trainsim.sim.fastest import kernel_parameters, kink_speeds, regenerative_ar
 from trainsim.sim.profile import compile_track
 
 #: Shooting on the coasting point stops when its bracket is shorter than this [m].
-COAST_POINT_TOLERANCE_M = 1e-3
+COAST_POINT_TOLERANCE_M = 1e-2
 #: The section time is met to this [s] (far inside the max(0.5 s, 0.05 %) the schedule needs).
 TIME_TOLERANCE_S = 1e-3
 #: Largest step of the adjoint-driven phase [m].
-ADJOINT_STEP_M = 5.0
+ADJOINT_STEP_M = 20.0
 
 
 def price_of_time_w(train: Train, holding_speed_mps: float) -> float:
@@ -113,6 +113,7 @@ class SectionSolver:
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, self.i0, self.i1, P, self.curves, self.bk
         )
         self.n_max = 8 * len(tr.x) + 64
+        self._last_coast_point: float | None = None
         fastest = self._fastest_points()
         self.fastest = fastest
         self.fastest_time_s = float(fastest[2][-1])
@@ -191,7 +192,7 @@ class SectionSolver:
         out_v = np.empty(self.n_max)
         out_t = np.empty(self.n_max)
         out_m = np.empty(self.n_max, dtype=np.int8)
-        n, status = pk.final_phase(
+        n, status, s_event = pk.final_phase(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, tr.traction_scale, i, u, v, t, self.i1,
             self.P, self.curves, self.tk, self.bk, self.Cr, self.US, mu, self.inv_eta_t, self.eta_r,
             self.has_regen, ADJOINT_STEP_M, out_s, out_v, out_t, out_m, 0,
@@ -199,40 +200,61 @@ class SectionSolver:
         s, vv, tt, m = phase_a
         keep = slice(0, j + 1)
         return (
-            np.concatenate([s[keep], out_s[:n]]),
-            np.concatenate([vv[keep], out_v[:n]]),
-            np.concatenate([tt[keep], out_t[:n]]),
-            np.concatenate([m[keep], out_m[:n]]),
-        ), status
+            (
+                np.concatenate([s[keep], out_s[:n]]),
+                np.concatenate([vv[keep], out_v[:n]]),
+                np.concatenate([tt[keep], out_t[:n]]),
+                np.concatenate([m[keep], out_m[:n]]),
+            ),
+            status,
+            s_event,
+        )
 
     def plan(self, holding_speed_mps: float) -> SectionPlan:
         """The optimal run for holding speed V: the coasting point found by bisection so that the
         train stops exactly at the next station."""
         mu = price_of_time_w(self.train, holding_speed_mps)
         phase_a = self._phase_a(holding_speed_mps)
+
         # The last coasting point from which the train still reaches the stop: on a hilly line the
         # outcome is not monotone in the coasting point, and the optimum leaves the holding arc as
-        # late as possible, so search backwards from the stop first, then bisect.
-        hi, best = self.s1, None
+        # late as possible, so search backwards from the stop for a bracket first.
+        def residual(s_c: float):
+            points, status, s_event = self._phase_b(phase_a, s_c, mu)
+            # < 0: stops short of the station by that much; >= 0: meets the braking curve to it
+            return (self.s1 - s_event if status == pk.HIT_CEILING else s_event - self.s1), points
+
+        hi = self.s1
+        r_hi, best = residual(hi)
         step = max(50.0, (self.s1 - self.s0) / 200.0)
         lo = hi - step
+        guess = self._last_coast_point
+        step_guess = 20.0
+        if guess is not None and self.s0 < guess - step_guess < guess + step_guess < self.s1:
+            # warm start from the previous holding speed's coasting point (the outer solve moves V
+            # a little at a time)
+            r_g, points = residual(guess + step_guess)
+            if r_g >= 0.0:
+                hi, r_hi, best = guess + step_guess, r_g, points
+                lo = guess - step_guess
         while True:
             lo = max(lo, self.s0)
-            points, status = self._phase_b(phase_a, lo, mu)
-            if status != pk.HIT_CEILING or lo <= self.s0:
+            r_lo, points = residual(lo)
+            if r_lo < 0.0 or lo <= self.s0:
                 break
-            hi, best = lo, points
+            hi, r_hi, best = lo, r_lo, points
             step *= 1.5
             lo = hi - step
-        while hi - lo > COAST_POINT_TOLERANCE_M:
+        # bisection: the outcome is discontinuous at the boundary (the train meets the service braking
+        # curve some metres before the stop), so a secant on a residual does not converge faster
+        while hi - lo > COAST_POINT_TOLERANCE_M and r_lo < 0.0:
             mid = 0.5 * (lo + hi)
-            points, status = self._phase_b(phase_a, mid, mu)
-            if status == pk.HIT_CEILING:
+            r_mid, points = residual(mid)
+            if r_mid >= 0.0:
                 hi, best = mid, points
             else:
                 lo = mid
-        if best is None:
-            best, _ = self._phase_b(phase_a, hi, mu)
+        self._last_coast_point = hi
         s, v, t, m = best
         # the stop point closes the section
         m = m.copy()

@@ -101,7 +101,7 @@ def final_phase(
     by the adjoint to the stop at x[i_end], holding the speed limit ``vcap`` if the train reaches
     it. Appends points; returns (n, status): HIT_CEILING when the train meets the braking curve
     to the stop (it then follows it and stops exactly at x[i_end]), STOPPED_SHORT when it comes
-    to rest before (the last point is where it stopped)."""
+    to rest before (the last point is where it stopped); and the position of that event."""
     phi = inv_eta_t * (1.0 - 1e-9)
     E = 0.5 * v_start * v_start
     t = t_start
@@ -135,8 +135,8 @@ def final_phase(
                 n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
                 n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u + hs, 0.0, t + dts, mode)
                 if x[i] + u + hs >= x[i_end] - 1e-6:
-                    return n, HIT_CEILING
-                return n, STOPPED_SHORT
+                    return n, HIT_CEILING, x[i_end]
+                return n, STOPPED_SHORT, x[i] + u + hs
             v1 = np.sqrt(2.0 * E1)
             if mode != CRUISE and v1 > vcap[i] and v < vcap[i] and u + h <= US[kk]:
                 # reaches the limit inside the step: stop the step there
@@ -177,12 +177,12 @@ def final_phase(
                     return _follow_ceiling(
                         x, a0, a1, b0, b1, i, hm, Em, t + dtm, i_end, P, curves, bk, Cr, US, kk, vcap,
                         out_s, out_v, out_t, out_m, n,
-                    ), HIT_CEILING  # fmt: skip
+                    ), HIT_CEILING, x[i] + hm  # fmt: skip
             n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
             E, t, u, phi = E1, t + dt, u + h, phi1
         u = 0.0
     n = _emit(out_s, out_v, out_t, out_m, n, x[i_end], np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, BRAKE)
-    return n, HIT_CEILING
+    return n, HIT_CEILING, x[i_end]
 
 
 @njit(cache=True)

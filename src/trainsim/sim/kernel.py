@@ -18,8 +18,9 @@ COAST = 2
 BRAKE = 3
 DWELL = 4
 REGEN = 5  # maximum regenerative braking only (no friction brakes), used by energy-efficient driving
+FOLLOW = 6  # following a given speed profile: the forces are what its accelerations need
 
-REGIME_NAMES = ("traction", "cruising", "coasting", "braking", "dwell", "regenerative braking")
+REGIME_NAMES = ("traction", "cruising", "coasting", "braking", "dwell", "regenerative braking", "following")
 
 # Indices into the scalar parameter vector P.
 P_INERTIAL_MASS = 0  # rho m [kg]

@@ -12,7 +12,7 @@ from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
 from trainsim.physics import electrical as el
-from trainsim.sim.kernel import BRAKE, CRUISE, DWELL, REGEN, REGIME_NAMES, TRACTION
+from trainsim.sim.kernel import BRAKE, CRUISE, DWELL, FOLLOW, REGEN, REGIME_NAMES, TRACTION
 from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear
 
 
@@ -182,6 +182,7 @@ def _regime_forces(
     line: np.ndarray,
     level: np.ndarray | None = None,
     available: np.ndarray | None = None,
+    inertia: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Traction and braking force [N] in each point's regime at speed v; ``level`` is the
     driver's command magnitude (0..1) in traction and braking, 1 for the envelope regimes;
@@ -208,6 +209,12 @@ def _regime_forces(
     is_r = regime == REGEN
     if is_r.any() and train.braking.regenerative is not None:
         braking[is_r] = train.braking.regenerative(v[is_r])
+    is_f = regime == FOLLOW
+    if is_f.any() and inertia is not None:
+        # a prescribed speed profile: whatever force its acceleration needs
+        need = inertia[is_f] + running[is_f] + line[is_f]
+        traction[is_f] = np.maximum(need, 0.0)
+        braking[is_f] = np.maximum(-need, 0.0)
     return traction, braking
 
 
@@ -285,10 +292,15 @@ def build_result(
     grad, curve, tunnel = _line_forces(profile, m, s_right, v)
     line = grad + curve + tunnel
     level = np.ones(n) if level is None else np.asarray(level, dtype=float)
+    # stretch accelerations for prescribed profiles (FOLLOW): constant over each stretch
+    ds_all = np.diff(s)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        acc_stretch = np.where(ds_all > 0, (v[1:] ** 2 - v[:-1] ** 2) / (2 * ds_all), 0.0)
+    inertia_pts = train.inertial_mass_kg * np.concatenate([acc_stretch, [0.0]])
     availability = traction_availability(route, train)
     voltage = line_voltage(route, train)
     traction, braking = _regime_forces(
-        train, settings, regime, v, running, line, level, availability(s_right)
+        train, settings, regime, v, running, line, level, availability(s_right), inertia_pts
     )
     regen_cap = train.braking.regenerative(v) if train.braking.regenerative is not None else np.zeros(n)
     regen = np.minimum(braking, regen_cap)
@@ -307,8 +319,8 @@ def build_result(
     g_mid, c_mid, t_mid = _line_forces(profile, m, mid, np.sqrt(0.5 * (v0**2 + v1**2)))
     line_mid = g_mid + c_mid + t_mid
     avail_mid = availability(mid)
-    f0t, f0b = _regime_forces(train, settings, r, v0, run0, line_mid, level[:-1], avail_mid)
-    f1t, f1b = _regime_forces(train, settings, r, v1, run1, line_mid, level[:-1], avail_mid)
+    f0t, f0b = _regime_forces(train, settings, r, v0, run0, line_mid, level[:-1], avail_mid, inertia_pts[:-1])
+    f1t, f1b = _regime_forces(train, settings, r, v1, run1, line_mid, level[:-1], avail_mid, inertia_pts[:-1])
     w_traction = 0.5 * (f0t + f1t) * ds
     w_braking = 0.5 * (f0b + f1b) * ds
     if train.braking.regenerative is not None:

@@ -13,7 +13,7 @@ from pathlib import Path
 from trainsim.io import trainsim_yaml as tsy
 from trainsim.model.scenario import RunSettings
 
-EXAMPLES_DIR = Path(__file__).parent / "examples"
+EXAMPLES_DIR = Path(__file__).parent / "example_files"
 
 #: example name -> one line saying what it is (shown in the page)
 DESCRIPTIONS: dict[str, str] = {

@@ -1,0 +1,346 @@
+"""Energy-efficient runs to a timetable: one entry point for every strategy.
+
+Strategies (by name, in ``STRATEGIES``):
+
+* ``fastest``: the fastest run (for comparison);
+* ``optimal``: the optimal strategy of optimal train control (``optimal.py``);
+* ``lesov``: source 004's algorithm (``lesov.py``);
+* ``reference``: the direct-transcription optimum with CasADi/IPOPT (``reference.py``).
+
+A line supplement is split between sections with one common price of time mu (equal marginal
+energy per second in every section); per-section schedules are met section by section. When a
+section's schedule is shorter than its fastest run, that section runs fastest and a warning says
+by how much the schedule cannot be met.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import brentq
+
+from trainsim.constants import KMH
+from trainsim.errors import InputError
+from trainsim.model.route import Route, Station
+from trainsim.model.scenario import RunSettings
+from trainsim.model.train import Train
+from trainsim.optimize.optimal import SectionPlan, SectionSolver
+from trainsim.optimize.timetable import Timetable
+from trainsim.sim import kernel
+from trainsim.sim.fastest import run_fastest, stops_of
+from trainsim.sim.profile import line_resistance_profile, speed_ceiling
+from trainsim.sim.result import RunResult, build_result
+
+#: A section's schedule counts as met within max(0.5 s, 0.05 %) (issue 3).
+SCHEDULE_TOLERANCE_S = 0.5
+SCHEDULE_TOLERANCE_FRACTION = 5e-4
+
+
+@dataclass(frozen=True)
+class SwitchingPoint:
+    """Where the driving regime changes: position [m], speed [km/h], time [s], new regime."""
+
+    position_m: float
+    speed_kmh: float
+    time_s: float
+    regime: str
+
+
+@dataclass(frozen=True)
+class OptimizationResult:
+    """An energy-efficient run with its schedule, switching points and savings."""
+
+    strategy: str
+    run: RunResult
+    fastest: RunResult
+    scheduled_running_time_s: tuple[float, ...]
+    schedule_deviation_s: tuple[float, ...]
+    switching_points: tuple[SwitchingPoint, ...]
+    price_of_time_w: tuple[float, ...]
+    warnings: tuple[str, ...] = field(default=())
+
+    @property
+    def energy_saved_kwh(self) -> float:
+        """Net electrical energy saved against the fastest run [kWh]."""
+        return self.fastest.energy_kwh.net - self.run.energy_kwh.net
+
+    def summary(self) -> dict[str, Any]:
+        """The run summary (as ``trainsim run --json``) plus the optimisation's own figures."""
+        out = self.run.summary()
+        out["warnings"] = list(self.warnings) + out["warnings"]
+        out["status"] = "ok" if not self.warnings and out["status"] == "ok" else out["status"]
+        if self.warnings and out["status"] == "ok":
+            out["status"] = "infeasible schedule"
+        out["strategy"] = self.strategy
+        out["scheduled_running_time_s"] = list(self.scheduled_running_time_s)
+        out["schedule_deviation_s"] = list(self.schedule_deviation_s)
+        out["switching_points"] = [dataclasses.asdict(p) for p in self.switching_points]
+        out["price_of_time_w"] = [float(x) if np.isfinite(x) else None for x in self.price_of_time_w]
+        fastest_net = self.fastest.energy_kwh.net
+        out["fastest"] = {
+            "running_time_s": self.fastest.running_time_s,
+            "energy_kwh": dataclasses.asdict(self.fastest.energy_kwh),
+        }
+        out["energy_saved_kwh"] = self.energy_saved_kwh
+        out["energy_saved_percent"] = 100.0 * self.energy_saved_kwh / fastest_net if fastest_net > 0 else None
+        return out
+
+
+def _section_route(route: Route, s0: float, s1: float) -> Route:
+    return dataclasses.replace(route, stations=(Station("from", s0), Station("to", s1)))
+
+
+def switching_points(s: np.ndarray, v: np.ndarray, t: np.ndarray, regime: np.ndarray) -> list[SwitchingPoint]:
+    """Every point where the regime changes (dwell excluded)."""
+    points = []
+    for k in range(len(s)):
+        if regime[k] == kernel.DWELL:
+            continue
+        if k == 0 or regime[k] != regime[k - 1]:
+            points.append(
+                SwitchingPoint(
+                    float(s[k]), float(v[k] / KMH), float(t[k]), kernel.REGIME_NAMES[int(regime[k])]
+                )
+            )
+    return points
+
+
+def _assemble(
+    train: Train,
+    route: Route,
+    settings: RunSettings,
+    plans: list[SectionPlan],
+    kind: str,
+) -> RunResult:
+    stops = route.stops
+    s_all, v_all, t_all, m_all = [], [], [], []
+    t0 = 0.0
+    for k, plan in enumerate(plans):
+        s_all.append(plan.s)
+        v_all.append(plan.v)
+        t_all.append(plan.t + t0)
+        m_all.append(plan.regime)
+        t0 += plan.t[-1] + (stops[k + 1].dwell_s if k + 1 < len(plans) else 0.0)
+    return build_result(
+        train=train,
+        route=route,
+        settings=settings,
+        profile=line_resistance_profile(route, train),
+        ceiling=speed_ceiling(route, train),
+        s=np.concatenate(s_all),
+        v=np.concatenate(v_all),
+        t=np.concatenate(t_all),
+        regime=np.concatenate(m_all).astype(np.int8),
+        status="ok",
+        kind=kind,
+    )
+
+
+def _targets(timetable: Timetable, fastest: list[float]) -> list[float] | None:
+    if timetable.sections:
+        if len(timetable.sections) != len(fastest):
+            raise InputError(
+                "the timetable must give one schedule per section",
+                file=timetable.source or None,
+                field="sections",
+                value=len(timetable.sections),
+                allowed=f"{len(fastest)} (the route's sections between stops)",
+            )
+        return [sched.target_s(f) for sched, f in zip(timetable.sections, fastest, strict=True)]
+    return None
+
+
+def _optimal_plans(solvers: list[SectionSolver], timetable: Timetable) -> tuple[list[SectionPlan], list[str]]:
+    fastest = [sv.fastest_time_s for sv in solvers]
+    targets = _targets(timetable, fastest)
+    warnings: list[str] = []
+    if targets is not None:
+        return [sv.solve(T) for sv, T in zip(solvers, targets, strict=True)], warnings
+    total = timetable.line.target_s(sum(fastest))
+    if total <= sum(fastest) + 1e-6:
+        return [sv.solve(f) for sv, f in zip(solvers, fastest, strict=True)], warnings
+
+    # one holding speed for every section: equal price of time, equal marginal energy per second
+    def excess(log_v: float) -> float:
+        return sum(sv.plan(float(np.exp(log_v))).running_time_s for sv in solvers) - total
+
+    vmax = max(float(sv.track.vlim.max()) for sv in solvers)
+    lo, hi = np.log(0.5), np.log(vmax * 20.0)
+    if excess(hi) > 0:
+        hi = np.log(vmax * 1000.0)
+    log_v = brentq(excess, lo, hi, xtol=1e-12, rtol=1e-12, maxiter=200)
+    return [sv.plan(float(np.exp(log_v))) for sv in solvers], warnings
+
+
+def optimize(
+    train: Train,
+    route: Route,
+    timetable: Timetable,
+    strategy: str = "optimal",
+    settings: RunSettings | None = None,
+) -> OptimizationResult:
+    """The run of ``strategy`` that meets ``timetable`` with least energy (see module doc)."""
+    settings = settings or RunSettings()
+    if strategy not in STRATEGIES:
+        raise InputError("unknown strategy", field="strategy", value=strategy, allowed=", ".join(STRATEGIES))
+    fastest = run_fastest(train, route, settings)
+    if fastest.status != "ok":
+        raise InputError(
+            "the fastest run is not possible: " + "; ".join(fastest.warnings), field="route", value=route.name
+        )
+    return STRATEGIES[strategy](train, route, timetable, settings, fastest)
+
+
+def _result(
+    strategy: str,
+    train: Train,
+    route: Route,
+    settings: RunSettings,
+    fastest: RunResult,
+    plans: list[SectionPlan],
+    targets: list[float],
+    extra_warnings: list[str] | None = None,
+) -> OptimizationResult:
+    run = _assemble(train, route, settings, plans, kind=strategy)
+    deviations = [sec.running_time_s - T for sec, T in zip(run.sections, targets, strict=True)]
+    warnings = list(extra_warnings or [])
+    for k, (sec, T, dev) in enumerate(zip(run.sections, targets, deviations, strict=True)):
+        if dev > max(SCHEDULE_TOLERANCE_S, SCHEDULE_TOLERANCE_FRACTION * T):
+            warnings.append(
+                f"section {k + 1} ({sec.from_station} - {sec.to_station}): the schedule of {T:.1f} s cannot be "
+                f"met; the fastest run takes {sec.running_time_s:.1f} s ({dev:.1f} s late)"
+            )
+    pts = []
+    for plan in plans:
+        pts += switching_points(plan.s, plan.v, plan.t, plan.regime)
+    return OptimizationResult(
+        strategy=strategy,
+        run=run,
+        fastest=fastest,
+        scheduled_running_time_s=tuple(targets),
+        schedule_deviation_s=tuple(deviations),
+        switching_points=tuple(pts),
+        price_of_time_w=tuple(p.price_of_time_w for p in plans),
+        warnings=tuple(warnings),
+    )
+
+
+def _solvers(train: Train, route: Route, settings: RunSettings) -> list[SectionSolver]:
+    stops = stops_of(route)
+    return [SectionSolver(train, route, a, b, settings) for a, b in zip(stops, stops[1:], strict=False)]
+
+
+def _run_optimal(train, route, timetable, settings, fastest) -> OptimizationResult:
+    solvers = _solvers(train, route, settings)
+    plans, warnings = _optimal_plans(solvers, timetable)
+    fastest_s = [sv.fastest_time_s for sv in solvers]
+    targets = _targets(timetable, fastest_s)
+    if targets is None:
+        # a line supplement: each section's target is what the optimal split gave it
+        total = timetable.line.target_s(sum(fastest_s))
+        targets = [p.running_time_s for p in plans] if total > sum(fastest_s) else fastest_s
+        if total < sum(fastest_s) - 1e-6:
+            warnings.append(
+                f"the line schedule of {total:.1f} s is shorter than the fastest run "
+                f"({sum(fastest_s):.1f} s): the fastest run is returned"
+            )
+    return _result("optimal", train, route, settings, fastest, plans, targets, warnings)
+
+
+def _run_lesov(train, route, timetable, settings, fastest) -> OptimizationResult:
+    from trainsim.optimize.lesov import lesov_plans
+
+    solvers = _solvers(train, route, settings)
+    fastest_s = [sv.fastest_time_s for sv in solvers]
+    targets = _targets(timetable, fastest_s) or [
+        timetable.line.target_s(sum(fastest_s)) * f / sum(fastest_s) for f in fastest_s
+    ]
+    plans, warnings = lesov_plans(train, route, solvers, targets, settings)
+    return _result("lesov", train, route, settings, fastest, plans, targets, warnings)
+
+
+def _run_reference(train, route, timetable, settings, fastest) -> OptimizationResult:
+    from trainsim.optimize.reference import solve_reference
+
+    solvers = _solvers(train, route, settings)
+    fastest_s = [sv.fastest_time_s for sv in solvers]
+    targets = _targets(timetable, fastest_s)
+    if targets is None:
+        # the reference splits a line supplement with the optimal strategy's common price of time
+        opt_plans, _ = _optimal_plans(solvers, timetable)
+        targets = [p.running_time_s for p in opt_plans]
+    plans, warnings = [], []
+    for sv, T in zip(solvers, targets, strict=True):
+        if T <= sv.fastest_time_s:
+            plans.append(sv.solve(T))
+            continue
+        ref = solve_reference(train, route, sv.s0, sv.s1, T)
+        if ref.status != "ok":
+            warnings.append(f"reference optimum {sv.s0:.0f}-{sv.s1:.0f} m: IPOPT {ref.status}")
+        t = np.concatenate([[0.0], np.cumsum(2 * np.diff(ref.s) / np.maximum(ref.v[:-1] + ref.v[1:], 1e-12))])
+        regime = np.full(len(ref.s), kernel.FOLLOW, dtype=np.int8)
+        regime[-1] = kernel.DWELL
+        plans.append(
+            SectionPlan(
+                ref.s, ref.v, t, regime, float(t[-1]), np.nan, np.nan, np.nan, sv.fastest_time_s, True
+            )
+        )
+    return _result("reference", train, route, settings, fastest, plans, targets, warnings)
+
+
+STRATEGIES: dict[str, Callable[..., OptimizationResult]] = {
+    "fastest": lambda train, route, timetable, settings, fastest: _fastest_result(
+        train, route, timetable, settings, fastest
+    ),
+    "optimal": _run_optimal,
+    "lesov": _run_lesov,
+    "reference": _run_reference,
+}
+
+
+def _fastest_result(train, route, timetable, settings, fastest) -> OptimizationResult:
+    solvers = _solvers(train, route, settings)
+    fastest_s = [sv.fastest_time_s for sv in solvers]
+    targets = _targets(timetable, fastest_s)
+    if targets is None:
+        total = timetable.line.target_s(sum(fastest_s))
+        targets = [total * f / sum(fastest_s) for f in fastest_s]
+    plans = [sv.solve(0.0) for sv in solvers]
+    return _result("fastest", train, route, settings, fastest, plans, targets, [])
+
+
+def energy_time_curve(
+    train: Train,
+    route: Route,
+    supplements: list[float] | None = None,
+    settings: RunSettings | None = None,
+):
+    """Energy against running time of the optimal strategy for line supplements (fractions),
+    as a pandas DataFrame: supplement_percent, running_time_s, energy_kwh (net), energy_traction_kwh."""
+    import pandas as pd
+
+    from trainsim.optimize.timetable import SectionSchedule
+
+    supplements = (
+        supplements if supplements is not None else [0.0, 0.02, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4]
+    )
+    settings = settings or RunSettings()
+    fastest = run_fastest(train, route, settings)
+    rows = []
+    for x in supplements:
+        res = _run_optimal(
+            train, route, Timetable(line=SectionSchedule(supplement_fraction=x)), settings, fastest
+        )
+        rows.append(
+            {
+                "supplement_percent": 100.0 * x,
+                "running_time_s": res.run.running_time_s,
+                "energy_kwh": res.run.energy_kwh.net,
+                "energy_traction_kwh": res.run.energy_kwh.traction,
+            }
+        )
+    return pd.DataFrame(rows)

@@ -1,0 +1,158 @@
+"""Timetables for energy-efficient driving: what running time each section gets.
+
+A timetable says, for each section between consecutive stops of a route, either its scheduled
+running time, or a running-time supplement over the fastest run (a fraction or seconds), or it
+gives one supplement for the whole line, which is then split between the sections so that every
+section has the same marginal energy per second (the optimal split, Albrecht et al. 2016).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from trainsim.errors import InputError
+
+
+@dataclass(frozen=True)
+class SectionSchedule:
+    """The schedule of one section: exactly one of the three fields is set.
+
+    Attributes:
+        running_time_s: scheduled running time [s].
+        supplement_fraction: supplement over the fastest run as a fraction (0.1 = 10 %) [-].
+        supplement_s: supplement over the fastest run [s].
+    """
+
+    running_time_s: float | None = None
+    supplement_fraction: float | None = None
+    supplement_s: float | None = None
+
+    def target_s(self, fastest_s: float) -> float:
+        """Scheduled running time [s] given the section's fastest running time [s]."""
+        if self.running_time_s is not None:
+            return self.running_time_s
+        if self.supplement_fraction is not None:
+            return fastest_s * (1.0 + self.supplement_fraction)
+        return fastest_s + (self.supplement_s or 0.0)
+
+
+@dataclass(frozen=True)
+class Timetable:
+    """Per-section schedules (one per section, in order), or one line supplement.
+
+    Attributes:
+        sections: one schedule per section between consecutive stops, or empty.
+        line: a supplement for the whole line, split optimally between sections.
+        source: where it came from (file name), for messages.
+    """
+
+    sections: tuple[SectionSchedule, ...] = ()
+    line: SectionSchedule | None = None
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        if (self.line is None) == (not self.sections):
+            raise InputError(
+                "a timetable gives either one schedule per section or one line supplement",
+                file=self.source or None,
+                field="timetable",
+            )
+
+
+def parse_supplement(
+    text: str | float, *, file: str | None = None, field: str = "supplement"
+) -> SectionSchedule:
+    """``"10%"`` or ``0.1``-style fraction given as percent string, or ``"30 s"``, as a schedule."""
+    if isinstance(text, int | float):
+        raise InputError(
+            "give the supplement with its unit", file=file, field=field, value=text, allowed='"10%" or "30 s"'
+        )
+    m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*(%|s|min)\s*", str(text))
+    if not m:
+        raise InputError(
+            "cannot read the supplement", file=file, field=field, value=text, allowed='"10%" or "30 s"'
+        )
+    value, unit = float(m.group(1)), m.group(2)
+    if unit == "%":
+        if not value <= 300:
+            raise InputError("supplement too large", file=file, field=field, value=text, allowed="0 .. 300 %")
+        return SectionSchedule(supplement_fraction=value / 100.0)
+    return SectionSchedule(supplement_s=value * (60.0 if unit == "min" else 1.0))
+
+
+def line_supplement(text: str) -> Timetable:
+    """A timetable with one supplement for the whole line (split optimally)."""
+    return Timetable(line=parse_supplement(text))
+
+
+def read_timetable_yaml(path: str | Path, n_sections: int | None = None) -> Timetable:
+    """Read a ``schema: trainsim/timetable`` file.
+
+    Either ``supplement: "10%"`` for the whole line, or ``sections:`` a list with, per section,
+    ``running_time_s``, ``supplement`` ("8%" / "20 s"), or ``departure_s`` and ``arrival_s``.
+    """
+    file = str(path)
+    try:
+        data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError("file not found", file=file) from None
+    except yaml.YAMLError as exc:
+        line = getattr(getattr(exc, "problem_mark", None), "line", None)
+        raise InputError(
+            f"not valid YAML: {exc}", file=file, line=line + 1 if line is not None else None
+        ) from None
+    if not isinstance(data, dict) or data.get("schema") != "trainsim/timetable":
+        raise InputError("not a trainsim timetable", file=file, field="schema", allowed="trainsim/timetable")
+    if data.get("version") != 1:
+        raise InputError(
+            "unsupported version", file=file, field="version", value=data.get("version"), allowed="1"
+        )
+    unknown = set(data) - {"schema", "version", "name", "description", "supplement", "sections"}
+    if unknown:
+        raise InputError("unknown fields", file=file, field=", ".join(sorted(unknown)))
+    if "supplement" in data and "sections" in data:
+        raise InputError("give either 'supplement' or 'sections', not both", file=file, field="supplement")
+    if "supplement" in data:
+        return Timetable(line=parse_supplement(data["supplement"], file=file), source=file)
+    rows = data.get("sections")
+    if not isinstance(rows, list) or not rows:
+        raise InputError("'sections' must be a non-empty list", file=file, field="sections")
+    if n_sections is not None and len(rows) != n_sections:
+        raise InputError(
+            "one schedule per section is needed",
+            file=file,
+            field="sections",
+            value=len(rows),
+            allowed=f"{n_sections} (the route's sections between stops)",
+        )
+    return Timetable(sections=tuple(_section(row, k, file) for k, row in enumerate(rows)), source=file)
+
+
+def _section(row: Any, k: int, file: str) -> SectionSchedule:
+    field = f"sections[{k}]"
+    if not isinstance(row, dict):
+        raise InputError("expected a mapping", file=file, field=field, value=row)
+    keys = set(row) - {"from", "to"}
+    if keys == {"running_time_s"}:
+        value = row["running_time_s"]
+        if not isinstance(value, int | float) or value <= 0:
+            raise InputError("must be > 0", file=file, field=f"{field}.running_time_s", value=value)
+        return SectionSchedule(running_time_s=float(value))
+    if keys == {"supplement"}:
+        return parse_supplement(row["supplement"], file=file, field=f"{field}.supplement")
+    if keys == {"departure_s", "arrival_s"}:
+        dep, arr = row["departure_s"], row["arrival_s"]
+        if not all(isinstance(x, int | float) for x in (dep, arr)) or arr <= dep:
+            raise InputError("arrival must be after departure", file=file, field=field, value=(dep, arr))
+        return SectionSchedule(running_time_s=float(arr - dep))
+    raise InputError(
+        "a section needs running_time_s, or supplement, or departure_s and arrival_s",
+        file=file,
+        field=field,
+        value=sorted(keys),
+    )

@@ -1,0 +1,62 @@
+"""The same study gives identical results serially, with local processes and on Dask."""
+
+from __future__ import annotations
+
+import pytest
+from batchcases import MIXED, metro_study
+
+from trainsim.batch import read_results, run_study, study_from_dict
+
+
+@pytest.fixture(scope="module")
+def study():
+    return study_from_dict(metro_study(**MIXED), "mixed.yaml")
+
+
+@pytest.fixture(scope="module")
+def serial(study):
+    outcome = run_study(study, None, executor="serial")
+    table = outcome.table()
+    # the reference itself: 18 runs, the 9 with efficiency 1.2 failed, the others ran
+    assert outcome.computed == 18 and outcome.failed == 9
+    status = table.column("status").to_pylist()
+    assert status.count("ok") == 9 and status.count("failed") == 9
+    return table
+
+
+@pytest.fixture(scope="module")
+def dask_cluster():
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        yield cluster
+
+
+def test_processes_identical_to_serial(study, serial, tmp_path):
+    outcome = run_study(study, tmp_path / "out", executor="processes", workers=2, chunk_size=4)
+    assert outcome.chunks == 5 and outcome.failed == 9
+    assert read_results(tmp_path / "out", as_table=True).equals(serial)
+
+
+def test_dask_identical_to_serial(study, serial, dask_cluster, tmp_path):
+    # by scheduler address, as `trainsim batch --scheduler ADDRESS`
+    outcome = run_study(study, tmp_path / "out", scheduler=dask_cluster.scheduler_address, chunk_size=4)
+    assert outcome.executor == "dask" and outcome.computed == 18
+    assert read_results(tmp_path / "out", as_table=True).equals(serial)
+    # both workers took part
+    from distributed import Client
+
+    with Client(dask_cluster) as client:
+        assert len(client.scheduler_info()["workers"]) == 2
+        memory = run_study(study, None, scheduler=client, chunk_size=3)
+    assert memory.table().equals(serial)
+
+
+def test_memory_and_parquet_identical(study, serial, tmp_path):
+    run_study(study, tmp_path / "out", executor="serial", chunk_size=5)
+    table = read_results(tmp_path / "out", as_table=True)
+    assert table.equals(serial)
+    df = read_results(tmp_path / "out")
+    assert list(df["run_index"]) == list(range(18))
+    assert df.loc[df.status == "ok", "energy_net_kwh"].gt(0).all()
