@@ -77,8 +77,10 @@ def main() -> None:
     study.expand()
     expand_s = time.perf_counter() - t0
     run_study(make_study(50), None, executor="serial")  # warm-up: numba cache in this process
-    print(f"metro Monte Carlo, {args.runs} fastest runs; {default_workers()} cores available; "
-          f"expansion {expand_s * 1e3:.0f} ms (not counted)")  # fmt: skip
+    print(
+        f"metro Monte Carlo, {args.runs} fastest runs; {default_workers()} cores available; "
+        f"expansion {expand_s * 1e3:.0f} ms (not counted)"
+    )
     print(f"{'executor':10s} {'workers':>7s} {'wall s':>8s} {'runs/s':>8s} {'chunk':>6s} {'chunks':>6s}")
     rates: dict[tuple[str, int], float] = {}
     cases = [("serial", 1), ("processes", 1), ("processes", 2)]
@@ -89,8 +91,10 @@ def main() -> None:
         rates[(executor, workers)] = rate
         print(f"{executor:10s} {workers:7d} {wall:8.2f} {rate:8.0f} {chunk:6d} {chunks:6d}")
     one, two = rates[("processes", 1)], rates[("processes", 2)]
-    print(f"processes: {two:.0f} runs/s on 2 workers (target >= 500), scaling 1 -> 2 workers "
-          f"x{two / one:.2f}, parallel efficiency {two / (2 * one):.0%} (target > 80 %)")  # fmt: skip
+    print(
+        f"processes: {two:.0f} runs/s on 2 workers (target >= 500), scaling 1 -> 2 workers "
+        f"x{two / one:.2f}, parallel efficiency {two / (2 * one):.0%} (target > 80 %)"
+    )
     if args.dask:
         d1, d2 = rates[("dask", 1)], rates[("dask", 2)]
         print(f"dask (local cluster start-up included): x{d2 / d1:.2f}, efficiency {d2 / (2 * d1):.0%}")

@@ -253,3 +253,13 @@ def analyze_acceleration(
 
 if __name__ == "__main__":  # pragma: no cover
     app()
+
+
+def _register_extensions() -> None:
+    """Commands that live in their own modules (each a thin layer over its part of the API)."""
+    from trainsim.cli_optimize import optimize
+
+    app.command("optimize")(optimize)
+
+
+_register_extensions()

@@ -58,7 +58,9 @@ def batch(
     ] = False,
     executor: Annotated[
         Executor | None,
-        typer.Option("--executor", help="serial, processes (default) or dask (a local cluster without --scheduler)."),
+        typer.Option(
+            "--executor", help="serial, processes (default) or dask (a local cluster without --scheduler)."
+        ),
     ] = None,
     chunk_size: Annotated[
         int | None, typer.Option("--chunk-size", min=1, help="Runs per task (default: automatic, 10-200).")
@@ -107,11 +109,15 @@ def batch(
         where = f"{exc.filename}: " if exc.filename else ""
         raise _fail(f"{where}{exc.strerror or exc}") from None
     except KeyboardInterrupt:
-        typer.echo(f"interrupted: the runs written so far are in {out_dir}; run the same command again "
-                   "to resume", err=True)  # fmt: skip
+        typer.echo(
+            f"interrupted: the runs written so far are in {out_dir}; run the same command again to resume",
+            err=True,
+        )
         raise typer.Exit(code=INTERRUPTED) from None
     where = f"{outcome.executor}" + (f" x{outcome.workers}" if outcome.executor == "processes" else "")
-    speed = f"; {outcome.elapsed_s:.1f} s, {outcome.runs_per_s:.0f} runs/s on {where}" if outcome.computed else ""
+    speed = (
+        f"; {outcome.elapsed_s:.1f} s, {outcome.runs_per_s:.0f} runs/s on {where}" if outcome.computed else ""
+    )
     typer.echo(
         f"{outcome.study}: {outcome.runs} runs ({outcome.computed} computed, {outcome.already_done} "
         f"already done), {outcome.failed} failed, {outcome.stalled} stalled{speed}"

@@ -67,20 +67,38 @@ def _user_errors() -> Iterator[None]:
 
 
 TrainId = Annotated[
-    str | None, typer.Option("--train-id", help="railML: the timetable train (id, number or name) whose path is the route.")
+    str | None,
+    typer.Option(
+        "--train-id", help="railML: the timetable train (id, number or name) whose path is the route."
+    ),
 ]
 FormationId = Annotated[str | None, typer.Option("--formation-id", help="railML: the formation to read.")]
 Ocps = Annotated[
     str | None,
-    typer.Option("--ocps", help="railML: the operational points of the route, comma-separated ids or names (instead of a timetable)."),
+    typer.Option(
+        "--ocps",
+        help="railML: the operational points of the route, comma-separated ids or names (instead of a timetable).",
+    ),
 ]
-Curve = Annotated[CurveFormula | None, typer.Option("--curve-formula", help="Curve resistance formula of the route.")]
-Tunnel = Annotated[TunnelFormula | None, typer.Option("--tunnel-formula", help="Tunnel resistance formula of the route.")]
-Gradient = Annotated[GradientFormula | None, typer.Option("--gradient-formula", help="Gradient resistance: small_angle or exact.")]
-Over = Annotated[ApplyOver | None, typer.Option("--apply-over", help="Line resistance at the head or over the train length.")]
+Curve = Annotated[
+    CurveFormula | None, typer.Option("--curve-formula", help="Curve resistance formula of the route.")
+]
+Tunnel = Annotated[
+    TunnelFormula | None, typer.Option("--tunnel-formula", help="Tunnel resistance formula of the route.")
+]
+Gradient = Annotated[
+    GradientFormula | None,
+    typer.Option("--gradient-formula", help="Gradient resistance: small_angle or exact."),
+]
+Over = Annotated[
+    ApplyOver | None,
+    typer.Option("--apply-over", help="Line resistance at the head or over the train length."),
+]
 Rho = Annotated[
     float | None,
-    typer.Option("--rotating-mass-factor", help="railML: the train's rotating mass factor when the vehicles give none."),
+    typer.Option(
+        "--rotating-mass-factor", help="railML: the train's rotating mass factor when the vehicles give none."
+    ),
 ]
 
 
@@ -108,9 +126,16 @@ def _options(
 
 
 def convert(
-    inp: Annotated[Path, typer.Argument(help="railML 2/3, a workbook or CSV folder, trainsim or railtoolkit YAML.")],
+    inp: Annotated[
+        Path, typer.Argument(help="railML 2/3, a workbook or CSV folder, trainsim or railtoolkit YAML.")
+    ],
     out: Annotated[Path, typer.Argument(help="The trainsim YAML file to write.")],
-    kind: Annotated[Kind | None, typer.Option("--kind", help="What to write (default: scenario if the input has a train and a route).")] = None,
+    kind: Annotated[
+        Kind | None,
+        typer.Option(
+            "--kind", help="What to write (default: scenario if the input has a train and a route)."
+        ),
+    ] = None,
     train_id: TrainId = None,
     formation_id: FormationId = None,
     ocps: Ocps = None,
@@ -126,7 +151,16 @@ def convert(
     with _user_errors():
         if not inp.exists():
             raise InputError("input not found", file=str(inp))
-        options = _options(train_id, formation_id, ocps, curve_formula, tunnel_formula, gradient_formula, apply_over, rotating_mass_factor)
+        options = _options(
+            train_id,
+            formation_id,
+            ocps,
+            curve_formula,
+            tunnel_formula,
+            gradient_formula,
+            apply_over,
+            rotating_mass_factor,
+        )
         path, notes = conv.convert(inp, out, kind=kind.value if kind else None, **options)
     for note in notes:
         typer.echo(f"note: {note}")
@@ -134,7 +168,12 @@ def convert(
 
 
 def check(
-    file: Annotated[Path, typer.Argument(help="Train, route or scenario file, any supported format (railML, spreadsheets too).")],
+    file: Annotated[
+        Path,
+        typer.Argument(
+            help="Train, route or scenario file, any supported format (railML, spreadsheets too)."
+        ),
+    ],
     train_id: TrainId = None,
     formation_id: FormationId = None,
     ocps: Ocps = None,
@@ -151,11 +190,24 @@ def check(
     with _user_errors():
         if not file.exists():
             raise InputError("file not found", file=str(file))
-        options = _options(train_id, formation_id, ocps, curve_formula, tunnel_formula, gradient_formula, apply_over, rotating_mass_factor)
+        options = _options(
+            train_id,
+            formation_id,
+            ocps,
+            curve_formula,
+            tunnel_formula,
+            gradient_formula,
+            apply_over,
+            rotating_mass_factor,
+        )
         report = conv.check_file(file, **options)
         if report is None:
             if options:
-                raise InputError("these options apply to railML and spreadsheet files", file=str(file), field=next(iter(options)))
+                raise InputError(
+                    "these options apply to railML and spreadsheet files",
+                    file=str(file),
+                    field=next(iter(options)),
+                )
             report = loader.check_file(file)
     typer.echo(report.to_text())
 
@@ -181,9 +233,13 @@ def _scenario(inputs: list[Path], options: dict[str, Any]) -> Any:
 
 
 def export_results(
-    inputs: Annotated[list[Path], typer.Argument(help="A scenario (any format), or a train file and a route file.")],
+    inputs: Annotated[
+        list[Path], typer.Argument(help="A scenario (any format), or a train file and a route file.")
+    ],
     out: Annotated[Path, typer.Option("--out", "-o", help="Directory for trace.* and summary.*.")],
-    formats: Annotated[str, typer.Option("--format", help="Comma-separated: csv, parquet, json.")] = "csv,parquet,json",
+    formats: Annotated[
+        str, typer.Option("--format", help="Comma-separated: csv, parquet, json.")
+    ] = "csv,parquet,json",
     train_id: TrainId = None,
     formation_id: FormationId = None,
     ocps: Ocps = None,
@@ -201,8 +257,19 @@ def export_results(
         chosen = [f.strip().lower() for f in formats.split(",") if f.strip()]
         for f in chosen:
             if f not in results_export.FORMATS:
-                raise InputError("unknown format", field="--format", value=f, allowed=", ".join(results_export.FORMATS))
-        options = _options(train_id, formation_id, ocps, curve_formula, tunnel_formula, gradient_formula, apply_over, rotating_mass_factor)
+                raise InputError(
+                    "unknown format", field="--format", value=f, allowed=", ".join(results_export.FORMATS)
+                )
+        options = _options(
+            train_id,
+            formation_id,
+            ocps,
+            curve_formula,
+            tunnel_formula,
+            gradient_formula,
+            apply_over,
+            rotating_mass_factor,
+        )
         scenario = _scenario(inputs, options)
         result = trainsim.run(scenario)
         written = results_export.write_results(result, out, chosen)
@@ -212,7 +279,9 @@ def export_results(
 
 
 def runtimes(
-    railml: Annotated[Path, typer.Argument(help="railML 2 or 3 file with infrastructure, rolling stock and a timetable.")],
+    railml: Annotated[
+        Path, typer.Argument(help="railML 2 or 3 file with infrastructure, rolling stock and a timetable.")
+    ],
     out: Annotated[Path, typer.Argument(help="The railML file to write (a copy with the running times).")],
     train_id: TrainId = None,
     formation_id: FormationId = None,
@@ -221,7 +290,9 @@ def runtimes(
     gradient_formula: Gradient = None,
     apply_over: Over = None,
     rotating_mass_factor: Rho = None,
-    train: Annotated[Path | None, typer.Option("--train", help="Run another train (any format) on the timetable's path.")] = None,
+    train: Annotated[
+        Path | None, typer.Option("--train", help="Run another train (any format) on the timetable's path.")
+    ] = None,
 ) -> None:
     """Run the fastest run of a railML timetable train and write its running times back into the timetable
     (runTimes@minimalTime and times@scope='calculated')."""
@@ -233,7 +304,16 @@ def runtimes(
     with _user_errors():
         if not railml.exists():
             raise InputError("input not found", file=str(railml))
-        options = _options(train_id, formation_id, None, curve_formula, tunnel_formula, gradient_formula, apply_over, rotating_mass_factor)
+        options = _options(
+            train_id,
+            formation_id,
+            None,
+            curve_formula,
+            tunnel_formula,
+            gradient_formula,
+            apply_over,
+            rotating_mass_factor,
+        )
         route = conv.detect_and_load(railml, "route", **options)
         if route is None:
             raise InputError("not a railML file", file=str(railml))

@@ -315,6 +315,24 @@ def plot_effort_resistance(train: Train, *, gradients_permille: Sequence[float] 
     return fig
 
 
+def plot_energy_time_curve(table, title: str = "") -> Figure:
+    """Energy drawn from the line against running time, from ``energy_time_curve``'s table."""
+    fig = Figure(figsize=(8, 5), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot(table["running_time_s"], table["energy_kwh"], "o-", label="optimal strategy (net, from the line)")
+    for _, row in table.iterrows():
+        ax.annotate(f"{row['supplement_percent']:.0f} %", (row["running_time_s"], row["energy_kwh"]),
+                    textcoords="offset points", xytext=(4, 4), fontsize=8)  # fmt: skip
+    ax.set_xlabel("running time [s]")
+    ax.set_ylabel("energy [kWh]")
+    import textwrap
+
+    ax.set_title("\n".join(["Energy against running time", *textwrap.wrap(title, width=80)]))
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    return fig
+
+
 def plot_acceleration_analysis(analysis: AccelerationAnalysis) -> Figure:
     """Source 001's two plots side by side: available power P_available(v) [kW] and the speed gained
     in one time step dv(v) [m/s], both over speed [km/h], with the balancing speed marked."""

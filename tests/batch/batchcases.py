@@ -6,7 +6,6 @@ import copy
 from pathlib import Path
 from typing import Any
 
-
 REPO = Path(__file__).resolve().parents[2]
 METRO = REPO / "examples" / "metro_b"
 
@@ -39,7 +38,12 @@ MIXED = {
         "count": 3,
         "seed": 11,
         "fields": {
-            "train.formation[0].mass_t": {"distribution": "normal", "mean": 1.0, "std": 0.02, "relative": True},
+            "train.formation[0].mass_t": {
+                "distribution": "normal",
+                "mean": 1.0,
+                "std": 0.02,
+                "relative": True,
+            },
             "train.electrical.line_voltage_v": {"distribution": "uniform", "low": 900, "high": 1100},
         },
     },

@@ -52,9 +52,13 @@ def test_user_errors_exit_2(write_study, tmp_path):
 
 def test_timetable_report(write_study, tmp_path):
     study = write_study(
-        metro_study(runs=[{"name": "all stops", "departures": {"first": "07:00", "last": "08:00", "every_min": 15}},
-                          {"name": "express", "stops": ["S1", "S3", "S4"], "departures": ["07:05", "07:35"]}])
-    )  # fmt: skip
+        metro_study(
+            runs=[
+                {"name": "all stops", "departures": {"first": "07:00", "last": "08:00", "every_min": 15}},
+                {"name": "express", "stops": ["S1", "S3", "S4"], "departures": ["07:05", "07:35"]},
+            ]
+        )
+    )
     out = tmp_path / "out"
     result = runner.invoke(app, [str(study), "--out", str(out), "--executor", "serial", "--report"])
     assert result.exit_code == 0, result.output

@@ -60,7 +60,7 @@ def test_missing_mapping_keys_are_created_list_items_never():
         set_value(d, "train.formation[2].load_t", 1)
     with pytest.raises(InputError, match="not a list"):
         set_value(d, "train[0]", 1)
-    with pytest.raises(InputError, match="no item of 'route.stations' has name = S9"):
+    with pytest.raises(InputError, match=r"no item of 'route\.stations' has name = S9"):
         set_value(d, "route.stations[name=S9].dwell_s", 1)
     with pytest.raises(InputError, match="no field"):
         get_values(d, "train.electrical.line_voltage_v")

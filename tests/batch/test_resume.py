@@ -44,8 +44,17 @@ def _assert_exactly_once(out: Path, expected_ids: list[str]) -> None:
 def test_sigkill_mid_study_then_resume(write_study, tmp_path):
     study_file = write_study(KILL_STUDY)
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "trainsim.batch", str(study_file), "--out", str(out), "--workers", "2",
-           "--no-progress"]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "trainsim.batch",
+        str(study_file),
+        "--out",
+        str(out),
+        "--workers",
+        "2",
+        "--no-progress",
+    ]
     # a session of its own: SIGKILL goes to the study and its worker processes, as when a job is killed
     proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
@@ -75,7 +84,9 @@ def test_sigkill_mid_study_then_resume(write_study, tmp_path):
 @pytest.fixture
 def small():
     return study_from_dict(
-        metro_study(axes=[{"field": "train.formation[*].load_t", "values": list(range(0, 20, 2))}], chunk_size=3),
+        metro_study(
+            axes=[{"field": "train.formation[*].load_t", "values": list(range(0, 20, 2))}], chunk_size=3
+        ),
         "small.yaml",
     )
 
@@ -100,7 +111,9 @@ def test_lost_parts_are_computed_again_and_only_they(small, tmp_path):
 def test_another_study_in_the_same_output_is_refused(small, tmp_path):
     out = tmp_path / "out"
     run_study(small, out, executor="serial")
-    other = study_from_dict(metro_study(axes=[{"field": "train.formation[*].load_t", "values": [0, 1]}]), "o.yaml")
+    other = study_from_dict(
+        metro_study(axes=[{"field": "train.formation[*].load_t", "values": [0, 1]}]), "o.yaml"
+    )
     with pytest.raises(InputError, match="results of another study"):
         run_study(other, out, executor="serial")
     restarted = run_study(other, out, executor="serial", restart=True)

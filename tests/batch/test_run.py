@@ -16,10 +16,13 @@ def test_failed_runs_are_rows_and_never_stop_the_study():
         metro_study(
             axes=[
                 # a whole list as a value: level, or a 150 per mille climb from 2 km on
-                {"field": "route.gradients", "values": [
-                    [{"from_m": 0, "gradient_permille": 0}],
-                    [{"from_m": 0, "gradient_permille": 0}, {"from_m": 2000, "gradient_permille": 150}],
-                ]},  # fmt: skip
+                {
+                    "field": "route.gradients",
+                    "values": [
+                        [{"from_m": 0, "gradient_permille": 0}],
+                        [{"from_m": 0, "gradient_permille": 0}, {"from_m": 2000, "gradient_permille": 150}],
+                    ],
+                },
                 {"field": "dwell_s.S2", "values": [10, -5]},
                 {"field": "train.electrical.traction_efficiency", "values": [0.9, 1.5]},
             ]
@@ -35,15 +38,21 @@ def test_failed_runs_are_rows_and_never_stop_the_study():
     assert df.error[2] == "run 2, field 'dwell_s.S2': invalid dwell time (got -5); allowed: >= 0 s."
     assert set(df.error_type.dropna()) == {"InputError"}
     assert df.energy_net_kwh[1] != df.energy_net_kwh[1]  # NaN: a failed run has no figures
-    assert "the train stalls at" in df.warnings[4] and 2000 < df.distance_m[4] < 4000  # momentum carries it up
+    assert (
+        "the train stalls at" in df.warnings[4] and 2000 < df.distance_m[4] < 4000
+    )  # momentum carries it up
     assert df["route.gradients"][0] == '[{"from_m": 0, "gradient_permille": 0}]'  # stored as JSON
     assert df.sections[1] is None or len(df.sections[1]) == 0
 
 
 def test_rows_match_single_runs():
     study = study_from_dict(
-        metro_study(axes=[{"field": "train.formation[*].load_t", "values": [0, 12]},
-                          {"field": "dwell_s.S3", "values": [20]}]),  # fmt: skip
+        metro_study(
+            axes=[
+                {"field": "train.formation[*].load_t", "values": [0, 12]},
+                {"field": "dwell_s.S3", "values": [20]},
+            ]
+        ),
         "s.yaml",
     )
     df = run_study(study, None, executor="serial").results()
@@ -69,8 +78,12 @@ def test_rows_match_single_runs():
 
 def test_timetable_rows_have_clock_times():
     study = study_from_dict(
-        metro_study(runs=[{"name": "a", "departures": ["07:00", "07:10"]},
-                          {"name": "b", "departure": "08:00", "stops": ["S1", "S4"]}]),  # fmt: skip
+        metro_study(
+            runs=[
+                {"name": "a", "departures": ["07:00", "07:10"]},
+                {"name": "b", "departure": "08:00", "stops": ["S1", "S4"]},
+            ]
+        ),
         "s.yaml",
     )
     df = run_study(study, None, executor="serial").results()

@@ -459,3 +459,23 @@ def test_a_registered_strategy_runs_with_validated_params(metro: TestClient) -> 
         assert r.status_code == 422 and _fields(r) == ["params.braking_share"]
     finally:
         strategies.unregister("gentle")
+
+
+def test_energy_efficient_strategy_meets_the_supplement_with_less_energy(metro: TestClient) -> None:
+    if strategies.get("energy_efficient") is None:
+        pytest.skip("the optimizer is not available")
+    fastest = metro.post("/api/runs", json={}).json()
+    r = metro.post("/api/runs", json={"strategy": "energy_efficient", "params": {"supplement_percent": 10}})
+    assert r.status_code == 201, r.text
+    eco = r.json()
+    assert eco["running_time_s"] == pytest.approx(1.1 * fastest["running_time_s"], abs=0.5)
+    assert eco["energy_net_kwh"] < fastest["energy_net_kwh"]
+    timed = metro.post(
+        "/api/runs",
+        json={"strategy": "energy_efficient", "params": {"section_running_times_s": [110, 100, 95]}},
+    ).json()
+    assert [s["running_time_s"] for s in timed["summary"]["sections"]] == pytest.approx(
+        [110, 100, 95], abs=0.5
+    )
+    r = metro.post("/api/runs", json={"strategy": "energy_efficient", "params": {"supplement_percent": -5}})
+    assert r.status_code == 422 and _fields(r) == ["params.supplement_percent"]

@@ -40,7 +40,9 @@ def _json_default(obj: Any) -> Any:
 
 def run_id(params: dict[str, Any]) -> str:
     """Stable id of a run: SHA-256 of its parameters as canonical JSON, 24 hex digits."""
-    text = json.dumps(params, sort_keys=True, separators=(",", ":"), ensure_ascii=False, default=_json_default)
+    text = json.dumps(
+        params, sort_keys=True, separators=(",", ":"), ensure_ascii=False, default=_json_default
+    )
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 

@@ -69,8 +69,7 @@ def _bad(text: str, why: str) -> InputError:
     return InputError(
         f"invalid field path: {why}",
         value=text,
-        allowed="keys separated by '.', list items as [2], [*] or [name=S2], "
-        "e.g. train.formation[1].load_t",
+        allowed="keys separated by '.', list items as [2], [*] or [name=S2], e.g. train.formation[1].load_t",
     )
 
 

@@ -61,7 +61,7 @@ def _slug(name: str) -> str:
 
 
 def _clock(seconds: float) -> str:
-    s = int(round(seconds))
+    s = round(seconds)
     return f"{s // 3600:02d}:{s % 3600 // 60:02d}:{s % 60:02d}"
 
 
@@ -138,7 +138,9 @@ def _plot_by_parameter(ok, x: str, group: str | None, path: Path) -> Any:
     for ax, (metric, label) in zip(axes, PLOTTED, strict=True):
         for key, sub in groups:
             mean = sub.groupby(x, sort=True)[metric].mean()
-            ax.plot(mean.index, mean.to_numpy(), marker="o", label=None if key is None else f"{group} = {key}")
+            ax.plot(
+                mean.index, mean.to_numpy(), marker="o", label=None if key is None else f"{group} = {key}"
+            )
         ax.set_xlabel(x)
         ax.set_ylabel(label + (" (mean)" if len(ok) > ok[x].nunique() * max(1, len(groups)) else ""))
         ax.grid(True, alpha=0.3)
@@ -194,8 +196,9 @@ def _plot_timetable(ok, path: Path) -> None:
     colours = {n: f"C{k % 10}" for k, n in enumerate(names)}
     for name in names:
         sub = ok if name is None else ok[ok["run"] == name]
-        ax_e.plot(sub["departure_s"] / 3600.0, sub["energy_net_kwh"], "o", ms=3, color=colours[name],
-                  label=name)  # fmt: skip
+        ax_e.plot(
+            sub["departure_s"] / 3600.0, sub["energy_net_kwh"], "o", ms=3, color=colours[name], label=name
+        )
         window = sub[(sub["arrival_s"] > start) & (sub["departure_s"] < end)]
         for _, row in window.iterrows():
             # train graph: clock time against distance run, station stops as horizontal steps
@@ -226,7 +229,9 @@ def write_report(out: str | Path, directory: str | Path | None = None) -> Report
     out = Path(out)
     meta_path = out / META_FILE
     if not meta_path.exists():
-        raise InputError("no study results here", file=str(out), allowed="an output directory of trainsim batch")
+        raise InputError(
+            "no study results here", file=str(out), allowed="an output directory of trainsim batch"
+        )
     meta = json.loads(meta_path.read_text())
     df = read_results(out)
     rep = Report(Path(directory) if directory is not None else out / "report")
@@ -238,9 +243,13 @@ def write_report(out: str | Path, directory: str | Path | None = None) -> Report
     missing = total - len(df)
     ok = df[df["status"].isin(["ok", "stalled"])] if len(df) else df
     md: list[str] = [f"# {meta.get('study', 'study')}", ""]
-    md.append(f"{len(df)} of {total} runs written" + (f" ({missing} not computed yet)" if missing else "") + ".")
+    md.append(
+        f"{len(df)} of {total} runs written" + (f" ({missing} not computed yet)" if missing else "") + "."
+    )
     md.append("")
-    md.append(_markdown_table(pd.DataFrame({"status": list(rep.status_counts), "runs": list(counts.values())})))
+    md.append(
+        _markdown_table(pd.DataFrame({"status": list(rep.status_counts), "runs": list(counts.values())}))
+    )
     md.append("")
 
     rep.statistics = _statistics(ok) if len(ok) else pd.DataFrame()
@@ -268,7 +277,9 @@ def write_report(out: str | Path, directory: str | Path | None = None) -> Report
                 csv = rep.directory / f"energy_net_kwh_by_{_slug(x)}.csv"
                 pivot.to_csv(csv)
                 rep.files += [png, csv]
-                what = f"net energy and running time against {x}" + (f", one line per {group}" if group else "")
+                what = f"net energy and running time against {x}" + (
+                    f", one line per {group}" if group else ""
+                )
                 figures.append((png, what))
             else:
                 png = rep.directory / f"scatter_{_slug(x)}.png"
@@ -286,8 +297,11 @@ def write_report(out: str | Path, directory: str | Path | None = None) -> Report
             rep.files.append(png)
             figures.append((png, "net energy by departure and train graph"))
             first, last = ok["departure_s"].min(), ok["arrival_s"].max()
-            md += [f"Timetable: first departure {_clock(first)}, last arrival {_clock(last)}, "
-                   f"{ok['energy_net_kwh'].sum():.1f} kWh net energy in all.", ""]  # fmt: skip
+            md += [
+                f"Timetable: first departure {_clock(first)}, last arrival {_clock(last)}, "
+                f"{ok['energy_net_kwh'].sum():.1f} kWh net energy in all.",
+                "",
+            ]
     if "run" in params and len(ok):
         by_run = ok.groupby("run", sort=False).agg(
             runs=("run_id", "size"),
@@ -300,8 +314,12 @@ def write_report(out: str | Path, directory: str | Path | None = None) -> Report
         run_csv = rep.directory / "by_run.csv"
         by_run.to_csv(run_csv)
         rep.files.append(run_csv)
-        md += ["## By run (means; energy_net_kwh_all: sum over the run's departures)", "",
-               _markdown_table(by_run.reset_index()), ""]  # fmt: skip
+        md += [
+            "## By run (means; energy_net_kwh_all: sum over the run's departures)",
+            "",
+            _markdown_table(by_run.reset_index()),
+            "",
+        ]
     if figures:
         md += ["## Plots", ""]
         for png, what in figures:

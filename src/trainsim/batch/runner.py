@@ -185,7 +185,9 @@ def run_study(
     if scheduler is not None:
         executor = "dask"
     if executor not in ("serial", "processes", "dask"):
-        raise InputError("unknown executor", field="executor", value=executor, allowed="serial, processes, dask")
+        raise InputError(
+            "unknown executor", field="executor", value=executor, allowed="serial, processes, dask"
+        )
     if workers is not None and workers < 1:
         raise InputError("at least one worker is needed", field="workers", value=workers, allowed=">= 1")
     expansion = study.expand()

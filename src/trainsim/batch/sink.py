@@ -75,13 +75,18 @@ def _param_type(values: list[Any]) -> tuple[pa.DataType, Any]:
 
 def result_schema(expansion: Expansion) -> tuple[pa.Schema, dict[str, Any]]:
     """The Arrow schema of the study's rows and the value conversion of each parameter column."""
-    fields = [pa.field("run_index", pa.int64(), nullable=False), pa.field("run_id", pa.string(), nullable=False)]
+    fields = [
+        pa.field("run_index", pa.int64(), nullable=False),
+        pa.field("run_id", pa.string(), nullable=False),
+    ]
     convert: dict[str, Any] = {}
     for col in expansion.columns:
         kind, conv = _param_type(expansion.values[col.name])
         fields.append(pa.field(col.name, kind))
         convert[col.name] = conv
-    fields += [pa.field(n, pa.string()) for n in ("status", "error_type", "error", "warnings", "train", "route")]
+    fields += [
+        pa.field(n, pa.string()) for n in ("status", "error_type", "error", "warnings", "train", "route")
+    ]
     fields += [pa.field(n, pa.float64()) for n in METRICS]
     if any(c.name == "departure_s" for c in expansion.columns):
         fields.append(pa.field("arrival_s", pa.float64()))
@@ -164,8 +169,9 @@ class ParquetSink:
             try:
                 meta = json.loads(meta_path.read_text())
             except (OSError, ValueError) as exc:
-                raise InputError(f"unreadable {META_FILE} ({exc}); use --restart to start again",
-                                 file=str(meta_path)) from None  # fmt: skip
+                raise InputError(
+                    f"unreadable {META_FILE} ({exc}); use --restart to start again", file=str(meta_path)
+                ) from None
             if meta.get("format") != _FORMAT:
                 raise InputError("not a trainsim study output", file=str(meta_path))
             if meta.get("fingerprint") != self.expansion.fingerprint:
@@ -195,8 +201,9 @@ class ParquetSink:
             try:
                 column = pq.read_table(part, columns=["run_id"]).column("run_id")
             except (OSError, pa.ArrowException) as exc:
-                raise InputError(f"unreadable result file ({exc}); delete it to compute its runs again",
-                                 file=str(part)) from None  # fmt: skip
+                raise InputError(
+                    f"unreadable result file ({exc}); delete it to compute its runs again", file=str(part)
+                ) from None
             ids.update(column.to_pylist())
         return ids
 
@@ -227,7 +234,9 @@ def read_results(out: str | Path, *, as_table: bool = False):
     run, sorted by ``run_index``. Works on an unfinished study too (the runs written so far)."""
     directory = Path(out) / RESULTS_DIR
     if not directory.is_dir():
-        raise InputError("no study results here", file=str(out), allowed="an output directory of trainsim batch")
+        raise InputError(
+            "no study results here", file=str(out), allowed="an output directory of trainsim batch"
+        )
     parts = sorted(directory.glob("part-*.parquet"))
     if not parts:
         table = pa.table({"run_index": pa.array([], pa.int64()), "run_id": pa.array([], pa.string())})

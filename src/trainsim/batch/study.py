@@ -85,7 +85,7 @@ class RangeSpec(_Model):
             n = math.floor((self.to - self.from_) / step + 1e-9)
             out = [self.from_ + k * step for k in range(n + 1)]
         # 0.1 + 2 * 0.05 is 0.20000000000000004: values are rounded to 12 significant digits
-        return [int(round(x)) if ints else float(f"{x:.12g}") for x in out]
+        return [round(x) if ints else float(f"{x:.12g}") for x in out]
 
 
 class AxisSpec(_Model):
@@ -109,8 +109,7 @@ class AxisSpec(_Model):
             for k, v in enumerate(self.values or []):
                 if not isinstance(v, list) or len(v) != len(self.fields):
                     raise ValueError(
-                        f"values[{k}] must be a list of {len(self.fields)} values, one per field "
-                        f"(got {v!r})"
+                        f"values[{k}] must be a list of {len(self.fields)} values, one per field (got {v!r})"
                     )
         return self
 
@@ -176,9 +175,9 @@ class DistributionSpec(_Model):
                 raise ValueError("'weights' needs one weight per value")
             if sum(self.weights) <= 0:
                 raise ValueError("the weights must not all be 0")
-        if self.relative and self.distribution == "choice":
-            if not all(isinstance(v, int | float) and not isinstance(v, bool) for v in self.values or []):
-                raise ValueError("relative choices must be numbers (factors)")
+        numbers = all(isinstance(v, int | float) and not isinstance(v, bool) for v in self.values or [])
+        if self.relative and self.distribution == "choice" and not numbers:
+            raise ValueError("relative choices must be numbers (factors)")
         return self
 
 
@@ -411,7 +410,9 @@ class Study:
             path = FsPath(base)
             path = path if path.is_absolute() else self.base_dir / path
             if not path.exists():
-                raise InputError("base scenario file not found", file=self.file, field="base", value=str(path))
+                raise InputError(
+                    "base scenario file not found", file=self.file, field="base", value=str(path)
+                )
             detected = loader.detect_format(path)
             if detected.kind != "scenario":
                 raise InputError(
@@ -445,8 +446,9 @@ class Study:
         for i, run in enumerate(self.spec.runs):
             where = f"runs[{i}]"
             if run.name in names:
-                raise InputError("two runs have the same name", file=self.file, field=f"{where}.name",
-                                 value=run.name)  # fmt: skip
+                raise InputError(
+                    "two runs have the same name", file=self.file, field=f"{where}.name", value=run.name
+                )
             names.add(run.name)
             data = copy.deepcopy(base) if base is not None else {"schema": "trainsim/scenario", "version": 1}
             data["name"] = run.name
@@ -481,8 +483,12 @@ class Study:
                 first = parse_clock(d.first, field=f"{where}.departures.first", file=self.file)
                 last = parse_clock(d.last, field=f"{where}.departures.last", file=self.file)
                 if last < first:
-                    raise InputError("the last departure is before the first", file=self.file,
-                                     field=f"{where}.departures.last", value=d.last)  # fmt: skip
+                    raise InputError(
+                        "the last departure is before the first",
+                        file=self.file,
+                        field=f"{where}.departures.last",
+                        value=d.last,
+                    )
                 n = math.floor((last - first) / (d.every_min * 60.0) + 1e-9)
                 departures = tuple(round(first + k * d.every_min * 60.0, 6) for k in range(n + 1))
             elif run.departures is not None:
@@ -491,8 +497,9 @@ class Study:
                     for k, t in enumerate(run.departures)
                 )
                 if len(set(departures)) != len(departures):
-                    raise InputError("the same departure is given twice", file=self.file,
-                                     field=f"{where}.departures")  # fmt: skip
+                    raise InputError(
+                        "the same departure is given twice", file=self.file, field=f"{where}.departures"
+                    )
             entries.append(Entry(run.name, data, departures))
         return entries
 
@@ -579,8 +586,10 @@ class Study:
 
                 part = parse_path(col.path).root
                 if isinstance(entry.data.get(part), str):
-                    raise fail(f"the {part} is a railtoolkit file ({entry.data[part]}), whose fields "
-                               "cannot be varied; use a trainsim file")  # fmt: skip
+                    raise fail(
+                        f"the {part} is a railtoolkit file ({entry.data[part]}), whose fields "
+                        "cannot be varied; use a trainsim file"
+                    )
                 trial = copy.deepcopy(entry.data)
                 try:
                     existing = get_values(trial, col.path)
@@ -590,7 +599,9 @@ class Study:
                     if existing is None or not all(
                         isinstance(v, int | float) and not isinstance(v, bool) for v in existing
                     ):
-                        raise fail(f"a relative value scales a number, and there is none there (found {existing!r})")
+                        raise fail(
+                            f"a relative value scales a number, and there is none there (found {existing!r})"
+                        )
                     continue
                 try:
                     set_value(trial, col.path, first[col.path])
@@ -604,8 +615,9 @@ class Study:
                     problems = getattr(exc, "problems", None) or [(exc.field, exc.reason)]
                     for field, reason in problems:
                         if str(reason).startswith(("unknown field", "no station of that name")):
-                            raise fail(f"no such field in the scenario: '{field}': {reason}",
-                                       exc.allowed) from None  # fmt: skip
+                            raise fail(
+                                f"no such field in the scenario: '{field}': {reason}", exc.allowed
+                            ) from None
 
     # ------------------------------------------------------------------ fingerprint
     def _fingerprint(self) -> str:
@@ -658,8 +670,9 @@ def _check_header(data: Any, file: str) -> None:
             allowed=STUDY_SCHEMA,
         )
     if data.get("version") != 1:
-        raise InputError("unsupported study version", file=file, field="version",
-                         value=data.get("version"), allowed="1")  # fmt: skip
+        raise InputError(
+            "unsupported study version", file=file, field="version", value=data.get("version"), allowed="1"
+        )
 
 
 def study_from_dict(data: Any, source: str = "<study>", base_dir: str | FsPath | None = None) -> Study:

@@ -104,7 +104,9 @@ class WorkerState:
         train = self._trains.get(key)
         if train is None:
             try:
-                train = loader.load_train(data) if isinstance(data, str) else tsy.train_from_dict(data, source)
+                train = (
+                    loader.load_train(data) if isinstance(data, str) else tsy.train_from_dict(data, source)
+                )
             except InputError as exc:
                 raise _located(exc, source, "train") from None
             self._trains.put(key, train)
@@ -118,7 +120,9 @@ class WorkerState:
         route = self._routes.get(key)
         if route is None:
             try:
-                route = loader.load_route(data) if isinstance(data, str) else tsy.route_from_dict(data, source)
+                route = (
+                    loader.load_route(data) if isinstance(data, str) else tsy.route_from_dict(data, source)
+                )
             except InputError as exc:
                 raise _located(exc, source, "route") from None
             self._routes.put(key, route)
@@ -138,12 +142,14 @@ class WorkerState:
         if stops is not None and not (isinstance(stops, list) and all(isinstance(s, str) for s in stops)):
             raise InputError("must be a list of station names", file=source, field="stops", value=stops)
         if dwell is not None and not isinstance(dwell, dict):
-            raise InputError("must be a mapping of station name to dwell time", file=source,
-                             field="dwell_s", value=dwell)  # fmt: skip
+            raise InputError(
+                "must be a mapping of station name to dwell time", file=source, field="dwell_s", value=dwell
+            )
         for name, value in (dwell or {}).items():
             if isinstance(value, bool) or not isinstance(value, int | float) or not value >= 0:
-                raise InputError("invalid dwell time", file=source, field=f"dwell_s.{name}", value=value,
-                                 allowed=">= 0 s")  # fmt: skip
+                raise InputError(
+                    "invalid dwell time", file=source, field=f"dwell_s.{name}", value=value, allowed=">= 0 s"
+                )
         return tsy.apply_stops(route, stops, dwell, file=source)
 
     def entry(self, e: int) -> tuple[Any, Any, Any]:
@@ -172,7 +178,9 @@ class WorkerState:
             try:
                 set_value(data, path, value, scale=relative)
             except InputError as exc:
-                raise InputError(exc.reason, file=source, field=path, value=exc.value, allowed=exc.allowed) from None
+                raise InputError(
+                    exc.reason, file=source, field=path, value=exc.value, allowed=exc.allowed
+                ) from None
         if "train" in touched:
             train = self._train(data["train"], source)
         if touched & {"route", "stops", "dwell_s"}:
@@ -287,7 +295,7 @@ def init_process(payload: Payload) -> None:
         from trainsim.sim.fastest import run_fastest
 
         run_fastest(*state.entry(0))  # warm-up: numba loads its cache on the first call
-    except Exception:  # noqa: S110 - a bad entry fails its runs, with their own error rows
+    except Exception:  # a bad entry fails its runs, with their own error rows
         pass
 
 

@@ -38,7 +38,7 @@ __all__ = [
     "scenario_from_files",
 ]
 
-Kind = Literal["train", "route", "scenario", "settings"]
+Kind = Literal["train", "route", "scenario", "settings", "timetable"]
 
 #: format name -> (kind, how a file of that format is recognised)
 KNOWN_FORMATS: dict[str, tuple[Kind, str]] = {
@@ -48,6 +48,10 @@ KNOWN_FORMATS: dict[str, tuple[Kind, str]] = {
     "railtoolkit/rolling-stock": ("train", f"schema: {rtk.ROLLING_STOCK_SCHEMA_URL}"),
     "railtoolkit/running-path": ("route", f"schema: {rtk.PATH_SCHEMA_URL}"),
     "trainruns/settings": ("settings", "a top-level 'settings' mapping (TrainRuns.jl settings)"),
+    "ttobench/train": ("train", "TTOBench JSON with 'metadata' and 'mass'"),
+    "ttobench/track": ("route", "TTOBench JSON with 'metadata' and 'stops'"),
+    "ttobench/journey": ("timetable", "TTOBench JSON with 'metadata' and 'timing points'"),
+    "trainsim/timetable": ("timetable", "schema: trainsim/timetable"),
 }
 
 _BY_SCHEMA = {
@@ -87,6 +91,19 @@ def _detect(data: Any, file: str) -> Detected:
             allowed=_known_formats(),
         )
     schema = data.get("schema")
+    if schema is None and "metadata" in data:
+        for key, name in (
+            ("timing points", "ttobench/journey"),
+            ("stops", "ttobench/track"),
+            ("mass", "ttobench/train"),
+        ):
+            if key in data:
+                version = (
+                    data["metadata"].get("library version", "") if isinstance(data["metadata"], dict) else ""
+                )
+                return Detected(KNOWN_FORMATS[name][0], name, str(version))
+    if schema == "trainsim/timetable":
+        return Detected("timetable", "trainsim/timetable", str(data.get("version", "")))
     if schema is None:
         # Files that lost their schema line still get the error of their own reader.
         if "version" in data:
@@ -143,6 +160,10 @@ def load_train(path: str | Path, train_id: str | None = None) -> Train:
                 "a trainsim train file holds one train; 'train_id' is for railtoolkit files", file=file
             )
         return tsy.load_train_yaml(path)
+    if detected.format == "ttobench/train":
+        from trainsim.io.ttobench import read_ttobench_train
+
+        return read_ttobench_train(path).train
     return rtk.load_railtoolkit_train(path, train_id)
 
 
@@ -170,6 +191,10 @@ def load_route(path: str | Path, mass_model: str | None = None, path_id: str | N
                 allowed=f"{route.line_resistance.apply_over} (or change the route file)",
             )
         return route
+    if detected.format == "ttobench/track":
+        from trainsim.io.ttobench import read_ttobench_track
+
+        return read_ttobench_track(path)
     return rtk.load_railtoolkit_path(path, path_id, mass_model or "mass_point")
 
 

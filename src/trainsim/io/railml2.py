@@ -68,7 +68,7 @@ from typing import Any
 import numpy as np
 from lxml import etree
 
-from trainsim.constants import KMH, KN, KW, TONNE, G
+from trainsim.constants import KMH, TONNE
 from trainsim.errors import InputError
 from trainsim.io import railml_common as rc
 from trainsim.io.railml_common import (
@@ -342,18 +342,27 @@ class _Reader:
         return True
 
     def line_data(self, net: rc.Network) -> dict[str, Any]:
-        """Per track: direction-bound speed changes, and spans of gradient, radius, tunnels,
-        electrification."""
+        """Per track: direction-bound speed changes, and spans of speed (changes without direction),
+        gradient, radius, tunnels, electrification."""
         p = self.problems
         speed: list[tuple[str, float, int, Any, etree._Element]] = []
-        spans: dict[str, list[Span]] = {"gradient": [], "radius": [], "tunnel": [], "electrification": []}
+        spans: dict[str, list[Span]] = {
+            "gradient": [],
+            "radius": [],
+            "tunnel": [],
+            "electrification": [],
+            "speed_regions": [],
+        }
         for tid, track in net.elements.items():
             begin, end = net.extent[tid]
             elements = child(track, "trackElements")
             if elements is None:
                 continue
             self.usage.use(elements)
-            # speed changes: bound to a direction
+            # speed changes: bound to a direction (up, down: the limit from the change on, for trains
+            # running that way), or without direction (the limit of the track from the change to the
+            # next one, both ways)
+            undirected: list[tuple[float, Any, etree._Element]] = []
             for sc in children(child(elements, "speedChanges"), "speedChange"):
                 self.usage.use(sc.getparent())
                 if sc.get("profileRef") or sc.get("trainCategory") or sc.get("etcsTrainCategory"):
@@ -382,8 +391,28 @@ class _Reader:
                         value = vmax
                 if pos is None or not self._within(sc, pos, begin, end):
                     continue
-                dirs = {"up": (1,), "down": (-1,)}.get(sc.get("dir") or "", (1, -1))
-                speed += [(tid, pos, d, value, sc) for d in dirs]
+                direction = {"up": 1, "down": -1}.get(sc.get("dir") or "")
+                if direction is None:
+                    undirected.append((pos, value, sc))
+                else:
+                    speed.append((tid, pos, direction, value, sc))
+            undirected.sort(key=lambda c: c[0])
+            self._same_position(undirected, "speedChange")
+            resolved: list[tuple[float, Any, etree._Element]] = []
+            in_force: list[float] = []
+            for pos, value, sc in undirected:
+                if value == rc.END_OF_RESTRICTION:
+                    if len(in_force) < 2:
+                        p.add(
+                            sc,
+                            "end of a speed restriction ('end') with no restriction before it on this track",
+                        )
+                        continue
+                    in_force.pop()
+                else:
+                    in_force.append(value)
+                resolved.append((pos, in_force[-1], sc))
+            spans["speed_regions"] += list(rc.regions(resolved, tid, end))
             # gradients, radii, electrification: changes along the track's direction -> spans
             for kind, container, item, attr in (
                 ("gradient", "gradientChanges", "gradientChange", "slope"),
@@ -555,7 +584,10 @@ class _Reader:
             name=name,
             path=path,
             stations=stations,
-            speed=path.changes(data["speed"]),
+            speed=sorted(
+                path.changes(data["speed"]) + rc.events_from_spans(path.spans(data["speed_regions"])),
+                key=lambda e: e.position_m,
+            ),
             gradients=rc.events_from_spans(path.spans(data["gradient"], down=lambda g: -g)),
             electrification=rc.events_from_spans(path.spans(data["electrification"])),
             curves=path.spans(data["radius"]),

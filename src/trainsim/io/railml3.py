@@ -129,7 +129,10 @@ class _Reader:
     # ------------------------------------------------------------------ topology
     def lps_units(self) -> dict[str, float]:
         """Linear positioning systems: id -> metres per unit."""
+        if hasattr(self, "_units"):
+            return self._units
         out: dict[str, float] = {}
+        self._units = out
         for lps in descendants(self.common, "linearPositioningSystem"):
             self.usage.use(lps, deep=True)
             self.usage.use(lps.getparent())
@@ -150,6 +153,7 @@ class _Reader:
         p = self.problems
         net = rc.Network()
         units = self.lps_units()
+        p.raise_if_any()  # positions in an unknown unit: nothing else can be placed
         origins: dict[str, float] = {}
         measures: dict[str, tuple[float, str]] = {}
         topology = child(self.infra, "topology")
@@ -456,7 +460,9 @@ class _Reader:
                 named = [e for e in tt.iter() if local(e) and _name(e) == train_id]
                 start = named[0] if named else None
             if start is None:
-                trains = [e.get("id") for e in tt.iter() if local(e) in ("operationalTrain", "commercialTrain")]
+                trains = [
+                    e.get("id") for e in tt.iter() if local(e) in ("operationalTrain", "commercialTrain")
+                ]
                 raise InputError(
                     "no element of that id or name in the timetable",
                     file=self.file,
@@ -477,7 +483,9 @@ class _Reader:
         if start is not None:
             base = self._follow(start, "baseItinerary")
             if base is None:
-                raise self.problems.error(start, "no baseItinerary reached from this element through its references")
+                raise self.problems.error(
+                    start, "no baseItinerary reached from this element through its references"
+                )
             formation = self._follow(start, "formation")
             name = _name(start, self.usage) or start.get("id") or ""
             self.usage.use(start, deep=True)

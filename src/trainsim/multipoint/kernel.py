@@ -199,7 +199,10 @@ def coupler_force(delta, rate, cp):
     zd = delta - hs
     zb = -delta - hs
     spring = (
-        kd * ramp(zd, eps) + (ks - kd) * ramp(zd - td, eps) - kb * ramp(zb, eps) - (ks - kb) * ramp(zb - tb, eps)
+        kd * ramp(zd, eps)
+        + (ks - kd) * ramp(zd - td, eps)
+        - kb * ramp(zb, eps)
+        - (ks - kb) * ramp(zb - tb, eps)
     )
     hd = ramp_slope(zd, eps)
     hb = ramp_slope(zb, eps)
@@ -327,15 +330,19 @@ def linear_value(s, x, left, right):
 
 # ============================================================================ forces
 @njit(cache=True)
-def vehicle_forces(
-    xm, w, vsel, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, out, D, detail, parts
-):
-    """External force on every vehicle [N] at midpoint positions ``xm`` and speeds ``w`` (effort-law
-    intervals chosen at speeds ``vsel``) into ``out``,
+def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, out, D, detail, parts):
+    """External force on every vehicle [N] at midpoint positions ``xm`` and speeds ``w`` into ``out``,
     minus its derivative with respect to the vehicle's own speed into ``D``; with ``detail`` the
     parts (traction, electric brake, friction brake, running, gradient, curve, tunnel) into
     ``parts`` (n x 7), signed so that part x displacement is the work done by (traction) or against
-    (the others) the train."""
+    (the others) the train.
+
+    ``v0`` are the speeds at the start of the step: the effort laws keep the interval of ``v0``, and
+    the direction factor tanh(v / v_eps) of the dry-friction forces (running, curve and tunnel
+    resistance, brakes) is taken at the end-of-step speed ``2 w - v0``. That part of the scheme is
+    backward Euler, which damps the stiff friction law near standstill (the midpoint rule alone would
+    let a held vehicle's speed flip sign from step to step); the kinetic-energy change of a step is
+    still exactly the work of the applied forces over the step's displacement ``h w``."""
     cs, cc, coff, cfc, cpc = bank
     poff, px, pval = prof
     ax, aval = avail
@@ -350,8 +357,8 @@ def vehicle_forces(
     for i in range(n):
         v = w[i]
         av = abs(v)
-        sgn = np.tanh(v / veps)
-        dsgn = (1.0 - sgn * sgn) / veps
+        sgn = np.tanh((2.0 * v - v0[i]) / veps)
+        dsgn = 2.0 * (1.0 - sgn * sgn) / veps  # d sgn / d w
         m = VP[i, V_MASS]
         L = VP[i, V_LENGTH]
         # running resistance, opposing motion
@@ -373,7 +380,7 @@ def vehicle_forces(
         dtr = 0.0
         c = int(VP[i, V_CURVE])
         if c >= 0 and trac[i] > 0.0:
-            f, df = effort_slope(av, c, cs, cc, coff, cfc, cpc, abs(vsel[i]))
+            f, df = effort_slope(av, c, cs, cc, coff, cfc, cpc, abs(v0[i]))
             a = trac[i] * step_value(xm[i] - 0.5 * L, ax, aval)
             traction = a * f
             dtr = a * df * (1.0 if v >= 0.0 else -1.0)
@@ -387,13 +394,13 @@ def vehicle_forces(
                 if need > 0.0:
                     friction = bm[i] * need
         else:
-            s_f, s_df = effort_slope(av, sc, cs, cc, coff, cfc, cpc, abs(vsel[i]))
+            s_f, s_df = effort_slope(av, sc, cs, cc, coff, cfc, cpc, abs(v0[i]))
             demand = frac * s_f
             d_demand = frac * s_df
             regen = 0.0
             d_regen = 0.0
             if rc >= 0:
-                regen, d_regen = effort_slope(av, rc, cs, cc, coff, cfc, cpc, abs(vsel[i]))
+                regen, d_regen = effort_slope(av, rc, cs, cc, coff, cfc, cpc, abs(v0[i]))
                 if av < ELECTRIC_FADE_MPS:
                     # electric braking fades out towards standstill; the friction brakes take over
                     d_regen = d_regen * av / ELECTRIC_FADE_MPS + regen / ELECTRIC_FADE_MPS
@@ -502,7 +509,9 @@ def implicit_step(x0, v0, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, ava
             # forces consistent with the final w, for the energy accounting
             for i in range(n):
                 xm[i] = x0[i] + 0.5 * h * w[i]
-            vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, F, D, True, parts)
+            vehicle_forces(
+                xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, F, D, True, parts
+            )
             coupler_forces(xm, w, VP, CP, Ts, Td, K, C)
             return it + 1
     return -1

@@ -300,9 +300,7 @@ class MultiPointSettings:
             ("initial_couplers", self.initial_couplers, ("neutral", "stretched", "bunched")),
         ):
             if value not in allowed:
-                raise InputError(
-                    "not an allowed value", field=name, value=value, allowed=", ".join(allowed)
-                )
+                raise InputError("not an allowed value", field=name, value=value, allowed=", ".join(allowed))
         object.__setattr__(self, "coupler_overrides", dict(self.coupler_overrides))
 
 
@@ -457,9 +455,7 @@ def _inertial_masses(train: Train, vehicles: tuple[Vehicle, ...], masses: np.nda
     return masses + extra
 
 
-def brake_delays(
-    lengths: np.ndarray, sources: np.ndarray, propagation: BrakePropagation
-) -> np.ndarray:
+def brake_delays(lengths: np.ndarray, sources: np.ndarray, propagation: BrakePropagation) -> np.ndarray:
     """Delay of the brake command at each vehicle's centre [s]: distance to the nearest source
     vehicle's centre over the propagation speed (0 without propagation)."""
     n = len(lengths)
@@ -511,7 +507,9 @@ def build_multipoint_train(
     if vehicle_resistance is not None:
         if len(vehicle_resistance) != n:
             raise InputError(
-                "give one resistance law per vehicle", field="vehicle_resistance", value=len(vehicle_resistance)
+                "give one resistance law per vehicle",
+                field="vehicle_resistance",
+                value=len(vehicle_resistance),
             )
         resistance = tuple(vehicle_resistance)
     else:
@@ -552,7 +550,9 @@ def build_multipoint_train(
             )
     locos = tuple(dataclasses.replace(loco, share=s) for loco, s in zip(locos, shares, strict=True))
     curves = tuple(
-        loco.traction if loco.traction is not None else train.traction.scaled(loco.share, label=f"{loco.share:g} x train")
+        loco.traction
+        if loco.traction is not None
+        else train.traction.scaled(loco.share, label=f"{loco.share:g} x train")
         for loco in locos
     )
     if any(loco.traction is not None for loco in locos):

@@ -15,7 +15,7 @@ from trainsim.multipoint import kernel as K
 from trainsim.multipoint.model import MultiPointTrain
 from trainsim.sim.kernel import BRAKE, COAST, DWELL, TRACTION
 from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear, line_voltage
-from trainsim.sim.result import EnergyFigures, RunResult, SectionSummary, Trace, build_result
+from trainsim.sim.result import EnergyFigures, RunResult, SectionSummary, build_result
 
 
 @dataclass(frozen=True)
@@ -309,7 +309,9 @@ def build_multipoint_result(
         current = np.where(u_line > 0, el_power / (safe * elec.power_factor), 0.0)
         paper_current = np.where(u_line > 0, p_tr * eta_t / (safe * elec.power_factor), 0.0)
         peak_power = np.where(np.isfinite(agg[:, K.R_PEAK_POWER]), agg[:, K.R_PEAK_POWER] + aux, el_power)
-        peak_current = np.where(u_line > 0, np.maximum(peak_power, el_power) / (safe * elec.power_factor), 0.0)
+        peak_current = np.where(
+            u_line > 0, np.maximum(peak_power, el_power) / (safe * elec.power_factor), 0.0
+        )
     else:
         current = paper_current = peak_current = np.full(len(s), np.nan)
     m_in = mptrain.inertial_mass_kg

@@ -194,7 +194,10 @@ class _Compiled:
         poff, pxs, pvals = [0], [], []
         prof_of_length = {}
         for k, L in enumerate(lengths):
-            fs = [averaged_over_length(f, L) for f in (point.gradient, point.curve, point.tunnel, point.tunnel_v2)]
+            fs = [
+                averaged_over_length(f, L)
+                for f in (point.gradient, point.curve, point.tunnel, point.tunnel_v2)
+            ]
             nodes, vals = _merged(fs)
             pxs.append(nodes)
             pvals.append(vals)
@@ -250,7 +253,9 @@ class _Compiled:
         SP[K.S_TAU] = settings.speed_time_constant_s
         SP[K.S_RAMP] = settings.traction_ramp_s
         mean_delay = float(np.sum(mp.brake_delay_s * mp.mass_kg) / mp.mass_kg.sum())
-        SP[K.S_LOOKAHEAD] = (mean_delay + settings.brake_propagation.build_up_s) if settings.lookahead else 0.0
+        SP[K.S_LOOKAHEAD] = (
+            (mean_delay + settings.brake_propagation.build_up_s) if settings.lookahead else 0.0
+        )
         SP[K.S_REST_SPEED] = REST_SPEED_MPS
         SP[K.S_STOP_WINDOW] = settings.stop_window_m
         SP[K.S_RECORD_DT] = settings.record_interval_s
@@ -428,7 +433,9 @@ class _Runner:
 def _as_multipoint(train: Train | MultiPointTrain, settings: MultiPointSettings | None) -> MultiPointTrain:
     if isinstance(train, MultiPointTrain):
         if settings is not None and settings is not train.settings:
-            raise InputError("give the settings when building the MultiPointTrain, not twice", field="settings")
+            raise InputError(
+                "give the settings when building the MultiPointTrain, not twice", field="settings"
+            )
         return train
     return build_multipoint_train(train, settings)
 
@@ -620,7 +627,9 @@ class MultiPointSession:
             out[k] = s + d
         return out
 
-    def step(self, command: float, dt_s: float, loco_commands: Sequence[float] | None = None) -> MultiPointState:
+    def step(
+        self, command: float, dt_s: float, loco_commands: Sequence[float] | None = None
+    ) -> MultiPointState:
         """Apply the command for ``dt_s`` seconds (0 < dt_s <= 60) and return the state."""
         if not np.isfinite(command) or not -1.0 <= command <= 1.0:
             raise InputError("the driving command must be in [-1, 1]", field="command", value=command)

@@ -114,7 +114,9 @@ class MultiPointSpec(_Spec):
     @model_validator(mode="after")
     def _check(self) -> MultiPointSpec:
         if self.strategy == "follow" and not self.profile:
-            _fail("strategy 'follow' needs a 'profile' (CSV file of position_m and speed_kmh)", field="profile")
+            _fail(
+                "strategy 'follow' needs a 'profile' (CSV file of position_m and speed_kmh)", field="profile"
+            )
         if self.strategy == "fastest" and self.profile:
             _fail("a 'profile' is only read with strategy: follow", field="profile")
         seen: set[int] = set()
@@ -132,7 +134,9 @@ class MultiPointSpec(_Spec):
             coupler_overrides={o.coupler: o.build_over(self.couplers) for o in self.coupler_overrides},
             locomotive_positions=tuple(self.locomotive_positions) if self.locomotive_positions else None,
             locomotives=(
-                tuple(Locomotive(lo.vehicle, lo.share) for lo in self.locomotives) if self.locomotives else None
+                tuple(Locomotive(lo.vehicle, lo.share) for lo in self.locomotives)
+                if self.locomotives
+                else None
             ),
             braking_distribution=b.distribution,
             electric_braking_at=b.electric_at,
@@ -195,7 +199,11 @@ def _read_profile(path: Path, source: str) -> SpeedProfile:
             regime = df["regime"].map(lambda r: codes[str(r)]).to_numpy("int8")
         except KeyError as exc:
             raise InputError(
-                "unknown regime", file=str(path), field="regime", value=str(exc), allowed=", ".join(REGIME_NAMES)
+                "unknown regime",
+                file=str(path),
+                field="regime",
+                value=str(exc),
+                allowed=", ".join(REGIME_NAMES),
             ) from None
     time_s = df["time_s"].to_numpy(float) if "time_s" in df else None
     return SpeedProfile(df["position_m"].to_numpy(float), speed, regime, time_s)

@@ -100,6 +100,8 @@ def switching_points(s: np.ndarray, v: np.ndarray, t: np.ndarray, regime: np.nda
     for k in range(len(s)):
         if regime[k] == kernel.DWELL:
             continue
+        if k + 1 < len(s) and s[k + 1] - s[k] < 1e-6 and t[k + 1] - t[k] < 1e-6:
+            continue  # a regime held for no distance and no time
         if k == 0 or regime[k] != regime[k - 1]:
             points.append(
                 SwitchingPoint(
@@ -252,7 +254,7 @@ def _run_optimal(train, route, timetable, settings, fastest) -> OptimizationResu
 
 
 def _run_lesov(train, route, timetable, settings, fastest) -> OptimizationResult:
-    from trainsim.optimize.lesov import lesov_plans
+    from trainsim.optimize.lesov import lesov_plans, lesov_train
 
     solvers = _solvers(train, route, settings)
     fastest_s = [sv.fastest_time_s for sv in solvers]
@@ -260,7 +262,8 @@ def _run_lesov(train, route, timetable, settings, fastest) -> OptimizationResult
         timetable.line.target_s(sum(fastest_s)) * f / sum(fastest_s) for f in fastest_s
     ]
     plans, warnings = lesov_plans(train, route, solvers, targets, settings)
-    return _result("lesov", train, route, settings, fastest, plans, targets, warnings)
+    # source 004 brakes recuperatively at 0.8 x the traction curve: account the run with that brake
+    return _result("lesov", lesov_train(train), route, settings, fastest, plans, targets, warnings)
 
 
 def _run_reference(train, route, timetable, settings, fastest) -> OptimizationResult:
@@ -275,7 +278,7 @@ def _run_reference(train, route, timetable, settings, fastest) -> OptimizationRe
         targets = [p.running_time_s for p in opt_plans]
     plans, warnings = [], []
     for sv, T in zip(solvers, targets, strict=True):
-        if T <= sv.fastest_time_s:
+        if sv.fastest_time_s >= T:
             plans.append(sv.solve(T))
             continue
         ref = solve_reference(train, route, sv.s0, sv.s1, T)

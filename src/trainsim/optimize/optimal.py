@@ -183,7 +183,13 @@ class SectionSolver:
         E1, dt = kernel.step_energy_time(0.5 * v[j] ** 2, u0, h, mode, line, self.P, self.curves, kinks)
         return i, u0 + h, float(np.sqrt(max(2.0 * E1, 0.0))), float(t[j] + dt), j
 
-    def _phase_b(self, phase_a, s_c: float, mu: float):
+    def _phase_b_forced(self, phase_a, s_c: float):
+        """From s_c on phase A, maximum regenerative braking until the service braking curve to the
+        stop (source 004's recuperative braking)."""
+        points, status, _ = self._phase_b(phase_a, s_c, 0.0, force_mode=kernel.REGEN)
+        return points, status
+
+    def _phase_b(self, phase_a, s_c: float, mu: float, force_mode: int = -1):
         tr = self.track
         i, u, v, t, j = self._state_at(phase_a, s_c)
         if u >= tr.x[i + 1] - tr.x[i] - 1e-12 and i + 1 < self.i1:
@@ -195,7 +201,7 @@ class SectionSolver:
         n, status, s_event = pk.final_phase(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, tr.traction_scale, i, u, v, t, self.i1,
             self.P, self.curves, self.tk, self.bk, self.Cr, self.US, mu, self.inv_eta_t, self.eta_r,
-            self.has_regen, ADJOINT_STEP_M, out_s, out_v, out_t, out_m, 0,
+            self.has_regen, ADJOINT_STEP_M, out_s, out_v, out_t, out_m, 0, force_mode,
         )  # fmt: skip
         s, vv, tt, m = phase_a
         keep = slice(0, j + 1)

@@ -95,13 +95,14 @@ def ceiling_at(u, w, k, Cr, US, vcap, line, P, curves, bk):
 def final_phase(
     x, a0, a1, b0, b1, vcap, tscale, i_start, u_start, v_start, t_start, i_end,
     P, curves, tk, bk, Cr, US, mu, inv_eta_t, eta_r, has_regen, h_max,
-    out_s, out_v, out_t, out_m, n,
+    out_s, out_v, out_t, out_m, n, force_mode=-1,
 ):  # fmt: skip
     """From (x[i_start] + u_start, v_start), leaving the holding arc (phi just below 1/eta_t), drive
     by the adjoint to the stop at x[i_end], holding the speed limit ``vcap`` if the train reaches
     it. Appends points; returns (n, status): HIT_CEILING when the train meets the braking curve
     to the stop (it then follows it and stops exactly at x[i_end]), STOPPED_SHORT when it comes
-    to rest before (the last point is where it stopped); and the position of that event."""
+    to rest before (the last point is where it stopped); and the position of that event.
+    ``force_mode`` >= 0 replaces the adjoint's choice by a fixed regime (source 004's braking)."""
     phi = inv_eta_t * (1.0 - 1e-9)
     E = 0.5 * v_start * v_start
     t = t_start
@@ -113,7 +114,7 @@ def final_phase(
         P[P_TRACTION_SCALE] = tscale[i]
         while u < w - 1e-12:
             v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
-            mode = mode_of(phi, inv_eta_t, eta_r, has_regen)
+            mode = mode_of(phi, inv_eta_t, eta_r, has_regen) if force_mode < 0 else force_mode
             at_limit = v >= vcap[i] - 1e-9
             if at_limit and (mode == TRACTION or mode == COAST):
                 # the speed limit binds: hold it while the adjoint asks for traction or coasting
@@ -149,7 +150,7 @@ def final_phase(
             phi1 = phi_step(phi, E, E1, u, h, b0[i], b1[i], P, mu) if v > PHI_MIN_SPEED else phi
             new_mode = mode_of(phi1, inv_eta_t, eta_r, has_regen)
             base_mode = mode_of(phi, inv_eta_t, eta_r, has_regen)
-            if new_mode != base_mode:
+            if new_mode != base_mode and force_mode < 0:
                 # the adjoint crosses a switching threshold inside the step: cut the step there
                 lo_phi, hi_phi = min(phi, phi1), max(phi, phi1)
                 if lo_phi < inv_eta_t <= hi_phi:

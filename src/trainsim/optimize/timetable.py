@@ -156,3 +156,67 @@ def _section(row: Any, k: int, file: str) -> SectionSchedule:
         field=field,
         value=sorted(keys),
     )
+
+
+def timetable_from_journey(journey, route):  # (Journey, Route) -> (Route, Timetable)
+    """A TTOBench journey as a route with the journey's stops and a per-section timetable.
+
+    Each section gets the longest time its windows allow (depart at the earliest, arrive at the
+    latest), which is what saves most energy; an intermediate stop dwells from the latest arrival
+    to the earliest departure. Passing points are checked afterwards (``passing_point_warnings``).
+    """
+    import dataclasses
+
+    from trainsim.model.route import Station
+
+    stops = [p for p in journey.points if p.is_stop]
+    merged: list[list] = []  # [position, arrival latest, departure earliest]
+    for p in stops:
+        if merged and abs(merged[-1][0] - p.position_m) < 1e-6:
+            merged[-1][2] = p.earliest_s
+        else:
+            merged.append([p.position_m, p.latest_s, p.earliest_s])
+    stations = []
+    for k, (pos, arr, dep) in enumerate(merged):
+        dwell = 0.0 if k in (0, len(merged) - 1) else max(0.0, (dep or 0.0) - (arr or 0.0))
+        stations.append(Station(f"{pos:.0f} m", pos, dwell))
+    sections = []
+    for k in range(len(merged) - 1):
+        dep = merged[k][2] if merged[k][2] is not None else merged[k][1]
+        arr = merged[k + 1][1]
+        if dep is None or arr is None or arr <= dep:
+            raise InputError(
+                "a journey section needs a departure time and a later arrival time",
+                file=journey.name,
+                field=f"timing points (section {k + 1})",
+                value=(dep, arr),
+            )
+        sections.append(SectionSchedule(running_time_s=float(arr - dep)))
+    new_route = dataclasses.replace(route, stations=tuple(stations))
+    return new_route, Timetable(sections=tuple(sections), source=journey.name)
+
+
+def passing_point_warnings(journey, run) -> list[str]:
+    """Passing points of a journey whose time or speed window the run misses."""
+    import numpy as np
+
+    tr = run.trace
+    out = []
+    for p in journey.points:
+        if p.is_stop:
+            continue
+        k = int(np.searchsorted(tr.position_m, p.position_m))
+        if k >= len(tr.position_m):
+            continue
+        t, v = float(tr.time_s[k]), float(tr.speed_mps[k])
+        if (p.earliest_s is not None and t < p.earliest_s - 0.5) or (
+            p.latest_s is not None and t > p.latest_s + 0.5
+        ):
+            out.append(
+                f"passing point at {p.position_m:.0f} m: passed at {t:.1f} s, window {p.earliest_s}..{p.latest_s} s"
+            )
+        if (p.min_speed_mps is not None and v < p.min_speed_mps - 1e-6) or (
+            p.max_speed_mps is not None and v > p.max_speed_mps + 1e-6
+        ):
+            out.append(f"passing point at {p.position_m:.0f} m: speed {v * 3.6:.1f} km/h outside its window")
+    return out

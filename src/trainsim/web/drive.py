@@ -339,7 +339,9 @@ class DriveConnection:
         moved = drive.core.position_m != drive.core.route.stops[0].position_m or drive.core.time_s > 0
         if record and moved and not drive.recorded:
             drive.recorded = True
-            result = await drive.call(drive.core.result)
+            # synchronously: a closing connection may cancel this task at its next await
+            with drive.core_lock:
+                result = drive.core.result()
             with self.session.lock:
                 run = StoredRun(
                     id=self.session.next_run_id(),

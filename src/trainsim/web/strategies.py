@@ -26,11 +26,12 @@ to the page next to the field (``params.supplement_percent``).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
@@ -38,7 +39,7 @@ from trainsim.model.train import Train
 from trainsim.sim.fastest import run_fastest
 from trainsim.sim.result import RunResult
 
-__all__ = ["NoParams", "Strategy", "available", "get", "register", "unregister"]
+__all__ = ["EnergyParams", "NoParams", "Strategy", "available", "get", "register", "unregister"]
 
 
 class NoParams(BaseModel):
@@ -107,3 +108,70 @@ register(
         run=lambda train, route, settings, params: run_fastest(train, route, settings),
     )
 )
+
+
+# ====================================================================== energy-efficient runs
+class EnergyParams(BaseModel):
+    """Schedule of an energy-efficient run: a line supplement, or a running time per section."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    supplement_percent: float = Field(
+        10.0,
+        ge=0,
+        le=300,
+        description="running-time supplement over the fastest run for the whole line [%], split between "
+        "the sections by the optimizer",
+    )
+    section_running_times_s: list[float] | None = Field(
+        None,
+        max_length=1000,
+        description="a timetable instead: the scheduled running time of each section between stops [s]",
+    )
+
+
+def _optimizer_run(name: str) -> Callable[[Train, Route, RunSettings, EnergyParams], RunResult]:
+    from trainsim.optimize.api import optimize
+    from trainsim.optimize.timetable import SectionSchedule, Timetable
+
+    def run(train: Train, route: Route, settings: RunSettings, params: EnergyParams) -> RunResult:
+        if params.section_running_times_s:
+            timetable = Timetable(
+                sections=tuple(SectionSchedule(running_time_s=t) for t in params.section_running_times_s)
+            )
+        else:
+            timetable = Timetable(line=SectionSchedule(supplement_fraction=params.supplement_percent / 100.0))
+        result = optimize(train, route, timetable, name, settings)
+        # the optimizer's own warnings (a schedule that cannot be met) go with the run
+        return dataclasses.replace(result.run, warnings=(*result.warnings, *result.run.warnings))
+
+    return run
+
+
+def _register_optimizer() -> None:
+    try:
+        optimal, lesov = _optimizer_run("optimal"), _optimizer_run("lesov")
+    except ImportError:  # the web application works without the optimizer: fastest only
+        return
+    register(
+        Strategy(
+            name="energy_efficient",
+            label="Energy-efficient",
+            description="least energy for the schedule (optimal train control: traction, holding, coasting, "
+            "braking)",
+            params=EnergyParams,
+            run=optimal,
+        )
+    )
+    register(
+        Strategy(
+            name="lesov",
+            label="Energy-efficient (source 004)",
+            description="source 004's algorithm for the same schedule",
+            params=EnergyParams,
+            run=lesov,
+        )
+    )
+
+
+_register_optimizer()

@@ -252,8 +252,10 @@ function runRequest(labelMode) {
   const params = {};
   for (const input of document.querySelectorAll("#run-params [data-param]")) {
     if (input.value.trim() === "") continue;
-    const n = Number(input.value);
-    params[input.dataset.param] = Number.isFinite(n) ? n : input.value;
+    const num = (x) => (Number.isFinite(Number(x)) ? Number(x) : x);
+    params[input.dataset.param] = input.dataset.list
+      ? input.value.split(/[,;\s]+/).filter((x) => x !== "").map(num)
+      : num(input.value.trim());
   }
   const settings = {};
   for (const [id, key] of [["#run-step", "max_step_m"], ["#run-braking", "braking_fraction"]]) {
@@ -389,9 +391,11 @@ function renderStrategyParams() {
   const box = $("#run-params");
   box.replaceChildren();
   for (const [key, prop] of Object.entries(chosen?.params_schema?.properties || {})) {
-    const input = h("input", { type: "text", class: "num", "data-param": key, "data-path": `params.${key}`,
-      title: prop.description || key, placeholder: prop.default !== undefined ? String(prop.default) : "" });
-    box.append(h("label", {}, key, input));
+    const isList = prop.type === "array" || (prop.anyOf || []).some((x) => x.type === "array");
+    const input = h("input", { type: "text", class: isList ? "txt" : "num", "data-param": key, "data-path": `params.${key}`,
+      "data-list": isList ? "true" : undefined, title: prop.description || key,
+      placeholder: isList ? "e.g. 110, 100, 95" : prop.default !== undefined && prop.default !== null ? String(prop.default) : "" });
+    box.append(h("label", { title: prop.description || key }, key, input));
   }
 }
 

@@ -1,0 +1,116 @@
+"""``trainsim optimize``: energy-efficient runs to a timetable (a thin layer over trainsim.optimize)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from trainsim.errors import InputError
+
+
+def optimize(
+    scenario: Annotated[
+        Path | None, typer.Argument(help="Scenario file; or give --train and --route.")
+    ] = None,
+    train: Annotated[Path | None, typer.Option("--train", "-t", help="Train file (format detected).")] = None,
+    route: Annotated[Path | None, typer.Option("--route", "-r", help="Route file (format detected).")] = None,
+    supplement: Annotated[
+        str | None, typer.Option("--supplement", help="Line running-time supplement, e.g. 10% or 30s.")
+    ] = None,
+    timetable: Annotated[
+        Path | None, typer.Option("--timetable", help="trainsim timetable YAML or TTOBench journey JSON.")
+    ] = None,
+    strategy: Annotated[
+        str, typer.Option("--strategy", help="optimal, lesov (source 004), reference (CasADi), fastest.")
+    ] = "optimal",
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Directory for trace, summary and plots.")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print only the summary JSON on stdout.")] = False,
+    curve: Annotated[
+        bool, typer.Option("--curve", help="Also compute the energy-versus-running-time curve (with --out).")
+    ] = False,
+) -> None:
+    """Drive a scenario to a timetable with least energy: switching points, savings, deviations."""
+    from trainsim.cli import _console, _load_scenario, _require_file, _user_errors
+
+    with _user_errors():
+        scn = _load_scenario(scenario, train, route, None)
+        from trainsim.optimize.api import STRATEGIES, energy_time_curve
+        from trainsim.optimize.api import optimize as run_optimize
+        from trainsim.optimize.timetable import line_supplement, read_timetable_yaml
+
+        if strategy not in STRATEGIES:
+            raise InputError(
+                "unknown strategy", field="--strategy", value=strategy, allowed=", ".join(STRATEGIES)
+            )
+        if (supplement is None) == (timetable is None):
+            raise InputError("give exactly one of --supplement and --timetable")
+        journey = None
+        route_used = scn.route
+        if supplement is not None:
+            tt = line_supplement(supplement)
+        else:
+            _require_file(timetable, "timetable file")
+            from trainsim.io.loader import detect_format
+
+            fmt = detect_format(timetable).format
+            if fmt == "ttobench/journey":
+                from trainsim.io.ttobench import read_ttobench_journey
+                from trainsim.optimize.timetable import timetable_from_journey
+
+                journey = read_ttobench_journey(timetable)
+                route_used, tt = timetable_from_journey(journey, scn.route)
+            elif fmt == "trainsim/timetable":
+                tt = read_timetable_yaml(timetable, n_sections=len(scn.route.stops) - 1)
+            else:
+                raise InputError(
+                    "not a timetable", file=str(timetable), allowed="trainsim/timetable, TTOBench journey"
+                )
+        result = run_optimize(scn.train, route_used, tt, strategy=strategy, settings=scn.settings)
+        summary = result.summary()
+        if journey is not None:
+            from trainsim.optimize.timetable import passing_point_warnings
+
+            summary["warnings"] += passing_point_warnings(journey, result.run)
+        written: list[Path] = []
+        if out is not None:
+            from trainsim.io.export import write_trace_csv
+            from trainsim.plots import save_all
+
+            out.mkdir(parents=True, exist_ok=True)
+            written.append(write_trace_csv(result.run, out / "trace.csv"))
+            (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
+            written.append(out / "summary.json")
+            written += save_all(result.run, route_used, scn.train, out)
+            if curve:
+                table = energy_time_curve(scn.train, route_used, settings=scn.settings)
+                table.to_csv(out / "energy_time_curve.csv", index=False)
+                written.append(out / "energy_time_curve.csv")
+                from trainsim.plots import plot_energy_time_curve
+
+                fig = plot_energy_time_curve(table, title=f"{scn.train.name} on {route_used.name}")
+                fig.savefig(out / "energy_time_curve.png", dpi=110)
+                written.append(out / "energy_time_curve.png")
+    if as_json:
+        typer.echo(json.dumps(summary, indent=2, allow_nan=False))
+        return
+    from trainsim.io.export import summary_table
+
+    console = _console()
+    console.print(summary_table(result.run))
+    console.print(
+        f"strategy {strategy}: running {result.run.running_time_s:.1f} s (fastest {result.fastest.running_time_s:.1f} s), "
+        f"net energy {result.run.energy_kwh.net:.2f} kWh (fastest {result.fastest.energy_kwh.net:.2f} kWh, "
+        f"saved {summary['energy_saved_percent'] or 0:.1f} %)",
+        markup=False,
+    )
+    for dev, sched in zip(result.schedule_deviation_s, result.scheduled_running_time_s, strict=True):
+        console.print(f"schedule {sched:.1f} s, deviation {dev:+.2f} s", markup=False)
+    for w in summary["warnings"]:
+        typer.echo(f"warning: {w}", err=True)
+    for p in written:
+        console.print(f"wrote {p}", markup=False, highlight=False)
