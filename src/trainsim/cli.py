@@ -258,8 +258,10 @@ if __name__ == "__main__":  # pragma: no cover
 def _register_extensions() -> None:
     """Commands that live in their own modules (each a thin layer over its part of the API)."""
     from trainsim.cli_optimize import optimize
+    from trainsim.cli_web import serve
 
     app.command("optimize")(optimize)
+    app.command("serve")(serve)
 
 
 _register_extensions()

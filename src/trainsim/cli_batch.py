@@ -114,7 +114,7 @@ def batch(
             err=True,
         )
         raise typer.Exit(code=INTERRUPTED) from None
-    where = f"{outcome.executor}" + (f" x{outcome.workers}" if outcome.executor == "processes" else "")
+    where = f"{outcome.executor}" + (f" x{outcome.workers}" if outcome.executor != "serial" else "")
     speed = (
         f"; {outcome.elapsed_s:.1f} s, {outcome.runs_per_s:.0f} runs/s on {where}" if outcome.computed else ""
     )

@@ -77,7 +77,7 @@ Ocps = Annotated[
     str | None,
     typer.Option(
         "--ocps",
-        help="railML: the operational points of the route, comma-separated ids or names (instead of a timetable).",
+        help="railML: the operational points of the route, comma-separated ids or names (not a timetable's).",
     ),
 ]
 Curve = Annotated[
@@ -183,7 +183,8 @@ def check(
     apply_over: Over = None,
     rotating_mass_factor: Rho = None,
 ) -> None:
-    """Read a file and print what it holds, what was read and what was not (with lines), or why it cannot be used."""
+    """Read a file and print what it holds, what was read and what was not (with lines), or why it is
+    not usable."""
     from trainsim.io import convert as conv
     from trainsim.io import loader
 

@@ -39,6 +39,25 @@ def test_processes_identical_to_serial(study, serial, tmp_path):
     assert read_results(tmp_path / "out", as_table=True).equals(serial)
 
 
+def test_processes_started_by_a_fork_server_when_threads_run(study, serial, tmp_path):
+    # with another thread alive the pool is not forked from this process (see executors._pool_context)
+    import threading
+
+    from trainsim.batch.executors import _pool_context
+
+    stop = threading.Event()
+    thread = threading.Thread(target=stop.wait, daemon=True)
+    thread.start()
+    try:
+        assert _pool_context().get_start_method() == "forkserver"
+        outcome = run_study(study, tmp_path / "out", executor="processes", workers=2, chunk_size=4)
+    finally:
+        stop.set()
+        thread.join()
+    assert outcome.computed == 18
+    assert read_results(tmp_path / "out", as_table=True).equals(serial)
+
+
 def test_dask_identical_to_serial(study, serial, dask_cluster, tmp_path):
     # by scheduler address, as `trainsim batch --scheduler ADDRESS`
     outcome = run_study(study, tmp_path / "out", scheduler=dask_cluster.scheduler_address, chunk_size=4)
@@ -60,3 +79,30 @@ def test_memory_and_parquet_identical(study, serial, tmp_path):
     df = read_results(tmp_path / "out")
     assert list(df["run_index"]) == list(range(18))
     assert df.loc[df.status == "ok", "energy_net_kwh"].gt(0).all()
+
+
+def test_cli_on_dask_by_address_and_by_dask_configuration(dask_cluster, write_study, tmp_path, monkeypatch):
+    import dask.config
+    import typer
+    from typer.testing import CliRunner
+
+    from trainsim.cli_batch import batch
+
+    app = typer.Typer()
+    app.command()(batch)
+    study = write_study(metro_study(axes=[{"field": "train.formation[*].load_t", "values": [0, 10]}]))
+    address = dask_cluster.scheduler_address
+    result = CliRunner().invoke(app, [str(study), "--out", str(tmp_path / "a"), "--scheduler", address])
+    assert result.exit_code == 0, result.output
+    assert "2 computed" in result.output and "on dask" in result.output
+    # no option: Dask's own configuration (here its environment variable) names the scheduler
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", address)
+    dask.config.refresh()
+    try:
+        result = CliRunner().invoke(app, [str(study), "--out", str(tmp_path / "b")])
+    finally:
+        monkeypatch.delenv("DASK_SCHEDULER_ADDRESS")
+        dask.config.refresh()
+    assert result.exit_code == 0, result.output
+    assert "on dask" in result.output
+    assert read_results(tmp_path / "a", as_table=True).equals(read_results(tmp_path / "b", as_table=True))

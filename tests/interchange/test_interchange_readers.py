@@ -10,6 +10,15 @@ from trainsim.constants import KMH
 from trainsim.io import convert, railml2, railml3, spreadsheet
 from trainsim.io import railml_common as rc
 
+DAVIS = (
+    '<trainResistance daviesFactorA="2000" daviesFactorB="20" daviesFactorC="0.4" '
+    'daviesMassDependent="false"/>'
+)
+COACH = (
+    '<vehicle id="v_coach" name="Coach" length="25" speed="140" tareWeight="40" bruttoWeight="45" '
+    'numberNonDrivenAxles="4">'
+)
+
 
 def _write(tmp_path, text: str):
     path = tmp_path / "variant.xml"
@@ -39,10 +48,10 @@ def test_reverse_path_with_undirected_changes(tmp_path, yaml_train):
     text = railml(
         "testline_railml2.xml",
         **{
-            '<speedChange id="sc1" pos="0" dir="up" vMax="100"/>': '<speedChange id="sc1" pos="0" vMax="100"/>',
-            '<speedChange id="sc2" pos="2000" dir="up" vMax="60"/>': '<speedChange id="sc2" pos="2000" vMax="60"/>',
-            '<speedChange id="sc3" pos="2600" dir="up" vMax="end"/>': '<speedChange id="sc3" pos="2600" vMax="end"/>',
-            '<speedChange id="sc5" pos="1000" dir="up" vMax="80"/>': '<speedChange id="sc5" pos="0" vMax="80"/>',
+            '"sc1" pos="0" dir="up"': '"sc1" pos="0"',
+            '"sc2" pos="2000" dir="up"': '"sc2" pos="2000"',
+            '"sc3" pos="2600" dir="up"': '"sc3" pos="2600"',
+            '"sc5" pos="1000" dir="up"': '"sc5" pos="0"',
         },
     )
     content = railml2.read_railml2(_write(tmp_path, text), ocps=["Dunmore", "Bexley", "ocpA"])
@@ -103,21 +112,19 @@ def test_rolling_stock_variants(tmp_path, yaml_train):
             '<trainBrakes meanDeceleration="0.6" brakeType="compressedAir"/>': (
                 '<trainBrakeOperation ts:tableIs="full">\n'
                 "          <decelerationTable>\n"
-                '            <valueTable xValueName="speed" xValueUnit="km/h" yValueName="deceleration" yValueUnit="m/s^2">\n'
+                '            <valueTable xValueName="speed" xValueUnit="km/h" yValueName="deceleration"'
+                ' yValueUnit="m/s^2">\n'
                 '              <valueLine xValue="0"><values yValue="0.9"/></valueLine>\n'
                 '              <valueLine xValue="120"><values yValue="0.7"/></valueLine>\n'
                 "            </valueTable>\n"
                 "          </decelerationTable>\n"
                 "        </trainBrakeOperation>"
             ),
-            '<trainResistance daviesFactorA="2000" daviesFactorB="20" daviesFactorC="0.4" daviesMassDependent="false"/>': (
-                '<trainResistance strahlFactor="0.03" tunnelFactor="1.5"/>'
-            ),
-            '<vehicle id="v_coach" name="Coach" length="25" speed="140" tareWeight="40" bruttoWeight="45" numberNonDrivenAxles="4">': (
-                '<vehicle id="v_coach" name="Coach" vehicleFamilyRef="v_family" bruttoWeight="45">'
-            ),
+            DAVIS: ('<trainResistance strahlFactor="0.03" tunnelFactor="1.5"/>'),
+            COACH: ('<vehicle id="v_coach" name="Coach" vehicleFamilyRef="v_family" bruttoWeight="45">'),
             "    </vehicles>": (
-                '      <vehicle id="v_family" name="Coach family" length="25" speed="140" tareWeight="40" numberNonDrivenAxles="4"/>\n'
+                '      <vehicle id="v_family" name="Coach family" length="25" speed="140" tareWeight="40"'
+                ' numberNonDrivenAxles="4"/>\n'
                 "    </vehicles>"
             ),
         },
@@ -143,9 +150,10 @@ def test_resistance_table_fitted(tmp_path):
     text = railml(
         "testline_railml2.xml",
         **{
-            '<trainResistance daviesFactorA="2000" daviesFactorB="20" daviesFactorC="0.4" daviesMassDependent="false"/>': (
+            DAVIS: (
                 "<trainResistance>"
-                f'<valueTable xValueName="speed" xValueUnit="km/h" yValueName="resistance" yValueUnit="kN">{lines}</valueTable>'
+                '<valueTable xValueName="speed" xValueUnit="km/h" yValueName="resistance" yValueUnit="kN">'
+                f"{lines}</valueTable>"
                 "</trainResistance>"
             )
         },
@@ -279,3 +287,11 @@ def test_spreadsheet_train_only_and_source_002_tables(tmp_path):
         assert train.max_braking_n(v) == pytest.approx(metro.max_braking_n(v))
         assert train.running_resistance_n(v) == pytest.approx(metro.running_resistance_n(v))
     assert train.electrical == metro.electrical
+
+
+def test_train_alone_needs_no_line_formulas(tmp_path):
+    """Reading only the train of a railML 3 file does not ask for the route's formulas."""
+    train = convert.detect_and_load(DATA / "testline_railml3.xml", "train")
+    assert train.name == "Test IC"
+    out, _ = convert.convert(DATA / "testline_railml3.xml", tmp_path / "train.yaml", kind="train")
+    assert "schema: trainsim/train" in out.read_text()

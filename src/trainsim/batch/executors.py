@@ -56,6 +56,8 @@ def configured_scheduler() -> str | None:
 
 
 class _Serial:
+    workers = 1
+
     def __init__(self, payload: Payload) -> None:
         self.payload = payload
 
@@ -136,21 +138,24 @@ class _Dask:
 
         if isinstance(self.scheduler, Client):
             self.client = self.scheduler
-            return
-        self.own = True
-        if self.scheduler is not None:
+        elif self.scheduler is not None:
+            self.own = True
             self.client = Client(str(self.scheduler))
         elif configured_scheduler() is not None:
+            self.own = True
             self.client = Client()  # Dask's configuration names the scheduler
         else:
+            self.own = True
             n = self.workers or default_workers()
             self.client = Client(n_workers=n, threads_per_worker=1, processes=True)
+        # from now on: the cluster's worker threads (for the chunk sizes and the summary)
+        self.workers = sum(self.client.nthreads().values()) or self.workers or 1
 
     def results(self, chunks: Iterator[list[RunTask]]) -> Iterator[Rows]:
         from distributed import as_completed
 
         client = self.client
-        threads = sum(client.nthreads().values()) or (self.workers or 1)
+        threads = self.workers
         payload = client.scatter(self.payload, broadcast=True, hash=False)
         running = as_completed()
         inflight = 0
@@ -178,8 +183,8 @@ def executor_for(
     workers: int | None = None,
     scheduler: Any = None,
 ) -> Iterator[Any]:
-    """A started executor (``.results(chunks)`` yields the rows of every chunk as chunks complete),
-    shut down on leaving the block."""
+    """A started executor, shut down on leaving the block: ``.results(chunks)`` yields the rows of every
+    chunk as chunks complete; ``.workers`` is the number of workers (for Dask: the cluster's threads)."""
     if executor == "serial":
         ex: Any = _Serial(payload)
     elif executor == "processes":

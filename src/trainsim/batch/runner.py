@@ -195,7 +195,7 @@ def run_study(
     sink = MemorySink(expansion) if out is None else ParquetSink(out, expansion, study_file=study.file)
     done = sink.open(restart=restart)
     todo = [i for i, rid in enumerate(expansion.run_ids) if rid not in done]
-    n_workers = 1 if executor == "serial" else (workers or default_workers())
+    n_workers = 1 if executor == "serial" else (workers or default_workers())  # Dask: known once started
     size = chunk_size or study.spec.chunk_size  # None: automatic, shrinking towards the end
     payload = Payload(study.fingerprint, study.name, tuple(e.data for e in study.entries))
     already = len(expansion) - len(todo)
@@ -203,6 +203,7 @@ def run_study(
     t0 = time.perf_counter()
     if todo:
         with executor_for(payload, executor, workers=workers, scheduler=scheduler) as ex:
+            n_workers = ex.workers
             # the bar (a thread) starts once the workers are running
             bar = _Progress(study.name, len(expansion), already, progress)
             try:

@@ -140,6 +140,8 @@ def detect_and_load(path: str | Path, kind: str, **options: Any) -> Any:
     fmt = detect_interchange(path)
     if fmt is None:
         return None
+    if kind == "train" and fmt != "spreadsheet":
+        options.setdefault("require_line_resistance", False)  # the route is not wanted
     content = read_content(path, fmt, **options)
     if kind == "train":
         return rc.build_train(content)
@@ -155,19 +157,23 @@ def detect_and_load(path: str | Path, kind: str, **options: Any) -> Any:
     )
 
 
-def read_documents(path: str | Path, **options: Any) -> tuple[dict[str, dict[str, Any]], list[str], str]:
+def read_documents(
+    path: str | Path, kind: Kind | None = None, **options: Any
+) -> tuple[dict[str, dict[str, Any]], list[str], str]:
     """Any readable input as validated trainsim YAML mappings: ``({"train": ..., "route": ...},
     notes, format)``. trainsim YAML files are passed through; railtoolkit files are converted
     from the model objects (their fields have no YAML twin)."""
     fmt = detect_interchange(path)
     if fmt is not None:
+        if kind == "train" and fmt != "spreadsheet":
+            options.setdefault("require_line_resistance", False)
         content = read_content(path, fmt, **options)
         docs: dict[str, dict[str, Any]] = {}
         # building the objects validates the mappings, with errors pointed at the source elements
         if content.train is not None:
             rc.build_train(content)
             docs["train"] = content.train
-        if content.route is not None:
+        if content.route is not None and kind != "train":
             rc.build_route(content)
             docs["route"] = content.route
         notes = list(content.notes) + [f"not read: {x}" for x in content.ignored]
@@ -311,7 +317,7 @@ def convert(
     Returns:
         The path written and the notes of the conversion (also written as comments at the top).
     """
-    docs, notes, fmt = read_documents(inp, **options)
+    docs, notes, fmt = read_documents(inp, kind, **options)
     if kind is None:
         kind = "scenario" if {"train", "route"} <= set(docs) else next(iter(docs))  # type: ignore[assignment]
     if kind == "scenario":

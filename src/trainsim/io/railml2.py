@@ -544,7 +544,7 @@ class _Reader:
             if ref not in locations:
                 self.problems.add(
                     el,
-                    f"operational point '{ref}' has no position on a track (no crossSection with this ocpRef)",
+                    f"operational point '{ref}' has no position on a track (no crossSection with its ocpRef)",
                 )
                 continue
             stops.append(rc.Stop(ocp.get("name") or ref, tuple(locations[ref]), el))
@@ -554,7 +554,7 @@ class _Reader:
         assert path is not None
         stations: list[rc.StationAt] = []
         after = -math.inf
-        for (ref, dwell, stop, el), st in zip(entries, stops, strict=True):
+        for (_, dwell, stop, el), st in zip(entries, stops, strict=True):
             pos = None
             for edge, x in st.locations:
                 s = path.position(edge, x, after)
@@ -648,7 +648,8 @@ class _Reader:
         elif formations:
             formation = next(iter(formations.values()))
             self.content.notes.append(
-                f"{len(formations)} formations: the first, {label(formation)}, is read (choose with --formation-id)"
+                f"{len(formations)} formations: the first, {label(formation)}, is read "
+                "(choose with --formation-id)"
             )
         else:
             formation = None
@@ -1022,7 +1023,7 @@ class _Writer:
             sections = [(e.start_m, e.end_m, e.voltage_v) for e in route.electrification]
             changes = _changes(route.start_m, route.end_m, sections, None)
             if len(changes) > 1 and any(
-                b < c - rc.POSITION_TOLERANCE_M for (_, b, _), (c, _, _) in zip(sections, sections[1:])
+                b < c - rc.POSITION_TOLERANCE_M for (_, b, _), (c, _, _) in itertools.pairwise(sections)
             ):
                 self.notes.append(
                     "electrification: gaps between sections (the train's nominal voltage) are not written"
@@ -1066,7 +1067,7 @@ class _Writer:
         n_total = sum(n for _, n in groups)
         elec = train.electrical
         ids: dict[str, str] = {}
-        for k, (v, n) in enumerate(groups):
+        for k, (v, _n) in enumerate(groups):
             vid = f"veh{k + 1}"
             ids[v.name + f"#{k}"] = vid
             veh = self.el(

@@ -219,16 +219,21 @@ class _Reader:
             nav = (nr.get("navigability") or "Both").lower()
             key = nr.get("id") or f"nr{nr.sourceline}"
 
-            def port(edge: str, at: float, can_leave: bool, partner: str, suffix: str) -> rc.Port:
+            def port(
+                edge: str, at: float, can_leave: bool, suffix: str, key: str = key, nr: etree._Element = nr
+            ) -> rc.Port:
+                # at the end (1) a train leaves moving up and arrives moving down; at the begin (0)
+                # the other way round
                 end = net.extent[edge][1]
                 leave = ((1,) if at == 1.0 else (-1,)) if can_leave else ()
                 arrive = (-1,) if at == 1.0 else (1,)
+                partner = f"{key}:{'B' if suffix == 'A' else 'A'}"
                 return rc.Port(f"{key}:{suffix}", edge, end if at == 1.0 else 0.0, leave, arrive, partner, nr)
 
             if nav == "none":
                 continue
-            net.add_port(port(a, pa, nav in ("both", "ab"), f"{key}:B", "A"))
-            net.add_port(port(b, pb, nav in ("both", "ba"), f"{key}:A", "B"))
+            net.add_port(port(a, pa, nav in ("both", "ab"), "A"))
+            net.add_port(port(b, pb, nav in ("both", "ba"), "B"))
         return net, origins, measures
 
     # ------------------------------------------------------------------ locations
@@ -372,7 +377,8 @@ class _Reader:
                 continue
             if dg is not None:
                 self.content.notes.append(
-                    f"{label(gc)} (line {gc.sourceline}): a changing gradient, its mean over the curve is used"
+                    f"{label(gc)} (line {gc.sourceline}): a changing gradient, its mean over the curve is "
+                    "used"
                 )
                 g = (g or 0.0) + dg / 2.0 if g is not None else dg / 2.0
             spans(gc, g, "gradient")
@@ -476,7 +482,8 @@ class _Reader:
                 start = trains[0]
                 if len(trains) > 1:
                     self.content.notes.append(
-                        f"{len(trains)} trains in the timetable: the first, {label(start)}, is read (choose with --train-id)"
+                        f"{len(trains)} trains in the timetable: the first, {label(start)}, is read "
+                        "(choose with --train-id)"
                     )
                 for other in trains[1:]:
                     self.usage.skip(other, "another train")
@@ -494,7 +501,8 @@ class _Reader:
             name = base.get("id") or ""
             if len(bases) > 1:
                 self.content.notes.append(
-                    f"{len(bases)} base itineraries: the first, {label(base)}, is the route (choose with --train-id)"
+                    f"{len(bases)} base itineraries: the first, {label(base)}, is the route "
+                    "(choose with --train-id)"
                 )
         else:
             return None, None, ""
@@ -696,7 +704,8 @@ class _Reader:
             formation = next(iter(formations.values()))
             if len(formations) > 1:
                 c.notes.append(
-                    f"{len(formations)} formations: the first, {label(formation)}, is read (choose with --formation-id)"
+                    f"{len(formations)} formations: the first, {label(formation)}, is read "
+                    "(choose with --formation-id)"
                 )
         if formation is None:
             if len(vehicles) != 1:

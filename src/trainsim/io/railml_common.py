@@ -1090,7 +1090,8 @@ def line_resistance_choice(
                 allowed="curve: roeckl, wang, tbt1407, french800, none; tunnel: wang, tbt1407, none",
             )
         content.notes.append(
-            "no line-resistance formulas in the file (curves, tunnels): they must be given to convert or run it"
+            "no line-resistance formulas in the file (curves, tunnels): they must be given to convert or "
+            "run it"
         )
         chosen.update({k: "none" for k in missing})
     return chosen
@@ -1394,8 +1395,8 @@ def _braking(
     if src.mean_deceleration is not None:
         value, el = src.mean_deceleration
         content.notes.append(
-            f"{label(el)} (line {el.sourceline}): meanDeceleration {value:g} m/s^2 read as a constant service "
-            "deceleration (TrainRuns.jl's braking model)"
+            f"{label(el)} (line {el.sourceline}): meanDeceleration {value:g} m/s^2 read as a constant "
+            "service deceleration (TrainRuns.jl's braking model)"
         )
         return {"model": "deceleration", "deceleration_mps2": value}
     tables = [(v.deceleration, v) for v in src.vehicles if v.deceleration is not None]
@@ -1406,8 +1407,8 @@ def _braking(
             [(t.x, np.abs(t.y), w / total) for (t, _), w in zip(tables, weights, strict=True)]
         )
         content.notes.append(
-            "vehicle deceleration tables: the train's is their mass-weighted mean; braking force = deceleration x "
-            "inertial mass (service braking)"
+            "vehicle deceleration tables: the train's is their mass-weighted mean; braking force = "
+            "deceleration x inertial mass (service braking)"
         )
         return {
             "model": "table",

@@ -41,6 +41,7 @@ sheet and the cell.
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from collections.abc import Sequence
@@ -576,7 +577,8 @@ def _train(sheets: dict[str, Sheet], content: rc.Content) -> dict[str, Any]:
     train["braking"] = braking
     if not {"davis_a", "davis_b", "davis_c"} & set(params):
         raise InputError(
-            "no running resistance: parameters 'davis A (kN)', 'davis B (kN/(km/h))', 'davis C (kN/(km/h)^2)'",
+            "no running resistance: parameters 'davis A (kN)', 'davis B (kN/(km/h))', "
+            "'davis C (kN/(km/h)^2)'",
             file=src,
         )
     train["resistance"] = [
@@ -758,7 +760,8 @@ def _route(
     lr.update({k: v for k, v in (line_resistance or {}).items() if v})
     if "curve_formula" not in lr or "tunnel_formula" not in lr:
         raise InputError(
-            "say which curve and tunnel resistance formulas apply: parameters 'curve formula' and 'tunnel formula' "
+            "say which curve and tunnel resistance formulas apply: parameters 'curve formula' and "
+            "'tunnel formula' "
             "in the 'route' table (or give them to convert)",
             file=ps.source if ps else content.file,
             field="curve formula" if "curve_formula" not in lr else "tunnel formula",
@@ -841,7 +844,7 @@ def _rows_train(train: Train) -> dict[str, list[list[Any]]]:
         tables["vehicles"] = rows
     else:
         params += [["mass (t)", train.mass_kg / 1000.0], ["length (m)", train.length_m]]
-    speeds, forces, fcap, pcap, exact = rc.effort_table(train.traction, train.max_speed_mps)
+    speeds, forces, fcap, pcap, _ = rc.effort_table(train.traction, train.max_speed_mps)
     if len(speeds) == 0:
         params += [["traction power (kW)", pcap / 1000.0], ["max traction force (kN)", fcap / 1000.0]]
     else:
@@ -924,7 +927,7 @@ def _rows_route(route: Route) -> dict[str, list[list[Any]]]:
     def at(items: Sequence[Any], a: float) -> Any:
         return next((x for x in items if x.start_m <= a < x.end_m), None)
 
-    for a, b in zip(cuts, cuts[1:], strict=False):
+    for a, b in itertools.pairwise(cuts):
         lim = at(route.speed_limits, a)
         g = at(route.gradients, a)
         c = at(route.curves, a)

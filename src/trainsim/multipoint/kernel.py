@@ -109,7 +109,8 @@ A_REST_SINCE = 14  # time since when the train is at rest in traction [s], -1 wh
 A_H = 15  # size of the next step [s]
 A_NMEM = 16  # number of step-end coupler forces remembered (up to 3)
 A_REJECTED = 17  # steps repeated shorter for the force tolerance
-N_A = 18
+A_LAST_H = 18  # length of the last step [s]
+N_A = 19
 
 # aggregated record columns REC_AGG
 R_HEAD = 0
@@ -152,7 +153,7 @@ MAX_NEWTON = 12
 
 
 # ============================================================================ smoothed piecewise laws
-@njit(cache=True)
+@njit(cache=False)
 def ramp(z, eps):
     """max(z, 0) with the kink rounded over [-eps, eps] by a quadratic (C1)."""
     if z <= -eps:
@@ -162,7 +163,7 @@ def ramp(z, eps):
     return (z + eps) * (z + eps) / (4.0 * eps)
 
 
-@njit(cache=True)
+@njit(cache=False)
 def ramp_slope(z, eps):
     """d ramp / dz: a step from 0 to 1 rounded linearly over [-eps, eps]."""
     if z <= -eps:
@@ -172,7 +173,7 @@ def ramp_slope(z, eps):
     return (z + eps) / (2.0 * eps)
 
 
-@njit(cache=True)
+@njit(cache=False)
 def ramp_curvature(z, eps):
     """d^2 ramp / dz^2."""
     if z <= -eps or z >= eps:
@@ -180,7 +181,7 @@ def ramp_curvature(z, eps):
     return 0.5 / eps
 
 
-@njit(cache=True)
+@njit(cache=False)
 def ramp_integral(z, eps):
     """Integral of ramp from -inf to z (potential energy of a unit spring engaged at 0)."""
     if z <= -eps:
@@ -190,7 +191,7 @@ def ramp_integral(z, eps):
     return (z + eps) ** 3 / (12.0 * eps)
 
 
-@njit(cache=True)
+@njit(cache=False)
 def coupler_force(delta, rate, cp):
     """Tension of a coupling [N] (positive in draft) at extension ``delta`` [m] and extension rate
     ``rate`` [m/s]: ``(spring, damper, d tension / d delta, d tension / d rate)``."""
@@ -218,7 +219,7 @@ def coupler_force(delta, rate, cp):
     return spring, damper, k, c
 
 
-@njit(cache=True)
+@njit(cache=False)
 def coupler_energy(delta, cp):
     """Potential energy stored in a coupling's springs [J] at extension ``delta`` [m]."""
     kd, kb = cp[C_KD], cp[C_KB]
@@ -234,7 +235,7 @@ def coupler_energy(delta, cp):
 
 
 # ============================================================================ effort curves, profiles
-@njit(cache=True)
+@njit(cache=False)
 def effort_slope(v, c, cs, cc, coff, cfc, cpc, vsel=-1.0):
     """Force [N] and its slope d F / d v [N s/m] of curve ``c`` of the bank at speed v >= 0 [m/s]
     (the law of ``trainsim.sim.kernel.effort``). The law's interval is the one of speed ``vsel`` if
@@ -271,7 +272,7 @@ def effort_slope(v, c, cs, cc, coff, cfc, cpc, vsel=-1.0):
     return f, df
 
 
-@njit(cache=True)
+@njit(cache=False)
 def profile_at(p, s, poff, px, pval, cache, i):
     """Values of line-resistance profile ``p`` at position s: (gradient ratio, curve ratio, tunnel
     ratio, tunnel v^2 coefficient [s^2/m^2]); ``cache[i]`` keeps vehicle i's last piece."""
@@ -300,7 +301,7 @@ def profile_at(p, s, poff, px, pval, cache, i):
     return g, c, tu, b
 
 
-@njit(cache=True)
+@njit(cache=False)
 def step_value(s, sx, sval):
     """Value of a piecewise constant function (value ``sval[k]`` on ``[sx[k], sx[k+1])``)."""
     k = np.searchsorted(sx, s, side="right") - 1
@@ -311,7 +312,7 @@ def step_value(s, sx, sval):
     return sval[k]
 
 
-@njit(cache=True)
+@njit(cache=False)
 def linear_value(s, x, left, right):
     """A ``PiecewiseLinear`` at s (the value from the right at a breakpoint)."""
     k = np.searchsorted(x, s, side="right") - 1
@@ -329,7 +330,7 @@ def linear_value(s, x, left, right):
 
 
 # ============================================================================ forces
-@njit(cache=True)
+@njit(cache=False)
 def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, out, D, detail, parts):
     """External force on every vehicle [N] at midpoint positions ``xm`` and speeds ``w`` into ``out``,
     minus its derivative with respect to the vehicle's own speed into ``D``; with ``detail`` the
@@ -393,7 +394,7 @@ def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pc
                 need = VP[i, V_INERTIAL] * decel * frac - running - grad - curve_tunnel
                 if need > 0.0:
                     friction = bm[i] * need
-        else:
+        elif bm[i] > 0.0 or (elec[i] > 0.0 and VP[i, V_REGEN] > 0.0):
             s_f, s_df = effort_slope(av, sc, cs, cc, coff, cfc, cpc, abs(v0[i]))
             demand = frac * s_f
             d_demand = frac * s_df
@@ -439,7 +440,7 @@ def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pc
             parts[i, 6] = tunnel
 
 
-@njit(cache=True)
+@njit(cache=False)
 def coupler_forces(xm, w, VP, CP, Ts, Td, K, C):
     """Spring and damper tension of every coupling, and their derivatives, at positions ``xm`` and
     speeds ``w``."""
@@ -453,7 +454,7 @@ def coupler_forces(xm, w, VP, CP, Ts, Td, K, C):
         C[k] = c
 
 
-@njit(cache=True)
+@njit(cache=False)
 def thomas(diag, off, rhs, out, cprime):
     """Solve the symmetric tridiagonal system (diagonal ``diag``, off-diagonal ``off``) for ``rhs``."""
     n = len(diag)
@@ -472,18 +473,20 @@ def thomas(diag, off, rhs, out, cprime):
 
 
 # ============================================================================ one implicit step
-@njit(cache=True)
+@njit(cache=False)
 def implicit_step(x0, v0, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, ws):
     """Solve the implicit midpoint step of length h from (x0, v0) for the midpoint speeds ``w``
     (given as the initial guess). Returns the number of Newton iterations, -1 without convergence.
-    On return the work arrays hold the forces at the solution."""
+    On return the work arrays hold the forces of the last iteration, whose speeds differ from the
+    solution by less than the tolerance (the energy accounting uses them: its error is of the order of
+    the Newton residual)."""
     n = len(x0)
     xm, F, D, Ts, Td, K, C, G, diag, off, dw, cprime, parts = ws
     tol = SP[S_NEWTON_TOL]
     for it in range(MAX_NEWTON):
         for i in range(n):
             xm[i] = x0[i] + 0.5 * h * w[i]
-        vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, F, D, False, parts)
+        vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, F, D, True, parts)
         coupler_forces(xm, w, VP, CP, Ts, Td, K, C)
         for i in range(n):
             T_front = Ts[i - 1] + Td[i - 1] if i > 0 else 0.0
@@ -498,27 +501,23 @@ def implicit_step(x0, v0, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, ava
                 off[i] = -(0.5 * h * K[i] + C[i])
             diag[i] = dg
         thomas(diag, off, G, dw, cprime)
+        # Newton can cycle next to a kink of a force law (a power cap, the blending of electric and
+        # friction braking); after a few full steps, half steps break such cycles
+        damping = 1.0 if it < 6 else 0.5
         big = 0.0
         for i in range(n):
-            w[i] -= dw[i]
+            w[i] -= damping * dw[i]
             if abs(dw[i]) > big:
                 big = abs(dw[i])
         if not np.isfinite(big):
             return -1
         if big < tol:
-            # forces consistent with the final w, for the energy accounting
-            for i in range(n):
-                xm[i] = x0[i] + 0.5 * h * w[i]
-            vehicle_forces(
-                xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, F, D, True, parts
-            )
-            coupler_forces(xm, w, VP, CP, Ts, Td, K, C)
             return it + 1
     return -1
 
 
 # ============================================================================ brake command history
-@njit(cache=True)
+@njit(cache=False)
 def history_value(t, hist, nh):
     """Friction brake command at time t from the history (times in column 0, values in column 1)."""
     if nh <= 1 or t >= hist[nh - 1, 0]:
@@ -535,7 +534,7 @@ def history_value(t, hist, nh):
 
 
 # ============================================================================ controller
-@njit(cache=True)
+@njit(cache=False)
 def reference_speed(s, ref_s, ref_v2):
     """Reference speed at head position s [m/s]: v^2 linear in position between the points."""
     n = len(ref_s)
@@ -551,7 +550,7 @@ def reference_speed(s, ref_s, ref_v2):
     return np.sqrt(max(ref_v2[k] + (ref_v2[k + 1] - ref_v2[k]) * f, 0.0))
 
 
-@njit(cache=True)
+@njit(cache=False)
 def reference_regime(s, ref_s, ref_m):
     """Regime of the reference stretch containing head position s."""
     n = len(ref_s)
@@ -566,7 +565,7 @@ def reference_regime(s, ref_s, ref_m):
     return ref_m[k]
 
 
-@njit(cache=True)
+@njit(cache=False)
 def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
     """Command in [-1, 1], regime and mean speed that follow the reference profile.
 
@@ -653,7 +652,7 @@ def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
 
 
 # ============================================================================ the main loop
-@njit(cache=True)
+@njit(cache=False)
 def force_error(Tend, tmem, tmem_t, nmem, t1):
     """Largest deviation of the coupler forces at the end of a step (time t1) from their quadratic
     extrapolation through the ends of the three previous steps [N]: a third difference (about
@@ -672,7 +671,7 @@ def force_error(Tend, tmem, tmem_t, nmem, t1):
     return err
 
 
-@njit(cache=True)
+@njit(cache=False)
 def run(
     mode,
     t_end,
@@ -751,8 +750,9 @@ def run(
         if mode == 1:
             u, regime, vc = control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling)
             if SP[S_RAMP] > 0.0 and u > 0.0:
-                # the driver (or the traction control) raises the effort gradually
-                u_max = max(CMD[K_COMMAND], 0.0) + h / SP[S_RAMP]
+                # the driver (or the traction control) raises the effort gradually: by the time
+                # since the previous command at most
+                u_max = max(CMD[K_COMMAND], 0.0) + acc[A_LAST_H] / SP[S_RAMP]
                 if u > u_max:
                     u = u_max
             CMD[K_COMMAND] = u
@@ -784,6 +784,11 @@ def run(
                 w[i] = v[i] + 0.5 * h * a_last[i]
             its = implicit_step(x, v, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, ws)
             if its < 0:
+                jmax = 0
+                for i in range(n):
+                    if abs(ws[10][i]) > abs(ws[10][jmax]):
+                        jmax = i
+                print("FAIL", t, h, jmax, ws[10][jmax], v[jmax], bm[jmax], CMD[K_COMMAND], trac[jmax], elec[jmax])
                 if h <= h_min * 1.000001:
                     break
                 h = max(0.5 * h, h_min)
@@ -839,6 +844,7 @@ def run(
                 b[i] = target
         t += h
         tt[0] = t
+        acc[A_LAST_H] = h
         # ---- size of the next step
         if tol > 0.0:
             grow = 2.0 if err <= 0.0 else min(2.0, 0.9 * (tol / err) ** (1.0 / 3.0))
@@ -907,7 +913,7 @@ def run(
     return status, nh, nrec
 
 
-@njit(cache=True)
+@njit(cache=False)
 def record(nrec, t, x, v, a_last, VP, CP, CMD, parts, acc, rec_t, rec_x, rec_v, rec_a, rec_T, rec_agg):
     """Store the state at time t as record ``nrec``; the forces (``parts``) are those of the last
     step's midpoint."""

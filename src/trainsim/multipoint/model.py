@@ -257,8 +257,8 @@ class MultiPointSettings:
     brake_propagation: BrakePropagation = field(default_factory=BrakePropagation)
     resistance_split: Literal["terms", "mass"] = "terms"
     initial_couplers: Literal["neutral", "stretched", "bunched"] = "neutral"
-    time_step_s: float = 0.2
-    force_tolerance_n: float | None = 5.0e3
+    time_step_s: float = 0.05
+    force_tolerance_n: float | None = None
     min_time_step_s: float = 1.0e-3
     record_interval_s: float = 1.0
     speed_time_constant_s: float = 1.0
