@@ -257,11 +257,15 @@ if __name__ == "__main__":  # pragma: no cover
 
 def _register_extensions() -> None:
     """Commands that live in their own modules (each a thin layer over its part of the API)."""
+    from trainsim import cli_interchange
     from trainsim.cli_optimize import optimize
     from trainsim.cli_web import serve
 
     app.command("optimize")(optimize)
     app.command("serve")(serve)
+    app.command("convert")(cli_interchange.convert)
+    app.command("export-results")(cli_interchange.export_results)
+    app.command("runtimes")(cli_interchange.runtimes)
 
 
 _register_extensions()

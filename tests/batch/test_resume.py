@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -41,6 +42,20 @@ def _assert_exactly_once(out: Path, expected_ids: list[str]) -> None:
     assert sorted(ids) == sorted(expected_ids), "a run is missing"
 
 
+def _children(pid: int) -> list[int]:
+    out = subprocess.run(["pgrep", "-P", str(pid)], capture_output=True, text=True, check=False).stdout
+    return [int(p) for p in out.split()]
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process exists and is not a zombie (dead, waiting to be reaped)."""
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
 def test_sigkill_mid_study_then_resume(write_study, tmp_path):
     study_file = write_study(KILL_STUDY)
     out = tmp_path / "out"
@@ -55,19 +70,27 @@ def test_sigkill_mid_study_then_resume(write_study, tmp_path):
         "2",
         "--no-progress",
     ]
-    # a session of its own: SIGKILL goes to the study and its worker processes, as when a job is killed
+    # a session of its own, so that whatever happens the test can clean up every process it started
     proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         deadline = time.monotonic() + 60
         while len(_parts(out)) < 3 and proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.005)
-        os.killpg(proc.pid, signal.SIGKILL)
-    finally:
+        workers = _children(proc.pid)
+        # SIGKILL to the study's process only, as `kill -9 PID`: its workers must not survive it
+        proc.kill()
         proc.wait(timeout=30)
-    assert proc.returncode == -signal.SIGKILL, proc.stderr.read().decode() if proc.stderr else ""
+        assert proc.returncode == -signal.SIGKILL, proc.stderr.read().decode() if proc.stderr else ""
+        assert len(workers) == 2
+        deadline = time.monotonic() + 10
+        while any(_alive(w) for w in workers) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert not any(_alive(w) for w in workers), "a worker outlived the killed study"
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
     written = len(pq.read_table(out / RESULTS_DIR).column("run_id")) if _parts(out) else 0
     assert 30 <= written < 1200, f"the kill did not happen mid-study ({written} runs written)"
-    print(f"killed with {written} of 1200 runs written")
 
     study = load_study(study_file)
     ids = study.expand().run_ids

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import copy
 import json
+import os
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -90,7 +91,8 @@ class WorkerState:
 
     def __init__(self, payload: Payload) -> None:
         self.payload = payload
-        self._entries: list[tuple[Any, Any, Any] | None] = [None] * len(payload.entries)
+        # per entry: (train, route with the entry's stops, settings, route as in its file)
+        self._entries: list[tuple[Any, Any, Any, Any] | None] = [None] * len(payload.entries)
         self._trains = _Lru(32)
         self._routes = _Lru(32)
         self._lock = threading.Lock()
@@ -159,10 +161,11 @@ class WorkerState:
             data = self.payload.entries[e]
             source = f"{self.payload.study_name}: entry {e}"
             train = self._train(data["train"], source)
-            route = self._stops(self._route(data["route"], source), data, source)
-            built = (train, route, self._settings(data.get("settings"), source))
+            plain = self._route(data["route"], source)
+            route = self._stops(plain, data, source)
+            built = (train, route, self._settings(data.get("settings"), source), plain)
             self._entries[e] = built
-        return built
+        return built[:3]
 
     def scenario(self, task: RunTask) -> tuple[Any, Any, Any]:
         """(train, route, settings) of one run: the entry's, rebuilt where the run's values touch it."""
@@ -183,8 +186,11 @@ class WorkerState:
                 ) from None
         if "train" in touched:
             train = self._train(data["train"], source)
-        if touched & {"route", "stops", "dwell_s"}:
+        if "route" in touched:
             route = self._stops(self._route(data["route"], source), data, source)
+        elif touched & {"stops", "dwell_s"}:
+            plain = self._entries[e][3]  # type: ignore[index]
+            route = self._stops(plain, data, source)
         if "settings" in touched:
             settings = self._settings(data.get("settings"), source)
         return train, route, settings
@@ -281,12 +287,35 @@ def run_chunk(payload: Payload, tasks: list[RunTask]) -> list[tuple[int, dict[st
 _PAYLOAD: Payload | None = None
 
 
+def _die_with_parent() -> None:
+    """Have the kernel kill this worker when its parent process ends (Linux): a study killed with
+    SIGKILL must not leave workers behind, waiting for chunks that will never come."""
+    import multiprocessing
+    import signal
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        pr_set_pdeathsig = 1
+        libc.prctl(pr_set_pdeathsig, signal.SIGKILL)
+    except (OSError, AttributeError):
+        return
+    parent = multiprocessing.parent_process()
+    if parent is not None and not parent.is_alive():  # the parent died before prctl
+        os._exit(1)
+
+
 def init_process(payload: Payload) -> None:
     """Process-pool initializer: keep the payload, build the entries and load the compiled kernel,
     so that the first chunk is as fast as the others."""
     import signal
 
     global _PAYLOAD
+    _die_with_parent()
     # Ctrl-C goes to the whole process group: the parent stops the study, the workers just end
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _PAYLOAD = payload

@@ -21,6 +21,7 @@ from typing import Any, Literal
 
 from trainsim.constants import KMH, KN, TONNE
 from trainsim.errors import InputError
+from trainsim.io import convert as interchange
 from trainsim.io import railtoolkit as rtk
 from trainsim.io import trainsim_yaml as tsy
 from trainsim.model import Route, Train
@@ -152,6 +153,8 @@ def load_train(path: str | Path, train_id: str | None = None) -> Train:
             (default: the first, as TrainRuns.jl).
     """
     file = str(path)
+    if (train := interchange.detect_and_load(path, "train")) is not None:
+        return train
     detected = detect_format(path)
     _expect(detected, "train", file)
     if detected.format == "trainsim/train":
@@ -178,6 +181,8 @@ def load_route(path: str | Path, mass_model: str | None = None, path_id: str | N
         path_id: for railtoolkit files with several paths, the ``id`` of the one to read.
     """
     file = str(path)
+    if (route := interchange.detect_and_load(path, "route", mass_model=mass_model)) is not None:
+        return route
     detected = detect_format(path)
     _expect(detected, "route", file)
     if detected.format == "trainsim/route":
@@ -200,6 +205,8 @@ def load_route(path: str | Path, mass_model: str | None = None, path_id: str | N
 
 def load_scenario(path: str | Path) -> Scenario:
     """A scenario from a ``trainsim/scenario`` file (train and route files relative to it)."""
+    if (scenario := interchange.detect_and_load(path, "scenario")) is not None:
+        return scenario
     detected = detect_format(path)
     _expect(detected, "scenario", str(path))
     return tsy.load_scenario_yaml(path)
@@ -358,6 +365,8 @@ def check_file(path: str | Path) -> CheckReport:
     and notes: defaults applied, readings made, fields ignored.
     """
     file = str(path)
+    if (report := interchange.check_file(path)) is not None:
+        return report
     data = tsy.read_yaml(path)
     detected = _detect(data, file)
     fmt = detected.format + (f" v{detected.version}" if detected.format.startswith("trainsim/") else "")

@@ -153,7 +153,7 @@ MAX_NEWTON = 12
 
 
 # ============================================================================ smoothed piecewise laws
-@njit(cache=False)
+@njit(cache=True)
 def ramp(z, eps):
     """max(z, 0) with the kink rounded over [-eps, eps] by a quadratic (C1)."""
     if z <= -eps:
@@ -163,7 +163,7 @@ def ramp(z, eps):
     return (z + eps) * (z + eps) / (4.0 * eps)
 
 
-@njit(cache=False)
+@njit(cache=True)
 def ramp_slope(z, eps):
     """d ramp / dz: a step from 0 to 1 rounded linearly over [-eps, eps]."""
     if z <= -eps:
@@ -173,7 +173,7 @@ def ramp_slope(z, eps):
     return (z + eps) / (2.0 * eps)
 
 
-@njit(cache=False)
+@njit(cache=True)
 def ramp_curvature(z, eps):
     """d^2 ramp / dz^2."""
     if z <= -eps or z >= eps:
@@ -181,7 +181,7 @@ def ramp_curvature(z, eps):
     return 0.5 / eps
 
 
-@njit(cache=False)
+@njit(cache=True)
 def ramp_integral(z, eps):
     """Integral of ramp from -inf to z (potential energy of a unit spring engaged at 0)."""
     if z <= -eps:
@@ -191,7 +191,7 @@ def ramp_integral(z, eps):
     return (z + eps) ** 3 / (12.0 * eps)
 
 
-@njit(cache=False)
+@njit(cache=True)
 def coupler_force(delta, rate, cp):
     """Tension of a coupling [N] (positive in draft) at extension ``delta`` [m] and extension rate
     ``rate`` [m/s]: ``(spring, damper, d tension / d delta, d tension / d rate)``."""
@@ -219,7 +219,7 @@ def coupler_force(delta, rate, cp):
     return spring, damper, k, c
 
 
-@njit(cache=False)
+@njit(cache=True)
 def coupler_energy(delta, cp):
     """Potential energy stored in a coupling's springs [J] at extension ``delta`` [m]."""
     kd, kb = cp[C_KD], cp[C_KB]
@@ -235,7 +235,7 @@ def coupler_energy(delta, cp):
 
 
 # ============================================================================ effort curves, profiles
-@njit(cache=False)
+@njit(cache=True)
 def effort_slope(v, c, cs, cc, coff, cfc, cpc, vsel=-1.0):
     """Force [N] and its slope d F / d v [N s/m] of curve ``c`` of the bank at speed v >= 0 [m/s]
     (the law of ``trainsim.sim.kernel.effort``). The law's interval is the one of speed ``vsel`` if
@@ -272,7 +272,7 @@ def effort_slope(v, c, cs, cc, coff, cfc, cpc, vsel=-1.0):
     return f, df
 
 
-@njit(cache=False)
+@njit(cache=True)
 def profile_at(p, s, poff, px, pval, cache, i):
     """Values of line-resistance profile ``p`` at position s: (gradient ratio, curve ratio, tunnel
     ratio, tunnel v^2 coefficient [s^2/m^2]); ``cache[i]`` keeps vehicle i's last piece."""
@@ -301,7 +301,7 @@ def profile_at(p, s, poff, px, pval, cache, i):
     return g, c, tu, b
 
 
-@njit(cache=False)
+@njit(cache=True)
 def step_value(s, sx, sval):
     """Value of a piecewise constant function (value ``sval[k]`` on ``[sx[k], sx[k+1])``)."""
     k = np.searchsorted(sx, s, side="right") - 1
@@ -312,7 +312,7 @@ def step_value(s, sx, sval):
     return sval[k]
 
 
-@njit(cache=False)
+@njit(cache=True)
 def linear_value(s, x, left, right):
     """A ``PiecewiseLinear`` at s (the value from the right at a breakpoint)."""
     k = np.searchsorted(x, s, side="right") - 1
@@ -330,7 +330,7 @@ def linear_value(s, x, left, right):
 
 
 # ============================================================================ forces
-@njit(cache=False)
+@njit(cache=True)
 def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, out, D, detail, parts):
     """External force on every vehicle [N] at midpoint positions ``xm`` and speeds ``w`` into ``out``,
     minus its derivative with respect to the vehicle's own speed into ``D``; with ``detail`` the
@@ -440,7 +440,7 @@ def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pc
             parts[i, 6] = tunnel
 
 
-@njit(cache=False)
+@njit(cache=True)
 def coupler_forces(xm, w, VP, CP, Ts, Td, K, C):
     """Spring and damper tension of every coupling, and their derivatives, at positions ``xm`` and
     speeds ``w``."""
@@ -454,7 +454,7 @@ def coupler_forces(xm, w, VP, CP, Ts, Td, K, C):
         C[k] = c
 
 
-@njit(cache=False)
+@njit(cache=True)
 def thomas(diag, off, rhs, out, cprime):
     """Solve the symmetric tridiagonal system (diagonal ``diag``, off-diagonal ``off``) for ``rhs``."""
     n = len(diag)
@@ -473,7 +473,7 @@ def thomas(diag, off, rhs, out, cprime):
 
 
 # ============================================================================ one implicit step
-@njit(cache=False)
+@njit(cache=True)
 def implicit_step(x0, v0, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, ws):
     """Solve the implicit midpoint step of length h from (x0, v0) for the midpoint speeds ``w``
     (given as the initial guess). Returns the number of Newton iterations, -1 without convergence.
@@ -483,6 +483,7 @@ def implicit_step(x0, v0, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, ava
     n = len(x0)
     xm, F, D, Ts, Td, K, C, G, diag, off, dw, cprime, parts = ws
     tol = SP[S_NEWTON_TOL]
+    veps = SP[S_VEPS]
     for it in range(MAX_NEWTON):
         for i in range(n):
             xm[i] = x0[i] + 0.5 * h * w[i]
@@ -506,9 +507,16 @@ def implicit_step(x0, v0, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, ava
         damping = 1.0 if it < 6 else 0.5
         big = 0.0
         for i in range(n):
-            w[i] -= damping * dw[i]
-            if abs(dw[i]) > big:
-                big = abs(dw[i])
+            w_new = w[i] - damping * dw[i]
+            # the dry-friction law turns over within a few v_eps of standstill: an update that would
+            # carry a vehicle's end speed across 0 from outside that zone stops it at 0 first
+            ve_old = 2.0 * w[i] - v0[i]
+            ve_new = 2.0 * w_new - v0[i]
+            if ve_old * ve_new < 0.0 and abs(ve_old) > 2.0 * veps:
+                w_new = 0.5 * v0[i]
+            if abs(w_new - w[i]) > big:
+                big = abs(w_new - w[i])
+            w[i] = w_new
         if not np.isfinite(big):
             return -1
         if big < tol:
@@ -517,7 +525,7 @@ def implicit_step(x0, v0, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, ava
 
 
 # ============================================================================ brake command history
-@njit(cache=False)
+@njit(cache=True)
 def history_value(t, hist, nh):
     """Friction brake command at time t from the history (times in column 0, values in column 1)."""
     if nh <= 1 or t >= hist[nh - 1, 0]:
@@ -534,7 +542,7 @@ def history_value(t, hist, nh):
 
 
 # ============================================================================ controller
-@njit(cache=False)
+@njit(cache=True)
 def reference_speed(s, ref_s, ref_v2):
     """Reference speed at head position s [m/s]: v^2 linear in position between the points."""
     n = len(ref_s)
@@ -550,7 +558,7 @@ def reference_speed(s, ref_s, ref_v2):
     return np.sqrt(max(ref_v2[k] + (ref_v2[k + 1] - ref_v2[k]) * f, 0.0))
 
 
-@njit(cache=False)
+@njit(cache=True)
 def reference_regime(s, ref_s, ref_m):
     """Regime of the reference stretch containing head position s."""
     n = len(ref_s)
@@ -565,7 +573,7 @@ def reference_regime(s, ref_s, ref_m):
     return ref_m[k]
 
 
-@njit(cache=False)
+@njit(cache=True)
 def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
     """Command in [-1, 1], regime and mean speed that follow the reference profile.
 
@@ -652,7 +660,7 @@ def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
 
 
 # ============================================================================ the main loop
-@njit(cache=False)
+@njit(cache=True)
 def force_error(Tend, tmem, tmem_t, nmem, t1):
     """Largest deviation of the coupler forces at the end of a step (time t1) from their quadratic
     extrapolation through the ends of the three previous steps [N]: a third difference (about
@@ -671,7 +679,7 @@ def force_error(Tend, tmem, tmem_t, nmem, t1):
     return err
 
 
-@njit(cache=False)
+@njit(cache=True)
 def run(
     mode,
     t_end,
@@ -784,11 +792,6 @@ def run(
                 w[i] = v[i] + 0.5 * h * a_last[i]
             its = implicit_step(x, v, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, ws)
             if its < 0:
-                jmax = 0
-                for i in range(n):
-                    if abs(ws[10][i]) > abs(ws[10][jmax]):
-                        jmax = i
-                print("FAIL", t, h, jmax, ws[10][jmax], v[jmax], bm[jmax], CMD[K_COMMAND], trac[jmax], elec[jmax])
                 if h <= h_min * 1.000001:
                     break
                 h = max(0.5 * h, h_min)
@@ -913,7 +916,7 @@ def run(
     return status, nh, nrec
 
 
-@njit(cache=False)
+@njit(cache=True)
 def record(nrec, t, x, v, a_last, VP, CP, CMD, parts, acc, rec_t, rec_x, rec_v, rec_a, rec_T, rec_agg):
     """Store the state at time t as record ``nrec``; the forces (``parts``) are those of the last
     step's midpoint."""

@@ -116,8 +116,9 @@ def final_phase(
             v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
             mode = mode_of(phi, inv_eta_t, eta_r, has_regen) if force_mode < 0 else force_mode
             at_limit = v >= vcap[i] - 1e-9
-            if at_limit and (mode == TRACTION or mode == COAST):
-                # the speed limit binds: hold it while the adjoint asks for traction or coasting
+            if at_limit and (mode == TRACTION or (mode == COAST and resistance_force(v, u, line, P) < 0.0)):
+                # the speed limit binds: hold it while the adjoint asks for traction, or while
+                # coasting would speed the train up (downhill)
                 mode = CRUISE
             h = min(h_max, w - u)
             if US[kk] > u:
