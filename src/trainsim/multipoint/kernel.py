@@ -110,7 +110,8 @@ A_H = 15  # size of the next step [s]
 A_NMEM = 16  # number of step-end coupler forces remembered (up to 3)
 A_REJECTED = 17  # steps repeated shorter for the force tolerance
 A_LAST_H = 18  # length of the last step [s]
-N_A = 19
+A_INTEGRATED = 19  # time integrated (excluding dwells) [s]
+N_A = 20
 
 # aggregated record columns REC_AGG
 R_HEAD = 0
@@ -754,6 +755,9 @@ def run(
         acc[A_H] = h_max if tol <= 0.0 else max(h_min, 0.25 * h_max)
     while t < t_end - 1e-12:
         h = min(acc[A_H], t_end - t)
+        if tol > 0.0 and acc[A_NMEM] < 3:
+            # no error estimate yet (start, or after a dwell): small steps until there is one
+            h = min(h, 4.0 * h_min)
         # ---- command for this step
         if mode == 1:
             u, regime, vc = control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling)
@@ -848,6 +852,7 @@ def run(
         t += h
         tt[0] = t
         acc[A_LAST_H] = h
+        acc[A_INTEGRATED] += h
         # ---- size of the next step
         if tol > 0.0:
             grow = 2.0 if err <= 0.0 else min(2.0, 0.9 * (tol / err) ** (1.0 / 3.0))

@@ -401,7 +401,7 @@ class _Runner:
             "rejected_steps": float(self.acc[K.A_REJECTED]),
             "wall_time_s": self.wall_s,
             "largest_time_step_s": float(self.c.SP[K.S_STEP]),
-            "mean_time_step_s": float(self.t[0] / max(self.acc[K.A_STEPS], 1.0)),
+            "mean_time_step_s": float(self.acc[K.A_INTEGRATED] / max(self.acc[K.A_STEPS], 1.0)),
         }
 
     def result(self, status: str, kind: str, warnings: list[str], stop_names=None) -> MultiPointResult:
@@ -616,6 +616,26 @@ class MultiPointSession:
     @property
     def speeds_mps(self) -> np.ndarray:
         return self._runner.v.copy()
+
+    def set_state(self, positions_m: Sequence[float], speeds_mps: Sequence[float]) -> None:
+        """Set every vehicle's front position [m] and speed [m/s] (head first) before the first step,
+        e.g. to start from a stretched or compressed train or to test the coupler dynamics."""
+        r = self._runner
+        if r.acc[K.A_STEPS] > 0 or r.t[0] > 0:
+            raise InputError("the state can only be set before the first step", field="state")
+        x = np.asarray(positions_m, dtype=float)
+        v = np.asarray(speeds_mps, dtype=float)
+        n = self.mp.n_vehicles
+        if x.shape != (n,) or v.shape != (n,) or not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
+            raise InputError("give one finite position and speed per vehicle", field="state", allowed=f"{n} values")
+        if np.any(np.diff(x) >= 0):
+            raise InputError("positions must decrease from the head to the rear", field="state.positions_m")
+        r.x[:] = x
+        r.v[:] = v
+        r.a[:] = 0.0
+        r.acc[K.A_NMEM] = 0
+        r.nrec = 0
+        r.record_now(int(r.CMD[K.K_REGIME]), float(r.CMD[K.K_COMMAND]))
 
     def coupler_forces_n(self) -> np.ndarray:
         """Tension of every coupling now [N]."""

@@ -114,6 +114,8 @@ class SectionSolver:
         )
         self.n_max = 8 * len(tr.x) + 64
         self._last_coast_point: float | None = None
+        #: whether holding arcs are left early ahead of steep descents (coasting excursions)
+        self.excursions = True
         fastest = self._fastest_points()
         self.fastest = fastest
         self.fastest_time_s = float(fastest[2][-1])
@@ -139,15 +141,106 @@ class SectionSolver:
         Cr, _, US = kernel.braking_ceiling(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, self.i0, self.i1, self.P, self.curves, kinks, mode
         )
+        mu = price_of_time_w(self.train, holding_speed)
+        steep_down = self._steep_descents(holding_speed, vhold, vtop)
+        if not self.excursions:
+            steep_down[:] = False
+        pieces: list[tuple[np.ndarray, ...]] = []
+        start = (-1, 0.0, 0.0, 0.0)
+        last_pos = self.s0
+        for _ in range(10_000):
+            seg = self._holding(vhold, vtop, Cr, US, mode, kinks, start)
+            if seg is None:
+                return self._stalled(pieces)
+            if steep_down.any():
+                self._has_descents = True
+            a = self._next_descent(seg, steep_down, vhold, last_pos, holding_speed)
+            if a is None:
+                pieces.append(seg)
+                break
+            p_lo = self._first_at_speed(seg, holding_speed, last_pos)
+            p, excursion, q = self._shoot_departure(seg, p_lo, a, vtop, holding_speed, mu)
+            keep = seg[0] < p
+            pieces.append(tuple(arr[keep] for arr in seg))
+            pieces.append(excursion)
+            start = q
+            last_pos = tr.x[q[0]] + q[1]
+        return tuple(np.concatenate([pc[k] for pc in pieces]) for k in range(4))
+
+    def _holding(self, vhold, vtop, Cr, US, mode, kinks, start):
+        tr = self.track
         out = [np.empty(self.n_max) for _ in range(3)] + [np.empty(self.n_max, dtype=np.int8)]
         n, status = pk.holding_segment(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vhold, vtop, tr.traction_scale, self.i0, self.i1,
-            self.P, self.curves, self.tk, kinks, Cr, US, mode, *out,
+            self.P, self.curves, self.tk, kinks, Cr, US, mode, *out, *start,
         )  # fmt: skip
-        s, v, t, m = (a[:n] for a in out)
         if status != 0:
-            return s, np.append(v[:-1], 1.0), np.append(t[:-1], np.inf), m
-        return s, v, t, m
+            return None
+        return tuple(a[:n] for a in out)
+
+    def _stalled(self, pieces):
+        s = np.array([self.s0, self.s1])
+        return s, np.array([0.0, 1.0]), np.array([0.0, np.inf]), np.array([0, kernel.DWELL], dtype=np.int8)
+
+    def _steep_descents(self, V: float, vhold: np.ndarray, vtop: np.ndarray) -> np.ndarray:
+        """Intervals where coasting at V speeds the train up (holding V would need braking) and the
+        train may go faster than V there."""
+        tr = self.track
+        law = self.train.resistance_law
+        weight = self.P[kernel.P_WEIGHT]
+        res_left = law(V) + weight * (tr.a0 + tr.b0 * V * V)
+        res_right = law(V) + weight * (tr.a0 + tr.a1 * np.diff(tr.x) + (tr.b0 + tr.b1 * np.diff(tr.x)) * V * V)
+        return (np.minimum(res_left, res_right) < 0.0) & (vhold >= V - 1e-9) & (vtop > V + 1e-6)
+
+    def _next_descent(self, seg, steep_down, vhold, after: float, V: float) -> float | None:
+        """Start of the next steep descent beyond ``after`` that the holding run meets at speed V."""
+        tr = self.track
+        idx = np.flatnonzero(steep_down[self.i0 : self.i1]) + self.i0
+        starts = idx[np.concatenate([[True], np.diff(idx) > 1])] if len(idx) else idx
+        for i in starts:
+            a = tr.x[i]
+            if a <= after + 1.0:
+                continue
+            v_at = np.interp(a, seg[0], seg[1])
+            if abs(v_at - V) <= 1e-6 * max(V, 1.0):
+                return float(a)
+        return None
+
+    def _first_at_speed(self, seg, V: float, after: float) -> float:
+        s, v = seg[0], seg[1]
+        ok = np.flatnonzero((s >= after) & (np.abs(v - V) <= 1e-6 * max(V, 1.0)))
+        return float(s[ok[0]]) if len(ok) else float(after)
+
+    def _shoot_departure(self, seg, p_lo: float, a: float, vtop, V: float, mu: float):
+        """The departure point p in [p_lo, a] from which coasting rejoins the holding arc with the
+        adjoint back at 1/eta_t (bisection on the sign of the residual)."""
+        tr = self.track
+
+        def excursion(p: float):
+            i, u, v, t, _ = self._state_at(seg, p)
+            out = [np.empty(self.n_max) for _ in range(3)] + [np.empty(self.n_max, dtype=np.int8)]
+            n, status, res, iq, uq, tq = pk.coast_excursion(
+                tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, tr.traction_scale, i, u, v, t, self.i1,
+                self.P, self.curves, self.bk, V, mu, self.inv_eta_t, ADJOINT_STEP_M, *out,
+            )  # fmt: skip
+            return (res if status == 0 else -np.inf), tuple(x[:n] for x in out), (iq, uq, V, tq)
+
+        res_a, ex_a, q_a = excursion(a)
+        if res_a <= 0.0 or not np.isfinite(res_a):
+            return a, ex_a, q_a
+        lo, hi = p_lo, a
+        res_lo, ex_lo, q_lo = excursion(lo)
+        if res_lo >= 0.0:
+            return lo, ex_lo, q_lo
+        best = (a, ex_a, q_a)
+        while hi - lo > 0.5:
+            mid = 0.5 * (lo + hi)
+            res, ex, q = excursion(mid)
+            if res >= 0.0:
+                hi, best = mid, (mid, ex, q)
+            else:
+                lo = mid
+        return best
 
     def _fastest_points(self):
         tr = self.track
@@ -269,7 +362,39 @@ class SectionSolver:
 
     def solve(self, running_time_s: float) -> SectionPlan:
         """The least-energy run that takes ``running_time_s``; the fastest run (``feasible`` False)
-        when that is shorter than the fastest possible."""
+        when that is shorter than the fastest possible.
+
+        Where the section has descents too steep to hold the speed on, the run is built both with
+        and without coasting excursions ahead of them and the one that needs less energy is kept:
+        the excursions follow the optimality conditions locally, but on lines where descents,
+        lower limits and the final approach interact they can lose to plain holding."""
+        self.excursions = True
+        self._has_descents = False
+        with_excursions = self._solve_once(running_time_s)
+        if not self._has_descents:
+            return with_excursions
+        self.excursions = False
+        self._last_coast_point = None
+        plain = self._solve_once(running_time_s)
+        self.excursions = True
+        return min((with_excursions, plain), key=self.energy_j)
+
+    def energy_j(self, plan: SectionPlan) -> float:
+        """Net electrical energy of a plan without auxiliaries [J] (what the strategy minimises)."""
+        import dataclasses
+
+        from trainsim.model.route import Station
+        from trainsim.sim.profile import line_resistance_profile, speed_ceiling
+        from trainsim.sim.result import build_result
+
+        route = dataclasses.replace(self.route, stations=(Station("a", self.s0), Station("b", self.s1)))
+        res = build_result(
+            train=self.train, route=route, settings=RunSettings(), profile=line_resistance_profile(route, self.train),
+            ceiling=speed_ceiling(route, self.train), s=plan.s, v=plan.v, t=plan.t, regime=plan.regime, status="ok",
+        )  # fmt: skip
+        return res.energy_kwh.net - res.energy_kwh.auxiliary
+
+    def _solve_once(self, running_time_s: float) -> SectionPlan:
         if running_time_s <= self.fastest_time_s + TIME_TOLERANCE_S:
             s, v, t, m = self.fastest
             m = m.copy()

@@ -261,7 +261,7 @@ def _meet_curve(E, u, end, mode, w, Crk, brake_mode, line, P, curves, kinks, bk)
 @njit(cache=True)
 def holding_segment(
     x, a0, a1, b0, b1, vhold, vtop, tscale, i0, i1, P, curves, tk, bk, Cr, US, brake_mode,
-    out_s, out_v, out_t, out_m,
+    out_s, out_v, out_t, out_m, i_s=-1, u_s=0.0, v_s=0.0, t_s=0.0,
 ):  # fmt: skip
     """The holding phases of the optimal strategy from standstill at x[i0] to the stop at x[i1].
 
@@ -270,18 +270,20 @@ def holding_segment(
     maximum traction; where it would need braking (steep downhill) coast instead and let the speed
     rise, up to ``vtop`` (the limit, or the regenerative holding speed W), where the train holds
     with braking; after such a descent coast back down to ``vhold``; follow the braking curves
-    (``Cr``/``US``, computed for ``vtop``) to lower limits and to the stop. Returns (n, status)."""
+    (``Cr``/``US``, computed for ``vtop``) to lower limits and to the stop. Returns (n, status).
+    With ``i_s`` >= 0 it starts from speed ``v_s`` at offset ``u_s`` of interval ``i_s``, time ``t_s``."""
     n = 0
-    E = 0.0
-    t = 0.0
+    E = 0.5 * v_s * v_s if i_s >= 0 else 0.0
+    t = t_s if i_s >= 0 else 0.0
     tol = 1e-7
-    for k in range(i1 - i0):
+    k_start = i_s - i0 if i_s >= 0 else 0
+    for k in range(k_start, i1 - i0):
         i = i0 + k
         w = x[i + 1] - x[i]
         line = (a0[i], a1[i], b0[i], b1[i])
         P[P_TRACTION_SCALE] = tscale[i]
         vh, vt = vhold[i], vtop[i]
-        u = 0.0
+        u = u_s if (i_s >= 0 and k == k_start) else 0.0
         for _guard in range(10000):
             if u >= w - 1e-12:
                 break
@@ -353,3 +355,60 @@ def holding_segment(
             E = E1
     n = _emit(out_s, out_v, out_t, out_m, n, x[i1], 0.0, t, 4)
     return n, 0
+
+
+@njit(cache=True)
+def coast_excursion(
+    x, a0, a1, b0, b1, vtop, tscale, i, u, v0, t, i_end, P, curves, bk, V, mu, inv_eta_t, h_max,
+    out_s, out_v, out_t, out_m,
+):  # fmt: skip
+    """Leave the holding arc at speed V into coasting, ahead of a descent too steep to hold V on.
+
+    Coasts (holding ``vtop`` with braking where coasting would exceed it) and integrates the adjoint
+    from phi = 1/eta_t until the speed comes back down to V after having been above it: the rejoin
+    point q. Returns (n, status, phi(q) - 1/eta_t, i_q, u_q, t_q): status 0 rejoined, 1 came to rest
+    or reached the end without rejoining. Leaving earlier makes the residual smaller (Albrecht et
+    al. 2016: the optimal departure before a steep descent is where it vanishes)."""
+    phi = inv_eta_t
+    E = 0.5 * v0 * v0
+    EV = 0.5 * V * V
+    above = False
+    n = 0
+    for ii in range(i, i_end):
+        w = x[ii + 1] - x[ii]
+        line = (a0[ii], a1[ii], b0[ii], b1[ii])
+        P[P_TRACTION_SCALE] = tscale[ii]
+        uu = u if ii == i else 0.0
+        while uu < w - 1e-12:
+            v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+            h = min(h_max, w - uu)
+            mode = COAST
+            if v >= vtop[ii] - 1e-9 and resistance_force(v, uu, line, P) < 0.0:
+                mode = CRUISE
+            if mode == CRUISE:
+                E1, dt = E, h / v
+            else:
+                E1, dt = step_energy_time(E, uu, h, COAST, line, P, curves, bk)
+                if E1 > 0.5 * vtop[ii] * vtop[ii]:
+                    hc = distance_to_speed(E, uu, 0.5 * vtop[ii] * vtop[ii], COAST, line, P, curves)
+                    if np.isfinite(hc) and 0.0 < hc < h:
+                        h = hc
+                        E1, dt = step_energy_time(E, uu, h, COAST, line, P, curves, bk)
+                    E1 = min(E1, 0.5 * vtop[ii] * vtop[ii])
+            if E1 <= 0.0:
+                return n, 1, -np.inf, ii, uu, t
+            if above and E1 < EV <= E:
+                # back down to V inside this step: the rejoin point
+                hq = distance_to_speed(E, uu, EV, COAST, line, P, curves)
+                if not np.isfinite(hq) or hq > h:
+                    hq = h
+                _, dtq = rk4_energy_time(E, uu, hq, COAST, line, P, curves)
+                phiq = phi_step(phi, E, EV, uu, hq, b0[ii], b1[ii], P, mu)
+                n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
+                return n, 0, phiq - inv_eta_t, ii, uu + hq, t + dtq
+            phi = phi_step(phi, E, E1, uu, h, b0[ii], b1[ii], P, mu)
+            if E1 > EV * (1.0 + 1e-12):
+                above = True
+            n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
+            E, t, uu = E1, t + dt, uu + h
+    return n, 1, -np.inf, i_end - 1, x[i_end] - x[i_end - 1], t
