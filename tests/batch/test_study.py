@@ -329,7 +329,7 @@ def test_railtoolkit_parts_cannot_be_varied():
         },
         "axes": [{"field": "train.mass_t", "values": [1]}],
     }
-    with pytest.raises(InputError, match="railtoolkit file"):
+    with pytest.raises(InputError, match="not a trainsim file"):
         study_from_dict(data, "s.yaml")
     data["axes"] = [{"field": "settings.max_step_m", "values": [10, 20]}]
     assert len(study_from_dict(data, "s.yaml").expand()) == 2

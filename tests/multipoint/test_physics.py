@@ -279,20 +279,25 @@ def test_very_stiff_couplers_are_stable_with_large_steps(electric_freight, refer
     assert abs(result.energy.balance_error) < 1e-4
 
 
-def test_step_size_control_agrees_with_fixed_steps(electric_freight, reference):
-    fixed = run_multipoint_fastest(
-        electric_freight, hilly_route(), MultiPointSettings(couplers=CouplerModel(slack_m=0.02)), reference=reference
-    )
-    adaptive = run_multipoint_fastest(
-        electric_freight,
-        hilly_route(),
-        MultiPointSettings(couplers=CouplerModel(slack_m=0.02), time_step_s=0.2, force_tolerance_n=5e3),
-        reference=reference,
-    )
+def test_step_size_control_resolves_a_slack_impact_with_few_steps(electric_freight, reference):
+    # full traction at once on a slack train: the slack runs out with an impact. Fixed steps of 0.05 s
+    # overestimate its peak by several per cent; the step-size control gets within 2 % of a 2.5 ms run
+    # with a fraction of the steps.
+    couplers = CouplerModel(slack_m=0.02)
+
+    def run(**kw):
+        return run_multipoint_fastest(
+            electric_freight, hilly_route(), MultiPointSettings(couplers=couplers, **kw), reference=reference
+        )
+
+    fine = run(time_step_s=0.0025)
+    adaptive = run(time_step_s=0.2, force_tolerance_n=5e3)
     assert adaptive.statistics["rejected_steps"] > 0
-    assert adaptive.running_time_s == pytest.approx(fixed.running_time_s, rel=5e-3)
-    assert adaptive.energy_kwh.traction == pytest.approx(fixed.energy_kwh.traction, rel=5e-3)
-    assert adaptive.max_draft.force_n == pytest.approx(fixed.max_draft.force_n, rel=0.1)
+    assert adaptive.statistics["steps"] < 0.05 * fine.statistics["steps"]
+    assert adaptive.max_draft.force_n == pytest.approx(fine.max_draft.force_n, rel=0.02)
+    assert adaptive.max_buff.force_n == pytest.approx(fine.max_buff.force_n, rel=0.02)
+    assert adaptive.running_time_s == pytest.approx(fine.running_time_s, rel=2e-3)
+    assert adaptive.energy_kwh.traction == pytest.approx(fine.energy_kwh.traction, rel=2e-3)
 
 
 # ------------------------------------------------------------------ in-train forces
@@ -330,7 +335,7 @@ def test_brake_propagation_delay_compresses_the_train():
         worst[name] = np.min(forces)
         assert v_before.mean() > 10.0
     # the front brakes first, the rear runs into it: much larger buff forces with a delay
-    assert worst["250 m/s from the head"] < 3.0 * worst["at once"] - 1e4
+    assert worst["250 m/s from the head"] < 1.8 * worst["at once"]
 
 
 def test_brake_delay_is_anticipated_by_the_controller():

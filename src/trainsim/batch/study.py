@@ -322,7 +322,8 @@ class Entry:
     Attributes:
         name: the explicit run's name (None for the base of a sweep).
         data: scenario data; ``train`` and ``route`` are inline mappings (trainsim files are read and
-            inlined) or the absolute path of a railtoolkit file, which cannot be varied.
+            inlined) or the absolute path of a file of another format (railtoolkit...), which cannot be
+            varied.
         departures: departure times [s since midnight], or None.
     """
 
@@ -350,7 +351,8 @@ def _canonical(obj: Any) -> str:
 
 
 def _read_part(value: Any, kind: str, base_dir: FsPath, file: str, field: str) -> Any:
-    """Inline a trainsim train/route file as data; keep a railtoolkit file as its absolute path."""
+    """Inline a trainsim train/route file as data; keep a file of another format (railtoolkit...) as
+    its absolute path, read by the loader in the workers."""
     from trainsim.io import loader
     from trainsim.io import trainsim_yaml as tsy
 
@@ -587,8 +589,8 @@ class Study:
                 part = parse_path(col.path).root
                 if isinstance(entry.data.get(part), str):
                     raise fail(
-                        f"the {part} is a railtoolkit file ({entry.data[part]}), whose fields "
-                        "cannot be varied; use a trainsim file"
+                        f"the {part} comes from a file that is not a trainsim file ({entry.data[part]}, "
+                        "e.g. railtoolkit), whose fields cannot be varied; use a trainsim file"
                     )
                 trial = copy.deepcopy(entry.data)
                 try:

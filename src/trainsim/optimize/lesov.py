@@ -215,9 +215,10 @@ def _execute(solver: SectionSolver, sw: LesovSwitching) -> SectionPlan:
     tr = solver.track
     vhold = np.minimum(tr.vlim, v_ss)
     out = [np.empty(solver.n_max) for _ in range(3)] + [np.empty(solver.n_max, dtype=np.int8)]
+    modes = np.full(len(tr.a0), kernel.BRAKE, dtype=np.int64)
     n, _ = pk.holding_segment(
         tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vhold, vhold, tr.traction_scale, solver.i0, solver.i1,
-        solver.P, solver.curves, solver.tk, solver.bk, solver.Cr, solver.US, kernel.BRAKE, *out,
+        solver.P, solver.curves, solver.tk, solver.bk, solver.rk, solver.Cr, solver.US, modes, *out,
     )  # fmt: skip
     phase_a = tuple(a[:n] for a in out)
 

@@ -135,12 +135,7 @@ class SectionSolver:
         vhold = np.minimum(tr.vlim, holding_speed)
         W = regenerative_holding_speed(self.train, price_of_time_w(self.train, holding_speed), self.eta_r)
         vtop = np.maximum(np.minimum(tr.vlim, W), vhold)
-        # lower limits are approached with regenerative braking only where the train has it: the
-        # friction brakes would waste what the electric brake returns
-        mode, kinks = (kernel.REGEN, self.rk) if self.has_regen else (kernel.BRAKE, self.bk)
-        Cr, _, US = kernel.braking_ceiling(
-            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, self.i0, self.i1, self.P, self.curves, kinks, mode
-        )
+        Cr, US, modes = self._ceiling(vtop)
         mu = price_of_time_w(self.train, holding_speed)
         steep_down = self._steep_descents(holding_speed, vhold, vtop)
         if not self.excursions:
@@ -149,7 +144,7 @@ class SectionSolver:
         start = (-1, 0.0, 0.0, 0.0)
         last_pos = self.s0
         for _ in range(10_000):
-            seg = self._holding(vhold, vtop, Cr, US, mode, kinks, start)
+            seg = self._holding(vhold, vtop, Cr, US, modes, start)
             if seg is None:
                 return self._stalled(pieces)
             if steep_down.any():
@@ -167,12 +162,31 @@ class SectionSolver:
             last_pos = tr.x[q[0]] + q[1]
         return tuple(np.concatenate([pc[k] for pc in pieces]) for k in range(4))
 
-    def _holding(self, vhold, vtop, Cr, US, mode, kinks, start):
+    def _ceiling(self, vtop: np.ndarray):
+        """Braking ceiling for the holding phases: service braking on the final approach to the stop
+        (as the fastest run), regenerative braking only before lower limits where the train has it
+        (the friction brakes would waste what the electric brake returns)."""
+        tr = self.track
+        modes = np.full(len(tr.a0), kernel.BRAKE, dtype=np.int64)
+        if self.has_regen:
+            _, _, US_s = kernel.braking_ceiling(
+                tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, self.i0, self.i1, self.P, self.curves, self.bk
+            )
+            # the final approach: the intervals after the last one that reaches the limit plateau
+            plateau = np.flatnonzero(US_s > 0.0)
+            last = self.i0 + (int(plateau[-1]) if len(plateau) else -1)
+            modes[self.i0 : last + 1] = kernel.REGEN
+        Cr, _, US = kernel.braking_ceiling_mixed(
+            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, self.i0, self.i1, self.P, self.curves, self.bk, self.rk, modes
+        )
+        return Cr, US, modes
+
+    def _holding(self, vhold, vtop, Cr, US, modes, start):
         tr = self.track
         out = [np.empty(self.n_max) for _ in range(3)] + [np.empty(self.n_max, dtype=np.int8)]
         n, status = pk.holding_segment(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vhold, vtop, tr.traction_scale, self.i0, self.i1,
-            self.P, self.curves, self.tk, kinks, Cr, US, mode, *out, *start,
+            self.P, self.curves, self.tk, self.bk, self.rk, Cr, US, modes, *out, *start,
         )  # fmt: skip
         if status != 0:
             return None

@@ -260,7 +260,7 @@ def _meet_curve(E, u, end, mode, w, Crk, brake_mode, line, P, curves, kinks, bk)
 
 @njit(cache=True)
 def holding_segment(
-    x, a0, a1, b0, b1, vhold, vtop, tscale, i0, i1, P, curves, tk, bk, Cr, US, brake_mode,
+    x, a0, a1, b0, b1, vhold, vtop, tscale, i0, i1, P, curves, tk, bk, rk, Cr, US, brake_modes,
     out_s, out_v, out_t, out_m, i_s=-1, u_s=0.0, v_s=0.0, t_s=0.0,
 ):  # fmt: skip
     """The holding phases of the optimal strategy from standstill at x[i0] to the stop at x[i1].
@@ -270,7 +270,8 @@ def holding_segment(
     maximum traction; where it would need braking (steep downhill) coast instead and let the speed
     rise, up to ``vtop`` (the limit, or the regenerative holding speed W), where the train holds
     with braking; after such a descent coast back down to ``vhold``; follow the braking curves
-    (``Cr``/``US``, computed for ``vtop``) to lower limits and to the stop. Returns (n, status).
+    (``Cr``/``US``, computed for ``vtop`` with ``brake_modes[i]`` per interval) to lower limits
+    and to the stop. Returns (n, status).
     With ``i_s`` >= 0 it starts from speed ``v_s`` at offset ``u_s`` of interval ``i_s``, time ``t_s``."""
     n = 0
     E = 0.5 * v_s * v_s if i_s >= 0 else 0.0
@@ -283,6 +284,8 @@ def holding_segment(
         line = (a0[i], a1[i], b0[i], b1[i])
         P[P_TRACTION_SCALE] = tscale[i]
         vh, vt = vhold[i], vtop[i]
+        brake_mode = brake_modes[i]
+        bkk = bk if brake_mode == BRAKE else rk
         u = u_s if (i_s >= 0 and k == k_start) else 0.0
         for _guard in range(10000):
             if u >= w - 1e-12:
@@ -290,10 +293,10 @@ def holding_segment(
             v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
             in_curve = u >= US[k]
             end = w if in_curve else US[k]
-            if in_curve and v >= _curve_speed(u, w, Cr[k], brake_mode, line, P, curves, bk) - 1e-6:
+            if in_curve and v >= _curve_speed(u, w, Cr[k], brake_mode, line, P, curves, bkk) - 1e-6:
                 # on the braking curve: brake along it to the interval's end
                 n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, brake_mode)
-                _, dt = step_energy_time(E, u, w - u, brake_mode, line, P, curves, bk)
+                _, dt = step_energy_time(E, u, w - u, brake_mode, line, P, curves, bkk)
                 t += dt
                 E = 0.5 * Cr[k] * Cr[k]
                 u = w
@@ -340,9 +343,9 @@ def holding_segment(
                     E1 = 0.5 * target * target
                     v1 = target
             if in_curve:
-                vb = _curve_speed(u + h, w, Cr[k], brake_mode, line, P, curves, bk)
+                vb = _curve_speed(u + h, w, Cr[k], brake_mode, line, P, curves, bkk)
                 if v1 > vb + 1e-9:
-                    hm = _meet_curve(E, u, u + h, mode, w, Cr[k], brake_mode, line, P, curves, kinks, bk) - u
+                    hm = _meet_curve(E, u, u + h, mode, w, Cr[k], brake_mode, line, P, curves, kinks, bkk) - u
                     h = hm
                     E1, dt = step_energy_time(E, u, h, mode, line, P, curves, kinks)
             if E1 <= 0.0:
