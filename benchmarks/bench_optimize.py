@@ -19,7 +19,7 @@ from pathlib import Path
 from trainsim.io.ttobench import read_ttobench_track, read_ttobench_train
 from trainsim.model.route import Station
 from trainsim.model.scenario import RunSettings
-from trainsim.optimize.lesov import lesov_switching, lesov_train
+from trainsim.optimize.lesov import lesov_train
 from trainsim.optimize.optimal import SectionSolver
 from trainsim.optimize.reference import solve_reference
 from trainsim.sim.profile import line_resistance_profile, speed_ceiling
@@ -47,7 +47,7 @@ def main() -> None:
     args = parser.parse_args()
     rows = []
     header = (f"{'track':28s} {'train':8s} {'section m':>15s} {'sup':>4s} {'ref kWh':>9s} {'opt kWh':>9s} "
-              f"{'gap %':>7s} {'opt ms':>7s} {'ref s':>6s} {'N':>5s} {'004 kWh':>9s} {'004 gap %':>9s}")  # fmt: skip
+              f"{'gap %':>7s} {'opt ms':>7s} {'ref s':>6s} {'N':>5s} {'004 kWh':>9s} {'004 gap %':>9s} {'004 dT s':>8s}")  # fmt: skip
     print(header)
     for track_file in sorted(DATA.glob("tracks/*.json")):
         if args.tracks and track_file.stem not in args.tracks:
@@ -61,7 +61,7 @@ def main() -> None:
             for s0, s1 in zip(stops, stops[1:], strict=False):
                 solver = SectionSolver(train, route, s0, s1)
                 solver.solve(solver.fastest_time_s * 1.1)  # warm-up (numba compilation, caches)
-                lesov_solver = None if args.no_lesov else SectionSolver(lt, route, s0, s1)
+                lesov_solver = not args.no_lesov
                 for sup in SUPPLEMENTS:
                     T = solver.fastest_time_s * (1 + sup)
                     t0 = time.perf_counter()
@@ -71,23 +71,24 @@ def main() -> None:
                     intervals = max(1000, int((s1 - s0) / 10))
                     ref = solve_reference(train, route, s0, s1, T, intervals=intervals)
                     gap = (e_opt / ref.energy_j - 1) * 100 if ref.status == "ok" else float("nan")
-                    e_les = float("nan")
-                    if lesov_solver is not None:
-                        from trainsim.optimize.lesov import _execute
+                    e_les = les_dev = float("nan")
+                    if lesov_solver:
+                        from trainsim.optimize.lesov import lesov_plans
 
-                        sw = lesov_switching(lt, route, s0, s1, T)
-                        lp = _execute(lesov_solver, sw)
+                        lp = lesov_plans(train, route, [solver], [T], RunSettings())[0][0]
                         e_les = energy_j(lt, route, s0, s1, lp)
+                        les_dev = lp.running_time_s - T
                     gap_les = (e_les / ref.energy_j - 1) * 100 if ref.status == "ok" else float("nan")
                     row = dict(track=track_file.stem, train=train_name, s0=s0, s1=s1, supplement=sup,
                                time_s=T, ref_kwh=ref.energy_j / 3.6e6, opt_kwh=e_opt / 3.6e6, gap_percent=gap,
                                opt_ms=t_opt * 1e3, ref_s=ref.solve_time_s, intervals=ref.intervals,
                                ref_status=ref.status, lesov_kwh=e_les / 3.6e6, lesov_gap_percent=gap_les,
-                               opt_time_error_s=plan.running_time_s - T)  # fmt: skip
+                               opt_time_error_s=plan.running_time_s - T, lesov_time_error_s=les_dev)  # fmt: skip
                     rows.append(row)
                     print(f"{track_file.stem[:28]:28s} {train_name[:8]:8s} {s0:7.0f}-{s1:7.0f} {sup:4.2f} "
                           f"{row['ref_kwh']:9.3f} {row['opt_kwh']:9.3f} {gap:7.3f} {row['opt_ms']:7.0f} "
-                          f"{ref.solve_time_s:6.2f} {ref.intervals:5d} {row['lesov_kwh']:9.3f} {gap_les:9.2f}"
+                          f"{ref.solve_time_s:6.2f} {ref.intervals:5d} {row['lesov_kwh']:9.3f} {gap_les:9.2f} "
+                          f"{les_dev:+7.1f}"
                           + ("" if ref.status == "ok" else f"  ({ref.status})"), flush=True)  # fmt: skip
     ok = [r for r in rows if r["ref_status"] == "ok"]
     if ok:

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from mpcases import freight_train, hilly_route, level_route
 
 import trainsim
 from trainsim.errors import InputError
+from trainsim.model import GradientSection
 from trainsim.multipoint import (
     CouplerModel,
     MultiPointSession,
@@ -145,7 +148,16 @@ def test_session_rejects_bad_commands(kwargs, match):
 
 def test_a_train_too_weak_for_the_grade_stalls():
     train = freight_train(60, locos=1, traction_kn_per_loco=250.0)
-    route = hilly_route(6_000.0, stop_at=None, curves=False)
-    result = run_multipoint_fastest(train, route, MultiPointSettings())
+    route = level_route(6_000.0)
+    route = dataclasses.replace(
+        route,
+        gradients=(GradientSection(500.0, 6_000.0, 8.0),),
+        line_resistance=dataclasses.replace(route.line_resistance, apply_over="train_length"),
+    )
+    ref = trainsim.run_fastest(train, route)
+    assert ref.status == "stalled"
+    result = run_multipoint_fastest(train, route, MultiPointSettings(), reference=ref)
     assert result.status == "stalled"
-    assert any("stall" in w for w in result.warnings)
+    # where the single-point model, with the grade averaged over the train, stalls too
+    assert result.run.trace.position_m[-1] == pytest.approx(ref.trace.position_m[-1], abs=10.0)
+    assert any("stalls at 180" in w for w in result.warnings)

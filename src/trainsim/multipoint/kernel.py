@@ -641,7 +641,13 @@ def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
                 u = 0.0
     else:
         if regime == TRACTION:
-            target = min(v_ref, ceil) if SP[S_TRACK_PROFILE] > 0.5 else ceil
+            if SP[S_TRACK_PROFILE] > 0.5:
+                # the reference speed a controller time constant ahead: a profile that starts from
+                # standstill asks for speed where the train is going to be, not 0 where it stands
+                preview = s + max(vc, 1.0) * SP[S_TAU]
+                target = min(max(v_ref, reference_speed(preview, ref_s, ref_v2)), ceil)
+            else:
+                target = ceil
         elif regime == CRUISE:
             target = min(v_ref, ceil)
         else:

@@ -178,18 +178,18 @@ class BrakePropagation:
         if self.speed_mps is not None and not (math.isfinite(self.speed_mps) and self.speed_mps > 0):
             raise InputError(
                 "the brake propagation speed must be > 0",
-                field="braking.propagation_speed_mps",
+                field="brakes.propagation_speed_mps",
                 value=self.speed_mps,
             )
         if self.source not in ("head", "locomotives"):
             raise InputError(
                 "unknown brake command source",
-                field="braking.propagation_from",
+                field="brakes.propagation_from",
                 value=self.source,
                 allowed="head, locomotives",
             )
         if not (math.isfinite(self.build_up_s) and self.build_up_s >= 0):
-            raise InputError("must be >= 0 s", field="braking.build_up_s", value=self.build_up_s)
+            raise InputError("must be >= 0 s", field="brakes.build_up_s", value=self.build_up_s)
 
 
 @dataclass(frozen=True)

@@ -281,6 +281,7 @@ def build_multipoint_result(
         t=rec_t,
         regime=regime,
         status=status,
+        stall_position_m=float(s[-1]) if status == "stalled" and len(s) else float("nan"),
         kind=kind,
         warnings=warnings,
         level=level,

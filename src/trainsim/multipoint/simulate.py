@@ -477,6 +477,12 @@ def follow_profile(
         ref = (seg.s, seg.v2, seg.regime, seg.stop_m)
         t_limit = runner.t[0] + SEGMENT_TIME_FACTOR * seg.duration_s + SEGMENT_TIME_MARGIN_S
         st = runner.advance(1, t_limit, ref)
+        if st == K.ST_STOPPED and not seg.is_stop:
+            # the profile ends without an arrival (a stalled reference run): so does the train
+            runner.hold()
+            status = "stalled"
+            warnings.append(f"the profile ends at {seg.stop_m:.0f} m without a stop; the train stopped there")
+            break
         if st == K.ST_STOPPED:
             runner.hold()
             last = j == len(segments) - 1

@@ -9,7 +9,7 @@ A scenario chooses the model with ``model: multi_point`` and gives the model's s
       time_step_s: 0.05
       couplers: {draft_stiffness_n_per_m: 1.4e7, slack_m: 0.025}
       coupler_overrides: [{coupler: 0, slack_m: 0}]
-      braking: {propagation_speed_mps: 250, propagation_from: locomotives, build_up_s: 3}
+      brakes: {propagation_speed_mps: 250, propagation_from: locomotives, build_up_s: 3}
       strategy: fastest                    # or: follow (with profile: a CSV of position_m, speed_kmh)
 
 Until the scenario reader knows these keys, :func:`load_multipoint_scenario` reads such a file: it
@@ -83,7 +83,9 @@ class LocomotiveSpec(_Spec):
     share: Annotated[float, Field(ge=0, le=1)] | None = None
 
 
-class BrakingSpec(_Spec):
+class BrakesSpec(_Spec):
+    """How the brakes act along the train (named ``brakes``: ``braking`` is the train file's block)."""
+
     distribution: Literal["mass", "equal"] = "mass"
     electric_at: Literal["locomotives", "train"] = "locomotives"
     propagation_speed_mps: Positive | None = None
@@ -100,7 +102,7 @@ class MultiPointSpec(_Spec):
     locomotives: list[LocomotiveSpec] | None = None
     couplers: CouplerSpec = Field(default_factory=CouplerSpec)
     coupler_overrides: list[CouplerOverrideSpec] = Field(default_factory=list)
-    braking: BrakingSpec = Field(default_factory=BrakingSpec)
+    brakes: BrakesSpec = Field(default_factory=BrakesSpec)
     resistance_split: Literal["terms", "mass"] = "terms"
     initial_couplers: Literal["neutral", "stretched", "bunched"] = "neutral"
     time_step_s: Annotated[float, Field(ge=1e-4, le=1.0)] = 0.05
@@ -128,7 +130,7 @@ class MultiPointSpec(_Spec):
 
     def build(self) -> MultiPointSettings:
         """The :class:`MultiPointSettings` (SI)."""
-        b = self.braking
+        b = self.brakes
         return MultiPointSettings(
             couplers=self.couplers.build(),
             coupler_overrides={o.coupler: o.build_over(self.couplers) for o in self.coupler_overrides},
