@@ -28,7 +28,12 @@ def cases() -> list[tuple[str, Scenario]]:
         train = load_train(TRAINRUNS / "trains" / "freight.yaml")
         for mass_model in ("mass_point", "homogeneous_strip"):
             route = load_route(TRAINRUNS / "paths" / "realworld.yaml", mass_model=mass_model)
-            out.append((f"trainruns freight realworld ({mass_model})", Scenario("bench", train, route, RunSettings())))
+            out.append(
+                (
+                    f"trainruns freight realworld ({mass_model})",
+                    Scenario("bench", train, route, RunSettings()),
+                )
+            )
     return out
 
 

@@ -16,15 +16,15 @@ import os
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
-import dataclasses  # noqa: E402
-import statistics  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import dataclasses
+import statistics
+import time
+from pathlib import Path
 
-import trainsim  # noqa: E402
-from trainsim.multipoint import MultiPointSettings, run_multipoint_fastest  # noqa: E402
-from trainsim.multipoint.spec import load_multipoint_scenario  # noqa: E402
+import trainsim
+from trainsim.multipoint import MultiPointSettings, run_multipoint_fastest
+from trainsim.multipoint.spec import load_multipoint_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 HEAVY = ROOT / "examples" / "heavy_haul"
@@ -43,7 +43,9 @@ def cases():
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--repeat", type=int, default=5)
     args = parser.parse_args()
     if hasattr(os, "sched_setaffinity"):
@@ -56,13 +58,19 @@ def main() -> None:
         f"{train.name}: {len(train.vehicles)} vehicles ({wagons} wagons), {train.mass_kg / 1e3:,.0f} t, "
         f"{scenario.route.length_m / 1e3:.0f} km; single-point running time {reference.running_time_s:.0f} s"
     )
-    print(f"{'case':32s} {'median s':>9s} {'best s':>7s} {'cpu s':>6s} {'steps':>7s} {'it/step':>7s} {'run s':>7s} {'load':>5s}")
+    print(
+        f"{'case':32s} {'median s':>9s} {'best s':>7s} {'cpu s':>6s} {'steps':>7s} {'it/step':>7s} {'run s':>7s} {'load':>5s}"
+    )
     for name, settings in settings_list:
-        run_multipoint_fastest(train, scenario.route, settings, scenario.settings, reference=reference)  # warm-up
+        run_multipoint_fastest(
+            train, scenario.route, settings, scenario.settings, reference=reference
+        )  # warm-up
         walls, cpus = [], []
         for _ in range(args.repeat):
             t0, c0 = time.perf_counter(), time.process_time()
-            result = run_multipoint_fastest(train, scenario.route, settings, scenario.settings, reference=reference)
+            result = run_multipoint_fastest(
+                train, scenario.route, settings, scenario.settings, reference=reference
+            )
             walls.append(time.perf_counter() - t0)
             cpus.append(time.process_time() - c0)
         st = result.statistics

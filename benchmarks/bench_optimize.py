@@ -14,6 +14,7 @@ import argparse
 import dataclasses
 import statistics
 import time
+from itertools import pairwise
 from pathlib import Path
 
 from trainsim.io.ttobench import read_ttobench_track, read_ttobench_train
@@ -58,7 +59,7 @@ def main() -> None:
             route = read_ttobench_track(track_file, tt)
             stops = [s.position_m for s in route.stations]
             lt = lesov_train(train)
-            for s0, s1 in zip(stops, stops[1:], strict=False):
+            for s0, s1 in pairwise(stops):
                 solver = SectionSolver(train, route, s0, s1)
                 solver.solve(solver.fastest_time_s * 1.1)  # warm-up (numba compilation, caches)
                 lesov_solver = not args.no_lesov
@@ -98,10 +99,14 @@ def main() -> None:
               f"within 1 %: {sum(g <= 1.0 for g in gaps)}/{len(gaps)}")  # fmt: skip
         short = [r["opt_ms"] for r in rows if r["s1"] - r["s0"] <= 10_000]
         if short:
-            print(f"optimal wall time per section <= 10 km: median {statistics.median(short):.0f} ms, "
-                  f"max {max(short):.0f} ms")
-        print(f"reference solve time: median {statistics.median(r['ref_s'] for r in ok):.2f} s, "
-              f"max {max(r['ref_s'] for r in ok):.2f} s")
+            print(
+                f"optimal wall time per section <= 10 km: median {statistics.median(short):.0f} ms, "
+                f"max {max(short):.0f} ms"
+            )
+        print(
+            f"reference solve time: median {statistics.median(r['ref_s'] for r in ok):.2f} s, "
+            f"max {max(r['ref_s'] for r in ok):.2f} s"
+        )
         if not args.no_lesov:
             lg = [r["lesov_gap_percent"] for r in ok]
             print(f"source 004 vs reference: median gap {statistics.median(lg):.2f} %, max {max(lg):.2f} %")

@@ -58,12 +58,18 @@ def freight_train(
         resistance=(
             ResistanceTerm(
                 f"per_mass: {locos} x Loco",
-                Quadratic(locos * loco.total_mass_kg * a1_n_per_kg, 0, locos * loco.total_mass_kg * a2_n_s2_per_kg_m2),
+                Quadratic(
+                    locos * loco.total_mass_kg * a1_n_per_kg,
+                    0,
+                    locos * loco.total_mass_kg * a2_n_s2_per_kg_m2,
+                ),
             ),
             ResistanceTerm(
                 f"per_mass: {wagons} x Wagon",
                 Quadratic(
-                    wagons * wagon.total_mass_kg * a1_n_per_kg, 0, wagons * wagon.total_mass_kg * a2_n_s2_per_kg_m2
+                    wagons * wagon.total_mass_kg * a1_n_per_kg,
+                    0,
+                    wagons * wagon.total_mass_kg * a2_n_s2_per_kg_m2,
                 ),
             ),
         ),

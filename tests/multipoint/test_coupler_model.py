@@ -126,7 +126,9 @@ def test_resistance_terms_of_a_vehicle_type_go_to_its_vehicles():
 
 def test_whole_train_terms_are_split_by_mass():
     train = freight_train(4, locos=1, loco_t=100, wagon_t=50)
-    train = dataclasses.replace(train, resistance=(ResistanceTerm("davis (whole train)", Quadratic(3000, 30, 6)),))
+    train = dataclasses.replace(
+        train, resistance=(ResistanceTerm("davis (whole train)", Quadratic(3000, 30, 6)),)
+    )
     laws, notes = split_resistance(train, train.vehicles)
     assert notes and "by mass" in notes[0]
     assert laws[0].c2 == pytest.approx(6 * 100 / 300)
@@ -153,13 +155,17 @@ def test_locomotive_shares_and_own_curves():
     )
     assert mp.traction_curves[0](5.0) == pytest.approx(0.7 * train.traction(5.0))
     with pytest.raises(InputError, match="add up to 1"):
-        build_multipoint_train(train, MultiPointSettings(locomotives=(Locomotive(0, 0.7), Locomotive(1, 0.7))))
+        build_multipoint_train(
+            train, MultiPointSettings(locomotives=(Locomotive(0, 0.7), Locomotive(1, 0.7)))
+        )
 
 
 def test_brake_delays_from_the_head_or_from_every_locomotive():
     train = freight_train(20, locos=2, loco_m=20.0, wagon_m=14.0)
     prop = BrakePropagation(speed_mps=250.0, source="head")
-    head = build_multipoint_train(train, MultiPointSettings(brake_propagation=prop, locomotive_positions=(0, 11)))
+    head = build_multipoint_train(
+        train, MultiPointSettings(brake_propagation=prop, locomotive_positions=(0, 11))
+    )
     rear_centre = train.length_m - 7.0
     assert head.brake_delay_s[0] == 0.0
     assert head.brake_delay_s[-1] == pytest.approx((rear_centre - 10.0) / 250.0)

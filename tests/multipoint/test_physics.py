@@ -18,7 +18,7 @@ import pytest
 from mpcases import freight_train, hilly_route, level_route
 
 import trainsim
-from trainsim.constants import G, KMH
+from trainsim.constants import KMH, G
 from trainsim.model import EffortCurve
 from trainsim.multipoint import (
     BrakePropagation,
@@ -69,7 +69,10 @@ def test_running_time_and_energy_agree_with_the_single_point_model(electric_frei
 
 def test_stiff_couplers_keep_the_train_rigid_and_the_head_on_the_reference(electric_freight, reference):
     result = run_multipoint_fastest(
-        electric_freight, hilly_route(), MultiPointSettings(couplers=CouplerModel.stiff()), reference=reference
+        electric_freight,
+        hilly_route(),
+        MultiPointSettings(couplers=CouplerModel.stiff()),
+        reference=reference,
     )
     # couplings stretch by less than a millimetre
     mp = result.mptrain
@@ -142,7 +145,9 @@ def _independent_energy_terms(result, route, train_mp, command_of_time):
     v = result.speed_mps
     mp = train_mp
     point = line_resistance_profile(
-        dataclasses.replace(route, line_resistance=dataclasses.replace(route.line_resistance, apply_over="head")),
+        dataclasses.replace(
+            route, line_resistance=dataclasses.replace(route.line_resistance, apply_over="head")
+        ),
         mp.train,
     )
     grad = np.zeros_like(x)
@@ -215,7 +220,9 @@ def test_energy_balance_by_independent_quadrature_closes_within_half_a_percent()
     assert e["traction"] > 1e8
     assert e["damper"] > 0.0
     assert abs(e["spring"]) > 0.0 or np.max(np.abs(result.coupler_force_n)) > 0
-    spent = e["kinetic"] + e["spring"] + e["damper"] + e["running"] + e["gradient"] + e["curve"] + e["braking"]
+    spent = (
+        e["kinetic"] + e["spring"] + e["damper"] + e["running"] + e["gradient"] + e["curve"] + e["braking"]
+    )
     assert abs(e["traction"] - spent) / e["traction"] < 5e-3
     # and each term agrees with the integrator's own account
     acc = result.energy
@@ -241,7 +248,9 @@ def test_two_mass_oscillator_keeps_its_energy_and_frequency():
         solid_stiffness_n_per_m=k,
     )
     h = 0.005
-    mp = build_multipoint_train(train, MultiPointSettings(couplers=coupler, time_step_s=h, record_interval_s=h))
+    mp = build_multipoint_train(
+        train, MultiPointSettings(couplers=coupler, time_step_s=h, record_interval_s=h)
+    )
     session = MultiPointSession(mp, level_route())
     x0 = np.array([0.0, -mp.length_m[0] - 0.01])
     session.set_state(x0 + 100.0, [0.0, 0.0])

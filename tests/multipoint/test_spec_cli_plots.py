@@ -31,7 +31,9 @@ TRAIN = {
     "max_speed_kmh": 80,
     "traction": {"model": "power_limited", "power_kw": 8000, "efficiency": 1.0, "max_force_kn": 600},
     "braking": {"model": "deceleration", "deceleration_mps2": 0.3},
-    "resistance": [{"family": "per_mass", "applies_to": "train", "a1_n_per_kg": 0.012, "a2_n_s2_per_kg_m2": 2.6e-5}],
+    "resistance": [
+        {"family": "per_mass", "applies_to": "train", "a1_n_per_kg": 0.012, "a2_n_s2_per_kg_m2": 2.6e-5}
+    ],
 }
 ROUTE = {
     "name": "short line",
@@ -56,7 +58,10 @@ def scenario_file(tmp_path: Path, block: dict | None, model: str | None = "multi
 
 
 def test_the_example_scenarios_read_as_multi_point():
-    for name, positions, source in (("scenario_dp.yaml", [0, 53], "locomotives"), ("scenario_head.yaml", [0, 1], "head")):
+    for name, positions, source in (
+        ("scenario_dp.yaml", [0, 53], "locomotives"),
+        ("scenario_head.yaml", [0, 1], "head"),
+    ):
         scenario, spec = load_multipoint_scenario(HEAVY / name)
         assert isinstance(spec, MultiPointSpec)
         assert spec.locomotive_positions == positions
@@ -78,7 +83,10 @@ def test_defaults_of_the_block_are_the_documented_freight_values():
 
 def test_coupler_overrides_start_from_the_couplers_block():
     spec = multipoint_settings_from_dict(
-        {"couplers": {"slack_m": 0.02, "draft_stiffness_n_per_m": 2e7}, "coupler_overrides": [{"coupler": 0, "slack_m": 0}]}
+        {
+            "couplers": {"slack_m": 0.02, "draft_stiffness_n_per_m": 2e7},
+            "coupler_overrides": [{"coupler": 0, "slack_m": 0}],
+        }
     )
     settings = spec.build()
     assert settings.coupler_overrides[0].slack_m == 0.0
@@ -88,12 +96,24 @@ def test_coupler_overrides_start_from_the_couplers_block():
 @pytest.mark.parametrize(
     "block, field, text",
     [
-        ({"couplers": {"draft_stifness_n_per_m": 1e7}}, "multi_point.couplers.draft_stifness_n_per_m", "did you mean"),
+        (
+            {"couplers": {"draft_stifness_n_per_m": 1e7}},
+            "multi_point.couplers.draft_stifness_n_per_m",
+            "did you mean",
+        ),
         ({"couplers": {"slack_m": -0.01}}, "multi_point.couplers.slack_m", "out of range"),
         ({"time_step_s": 5}, "multi_point.time_step_s", "out of range"),
         ({"strategy": "follow"}, "multi_point.profile", "needs a 'profile'"),
-        ({"brakes": {"propagation_from": "rear"}}, "multi_point.brakes.propagation_from", "not an allowed value"),
-        ({"couplers": {"solid_stiffness_n_per_m": 1e6}}, "multi_point.couplers.solid_stiffness_n_per_m", "solid"),
+        (
+            {"brakes": {"propagation_from": "rear"}},
+            "multi_point.brakes.propagation_from",
+            "not an allowed value",
+        ),
+        (
+            {"couplers": {"solid_stiffness_n_per_m": 1e6}},
+            "multi_point.couplers.solid_stiffness_n_per_m",
+            "solid",
+        ),
     ],
 )
 def test_errors_in_the_block_name_the_field(tmp_path, block, field, text):
@@ -107,7 +127,9 @@ def test_errors_in_the_block_name_the_field(tmp_path, block, field, text):
 
 def test_model_choice():
     with pytest.raises(InputError, match="unknown model"):
-        load_multipoint_scenario(scenario_file(Path(pytest.importorskip("tempfile").mkdtemp()), None, "three_point"))
+        load_multipoint_scenario(
+            scenario_file(Path(pytest.importorskip("tempfile").mkdtemp()), None, "three_point")
+        )
 
 
 def test_a_block_without_the_multi_point_model_is_an_error(tmp_path):
@@ -131,7 +153,9 @@ def test_run_a_scenario_and_follow_a_profile_file(tmp_path):
     # follow the single-point run's trace.csv as written by `trainsim run --out`
     write_trace_csv(single, tmp_path / "trace.csv")
     follow = run_multipoint_scenario(
-        scenario, {"strategy": "follow", "profile": "trace.csv", "locomotive_positions": [0, 7]}, base_dir=tmp_path
+        scenario,
+        {"strategy": "follow", "profile": "trace.csv", "locomotive_positions": [0, 7]},
+        base_dir=tmp_path,
     )
     assert follow.status == "ok"
     assert follow.running_time_s == pytest.approx(single.running_time_s, rel=1e-2)

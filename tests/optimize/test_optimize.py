@@ -3,7 +3,6 @@ schedules, source 004's method, the reference optimum, timetable files and the C
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 
@@ -152,7 +151,7 @@ def test_lesov_equations():
     from trainsim.optimize import lesov
 
     # dt = dV / (zeta f_t); zeta is 2.0 km/h per minute per N/kN for rho = 1.06 (the paper's 2)
-    assert 3.6 * 60 * 9.81 / (1000 * 1.06) == pytest.approx(2.0, rel=1e-3)
+    assert pytest.approx(2.0, rel=1e-3) == 3.6 * 60 * 9.81 / (1000 * 1.06)
     assert lesov.time_step_min(10.0, 5.0, 2.0) == pytest.approx(1.0)
     assert lesov.path_step_m(40.0, 10.0, 1.0) == pytest.approx(16.7 * 45.0)
     # the corrected increment covers dS in dt_tr: dS = 16.7 (V + dV/2) dt_tr

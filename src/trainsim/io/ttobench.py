@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
+from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -222,7 +223,7 @@ def _pairs(data: dict[str, Any], key: str, file: str, width: int) -> list[list[A
     if not isinstance(values, list) or any(not isinstance(v, list) or len(v) != width for v in values):
         raise InputError(f"expected a list of {width}-element lists under 'values'", file=file, field=key)
     positions = [float(v[0]) for v in values]
-    if any(b <= a for a, b in zip(positions, positions[1:], strict=False)):
+    if any(b <= a for a, b in pairwise(positions)):
         raise InputError("positions must increase strictly", file=file, field=key, value=positions[:10])
     return values
 
@@ -240,7 +241,7 @@ def read_ttobench_track(path: str | Path, train: TTOBenchTrain | None = None) ->
     if not isinstance(stops_item, dict) or not isinstance(stops_item.get("values"), list):
         raise InputError("missing stops", file=file, field="stops")
     stops = [float(x) for x in stops_item["values"]]
-    if len(stops) < 2 or stops[0] != 0.0 or any(b <= a for a, b in zip(stops, stops[1:], strict=False)):
+    if len(stops) < 2 or stops[0] != 0.0 or any(b <= a for a, b in pairwise(stops)):
         raise InputError(
             "stops must start at 0 and increase",
             file=file,

@@ -48,12 +48,16 @@ def plot_coupler_heatmap(result: MultiPointResult, *, against: str = "time") -> 
     lim = max(float(np.max(np.abs(forces), initial=0.0)), 1.0)
     norm = TwoSlopeNorm(vcenter=0.0, vmin=-lim, vmax=lim)
     n_c = forces.shape[0]
-    mesh = ax.pcolormesh(x, np.arange(n_c), forces, cmap="RdBu_r", norm=norm, shading="nearest", rasterized=True)
+    mesh = ax.pcolormesh(
+        x, np.arange(n_c), forces, cmap="RdBu_r", norm=norm, shading="nearest", rasterized=True
+    )
     fig.colorbar(mesh, ax=ax, label="coupler force [kN] (draft > 0, buff < 0)")
     for ext, marker, label in ((result.max_draft, "v", "max draft"), (result.max_buff, "^", "max buff")):
         if np.isfinite(ext.head_position_m):
             pos = ext.time_s if against == "time" else ext.head_position_m / 1e3
-            ax.plot(pos, ext.coupler, marker, color="k", markersize=9, label=f"{label} {ext.force_n / 1e3:.0f} kN")
+            ax.plot(
+                pos, ext.coupler, marker, color="k", markersize=9, label=f"{label} {ext.force_n / 1e3:.0f} kN"
+            )
     for loco in result.mptrain.locomotive_indices:
         ax.axhline(loco - 0.5, color="0.3", lw=0.6, ls=":")
     ax.set_ylim(n_c - 0.5, -0.5)

@@ -633,7 +633,9 @@ class MultiPointSession:
         v = np.asarray(speeds_mps, dtype=float)
         n = self.mp.n_vehicles
         if x.shape != (n,) or v.shape != (n,) or not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
-            raise InputError("give one finite position and speed per vehicle", field="state", allowed=f"{n} values")
+            raise InputError(
+                "give one finite position and speed per vehicle", field="state", allowed=f"{n} values"
+            )
         if np.any(np.diff(x) >= 0):
             raise InputError("positions must decrease from the head to the rear", field="state.positions_m")
         r.x[:] = x

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -233,7 +234,7 @@ def _result(
 
 def _solvers(train: Train, route: Route, settings: RunSettings) -> list[SectionSolver]:
     stops = stops_of(route)
-    return [SectionSolver(train, route, a, b, settings) for a, b in zip(stops, stops[1:], strict=False)]
+    return [SectionSolver(train, route, a, b, settings) for a, b in pairwise(stops)]
 
 
 def _run_optimal(train, route, timetable, settings, fastest) -> OptimizationResult:

@@ -149,8 +149,8 @@ def lesov_switching(train: Train, route: Route, s0: float, s1: float, scheduled_
     vmax_kmh = train.max_speed_mps / KMH
     t_sched = scheduled_s / 60.0
     v_ss = vmax_kmh
-    it = 0
-    for it in range(1, 100):
+    iterations = 0
+    for iterations in range(1, 100):  # noqa: B007 - the count is reported
         trac_s, trac_t, brk_s, brk_t, mech_s, v_top = _phases(train, route, s0, s1, v_ss, zeta)
         cruise_s = (s1 - s0) - trac_s - brk_s
         if cruise_s < 0.0:
@@ -182,7 +182,7 @@ def lesov_switching(train: Train, route: Route, s0: float, s1: float, scheduled_
         recuperation_start_m=s1 - brk_s,
         mechanical_start_m=mech_s,
         predicted_time_min=t_total,
-        iterations=it,
+        iterations=iterations,
         slope_budgets=tuple(budgets),
     )
 

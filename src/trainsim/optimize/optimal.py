@@ -177,7 +177,19 @@ class SectionSolver:
             last = self.i0 + (int(plateau[-1]) if len(plateau) else -1)
             modes[self.i0 : last + 1] = kernel.REGEN
         Cr, _, US = kernel.braking_ceiling_mixed(
-            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, self.i0, self.i1, self.P, self.curves, self.bk, self.rk, modes
+            tr.x,
+            tr.a0,
+            tr.a1,
+            tr.b0,
+            tr.b1,
+            vtop,
+            self.i0,
+            self.i1,
+            self.P,
+            self.curves,
+            self.bk,
+            self.rk,
+            modes,
         )
         return Cr, US, modes
 
@@ -203,7 +215,9 @@ class SectionSolver:
         law = self.train.resistance_law
         weight = self.P[kernel.P_WEIGHT]
         res_left = law(V) + weight * (tr.a0 + tr.b0 * V * V)
-        res_right = law(V) + weight * (tr.a0 + tr.a1 * np.diff(tr.x) + (tr.b0 + tr.b1 * np.diff(tr.x)) * V * V)
+        res_right = law(V) + weight * (
+            tr.a0 + tr.a1 * np.diff(tr.x) + (tr.b0 + tr.b1 * np.diff(tr.x)) * V * V
+        )
         return (np.minimum(res_left, res_right) < 0.0) & (vhold >= V - 1e-9) & (vtop > V + 1e-6)
 
     def _next_descent(self, seg, steep_down, vhold, after: float, V: float) -> float | None:
@@ -338,7 +352,7 @@ class SectionSolver:
             return (self.s1 - s_event if status == pk.HIT_CEILING else s_event - self.s1), points
 
         hi = self.s1
-        r_hi, best = residual(hi)
+        _, best = residual(hi)
         step = max(50.0, (self.s1 - self.s0) / 200.0)
         lo = hi - step
         guess = self._last_coast_point
@@ -348,14 +362,14 @@ class SectionSolver:
             # a little at a time)
             r_g, points = residual(guess + step_guess)
             if r_g >= 0.0:
-                hi, r_hi, best = guess + step_guess, r_g, points
+                hi, best = guess + step_guess, points
                 lo = guess - step_guess
         while True:
             lo = max(lo, self.s0)
             r_lo, points = residual(lo)
             if r_lo < 0.0 or lo <= self.s0:
                 break
-            hi, r_hi, best = lo, r_lo, points
+            hi, best = lo, points
             step *= 1.5
             lo = hi - step
         # bisection: the outcome is discontinuous at the boundary (the train meets the service braking

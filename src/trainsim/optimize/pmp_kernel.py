@@ -392,7 +392,7 @@ def coast_excursion(
                 E1, dt = E, h / v
             else:
                 E1, dt = step_energy_time(E, uu, h, COAST, line, P, curves, bk)
-                if E1 > 0.5 * vtop[ii] * vtop[ii]:
+                if 0.5 * vtop[ii] * vtop[ii] < E1:
                     hc = distance_to_speed(E, uu, 0.5 * vtop[ii] * vtop[ii], COAST, line, P, curves)
                     if np.isfinite(hc) and 0.0 < hc < h:
                         h = hc
