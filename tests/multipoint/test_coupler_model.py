@@ -20,7 +20,7 @@ from trainsim.multipoint import (
     build_multipoint_train,
     split_resistance,
 )
-from trainsim.multipoint import kernel as K
+from trainsim.multipoint import kernel as mpk
 
 COUPLER = CouplerModel(
     draft_stiffness_n_per_m=1.0e7,
@@ -36,7 +36,7 @@ COUPLER = CouplerModel(
 
 
 def force(delta, rate=0.0, c=COUPLER):
-    s, d, _, _ = K.coupler_force(delta, rate, c.as_row())
+    s, d, _, _ = mpk.coupler_force(delta, rate, c.as_row())
     return s + d
 
 
@@ -67,7 +67,7 @@ def test_force_is_continuous_and_its_slopes_match_finite_differences():
     row = COUPLER.as_row()
     for delta in (-0.0605, -0.0101, -0.0095, 0.0, 0.0097, 0.0102, 0.02, 0.0905):
         for rate in (-0.2, 0.0, 0.3):
-            _, _, k, c = K.coupler_force(delta, rate, row)
+            _, _, k, c = mpk.coupler_force(delta, rate, row)
             e = 1e-7
             k_fd = (force(delta + e, rate) - force(delta - e, rate)) / (2 * e)
             c_fd = (force(delta, rate + e) - force(delta, rate - e)) / (2 * e)
@@ -78,12 +78,12 @@ def test_force_is_continuous_and_its_slopes_match_finite_differences():
 def test_stored_energy_is_the_integral_of_the_spring_force():
     row = COUPLER.as_row()
     deltas = np.linspace(-0.08, 0.11, 20001)
-    spring = np.array([K.coupler_force(d, 0.0, row)[0] for d in deltas])
-    energy = np.array([K.coupler_energy(d, row) for d in deltas])
+    spring = np.array([mpk.coupler_force(d, 0.0, row)[0] for d in deltas])
+    energy = np.array([mpk.coupler_energy(d, row) for d in deltas])
     integral = np.concatenate([[0.0], np.cumsum(0.5 * (spring[1:] + spring[:-1]) * np.diff(deltas))])
     zero = np.argmin(np.abs(deltas))
     assert np.allclose(energy - energy[zero], integral - integral[zero], rtol=1e-6, atol=1e-3)
-    assert K.coupler_energy(0.0, row) == 0.0
+    assert mpk.coupler_energy(0.0, row) == 0.0
 
 
 @pytest.mark.parametrize(

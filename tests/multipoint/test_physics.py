@@ -28,7 +28,7 @@ from trainsim.multipoint import (
     build_multipoint_train,
     run_multipoint_fastest,
 )
-from trainsim.multipoint import kernel as K
+from trainsim.multipoint import kernel as mpk
 from trainsim.sim.profile import averaged_over_length, line_resistance_profile
 
 
@@ -165,7 +165,7 @@ def _independent_energy_terms(result, route, train_mp, command_of_time):
     service = mp.train.braking.service_force(np.abs(v))
     braking = np.maximum(-u, 0.0) * mp.brake_share * service * sgn
     running = np.array([[q(abs(vv)) for q, vv in zip(mp.resistance, row, strict=True)] for row in v]) * sgn
-    rows = [K.coupler_force(0.0, 0.0, c.as_row()) for c in mp.couplers]  # noqa: F841 (compile)
+    rows = [mpk.coupler_force(0.0, 0.0, c.as_row()) for c in mp.couplers]  # noqa: F841 (compile)
     delta = x[:, :-1] - mp.length_m[:-1] - x[:, 1:]
     rate = v[:, :-1] - v[:, 1:]
     damper = np.zeros_like(delta)
@@ -173,8 +173,8 @@ def _independent_energy_terms(result, route, train_mp, command_of_time):
     for k, c in enumerate(mp.couplers):
         row = c.as_row()
         for j in range(len(t)):
-            damper[j, k] = K.coupler_force(delta[j, k], rate[j, k], row)[1]
-            spring_energy[j, k] = K.coupler_energy(delta[j, k], row)
+            damper[j, k] = mpk.coupler_force(delta[j, k], rate[j, k], row)[1]
+            spring_energy[j, k] = mpk.coupler_energy(delta[j, k], row)
 
     def work(power):
         return float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(t)))

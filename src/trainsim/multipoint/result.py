@@ -11,7 +11,7 @@ import numpy as np
 from trainsim.constants import KMH, KWH
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
-from trainsim.multipoint import kernel as K
+from trainsim.multipoint import kernel as mpk
 from trainsim.multipoint.model import MultiPointTrain
 from trainsim.sim.kernel import BRAKE, COAST, DWELL, TRACTION
 from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear, line_voltage
@@ -213,9 +213,9 @@ def _section_ends(regime: np.ndarray) -> list[int]:
 def extreme(mptrain: MultiPointTrain, ext: np.ndarray, draft: bool) -> CouplerExtreme:
     """The extreme recorded by the kernel as a CouplerExtreme."""
     if draft:
-        f, k, t, head = ext[K.E_DRAFT], ext[K.E_DRAFT_K], ext[K.E_DRAFT_T], ext[K.E_DRAFT_HEAD]
+        f, k, t, head = ext[mpk.E_DRAFT], ext[mpk.E_DRAFT_K], ext[mpk.E_DRAFT_T], ext[mpk.E_DRAFT_HEAD]
     else:
-        f, k, t, head = ext[K.E_BUFF], ext[K.E_BUFF_K], ext[K.E_BUFF_T], ext[K.E_BUFF_HEAD]
+        f, k, t, head = ext[mpk.E_BUFF], ext[mpk.E_BUFF_K], ext[mpk.E_BUFF_T], ext[mpk.E_BUFF_HEAD]
     if not np.isfinite(f):
         return CouplerExtreme(0.0, 0, mptrain.vehicles[0].name, 0.0, float("nan"), float("nan"))
     k = int(k)
@@ -255,8 +255,8 @@ def build_multipoint_result(
     train = mptrain.train
     warnings = list(warnings)
     agg = rec_agg
-    head = agg[:, K.R_HEAD]
-    speed = agg[:, K.R_SPEED]
+    head = agg[:, mpk.R_HEAD]
+    speed = agg[:, mpk.R_SPEED]
     # the summary trace needs non-decreasing positions and speeds >= 0; the train may settle back by a
     # few millimetres at a stop, which the per-vehicle arrays keep
     back = float(np.max(np.maximum.accumulate(head) - head)) if len(head) else 0.0
@@ -266,7 +266,7 @@ def build_multipoint_result(
     v = np.maximum(speed, 0.0)
     if np.min(speed, initial=0.0) < -0.05:
         warnings.append(f"the train moved backwards (mean speed down to {np.min(speed):.2f} m/s)")
-    u = agg[:, K.R_COMMAND]
+    u = agg[:, mpk.R_COMMAND]
     regime = np.where(u > 1e-9, TRACTION, np.where(u < -1e-9, BRAKE, COAST)).astype(np.int8)
     regime[dwell_mask] = DWELL
     level = np.abs(u)
@@ -292,7 +292,7 @@ def build_multipoint_result(
     eta_t = elec.traction_efficiency if elec else 1.0
     eta_r = elec.regenerative_efficiency * elec.receptivity if elec else 0.0
     aux = elec.auxiliary_power_w if elec else 0.0
-    w = {name: agg[:, K.R_W0 + getattr(K, "A_" + name)] for name in (
+    w = {name: agg[:, mpk.R_W0 + getattr(K, "A_" + name)] for name in (
         "TRACTION", "FRICTION", "ELECTRIC", "RUNNING", "GRADIENT", "CURVE", "TUNNEL", "DAMPER",
         "SPRING_WORK", "HELD",
     )}  # fmt: skip
@@ -300,8 +300,8 @@ def build_multipoint_result(
     braking_cum = w["FRICTION"] + w["ELECTRIC"] + w["HELD"]
     regen_cum = w["ELECTRIC"] * eta_r
     net_cum = w["TRACTION"] / eta_t + aux * (rec_t - t0) - regen_cum
-    p_tr = agg[:, K.R_TRACTION_POWER]
-    p_el = agg[:, K.R_ELECTRIC_POWER]
+    p_tr = agg[:, mpk.R_TRACTION_POWER]
+    p_el = agg[:, mpk.R_ELECTRIC_POWER]
     el_power = p_tr / eta_t + aux - p_el * eta_r
     s_right = np.minimum(s + 1e-7, route.end_m)
     if elec:
@@ -309,7 +309,7 @@ def build_multipoint_result(
         safe = np.where(u_line > 0, u_line, 1.0)
         current = np.where(u_line > 0, el_power / (safe * elec.power_factor), 0.0)
         paper_current = np.where(u_line > 0, p_tr * eta_t / (safe * elec.power_factor), 0.0)
-        peak_power = np.where(np.isfinite(agg[:, K.R_PEAK_POWER]), agg[:, K.R_PEAK_POWER] + aux, el_power)
+        peak_power = np.where(np.isfinite(agg[:, mpk.R_PEAK_POWER]), agg[:, mpk.R_PEAK_POWER] + aux, el_power)
         peak_current = np.where(
             u_line > 0, np.maximum(peak_power, el_power) / (safe * elec.power_factor), 0.0
         )
@@ -319,14 +319,14 @@ def build_multipoint_result(
     trace = dataclasses.replace(
         base.trace,
         acceleration_mps2=rec_a @ m_in / m_in.sum(),
-        traction_force_n=agg[:, K.R_TRACTION],
-        braking_force_n=agg[:, K.R_ELECTRIC] + agg[:, K.R_FRICTION],
-        regenerative_braking_force_n=agg[:, K.R_ELECTRIC],
-        friction_braking_force_n=agg[:, K.R_FRICTION],
-        running_resistance_n=agg[:, K.R_RUNNING],
-        gradient_resistance_n=agg[:, K.R_GRADIENT],
-        curve_resistance_n=agg[:, K.R_CURVE],
-        tunnel_resistance_n=agg[:, K.R_TUNNEL],
+        traction_force_n=agg[:, mpk.R_TRACTION],
+        braking_force_n=agg[:, mpk.R_ELECTRIC] + agg[:, mpk.R_FRICTION],
+        regenerative_braking_force_n=agg[:, mpk.R_ELECTRIC],
+        friction_braking_force_n=agg[:, mpk.R_FRICTION],
+        running_resistance_n=agg[:, mpk.R_RUNNING],
+        gradient_resistance_n=agg[:, mpk.R_GRADIENT],
+        curve_resistance_n=agg[:, mpk.R_CURVE],
+        tunnel_resistance_n=agg[:, mpk.R_TUNNEL],
         mechanical_power_w=p_tr,
         electrical_power_w=el_power,
         line_current_a=current,
@@ -368,8 +368,8 @@ def build_multipoint_result(
     last = n - 1
     energy = EnergyAccount(
         traction_j=float(w["TRACTION"][last] - w["TRACTION"][0]),
-        kinetic_change_j=float(agg[last, K.R_KINETIC] - agg[0, K.R_KINETIC]),
-        spring_change_j=float(agg[last, K.R_SPRING] - agg[0, K.R_SPRING]),
+        kinetic_change_j=float(agg[last, mpk.R_KINETIC] - agg[0, mpk.R_KINETIC]),
+        spring_change_j=float(agg[last, mpk.R_SPRING] - agg[0, mpk.R_SPRING]),
         damper_j=float(w["DAMPER"][last] - w["DAMPER"][0]),
         running_j=float(w["RUNNING"][last] - w["RUNNING"][0]),
         gradient_j=float(w["GRADIENT"][last] - w["GRADIENT"][0]),

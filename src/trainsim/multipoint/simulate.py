@@ -29,7 +29,7 @@ from trainsim.errors import InputError
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
-from trainsim.multipoint import kernel as K
+from trainsim.multipoint import kernel as mpk
 from trainsim.multipoint.model import MultiPointSettings, MultiPointTrain, build_multipoint_train
 from trainsim.multipoint.result import MultiPointResult, build_multipoint_result
 from trainsim.sim.fastest import run_fastest
@@ -225,47 +225,47 @@ class _Compiled:
             regen_idx = len(curves)
             curves.append(braking.regenerative)
         self.bank = _curve_bank(curves)
-        VP = np.zeros((n, K.N_V))
-        VP[:, K.V_MASS] = mp.mass_kg
-        VP[:, K.V_INERTIAL] = mp.inertial_mass_kg
-        VP[:, K.V_LENGTH] = mp.length_m
-        VP[:, K.V_R0] = [q.c0 for q in mp.resistance]
-        VP[:, K.V_R1] = [q.c1 for q in mp.resistance]
-        VP[:, K.V_R2] = [q.c2 for q in mp.resistance]
-        VP[:, K.V_BRAKE] = mp.brake_share
-        VP[:, K.V_REGEN] = mp.regen_share
-        VP[:, K.V_CURVE] = -1
+        VP = np.zeros((n, mpk.N_V))
+        VP[:, mpk.V_MASS] = mp.mass_kg
+        VP[:, mpk.V_INERTIAL] = mp.inertial_mass_kg
+        VP[:, mpk.V_LENGTH] = mp.length_m
+        VP[:, mpk.V_R0] = [q.c0 for q in mp.resistance]
+        VP[:, mpk.V_R1] = [q.c1 for q in mp.resistance]
+        VP[:, mpk.V_R2] = [q.c2 for q in mp.resistance]
+        VP[:, mpk.V_BRAKE] = mp.brake_share
+        VP[:, mpk.V_REGEN] = mp.regen_share
+        VP[:, mpk.V_CURVE] = -1
         for j, loco in enumerate(mp.locomotives):
-            VP[loco.vehicle, K.V_CURVE] = j
-        VP[:, K.V_PROFILE] = [prof_of_length[L] for L in np.round(mp.length_m, 9)]
-        VP[:, K.V_DELAY] = mp.brake_delay_s
+            VP[loco.vehicle, mpk.V_CURVE] = j
+        VP[:, mpk.V_PROFILE] = [prof_of_length[L] for L in np.round(mp.length_m, 9)]
+        VP[:, mpk.V_DELAY] = mp.brake_delay_s
         self.VP = VP
-        self.CP = np.ascontiguousarray(np.array([c.as_row() for c in mp.couplers]).reshape(-1, K.N_C))
+        self.CP = np.ascontiguousarray(np.array([c.as_row() for c in mp.couplers]).reshape(-1, mpk.N_C))
         elec = train.electrical
-        SP = np.zeros(K.N_S)
-        SP[K.S_STEP] = settings.time_step_s
-        SP[K.S_STEP_MIN] = min(settings.min_time_step_s, settings.time_step_s)
-        SP[K.S_FORCE_TOL] = settings.force_tolerance_n or 0.0
-        SP[K.S_VEPS] = settings.standstill_speed_mps
-        SP[K.S_BRAKE_FRACTION] = run_settings.braking_fraction
-        SP[K.S_DECEL] = braking.deceleration_mps2 or 0.0
-        SP[K.S_BUILD_UP] = settings.brake_propagation.build_up_s
-        SP[K.S_TAU] = settings.speed_time_constant_s
-        SP[K.S_RAMP] = settings.traction_ramp_s
+        SP = np.zeros(mpk.N_S)
+        SP[mpk.S_STEP] = settings.time_step_s
+        SP[mpk.S_STEP_MIN] = min(settings.min_time_step_s, settings.time_step_s)
+        SP[mpk.S_FORCE_TOL] = settings.force_tolerance_n or 0.0
+        SP[mpk.S_VEPS] = settings.standstill_speed_mps
+        SP[mpk.S_BRAKE_FRACTION] = run_settings.braking_fraction
+        SP[mpk.S_DECEL] = braking.deceleration_mps2 or 0.0
+        SP[mpk.S_BUILD_UP] = settings.brake_propagation.build_up_s
+        SP[mpk.S_TAU] = settings.speed_time_constant_s
+        SP[mpk.S_RAMP] = settings.traction_ramp_s
         mean_delay = float(np.sum(mp.brake_delay_s * mp.mass_kg) / mp.mass_kg.sum())
-        SP[K.S_LOOKAHEAD] = (
+        SP[mpk.S_LOOKAHEAD] = (
             (mean_delay + settings.brake_propagation.build_up_s) if settings.lookahead else 0.0
         )
-        SP[K.S_REST_SPEED] = REST_SPEED_MPS
-        SP[K.S_STOP_WINDOW] = settings.stop_window_m
-        SP[K.S_RECORD_DT] = settings.record_interval_s
-        SP[K.S_ETA_T] = elec.traction_efficiency if elec else 1.0
-        SP[K.S_ETA_R] = elec.regenerative_efficiency * elec.receptivity if elec else 0.0
-        SP[K.S_SERVICE_CURVE] = service_idx
-        SP[K.S_REGEN_CURVE] = regen_idx
-        SP[K.S_G] = G
-        SP[K.S_STALL_S] = STALL_TIME_S
-        SP[K.S_NEWTON_TOL] = NEWTON_TOLERANCE_MPS
+        SP[mpk.S_REST_SPEED] = REST_SPEED_MPS
+        SP[mpk.S_STOP_WINDOW] = settings.stop_window_m
+        SP[mpk.S_RECORD_DT] = settings.record_interval_s
+        SP[mpk.S_ETA_T] = elec.traction_efficiency if elec else 1.0
+        SP[mpk.S_ETA_R] = elec.regenerative_efficiency * elec.receptivity if elec else 0.0
+        SP[mpk.S_SERVICE_CURVE] = service_idx
+        SP[mpk.S_REGEN_CURVE] = regen_idx
+        SP[mpk.S_G] = G
+        SP[mpk.S_STALL_S] = STALL_TIME_S
+        SP[mpk.S_NEWTON_TOL] = NEWTON_TOLERANCE_MPS
         self.SP = SP
         self.ceiling_arrays = (
             np.ascontiguousarray(self.ceiling.x),
@@ -294,22 +294,22 @@ class _Runner:
         self.pcache = np.zeros(n, dtype=np.int64)
         self.tmem = np.zeros((3, max(n - 1, 1)))
         self.tmem_t = np.zeros(3)
-        self.CMD = np.zeros(K.N_K)
+        self.CMD = np.zeros(mpk.N_K)
         self.trac = np.zeros(n)
         self.elec = np.zeros(n)
         self.hist = np.zeros((1024, 2))
         self.hist[0] = (-1e30, 0.0)
         self.nh = 1
-        self.acc = np.zeros(K.N_A)
-        self.acc[K.A_PEAK_POWER] = -np.inf
-        self.acc[K.A_REST_SINCE] = -1.0
+        self.acc = np.zeros(mpk.N_A)
+        self.acc[mpk.A_PEAK_POWER] = -np.inf
+        self.acc[mpk.A_REST_SINCE] = -1.0
         cap = 1024
         self.rec_t = np.zeros(cap)
         self.rec_x = np.zeros((cap, n))
         self.rec_v = np.zeros((cap, n))
         self.rec_a = np.zeros((cap, n))
         self.rec_T = np.zeros((cap, max(n - 1, 1)))
-        self.rec_agg = np.zeros((cap, K.N_R))
+        self.rec_agg = np.zeros((cap, mpk.N_R))
         self.dwell = np.zeros(cap, dtype=bool)
         self.nrec = 0
         self.ext = np.array([-np.inf, 0, 0, 0, np.inf, 0, 0, 0], dtype=float)
@@ -334,17 +334,17 @@ class _Runner:
         """Record the present state (after a dwell, at the start)."""
         if self.nrec >= len(self.rec_t):
             self._grow_records()
-        self.CMD[K.K_REGIME] = regime
-        self.CMD[K.K_COMMAND] = command
+        self.CMD[mpk.K_REGIME] = regime
+        self.CMD[mpk.K_COMMAND] = command
         # the forces of a state between runs of the kernel are not known; they are recorded as zero
         parts = np.zeros((len(self.x), 7))
-        self.nrec = K.record(
+        self.nrec = mpk.record(
             self.nrec, self.t[0], self.x, self.v, self.a, self.c.VP, self.c.CP, self.CMD, parts, self.acc,
             self.rec_t, self.rec_x, self.rec_v, self.rec_a, self.rec_T, self.rec_agg,
         )  # fmt: skip
-        self.next_rec[0] = self.t[0] + self.c.SP[K.S_RECORD_DT]
+        self.next_rec[0] = self.t[0] + self.c.SP[mpk.S_RECORD_DT]
         # the step-size control extrapolates the coupler forces of the last steps: not across a jump in time
-        self.acc[K.A_NMEM] = 0
+        self.acc[mpk.A_NMEM] = 0
 
     def advance(self, mode: int, t_end: float, ref=None) -> int:
         """Run the kernel until ``t_end`` or an event; returns the status."""
@@ -357,15 +357,15 @@ class _Runner:
                 state = (
                     self.x, self.v, self.b, self.t, self.a, self.next_rec, self.pcache, self.tmem, self.tmem_t
                 )  # fmt: skip
-                status, self.nh, self.nrec = K.run(
+                status, self.nh, self.nrec = mpk.run(
                     mode, t_end, state, c.VP, c.CP, c.SP, self.CMD, self.trac, self.elec, c.bank, c.prof,
                     c.avail, ref, c.ceiling_arrays, self.hist, self.nh, self.acc, self.rec_t, self.rec_x,
                     self.rec_v, self.rec_a, self.rec_T, self.rec_agg, self.nrec, self.ext,
                     c.route.end_m + c.mp.settings.stop_window_m,
                 )  # fmt: skip
-                if status == K.ST_RECORD_FULL:
+                if status == mpk.ST_RECORD_FULL:
                     self._grow_records()
-                elif status == K.ST_HISTORY_FULL:
+                elif status == mpk.ST_HISTORY_FULL:
                     self._grow_history()
                 else:
                     return int(status)
@@ -374,11 +374,11 @@ class _Runner:
 
     def hold(self) -> None:
         """The train is at rest: speeds set to 0 (the kinetic energy left counts as braking)."""
-        mi = self.c.VP[:, K.V_INERTIAL]
-        self.acc[K.A_HELD] += float(np.sum(0.5 * mi * self.v**2))
+        mi = self.c.VP[:, mpk.V_INERTIAL]
+        self.acc[mpk.A_HELD] += float(np.sum(0.5 * mi * self.v**2))
         self.v[:] = 0.0
         self.a[:] = 0.0
-        self.acc[K.A_NMEM] = 0
+        self.acc[mpk.A_NMEM] = 0
 
     def set_brake_command(self, level: float) -> None:
         if self.nh >= len(self.hist):
@@ -386,22 +386,22 @@ class _Runner:
         if abs(self.hist[self.nh - 1, 1] - level) > 1e-12:
             self.hist[self.nh] = (self.t[0], level)
             self.nh += 1
-        self.CMD[K.K_FRICTION] = level
+        self.CMD[mpk.K_FRICTION] = level
 
     def mark_dwell(self) -> None:
         """The last record is an arrival at a stop."""
         self.dwell[self.nrec - 1] = True
-        self.rec_agg[self.nrec - 1, K.R_REGIME] = DWELL
+        self.rec_agg[self.nrec - 1, mpk.R_REGIME] = DWELL
 
     def statistics(self) -> dict[str, float]:
         return {
-            "steps": float(self.acc[K.A_STEPS]),
-            "newton_iterations": float(self.acc[K.A_NEWTON]),
-            "halved_steps": float(self.acc[K.A_SUBSTEPS]),
-            "rejected_steps": float(self.acc[K.A_REJECTED]),
+            "steps": float(self.acc[mpk.A_STEPS]),
+            "newton_iterations": float(self.acc[mpk.A_NEWTON]),
+            "halved_steps": float(self.acc[mpk.A_SUBSTEPS]),
+            "rejected_steps": float(self.acc[mpk.A_REJECTED]),
             "wall_time_s": self.wall_s,
-            "largest_time_step_s": float(self.c.SP[K.S_STEP]),
-            "mean_time_step_s": float(self.acc[K.A_INTEGRATED] / max(self.acc[K.A_STEPS], 1.0)),
+            "largest_time_step_s": float(self.c.SP[mpk.S_STEP]),
+            "mean_time_step_s": float(self.acc[mpk.A_INTEGRATED] / max(self.acc[mpk.A_STEPS], 1.0)),
         }
 
     def result(self, status: str, kind: str, warnings: list[str], stop_names=None) -> MultiPointResult:
@@ -468,7 +468,7 @@ def follow_profile(
         profile = SpeedProfile.from_result(profile)
     segments = _segments(profile, route)
     c = _Compiled(mp, route, run_settings)
-    c.SP[K.S_TRACK_PROFILE] = 1.0 if track_profile else 0.0
+    c.SP[mpk.S_TRACK_PROFILE] = 1.0 if track_profile else 0.0
     runner = _Runner(c, float(profile.position_m[0]))
     warnings: list[str] = []
     status = "ok"
@@ -477,13 +477,13 @@ def follow_profile(
         ref = (seg.s, seg.v2, seg.regime, seg.stop_m)
         t_limit = runner.t[0] + SEGMENT_TIME_FACTOR * seg.duration_s + SEGMENT_TIME_MARGIN_S
         st = runner.advance(1, t_limit, ref)
-        if st == K.ST_STOPPED and not seg.is_stop:
+        if st == mpk.ST_STOPPED and not seg.is_stop:
             # the profile ends without an arrival (a stalled reference run): so does the train
             runner.hold()
             status = "stalled"
             warnings.append(f"the profile ends at {seg.stop_m:.0f} m without a stop; the train stopped there")
             break
-        if st == K.ST_STOPPED:
+        if st == mpk.ST_STOPPED:
             runner.hold()
             last = j == len(segments) - 1
             if seg.is_stop:
@@ -500,15 +500,15 @@ def follow_profile(
                         runner.t[0] += seg.dwell_s
                         runner.record_now(COAST, 0.0)
             continue
-        if st == K.ST_STALLED:
+        if st == mpk.ST_STALLED:
             status = "stalled"
             warnings.append(
                 f"the train stalls at {runner.x[0]:.1f} m (at rest with full traction for {STALL_TIME_S:.0f} s)"
             )
-        elif st == K.ST_FAILED:
+        elif st == mpk.ST_FAILED:
             status = "error"
             warnings.append(f"the implicit integrator did not converge at t = {runner.t[0]:.1f} s")
-        elif st == K.ST_END_OF_ROUTE:
+        elif st == mpk.ST_END_OF_ROUTE:
             warnings.append("the head reached the end of the route before stopping")
         else:
             status = "incomplete"
@@ -627,7 +627,7 @@ class MultiPointSession:
         """Set every vehicle's front position [m] and speed [m/s] (head first) before the first step,
         e.g. to start from a stretched or compressed train or to test the coupler dynamics."""
         r = self._runner
-        if r.acc[K.A_STEPS] > 0 or r.t[0] > 0:
+        if r.acc[mpk.A_STEPS] > 0 or r.t[0] > 0:
             raise InputError("the state can only be set before the first step", field="state")
         x = np.asarray(positions_m, dtype=float)
         v = np.asarray(speeds_mps, dtype=float)
@@ -641,17 +641,17 @@ class MultiPointSession:
         r.x[:] = x
         r.v[:] = v
         r.a[:] = 0.0
-        r.acc[K.A_NMEM] = 0
+        r.acc[mpk.A_NMEM] = 0
         r.nrec = 0
-        r.record_now(int(r.CMD[K.K_REGIME]), float(r.CMD[K.K_COMMAND]))
+        r.record_now(int(r.CMD[mpk.K_REGIME]), float(r.CMD[mpk.K_COMMAND]))
 
     def coupler_forces_n(self) -> np.ndarray:
         """Tension of every coupling now [N]."""
         r, c = self._runner, self._c
         out = np.empty(self.mp.n_vehicles - 1)
         for k in range(len(out)):
-            delta = r.x[k] - c.VP[k, K.V_LENGTH] - r.x[k + 1]
-            s, d, _, _ = K.coupler_force(delta, r.v[k] - r.v[k + 1], c.CP[k])
+            delta = r.x[k] - c.VP[k, mpk.V_LENGTH] - r.x[k + 1]
+            s, d, _, _ = mpk.coupler_force(delta, r.v[k] - r.v[k + 1], c.CP[k])
             out[k] = s + d
         return out
 
@@ -695,10 +695,10 @@ class MultiPointSession:
                 return self.state(command)
         self._set_commands(command, loco_commands)
         status = r.advance(0, t_end)
-        if status == K.ST_FAILED:
+        if status == mpk.ST_FAILED:
             self.finished = True
             self._warnings.append(f"the implicit integrator did not converge at t = {r.t[0]:.1f} s")
-        elif status == K.ST_END_OF_ROUTE:
+        elif status == mpk.ST_END_OF_ROUTE:
             self.finished = True
             self._message = "reached the end of the route"
         self._after_move()
@@ -712,15 +712,15 @@ class MultiPointSession:
             for loco in self.mp.locomotives:
                 r.trac[loco.vehicle] = max(command, 0.0)
             r.elec[:] = max(-command, 0.0)
-            r.CMD[K.K_BLEND] = 1.0
+            r.CMD[mpk.K_BLEND] = 1.0
         else:
             for loco, lc in zip(self.mp.locomotives, loco_commands, strict=True):
                 r.trac[loco.vehicle] = max(lc, 0.0)
                 r.elec[loco.vehicle] = max(-lc, 0.0)
-            r.CMD[K.K_BLEND] = 0.0
-        r.CMD[K.K_FRICTION] = max(-command, 0.0)
-        r.CMD[K.K_COMMAND] = command
-        r.CMD[K.K_REGIME] = TRACTION if command > 0 else BRAKE if command < 0 else COAST
+            r.CMD[mpk.K_BLEND] = 0.0
+        r.CMD[mpk.K_FRICTION] = max(-command, 0.0)
+        r.CMD[mpk.K_COMMAND] = command
+        r.CMD[mpk.K_REGIME] = TRACTION if command > 0 else BRAKE if command < 0 else COAST
 
     def _after_move(self) -> None:
         r = self._runner
@@ -728,7 +728,7 @@ class MultiPointSession:
             return
         stop = self._stops[self._next]
         ahead = stop.position_m - r.x[0]
-        m = self._c.VP[:, K.V_INERTIAL]
+        m = self._c.VP[:, mpk.V_INERTIAL]
         at_rest = abs(r.v @ m / m.sum()) < REST_SPEED_MPS and bool(np.all(np.abs(r.v) < 10 * REST_SPEED_MPS))
         window = self.mp.settings.stop_window_m
         if at_rest and abs(ahead) <= max(window, 5.0):
@@ -752,7 +752,7 @@ class MultiPointSession:
 
     def state(self, command: float = 0.0) -> MultiPointState:
         r = self._runner
-        m = self._c.VP[:, K.V_INERTIAL]
+        m = self._c.VP[:, mpk.V_INERTIAL]
         forces = self.coupler_forces_n()
         nxt = self._stops[self._next] if self._next < len(self._stops) else None
         return MultiPointState(
@@ -773,7 +773,7 @@ class MultiPointSession:
         """The drive so far."""
         r = self._runner
         if r.rec_t[r.nrec - 1] < r.t[0] - 1e-9:
-            r.record_now(int(r.CMD[K.K_REGIME]), float(r.CMD[K.K_COMMAND]))
+            r.record_now(int(r.CMD[mpk.K_REGIME]), float(r.CMD[mpk.K_COMMAND]))
         warnings = list(self._warnings)
         if not self.finished:
             warnings.append("the drive has not reached its destination yet")

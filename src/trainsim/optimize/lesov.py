@@ -143,6 +143,29 @@ def _phases(train: Train, route: Route, s0: float, s1: float, v_ss: float, zeta:
     return trac_s, trac_t, s1 - s, t, (mech if mech is not None else s1), v_top
 
 
+def switching_for_speed(
+    train: Train, route: Route, s0: float, s1: float, steady_kmh: float, scheduled_s: float = 0.0, iterations: int = 0
+) -> LesovSwitching:
+    """The switching points of source 004's mode sequence for a steady speed [km/h]."""
+    zeta = zeta_kmh_per_min(train)
+    trac_s, trac_t, brk_s, brk_t, mech_s, v_top = _phases(train, route, s0, s1, steady_kmh, zeta)
+    cruise_s = max((s1 - s0) - trac_s - brk_s, 0.0)
+    budgets = []
+    for g in route.gradients:
+        a, b = max(g.start_m, s0), min(g.end_m, s1)
+        if b > a:
+            budgets.append((a, b, scheduled_s * (b - a) / (s1 - s0)))
+    return LesovSwitching(
+        steady_speed_kmh=v_top,
+        traction_end_m=s0 + trac_s,
+        recuperation_start_m=s1 - brk_s,
+        mechanical_start_m=mech_s,
+        predicted_time_min=trac_t + brk_t + cruise_s / (PATH_PER_KMH_MIN * max(v_top, 1e-9)),
+        iterations=iterations,
+        slope_budgets=tuple(budgets),
+    )
+
+
 def lesov_switching(train: Train, route: Route, s0: float, s1: float, scheduled_s: float) -> LesovSwitching:
     """Source 004's iteration for the steady speed V_ss and the switching points of a section."""
     zeta = zeta_kmh_per_min(train)
@@ -268,8 +291,24 @@ def lesov_plans(
             dt_tr = max(steady_min - error_min, 1e-3)
             dv = corrected_speed_increment_kmh(steady_m, sw.steady_speed_kmh, dt_tr)
             v_new = min(train.max_speed_mps / KMH, max(5.0, sw.steady_speed_kmh + 0.5 * dv))
-            sw = dataclasses.replace(sw, steady_speed_kmh=v_new)
+            sw = switching_for_speed(lt, route, sv.s0, sv.s1, v_new, T, sw.iterations + 1)
             plan = _execute(solver, sw)
+        if abs(plan.running_time_s - T) > max(0.5, 5e-4 * T):
+            # the increment correction can stall where the steady speed is not reached before the
+            # braking point (short sections, small supplements): bisect the steady speed instead
+            lo, hi = 5.0, train.max_speed_mps / KMH
+            for _ in range(40):
+                mid = 0.5 * (lo + hi)
+                sw_mid = switching_for_speed(lt, route, sv.s0, sv.s1, mid, T, sw.iterations + 1)
+                p_mid = _execute(solver, sw_mid)
+                if p_mid.running_time_s > T:
+                    lo = mid
+                else:
+                    hi = mid
+                if abs(p_mid.running_time_s - T) < abs(plan.running_time_s - T):
+                    plan, sw = p_mid, sw_mid
+                if abs(plan.running_time_s - T) <= 0.1:
+                    break
         if abs(plan.running_time_s - T) > max(0.5, 5e-4 * T):
             warnings.append(
                 f"source 004's method: section {sv.s0:.0f}-{sv.s1:.0f} m runs {plan.running_time_s - T:+.1f} s "
