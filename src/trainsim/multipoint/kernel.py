@@ -620,10 +620,9 @@ def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
     v_ref = reference_speed(s, ref_s, ref_v2)
     ceil = linear_value(s, cx, cl, cr)
     ahead = s + max(vc, 0.0) * SP[S_LOOKAHEAD]
-    if SP[S_LOOKAHEAD] > 0.0 and ahead > s:
-        if reference_regime(ahead, ref_s, ref_m) == BRAKE:
-            regime = BRAKE
-            v_ref = min(v_ref, reference_speed(ahead, ref_s, ref_v2))
+    if SP[S_LOOKAHEAD] > 0.0 and ahead > s and reference_regime(ahead, ref_s, ref_m) == BRAKE:
+        regime = BRAKE
+        v_ref = min(v_ref, reference_speed(ahead, ref_s, ref_v2))
     rate = mtot / SP[S_TAU]  # force per m/s of speed error [N s/m]
     if regime == BRAKE:
         # full service braking, eased in proportion to how far below the braking curve the train is
@@ -653,7 +652,7 @@ def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
         else:
             target = ceil
         want = resist + rate * (target - vc)
-        if want >= 0.0:
+        if want >= 0.0:  # noqa: SIM108 (a nested conditional expression would be harder to read)
             u = want / fmax if fmax > 0.0 else 0.0
         else:
             u = want / bmax if bmax > 0.0 else -1.0
@@ -766,7 +765,7 @@ def run(
             h = min(h, 4.0 * h_min)
         # ---- command for this step
         if mode == 1:
-            u, regime, vc = control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling)
+            u, regime, _ = control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling)
             if SP[S_RAMP] > 0.0 and u > 0.0:
                 # the driver (or the traction control) raises the effort gradually: by the time
                 # since the previous command at most

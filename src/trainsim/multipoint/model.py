@@ -559,10 +559,7 @@ def build_multipoint_train(
         notes.append("some locomotives have their own effort curve: the total differs from the train's")
 
     # braking shares
-    if settings.braking_distribution == "mass":
-        brake_share = masses / masses.sum()
-    else:
-        brake_share = np.full(n, 1.0 / n)
+    brake_share = masses / masses.sum() if settings.braking_distribution == "mass" else np.full(n, 1.0 / n)
     regen_share = np.zeros(n)
     if settings.electric_braking_at == "locomotives":
         for loco in locos:

@@ -292,7 +292,7 @@ def build_multipoint_result(
     eta_t = elec.traction_efficiency if elec else 1.0
     eta_r = elec.regenerative_efficiency * elec.receptivity if elec else 0.0
     aux = elec.auxiliary_power_w if elec else 0.0
-    w = {name: agg[:, mpk.R_W0 + getattr(K, "A_" + name)] for name in (
+    w = {name: agg[:, mpk.R_W0 + getattr(mpk, "A_" + name)] for name in (
         "TRACTION", "FRICTION", "ELECTRIC", "RUNNING", "GRADIENT", "CURVE", "TUNNEL", "DAMPER",
         "SPRING_WORK", "HELD",
     )}  # fmt: skip

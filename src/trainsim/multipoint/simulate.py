@@ -455,8 +455,9 @@ def follow_profile(
     Args:
         train: a single-point train with its formation, or a built :class:`MultiPointTrain`.
         route: the route (stations, line data).
-        profile: the speed profile, e.g. a single-point ``RunResult`` (fastest run, driven run, or an
-            optimizer's output) or a :class:`SpeedProfile`.
+        profile: the speed profile: a single-point ``RunResult`` (fastest or driven run), the timetable
+            optimizer's result (``trainsim.optimize.api.OptimizationResult``, whose ``run`` is followed)
+            or a :class:`SpeedProfile`.
         settings: multi-point settings (when ``train`` is a single-point train).
         run_settings: braking fraction and the like (as for the single-point model).
         track_profile: follow the profile's speed in traction too (True), or apply full traction up to
@@ -464,6 +465,8 @@ def follow_profile(
     """
     mp = _as_multipoint(train, settings)
     run_settings = run_settings or RunSettings()
+    if not isinstance(profile, SpeedProfile | RunResult) and isinstance(getattr(profile, "run", None), RunResult):
+        profile = profile.run  # the timetable optimizer's OptimizationResult: follow its run
     if isinstance(profile, RunResult):
         profile = SpeedProfile.from_result(profile)
     segments = _segments(profile, route)

@@ -146,7 +146,7 @@ class SectionSolver:
         for _ in range(10_000):
             seg = self._holding(vhold, vtop, Cr, US, modes, start)
             if seg is None:
-                return self._stalled(pieces)
+                return self._stalled()
             if steep_down.any():
                 self._has_descents = True
             a = self._next_descent(seg, steep_down, vhold, last_pos, holding_speed)
@@ -204,7 +204,9 @@ class SectionSolver:
             return None
         return tuple(a[:n] for a in out)
 
-    def _stalled(self, pieces):
+    def _stalled(self):
+        """A run that cannot be driven (the train stalls): infinite time, so the holding speed
+        search moves away from it."""
         s = np.array([self.s0, self.s1])
         return s, np.array([0.0, 1.0]), np.array([0.0, np.inf]), np.array([0, kernel.DWELL], dtype=np.int8)
 
