@@ -37,8 +37,16 @@ from trainsim.sim.result import EnergyFigures, RunResult, SectionSummary, Trace
 __version__ = "0.1.0"
 
 
-def run(scenario: Scenario) -> RunResult:
-    """The fastest run of a scenario (its train over its route, with its stops and settings)."""
+def run(scenario: Scenario):
+    """The fastest run of a scenario (its train over its route, with its stops and settings).
+
+    A ``RunResult``; for a scenario with ``model: multi_point`` a ``MultiPointResult`` (per-vehicle
+    speeds and coupler forces), whose ``.run`` is the same kind of ``RunResult``.
+    """
+    if scenario.model == "multi_point":
+        from trainsim.multipoint.spec import run_multipoint_scenario
+
+        return run_multipoint_scenario(scenario, scenario.multi_point)
     return run_scenario(scenario)
 
 

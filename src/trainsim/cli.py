@@ -140,6 +140,15 @@ def run(
 ) -> None:
     """Simulate the fastest run of a train over a route, stopping at its stations."""
     with _user_errors():
+        if scenario is not None and train is None and route is None and scenario.is_file():
+            from trainsim.io.trainsim_yaml import read_yaml
+
+            data = read_yaml(scenario)
+            if isinstance(data, dict) and data.get("model") == "multi_point":
+                from trainsim.cli_multipoint import run_and_report
+
+                run_and_report(scenario, out, as_json, no_plots)
+                return
         scn = _load_scenario(scenario, train, route, mass_model)
         if step is not None:
             # RunSettings validates on construction, so a bad step is an InputError like any other
@@ -258,6 +267,7 @@ if __name__ == "__main__":  # pragma: no cover
 def _register_extensions() -> None:
     """Commands that live in their own modules (each a thin layer over its part of the API)."""
     from trainsim import cli_interchange
+    from trainsim.cli_multipoint import multipoint
     from trainsim.cli_optimize import optimize
     from trainsim.cli_web import serve
 
@@ -266,6 +276,7 @@ def _register_extensions() -> None:
     app.command("convert")(cli_interchange.convert)
     app.command("export-results")(cli_interchange.export_results)
     app.command("runtimes")(cli_interchange.runtimes)
+    app.command("multipoint")(multipoint)
 
 
 _register_extensions()

@@ -172,6 +172,9 @@ def test_explicit_runs_with_departures(tmp_path):
     express = study.entries[1].data
     assert express["stops"] == ["S1", "S3", "S4"] and express["dwell_s"] == {"S3": 20}
     assert [v["load_t"] for v in express["train"]["formation"]] == [10, 10]
+    # the other runs keep the base's train (shared, not copied: one copy in the workers' payload)
+    assert [v["load_t"] for v in study.entries[0].data["train"]["formation"]] == [0, 0]
+    assert study.entries[2].data["train"] is study.entries[0].data["train"]
 
 
 def test_clock_times():
@@ -314,6 +317,7 @@ def test_bad_headers_and_bases(write_study, tmp_path):
         load_study(tmp_path / "bad.yaml")
 
 
+@pytest.mark.filterwarnings("ignore")  # the TrainRuns.jl defaults the loader reports
 def test_railtoolkit_parts_cannot_be_varied():
     trainruns = REPO / "tests" / "data" / "trainruns"
     if not (trainruns / "trains" / "freight.yaml").exists():

@@ -161,3 +161,40 @@ def test_a_train_too_weak_for_the_grade_stalls():
     # where the single-point model, with the grade averaged over the train, stalls too
     assert result.run.trace.position_m[-1] == pytest.approx(ref.trace.position_m[-1], abs=10.0)
     assert any("stalls at 180" in w for w in result.warnings)
+
+
+@pytest.mark.parametrize("strategy", ["optimal", "lesov"])
+def test_follows_the_timetable_optimizers_energy_efficient_run(train, strategy):
+    # coasting, cruising and regenerative-braking phases followed as the optimizer planned them
+    from trainsim.optimize.api import optimize
+    from trainsim.optimize.timetable import line_supplement
+
+    route = hilly_route()
+    optimized = optimize(train, route, line_supplement("10%"), strategy)
+    assert not optimized.warnings
+    result = follow_profile(train, route, optimized, MultiPointSettings(couplers=CouplerModel(slack_m=0.025)))
+    assert result.status == "ok", result.warnings
+    for got, want in zip(result.run.sections, optimized.run.sections, strict=True):
+        assert got.running_time_s == pytest.approx(want.running_time_s, rel=5e-3)
+    assert result.energy_kwh.traction == pytest.approx(optimized.run.energy_kwh.traction, rel=1.5e-2)
+    assert result.energy_kwh.regenerated == pytest.approx(optimized.run.energy_kwh.regenerated, rel=3e-2)
+    # and saves what the optimizer saves against the fastest run
+    assert result.energy_kwh.net < 0.85 * optimized.fastest.energy_kwh.net
+
+
+def test_follows_a_profile_prescribed_point_by_point(train):
+    # the FOLLOW regime: the profile's own accelerations, not maximum effort
+    from trainsim.sim.kernel import FOLLOW
+
+    route = hilly_route(stop_at=None)
+    ref = trainsim.run_fastest(train, route)
+    tr = ref.trace
+    slow = 0.8 * tr.speed_mps
+    regime = np.where(tr.regime == DWELL, DWELL, FOLLOW).astype(np.int8)
+    result = follow_profile(
+        train, route, SpeedProfile(tr.position_m, slow, regime, None), MultiPointSettings()
+    )
+    assert result.status == "ok", result.warnings
+    v_ref = np.interp(result.run.trace.position_m, tr.position_m, slow)
+    away = result.run.trace.position_m > 100.0
+    assert np.max(np.abs(result.run.trace.speed_mps[away] - v_ref[away])) < 0.3

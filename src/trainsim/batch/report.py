@@ -7,10 +7,10 @@ Written to ``OUT/report/``:
 * ``statistics.csv``: count, mean, standard deviation, min, 5 / 50 / 95 % quantiles and max of every
   figure over the runs that have figures (``ok`` and ``stalled``);
 * ``failures.csv``: every failed run with its parameters and error;
-* for each swept parameter (a few distinct values): ``energy_net_kwh_by_<param>.csv`` (mean energy per
-  value, one column per group) and ``by_<param>.png`` (net energy and running time against the
-  parameter, one line per group: the explicit run, or another swept parameter);
-* for each sampled parameter (many distinct values): ``scatter_<param>.png``;
+* for each swept parameter: ``energy_net_kwh_by_<param>.csv`` (mean energy per value, one column per
+  group) and ``by_<param>.png`` (net energy and running time against the parameter, one line per group:
+  the explicit run, or another swept parameter with at most 10 values; means over the other parameters);
+* for each sampled parameter (or a swept one with more than 30 values): ``scatter_<param>.png``;
 * with 20 runs or more: ``distributions.png`` (histograms of running time and net energy);
 * for a timetable (departure times): ``timetable.png`` (net energy by departure, and the train graph:
   distance against clock time of every run).
@@ -81,13 +81,13 @@ def _is_numeric(series) -> bool:
     return pd.api.types.is_numeric_dtype(series) and not pd.api.types.is_bool_dtype(series)
 
 
-def _group_column(df, x: str, params: list[str]) -> str | None:
+def _group_column(df, x: str, params: list[str], kinds: dict[str, str]) -> str | None:
     """What the lines of a plot against ``x`` stand for: the explicit run, else another parameter
     with a few values."""
     if "run" in params and x != "run" and df["run"].nunique() > 1:
         return "run"
     for p in params:
-        if p in (x, "sample", "departure_s", "run"):
+        if p in (x, "sample", "departure_s", "run") or kinds.get(p) == "sampled":
             continue
         n = df[p].nunique()
         if 1 < n <= MAX_GROUPS:
@@ -237,6 +237,7 @@ def write_report(out: str | Path, directory: str | Path | None = None) -> Report
     rep = Report(Path(directory) if directory is not None else out / "report")
     rep.directory.mkdir(parents=True, exist_ok=True)
     params = [p for p in meta.get("parameters", []) if p in df.columns]
+    kinds = meta.get("parameter_kinds", {})
     total = int(meta.get("runs", len(df)))
     counts = df["status"].value_counts().to_dict() if "status" in df.columns else {}
     rep.status_counts = {str(k): int(v) for k, v in counts.items()}
@@ -270,8 +271,8 @@ def write_report(out: str | Path, directory: str | Path | None = None) -> Report
         for x in params:
             if x in ("sample", "departure_s") or not _is_numeric(ok[x]) or ok[x].nunique() < 2:
                 continue
-            if ok[x].nunique() <= MAX_LEVELS:
-                group = _group_column(ok, x, params)
+            if kinds.get(x) != "sampled" and ok[x].nunique() <= MAX_LEVELS:
+                group = _group_column(ok, x, params, kinds)
                 png = rep.directory / f"by_{_slug(x)}.png"
                 pivot = _plot_by_parameter(ok, x, group, png)
                 csv = rep.directory / f"energy_net_kwh_by_{_slug(x)}.csv"

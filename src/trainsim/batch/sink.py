@@ -149,6 +149,7 @@ class ParquetSink:
             "fingerprint": self.expansion.fingerprint,
             "runs": len(self.expansion),
             "parameters": [c.name for c in self.expansion.columns],
+            "parameter_kinds": {c.name: c.kind for c in self.expansion.columns},
             "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         }
 

@@ -344,6 +344,7 @@ class ParamColumn:
     path: str | None = None
     relative: bool = False
     where: str = ""  # where the study file sets it, for error messages
+    kind: str = "axis"  # run, departure, sample_index, axis or sampled
 
 
 def _canonical(obj: Any) -> str:
@@ -452,7 +453,9 @@ class Study:
                     "two runs have the same name", file=self.file, field=f"{where}.name", value=run.name
                 )
             names.add(run.name)
-            data = copy.deepcopy(base) if base is not None else {"schema": "trainsim/scenario", "version": 1}
+            # the parts of the base are shared by the entries that do not change them (one copy in the
+            # payload sent to the workers, one train built per worker); nothing below writes into them
+            data = dict(base) if base is not None else {"schema": "trainsim/scenario", "version": 1}
             data["name"] = run.name
             for kind in ("train", "route"):
                 value = getattr(run, kind)
@@ -470,8 +473,12 @@ class Study:
                 data["dwell_s"] = {**(data.get("dwell_s") or {}), **run.dwell_s}
             if run.settings is not None:
                 data["settings"] = {**(data.get("settings") or {}), **run.settings}
+            copied: set[str] = set()
             for path, value in (run.set or {}).items():
-                self._check_root(path, f"{where}.set.{path}")
+                root = self._check_root(path, f"{where}.set.{path}").root
+                if root not in copied and root in data:
+                    data[root] = copy.deepcopy(data[root])
+                    copied.add(root)
                 try:
                     set_value(data, path, value)
                 except InputError as exc:
@@ -524,11 +531,11 @@ class Study:
     def _columns(self) -> list[ParamColumn]:
         cols: list[ParamColumn] = []
         if self.spec.runs is not None:
-            cols.append(ParamColumn("run"))
+            cols.append(ParamColumn("run", kind="run"))
         if any(e.departures is not None for e in self.entries):
-            cols.append(ParamColumn("departure_s"))
+            cols.append(ParamColumn("departure_s", kind="departure"))
         if self.spec.samples is not None:
-            cols.append(ParamColumn("sample"))
+            cols.append(ParamColumn("sample", kind="sample_index"))
         for i, axis in enumerate(self.spec.axes):
             for k, path in enumerate(axis.paths()):
                 where = f"axes[{i}].field" if axis.field is not None else f"axes[{i}].fields[{k}]"
@@ -540,7 +547,7 @@ class Study:
                 where = f"samples.fields.{path}"
                 self._check_root(path, where)
                 name = f"{path}:factor" if dist.relative else path
-                cols.append(ParamColumn(name, path, dist.relative, where))
+                cols.append(ParamColumn(name, path, dist.relative, where, kind="sampled"))
         seen: dict[str, str] = {}
         for c in cols:
             if c.path is None:

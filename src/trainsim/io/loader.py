@@ -209,6 +209,17 @@ def load_scenario(path: str | Path) -> Scenario:
         return scenario
     detected = detect_format(path)
     _expect(detected, "scenario", str(path))
+    data = tsy.read_yaml(path)
+    if isinstance(data, dict) and ("model" in data or "multi_point" in data):
+        # the multi-point model's own reader validates its block; imported here (it imports us)
+        import dataclasses
+
+        from trainsim.multipoint.spec import load_multipoint_scenario
+
+        scenario, spec = load_multipoint_scenario(path)
+        if spec is None:
+            return scenario
+        return dataclasses.replace(scenario, model="multi_point", multi_point=spec)
     return tsy.load_scenario_yaml(path)
 
 

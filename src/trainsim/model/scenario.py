@@ -44,9 +44,15 @@ class RunSettings:
 
 @dataclass(frozen=True)
 class Scenario:
-    """A train, a route (whose stations say where it stops and for how long) and run settings."""
+    """A train, a route (whose stations say where it stops and for how long) and run settings.
+
+    ``model`` is ``single_point`` or ``multi_point`` (every vehicle its own mass, couplers as
+    springs; ``multi_point`` then holds that model's validated settings, see docs/MULTIPOINT.md).
+    """
 
     name: str
     train: Train
     route: Route
     settings: RunSettings = field(default_factory=RunSettings)
+    model: str = "single_point"
+    multi_point: object | None = None

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from trainsim.sim.kernel import BRAKE, COAST, CRUISE, TRACTION
+from trainsim.sim.kernel import BRAKE, COAST, CRUISE, FOLLOW, REGEN, TRACTION
 
 # columns of the vehicle parameter array VP
 V_MASS = 0  # static mass m_i [kg]
@@ -560,6 +560,19 @@ def reference_speed(s, ref_s, ref_v2):
 
 
 @njit(cache=True)
+def reference_acceleration(s, ref_s, ref_v2):
+    """Acceleration of the reference at head position s: d(v^2/2)/ds of its stretch [m/s^2]."""
+    n = len(ref_s)
+    if s < ref_s[0] or s >= ref_s[n - 1]:
+        return 0.0
+    k = np.searchsorted(ref_s, s, side="right") - 1
+    ds = ref_s[k + 1] - ref_s[k]
+    if ds <= 0.0:
+        return 0.0
+    return 0.5 * (ref_v2[k + 1] - ref_v2[k]) / ds
+
+
+@njit(cache=True)
 def reference_regime(s, ref_s, ref_m):
     """Regime of the reference stretch containing head position s."""
     n = len(ref_s)
@@ -620,14 +633,23 @@ def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
     v_ref = reference_speed(s, ref_s, ref_v2)
     ceil = linear_value(s, cx, cl, cr)
     ahead = s + max(vc, 0.0) * SP[S_LOOKAHEAD]
-    if SP[S_LOOKAHEAD] > 0.0 and ahead > s and reference_regime(ahead, ref_s, ref_m) == BRAKE:
-        regime = BRAKE
-        v_ref = min(v_ref, reference_speed(ahead, ref_s, ref_v2))
+    if SP[S_LOOKAHEAD] > 0.0 and ahead > s:
+        regime_ahead = reference_regime(ahead, ref_s, ref_m)
+        if regime_ahead in (BRAKE, REGEN):
+            if regime_ahead == BRAKE or regime != BRAKE:
+                regime = regime_ahead
+            v_ref = min(v_ref, reference_speed(ahead, ref_s, ref_v2))
     rate = mtot / SP[S_TAU]  # force per m/s of speed error [N s/m]
-    if regime == BRAKE:
-        # full service braking, eased in proportion to how far below the braking curve the train is
+    if regime in (BRAKE, REGEN):
+        # full service braking (or, in the regenerative-braking regime of energy-efficient runs, the
+        # full electric brake alone), eased in proportion to how far below the braking curve the train is
+        base = -1.0
+        rc = int(SP[S_REGEN_CURVE])
+        if regime == REGEN and rc >= 0 and bmax > 0.0:
+            regen, _ = effort_slope(abs(vc), rc, cs, cc, coff, cfc, cpc)
+            base = -min(1.0, regen / bmax)
         ease = rate * (min(v_ref, ceil) - max(vc, 0.0))
-        u = -1.0 + (ease / bmax if bmax > 0.0 else 0.0)
+        u = base + (ease / bmax if bmax > 0.0 else 0.0)
         if s >= stop_at - SP[S_STOP_WINDOW] and vc < 0.5:
             u = -1.0  # at the stop: hold the train
         elif u > 0.0:
@@ -647,11 +669,17 @@ def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
                 target = min(max(v_ref, reference_speed(preview, ref_s, ref_v2)), ceil)
             else:
                 target = ceil
-        elif regime == CRUISE:
+            want = resist + rate * (target - vc)
+        elif regime in (CRUISE, FOLLOW):
+            # hold the reference speed; a profile prescribed point by point (FOLLOW) also gives the
+            # force its acceleration needs
             target = min(v_ref, ceil)
+            want = resist + rate * (target - vc)
+            if regime == FOLLOW:
+                want += mtot * reference_acceleration(s, ref_s, ref_v2)
         else:
             target = ceil
-        want = resist + rate * (target - vc)
+            want = resist + rate * (target - vc)
         if want >= 0.0:  # noqa: SIM108 (a nested conditional expression would be harder to read)
             u = want / fmax if fmax > 0.0 else 0.0
         else:

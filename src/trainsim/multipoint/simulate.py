@@ -21,6 +21,7 @@ import dataclasses
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -42,6 +43,9 @@ from trainsim.sim.profile import (
     traction_availability,
 )
 from trainsim.sim.result import RunResult
+
+if TYPE_CHECKING:
+    from trainsim.optimize.api import OptimizationResult
 
 #: Newton tolerance on the midpoint speeds [m/s]: far below any physical meaning, far above round-off.
 NEWTON_TOLERANCE_MPS = 1e-9
@@ -443,7 +447,7 @@ def _as_multipoint(train: Train | MultiPointTrain, settings: MultiPointSettings 
 def follow_profile(
     train: Train | MultiPointTrain,
     route: Route,
-    profile: SpeedProfile | RunResult,
+    profile: SpeedProfile | RunResult | OptimizationResult,
     settings: MultiPointSettings | None = None,
     run_settings: RunSettings | None = None,
     *,
@@ -465,7 +469,9 @@ def follow_profile(
     """
     mp = _as_multipoint(train, settings)
     run_settings = run_settings or RunSettings()
-    if not isinstance(profile, SpeedProfile | RunResult) and isinstance(getattr(profile, "run", None), RunResult):
+    if not isinstance(profile, SpeedProfile | RunResult) and isinstance(
+        getattr(profile, "run", None), RunResult
+    ):
         profile = profile.run  # the timetable optimizer's OptimizationResult: follow its run
     if isinstance(profile, RunResult):
         profile = SpeedProfile.from_result(profile)
