@@ -175,3 +175,20 @@ def test_invariants(step):
     assert np.all(tr.speed_mps <= tr.speed_limit_mps + 1e-6)
     assert [s.dwell_s for s in r.sections] == [30.0, 0.0]
     assert abs(r.energy_balance["relative_error"]) < 1e-3
+
+
+def test_driving_session_from_any_state():
+    from trainsim.sim.driving import DrivingSession
+
+    train = make_train(traction_n=200e3, mass_kg=300e3, rho=1.1)
+    route = make_route(length_m=5_000.0, limit_kmh=200.0)
+    session = DrivingSession(train=train, route=route, start_position_m=1000.0, start_speed_mps=20.0, start_time_s=50.0)
+    state = session.step(1.0, 2.0)
+    # constant force, no resistance: v = 20 + a t, s = 1000 + 20 t + a t^2 / 2 with a = F / (rho m)
+    a = 200e3 / (1.1 * 300e3)
+    assert state.speed_mps == pytest.approx(20.0 + 2.0 * a, rel=1e-9)
+    assert state.position_m == pytest.approx(1000.0 + 40.0 + 2.0 * a, rel=1e-9)
+    assert state.time_s == pytest.approx(52.0)
+    assert state.next_stop_name == "B"
+    with pytest.raises(Exception, match="outside the route"):
+        DrivingSession(train=train, route=route, start_position_m=9000.0)

@@ -67,7 +67,13 @@ class DrivingSession:
         route: Route | None = None,
         settings: RunSettings | None = None,
         stop_window_m: float = DEFAULT_STOP_WINDOW_M,
+        start_position_m: float | None = None,
+        start_speed_mps: float = 0.0,
+        start_time_s: float = 0.0,
     ) -> None:
+        """A session from standstill at the route's first stop, or from any state: head position
+        ``start_position_m`` [m] at speed ``start_speed_mps`` [m/s] and time ``start_time_s`` [s]
+        (the next stop is then the first one ahead)."""
         if scenario is not None:
             train, route, settings = scenario.train, scenario.route, scenario.settings
         if train is None or route is None:
@@ -85,15 +91,29 @@ class DrivingSession:
             raise InputError("the route has no stop to start from", field="stations")
         self._stops = list(stops)
         self._next_stop = 1
-        self.time_s = 0.0
+        self.time_s = float(start_time_s)
         self.position_m = stops[0].position_m
         self.speed_mps = 0.0
+        if start_position_m is not None:
+            if not route.start_m <= start_position_m < route.end_m:
+                raise InputError(
+                    "the start position lies outside the route",
+                    field="start_position_m",
+                    value=start_position_m,
+                    allowed=f"{route.start_m:g} .. {route.end_m:g} m",
+                )
+            if not 0.0 <= start_speed_mps < 200.0:
+                raise InputError("invalid start speed", field="start_speed_mps", value=start_speed_mps)
+            self.position_m = float(start_position_m)
+            self.speed_mps = float(start_speed_mps)
+            ahead = [k for k, st in enumerate(stops) if st.position_m > self.position_m + stop_window_m]
+            self._next_stop = ahead[0] if ahead else len(stops)
         self.dwell_remaining_s = 0.0
-        self.finished = len(stops) < 2
+        self.finished = self._next_stop >= len(stops)
         self._energy_j = 0.0
-        self._message = f"at {stops[0].name}"
+        self._message = f"at {stops[0].name}" if start_position_m is None else f"at {self.position_m:.0f} m"
         self._record: list[tuple[float, float, float, int, float]] = [
-            (self.time_s, self.position_m, 0.0, COAST, 0.0)
+            (self.time_s, self.position_m, self.speed_mps, COAST, 0.0)
         ]
         self._passed: list[str] = []
 
