@@ -267,6 +267,7 @@ if __name__ == "__main__":  # pragma: no cover
 def _register_extensions() -> None:
     """Commands that live in their own modules (each a thin layer over its part of the API)."""
     from trainsim import cli_interchange
+    from trainsim.cli_batch import batch
     from trainsim.cli_multipoint import multipoint
     from trainsim.cli_optimize import optimize
     from trainsim.cli_web import serve
@@ -277,6 +278,7 @@ def _register_extensions() -> None:
     app.command("export-results")(cli_interchange.export_results)
     app.command("runtimes")(cli_interchange.runtimes)
     app.command("multipoint")(multipoint)
+    app.command("batch")(batch)
 
 
 _register_extensions()

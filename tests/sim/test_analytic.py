@@ -182,7 +182,9 @@ def test_driving_session_from_any_state():
 
     train = make_train(traction_n=200e3, mass_kg=300e3, rho=1.1)
     route = make_route(length_m=5_000.0, limit_kmh=200.0)
-    session = DrivingSession(train=train, route=route, start_position_m=1000.0, start_speed_mps=20.0, start_time_s=50.0)
+    session = DrivingSession(
+        train=train, route=route, start_position_m=1000.0, start_speed_mps=20.0, start_time_s=50.0
+    )
     state = session.step(1.0, 2.0)
     # constant force, no resistance: v = 20 + a t, s = 1000 + 20 t + a t^2 / 2 with a = F / (rho m)
     a = 200e3 / (1.1 * 300e3)

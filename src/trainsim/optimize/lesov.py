@@ -144,7 +144,13 @@ def _phases(train: Train, route: Route, s0: float, s1: float, v_ss: float, zeta:
 
 
 def switching_for_speed(
-    train: Train, route: Route, s0: float, s1: float, steady_kmh: float, scheduled_s: float = 0.0, iterations: int = 0
+    train: Train,
+    route: Route,
+    s0: float,
+    s1: float,
+    steady_kmh: float,
+    scheduled_s: float = 0.0,
+    iterations: int = 0,
 ) -> LesovSwitching:
     """The switching points of source 004's mode sequence for a steady speed [km/h]."""
     zeta = zeta_kmh_per_min(train)
