@@ -240,3 +240,18 @@ def test_cli_optimize_errors():
     r = runner.invoke(app, ["optimize", str(METRO), "--supplement", "5%", "--strategy", "magic"])
     assert r.exit_code == 2 and "unknown strategy" in r.output
     assert "Traceback" not in r.output
+
+
+def test_lesov_slope_budgets():
+    """t_b = k_cor (S_i/S) t_norm: a climb gets more of the schedule than its length share."""
+    import dataclasses as dc
+
+    from trainsim.model import GradientSection
+    from trainsim.optimize.lesov import slope_budgets
+
+    train = level_train()
+    route = dc.replace(level_route(10_000.0), gradients=(GradientSection(4000.0, 6000.0, 15.0),))
+    ((a, b, budget),) = slope_budgets(train, route, 0.0, 10_000.0, 500.0)
+    assert (a, b) == (4000.0, 6000.0)
+    assert budget > 500.0 * 0.2  # slower on the climb than on the level
+    assert slope_budgets(train, level_route(), 0.0, 12_000.0, 500.0) == []

@@ -19,8 +19,9 @@ is ambiguous (documented in docs/OPTIMIZATION.md):
   increment dV = (dS - 16.7 V_c dt_tr) / (8.35 dt_tr) applied to the steady speed: V_ss <- V_ss +
   dV / 2 (the mean speed that covers the steady-running distance in the time left for it);
 * the slope correction t_b = k_cor (S_i / S) t_norm: each gradient sub-section gets the time budget
-  of its share, corrected by k_cor = its fastest-run time over its length share of the fastest time;
-  the budgets are reported beside the achieved times.
+  of its length share, corrected by k_cor = its share of the fastest run's time over its length
+  share (``slope_budgets``, in ``LesovSwitching.slope_budgets``); the paper does not say how the
+  budgets move the switching points, so they are computed and returned, not used for driving.
 
 The switching points found this way are then driven by trainsim's simulator (same physics as every
 other strategy), with the regenerative brake at 0.8 x the traction curve as the paper says.
@@ -34,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from trainsim.constants import KMH, G
-from trainsim.model.route import Route
+from trainsim.model.route import Route, Station
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Braking, Train
 from trainsim.optimize import pmp_kernel as pk
@@ -143,6 +144,30 @@ def _phases(train: Train, route: Route, s0: float, s1: float, v_ss: float, zeta:
     return trac_s, trac_t, s1 - s, t, (mech if mech is not None else s1), v_top
 
 
+def slope_budgets(
+    train: Train, route: Route, s0: float, s1: float, scheduled_s: float
+) -> list[tuple[float, float, float]]:
+    """Source 004's boundary times t_b = k_cor (S_i / S) t_norm of the gradient sub-sections, as
+    (start m, end m, t_b s). Our reading of k_cor: the sub-section's share of the fastest run's time
+    over its share of the length, so that slopes that cost time get more of the schedule."""
+    from trainsim.sim.fastest import run_fastest
+
+    if not route.gradients:
+        return []
+    section = dataclasses.replace(route, stations=(Station("a", s0), Station("b", s1)))
+    tr = run_fastest(train, section).trace
+    t_fast = float(tr.time_s[-1] - tr.time_s[0])
+    budgets = []
+    for g in route.gradients:
+        a, b = max(g.start_m, s0), min(g.end_m, s1)
+        if b > a and t_fast > 0:
+            share = (b - a) / (s1 - s0)
+            dt_fast = float(np.interp(b, tr.position_m, tr.time_s) - np.interp(a, tr.position_m, tr.time_s))
+            k_cor = (dt_fast / t_fast) / share
+            budgets.append((a, b, k_cor * share * scheduled_s))
+    return budgets
+
+
 def switching_for_speed(
     train: Train,
     route: Route,
@@ -156,11 +181,7 @@ def switching_for_speed(
     zeta = zeta_kmh_per_min(train)
     trac_s, trac_t, brk_s, brk_t, mech_s, v_top = _phases(train, route, s0, s1, steady_kmh, zeta)
     cruise_s = max((s1 - s0) - trac_s - brk_s, 0.0)
-    budgets = []
-    for g in route.gradients:
-        a, b = max(g.start_m, s0), min(g.end_m, s1)
-        if b > a:
-            budgets.append((a, b, scheduled_s * (b - a) / (s1 - s0)))
+    budgets = slope_budgets(train, route, s0, s1, scheduled_s)
     return LesovSwitching(
         steady_speed_kmh=v_top,
         traction_end_m=s0 + trac_s,
@@ -199,12 +220,7 @@ def lesov_switching(train: Train, route: Route, s0: float, s1: float, scheduled_
         if abs(v_new - v_ss) < 1e-6:
             break
         v_ss = v_new
-    # slope budgets t_b = k_cor (S_i/S) t_norm with k_cor from the fastest run (reported)
-    budgets = []
-    for g in route.gradients:
-        a, b = max(g.start_m, s0), min(g.end_m, s1)
-        if b > a:
-            budgets.append((a, b, scheduled_s * (b - a) / (s1 - s0)))
+    budgets = slope_budgets(train, route, s0, s1, scheduled_s)
     return LesovSwitching(
         steady_speed_kmh=v_top,
         traction_end_m=s0 + trac_s,

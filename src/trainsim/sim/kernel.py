@@ -299,57 +299,11 @@ def find_curve_meeting(E, u, Er, w, line, P, curves, tk, bk):
 @njit(cache=True)
 def braking_ceiling(x, a0, a1, b0, b1, vlim, i0, i1, P, curves, bk, mode=BRAKE):
     """Backward pass from standstill at x[i1] to x[i0]: the speed ceiling made of the limits and
-    the service braking curves to every lower limit and to the stop. For interval k = i - i0 it
-    is the limit vlim[i] on offsets below US[k] and the braking curve ending at (width, Cr[k])
-    above; Cl[k] is its value at the interval's start. ``mode`` is BRAKE (service braking) or
-    REGEN (regenerative braking only, for energy-efficient approaches to lower limits)."""
-    m_int = i1 - i0
-    Cr = np.empty(m_int)
-    Cl = np.empty(m_int)
-    US = np.empty(m_int)
-    c_next = 0.0
-    for k in range(m_int - 1, -1, -1):
-        i = i0 + k
-        w = x[i + 1] - x[i]
-        cr = min(vlim[i], c_next)
-        Er = 0.5 * cr * cr
-        line = (a0[i], a1[i], b0[i], b1[i])
-        if cr >= vlim[i] and (
-            acceleration(mode, Er, 0.0, line, P, curves) < 0.0
-            and acceleration(mode, Er, w, line, P, curves) < 0.0
-        ):
-            # braking backwards from the limit only rises above it: the whole interval is at the limit
-            US[k] = w
-            Cl[k] = vlim[i]
-            Cr[k] = cr
-            c_next = vlim[i]
-            continue
-        El = step_energy(Er, w, -w, mode, line, P, curves, bk)
-        vl = np.sqrt(2.0 * El) if El > 0.0 else 0.0
-        if vl <= vlim[i]:
-            US[k] = 0.0
-            Cl[k] = vl
-        else:
-            if cr >= vlim[i] - SPEED_TOLERANCE:
-                US[k] = w
-            else:
-                h = find_speed_crossing_split(
-                    Er,
-                    w,
-                    -w,
-                    0.5 * vlim[i] * vlim[i],
-                    mode,
-                    line,
-                    P,
-                    curves,
-                    bk,
-                )
-                US[k] = w + h
-            Cl[k] = vlim[i]
-        Cr[k] = cr
-        c_next = Cl[k]
-
-    return Cr, Cl, US
+    the braking curves of ``mode`` (BRAKE: service braking; REGEN: regenerative braking only) to
+    every lower limit and to the stop, ``bk`` being that curve's kinks. See
+    ``braking_ceiling_mixed`` for the result."""
+    modes = np.full(len(a0), mode, dtype=np.int64)
+    return braking_ceiling_mixed(x, a0, a1, b0, b1, vlim, i0, i1, P, curves, bk, bk, modes)
 
 
 @njit(cache=True)
