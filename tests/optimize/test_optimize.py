@@ -250,7 +250,7 @@ def test_lesov_slope_budgets():
     from trainsim.optimize.lesov import slope_budgets
 
     train = level_train()
-    route = dc.replace(level_route(10_000.0), gradients=(GradientSection(4000.0, 6000.0, 15.0),))
+    route = dc.replace(level_route(10_000.0), gradients=(GradientSection(4000.0, 6000.0, 30.0),))
     ((a, b, budget),) = slope_budgets(train, route, 0.0, 10_000.0, 500.0)
     assert (a, b) == (4000.0, 6000.0)
     flat = dc.replace(level_route(10_000.0), gradients=(GradientSection(4000.0, 6000.0, 1e-9),))
