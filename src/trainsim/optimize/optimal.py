@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
+from trainsim.constants import KWH
 from trainsim.errors import InputError
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
@@ -312,7 +313,7 @@ class SectionSolver:
         points, status, _ = self._phase_b(phase_a, s_c, 0.0, force_mode=kernel.REGEN)
         return points, status
 
-    def _phase_b(self, phase_a, s_c: float, mu: float, force_mode: int = -1):
+    def _phase_b(self, phase_a, s_c: float, mu: float, force_mode: int = -1, v_hold: float = np.inf):
         tr = self.track
         i, u, v, t, j = self._state_at(phase_a, s_c)
         if u >= tr.x[i + 1] - tr.x[i] - 1e-12 and i + 1 < self.i1:
@@ -324,7 +325,7 @@ class SectionSolver:
         n, status, s_event = pk.final_phase(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, tr.traction_scale, i, u, v, t, self.i1,
             self.P, self.curves, self.tk, self.bk, self.Cr, self.US, mu, self.inv_eta_t, self.eta_r,
-            self.has_regen, ADJOINT_STEP_M, out_s, out_v, out_t, out_m, 0, force_mode,
+            self.has_regen, ADJOINT_STEP_M, out_s, out_v, out_t, out_m, 0, force_mode, v_hold,
         )  # fmt: skip
         s, vv, tt, m = phase_a
         keep = slice(0, j + 1)
@@ -349,7 +350,7 @@ class SectionSolver:
         # outcome is not monotone in the coasting point, and the optimum leaves the holding arc as
         # late as possible, so search backwards from the stop for a bracket first.
         def residual(s_c: float):
-            points, status, s_event = self._phase_b(phase_a, s_c, mu)
+            points, status, s_event = self._phase_b(phase_a, s_c, mu, v_hold=holding_speed_mps)
             # < 0: stops short of the station by that much; >= 0: meets the braking curve to it
             return (self.s1 - s_event if status == pk.HIT_CEILING else s_event - self.s1), points
 
@@ -422,7 +423,7 @@ class SectionSolver:
             train=self.train, route=route, settings=RunSettings(), profile=line_resistance_profile(route, self.train),
             ceiling=speed_ceiling(route, self.train), s=plan.s, v=plan.v, t=plan.t, regime=plan.regime, status="ok",
         )  # fmt: skip
-        return res.energy_kwh.net - res.energy_kwh.auxiliary
+        return (res.energy_kwh.net - res.energy_kwh.auxiliary) * KWH
 
     def _solve_once(self, running_time_s: float) -> SectionPlan:
         if running_time_s <= self.fastest_time_s + TIME_TOLERANCE_S:

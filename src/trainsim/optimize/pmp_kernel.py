@@ -95,7 +95,7 @@ def ceiling_at(u, w, k, Cr, US, vcap, line, P, curves, bk):
 def final_phase(
     x, a0, a1, b0, b1, vcap, tscale, i_start, u_start, v_start, t_start, i_end,
     P, curves, tk, bk, Cr, US, mu, inv_eta_t, eta_r, has_regen, h_max,
-    out_s, out_v, out_t, out_m, n, force_mode=-1,
+    out_s, out_v, out_t, out_m, n, force_mode=-1, v_hold=np.inf,
 ):  # fmt: skip
     """From (x[i_start] + u_start, v_start), leaving the holding arc (phi just below 1/eta_t), drive
     by the adjoint to the stop at x[i_end], holding the speed limit ``vcap`` if the train reaches
@@ -115,6 +115,11 @@ def final_phase(
         while u < w - 1e-12:
             v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
             mode = mode_of(phi, inv_eta_t, eta_r, has_regen) if force_mode < 0 else force_mode
+            if mode == TRACTION and v >= v_hold:
+                # after a descent the adjoint climbs back to 1/eta_t while v > V; traction there
+                # would only be braked away before the stop: the train coasts back down to V
+                mode = COAST
+                phi = inv_eta_t * (1.0 - 1e-9)
             at_limit = v >= vcap[i] - 1e-9
             if at_limit and (mode == TRACTION or (mode == COAST and resistance_force(v, u, line, P) < 0.0)):
                 # the speed limit binds: hold it while the adjoint asks for traction, or while
@@ -149,6 +154,8 @@ def final_phase(
                     v1 = vcap[i]
                     E1 = 0.5 * v1 * v1
             phi1 = phi_step(phi, E, E1, u, h, b0[i], b1[i], P, mu) if v > PHI_MIN_SPEED else phi
+            if v1 >= v_hold and phi1 > inv_eta_t * (1.0 - 1e-9):
+                phi1 = inv_eta_t * (1.0 - 1e-9)
             new_mode = mode_of(phi1, inv_eta_t, eta_r, has_regen)
             base_mode = mode_of(phi, inv_eta_t, eta_r, has_regen)
             if new_mode != base_mode and force_mode < 0:
