@@ -41,12 +41,19 @@ def run(scenario: Scenario):
     """The fastest run of a scenario (its train over its route, with its stops and settings).
 
     A ``RunResult``; for a scenario with ``model: multi_point`` a ``MultiPointResult`` (per-vehicle
-    speeds and coupler forces), whose ``.run`` is the same kind of ``RunResult``.
+    speeds and coupler forces), whose ``.run`` is the same kind of ``RunResult``. A scenario with a
+    ``driving`` block (strategy and supplement or timetable) is driven by that strategy.
     """
     if scenario.model == "multi_point":
         from trainsim.multipoint.spec import run_multipoint_scenario
 
         return run_multipoint_scenario(scenario, scenario.multi_point)
+    if scenario.strategy != "fastest":
+        from trainsim.optimize.api import optimize
+
+        return optimize(
+            scenario.train, scenario.route, scenario.timetable, scenario.strategy, scenario.settings
+        ).run
     return run_scenario(scenario)
 
 

@@ -47,12 +47,21 @@ def optimize(
             raise InputError(
                 "unknown strategy", field="--strategy", value=strategy, allowed=", ".join(STRATEGIES)
             )
-        if (supplement is None) == (timetable is None):
+        if supplement is not None and timetable is not None:
             raise InputError("give exactly one of --supplement and --timetable")
+        if supplement is None and timetable is None:
+            if scn.timetable is None:
+                raise InputError(
+                    "give exactly one of --supplement and --timetable (or a 'driving' block in the scenario)"
+                )
+            if strategy == "optimal" and scn.strategy != "fastest":
+                strategy = scn.strategy
         journey = None
         route_used = scn.route
         if supplement is not None:
             tt = line_supplement(supplement)
+        elif timetable is None:
+            tt = scn.timetable
         else:
             _require_file(timetable, "timetable file")
             from trainsim.io.loader import detect_format

@@ -257,3 +257,27 @@ def test_lesov_slope_budgets():
     ((_, _, budget_flat),) = slope_budgets(train, flat, 0.0, 10_000.0, 500.0)
     assert budget > budget_flat  # the climb takes a larger share of the time
     assert slope_budgets(train, level_route(), 0.0, 12_000.0, 500.0) == []
+
+
+def test_strategy_from_the_scenario_file():
+    eco = trainsim.load_scenario(ROOT / "examples" / "metro_b" / "scenario_eco.yaml")
+    assert eco.strategy == "optimal"
+    run = trainsim.run(eco)
+    assert run.kind == "optimal"
+    fastest = trainsim.run(trainsim.load_scenario(METRO))
+    assert run.running_time_s == pytest.approx(fastest.running_time_s * 1.128, abs=0.5)
+    result = CliRunner().invoke(
+        app, ["optimize", str(ROOT / "examples" / "metro_b" / "scenario_eco.yaml"), "--json"]
+    )
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["strategy"] == "optimal"
+
+
+def test_scenario_driving_block_needs_a_schedule(tmp_path):
+    f = tmp_path / "s.yaml"
+    f.write_text(
+        f"schema: trainsim/scenario\nversion: 1\nname: x\ntrain: {ROOT}/examples/metro_b/train.yaml\n"
+        f"route: {ROOT}/examples/metro_b/route.yaml\ndriving: {{strategy: lesov}}\n"
+    )
+    with pytest.raises(InputError, match="needs a supplement or a timetable"):
+        trainsim.load_scenario(f)

@@ -1599,6 +1599,14 @@ def _file_or_inline(value: Any) -> str | None:
     return None
 
 
+class DrivingSpec(_Spec):
+    """How the scenario is driven: the fastest run, or a strategy to a timetable (docs/OPTIMIZATION.md)."""
+
+    strategy: Literal["fastest", "optimal", "lesov", "reference"] = "fastest"
+    supplement: str | None = None
+    timetable: str | None = None
+
+
 class ScenarioSpec(_Spec):
     """A ``trainsim/scenario`` file (see docs/FORMAT.md)."""
 
@@ -1615,6 +1623,7 @@ class ScenarioSpec(_Spec):
     stops: list[str] | None = None
     dwell_s: dict[str, NonNegative] | None = None
     settings: SettingsSpec = Field(default_factory=SettingsSpec)
+    driving: DrivingSpec | None = None
 
     def to_scenario(self, file: str = "<scenario>", base_dir: str | Path | None = None) -> Scenario:
         """The :class:`~trainsim.model.scenario.Scenario`; file names are relative to ``base_dir``."""
@@ -1633,7 +1642,28 @@ class ScenarioSpec(_Spec):
             with _prefixed("route"):
                 route = self.route.to_route(file)
         route = apply_stops(route, self.stops, self.dwell_s, file=file)
-        return Scenario(name=self.name, train=train, route=route, settings=self.settings.build())
+        scenario = Scenario(name=self.name, train=train, route=route, settings=self.settings.build())
+        if self.driving is None:
+            return scenario
+        from trainsim.optimize.timetable import line_supplement, read_timetable_yaml
+
+        d = self.driving
+        if d.timetable is not None:
+            timetable = read_timetable_yaml(
+                _resolve(base, d.timetable, file, "driving.timetable"), len(route.stops) - 1
+            )
+        elif d.supplement is not None:
+            timetable = line_supplement(d.supplement)
+        else:
+            timetable = None
+        if d.strategy != "fastest" and timetable is None:
+            raise InputError(
+                "an energy-efficient strategy needs a supplement or a timetable",
+                file=file,
+                field="driving",
+                allowed="driving: {strategy: optimal, supplement: '10%'} or {timetable: FILE}",
+            )
+        return dataclasses.replace(scenario, strategy=d.strategy, timetable=timetable)
 
 
 def _resolve(base: Path, name: str, file: str, field: str) -> Path:

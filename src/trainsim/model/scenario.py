@@ -48,6 +48,8 @@ class Scenario:
 
     ``model`` is ``single_point`` or ``multi_point`` (every vehicle its own mass, couplers as
     springs; ``multi_point`` then holds that model's validated settings, see docs/MULTIPOINT.md).
+    ``strategy`` is ``fastest`` or an energy-efficient strategy (``optimal``, ``lesov``,
+    ``reference``) driven to ``timetable`` (a ``trainsim.optimize.timetable.Timetable``).
     """
 
     name: str
@@ -56,3 +58,5 @@ class Scenario:
     settings: RunSettings = field(default_factory=RunSettings)
     model: str = "single_point"
     multi_point: object | None = None
+    strategy: str = "fastest"
+    timetable: object | None = None
