@@ -437,6 +437,14 @@ class Study:
             if kind in data:
                 data[kind] = _read_part(data[kind], kind, origin, where, kind)
         _validate_scenario(data, where)
+        for key in ("driving", "model", "multi_point"):
+            if key in data:
+                # the workers run the single-point fastest run; a silent fallback would mislead
+                raise InputError(
+                    f"studies run fastest single-point runs; a base scenario with '{key}' is not supported yet",
+                    file=where,
+                    field=key,
+                )
         return data
 
     def _entries(self) -> list[Entry]:
