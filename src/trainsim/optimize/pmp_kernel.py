@@ -113,6 +113,9 @@ def final_phase(
         line = (a0[i], a1[i], b0[i], b1[i])
         P[P_TRACTION_SCALE] = tscale[i]
         while u < w - 1e-12:
+            if n >= len(out_s) - 8:
+                # never write past the buffers: report the attempt as failed (stopped short)
+                return n, STOPPED_SHORT, x[i] + u
             v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
             mode = mode_of(phi, inv_eta_t, eta_r, has_regen) if force_mode < 0 else force_mode
             if mode == TRACTION and v >= v_hold:
@@ -168,14 +171,17 @@ def final_phase(
                 else:
                     thr = 0.0
                 frac = (thr - phi) / (phi1 - phi) if phi1 != phi else 1.0
-                frac = min(max(frac, 1e-6), 1.0)
-                h = frac * h
-                if mode == CRUISE:
-                    E1, dt = E, h / v
-                else:
-                    E1, dt = step_energy_time(E, u, h, mode, line, P, curves, kinks)
-                v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
-                phi1 = thr - 1e-12 if phi1 < phi else thr + 1e-12
+                frac = min(max(frac, 0.0), 1.0)
+                # a switch at the very start of the step is taken at the next step: cutting a
+                # sliver of a step would only add points (and could repeat without progress)
+                if frac * h >= 1e-3:
+                    h = frac * h
+                    if mode == CRUISE:
+                        E1, dt = E, h / v
+                    else:
+                        E1, dt = step_energy_time(E, u, h, mode, line, P, curves, kinks)
+                    v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
+                    phi1 = thr - 1e-12 if phi1 < phi else thr + 1e-12
             # the braking curve to the stop (and to lower limits) must not be crossed
             if mode != BRAKE and u + h > US[kk]:
                 c1 = _brake_curve_speed(u + h, w, Cr[kk], line, P, curves, bk)

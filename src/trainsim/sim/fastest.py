@@ -6,6 +6,7 @@ from itertools import pairwise
 
 import numpy as np
 
+from trainsim.constants import G
 from trainsim.errors import InputError
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings, Scenario
@@ -19,8 +20,6 @@ _NO_CURVE = (np.zeros(1), np.zeros((1, 4)), 0.0, 0.0)
 
 def kernel_parameters(train: Train, settings: RunSettings) -> tuple:
     """Scalar parameter vector and compiled effort curves of a train for the kernel."""
-    from trainsim.constants import G
-
     law = train.resistance_law
     P = np.zeros(kernel.N_PARAMS)
     P[kernel.P_INERTIAL_MASS] = train.inertial_mass_kg
