@@ -12,6 +12,10 @@ The public API::
     state = session.step(command=1.0, dt_s=0.5)
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from trainsim.errors import InfeasibleError, InputError, TrainsimError
 from trainsim.model import (
     Braking,
@@ -34,10 +38,13 @@ from trainsim.model.scenario import RunSettings, Scenario
 from trainsim.sim.fastest import run_fastest, run_scenario
 from trainsim.sim.result import EnergyFigures, RunResult, SectionSummary, Trace
 
+if TYPE_CHECKING:
+    from trainsim.multipoint.result import MultiPointResult
+
 __version__ = "0.1.0"
 
 
-def run(scenario: Scenario):
+def run(scenario: Scenario) -> RunResult | MultiPointResult:
     """The fastest run of a scenario (its train over its route, with its stops and settings).
 
     A ``RunResult``; for a scenario with ``model: multi_point`` a ``MultiPointResult`` (per-vehicle
