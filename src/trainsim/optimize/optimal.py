@@ -113,7 +113,7 @@ class SectionSolver:
         self.Cr, _, self.US = kernel.braking_ceiling(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, self.i0, self.i1, P, self.curves, self.bk
         )
-        self.n_max = 8 * len(tr.x) + 64
+        self.n_max = 8 * len(tr.x) + int((s1 - s0) / pk.MIN_SWITCH_STEP_M) + 64
         self._last_coast_point: float | None = None
         #: whether holding arcs are left early ahead of steep descents (coasting excursions)
         self.excursions = True
@@ -327,6 +327,8 @@ class SectionSolver:
             self.P, self.curves, self.tk, self.bk, self.Cr, self.US, mu, self.inv_eta_t, self.eta_r,
             self.has_regen, ADJOINT_STEP_M, out_s, out_v, out_t, out_m, 0, force_mode, v_hold,
         )  # fmt: skip
+        if n >= self.n_max:
+            status = pk.STOPPED_SHORT  # the buffers filled up: an unusable attempt
         s, vv, tt, m = phase_a
         keep = slice(0, j + 1)
         return (

@@ -174,7 +174,7 @@ def final_phase(
                 frac = min(max(frac, 0.0), 1.0)
                 # a switch at the very start of the step is taken at the next step: cutting a
                 # sliver of a step would only add points (and could repeat without progress)
-                if frac * h >= 1e-3:
+                if frac * h >= MIN_SWITCH_STEP_M:
                     h = frac * h
                     if mode == CRUISE:
                         E1, dt = E, h / v
@@ -227,8 +227,15 @@ def _follow_ceiling(
     return n
 
 
+#: Shortest piece a step is cut into at an adjoint switching threshold [m]: near a singular arc the
+#: adjoint sits on a threshold and finer cuts would only multiply points.
+MIN_SWITCH_STEP_M = 0.5
+
+
 @njit(cache=True)
 def _emit(out_s, out_v, out_t, out_m, n, s, v, t, m):
+    if n >= len(out_s):
+        return n  # full: the caller sees n == len(out_s) and discards the attempt
     out_s[n] = s
     out_v[n] = v
     out_t[n] = t
