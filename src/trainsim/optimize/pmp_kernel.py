@@ -172,10 +172,11 @@ def final_phase(
                     thr = 0.0
                 frac = (thr - phi) / (phi1 - phi) if phi1 != phi else 1.0
                 frac = min(max(frac, 0.0), 1.0)
-                # a switch at the very start of the step is taken at the next step: cutting a
-                # sliver of a step would only add points (and could repeat without progress)
-                if frac * h >= MIN_SWITCH_STEP_M:
-                    h = frac * h
+                # never cut below MIN_SWITCH_STEP_M: near a singular arc the adjoint sits on a
+                # threshold, and slivers of steps would only multiply points without progress
+                h_cut = max(frac * h, min(MIN_SWITCH_STEP_M, h))
+                if h_cut < h:
+                    h = h_cut
                     if mode == CRUISE:
                         E1, dt = E, h / v
                     else:
