@@ -72,7 +72,6 @@ from trainsim.constants import KMH, TONNE
 from trainsim.errors import InputError
 from trainsim.io import railml_common as rc
 from trainsim.io.railml_common import (
-    EXT,
     Content,
     Problems,
     Span,
@@ -909,46 +908,12 @@ def load_route_railml2(path: str | Path, **options: Any) -> Route:
 
 
 # ====================================================================== writing
-class _Writer:
+class _Writer(rc.ElementWriter):
+    family = "railML 2"
+    value_tag = "values"
+
     def __init__(self, version: str) -> None:
-        if version not in NAMESPACES:
-            raise InputError(
-                "unsupported railML 2 version to write", value=version, allowed=", ".join(NAMESPACES)
-            )
-        self.ns = NAMESPACES[version]
-        self.version = version
-        self.notes: list[str] = []
-
-    def el(self, parent: etree._Element | None, tag_name: str, /, **attrs: Any) -> etree._Element:
-        tag = f"{{{self.ns}}}{tag_name}"
-        e = (
-            etree.SubElement(parent, tag)
-            if parent is not None
-            else etree.Element(tag, nsmap={None: self.ns, "ts": rc.EXTENSION_NS})
-        )
-        for k, v in attrs.items():
-            if v is None:
-                continue
-            key = EXT + k[3:] if k.startswith("ts_") else k
-            e.set(
-                key,
-                fmt(v)
-                if isinstance(v, float | int) and not isinstance(v, bool)
-                else str(v).lower()
-                if isinstance(v, bool)
-                else str(v),
-            )
-        return e
-
-    def value_table(
-        self, parent: etree._Element, y_name: str, y_unit: str, speeds_mps: np.ndarray, values: np.ndarray
-    ) -> None:
-        vt = self.el(
-            parent, "valueTable", xValueName="speed", xValueUnit="km/h", yValueName=y_name, yValueUnit=y_unit
-        )
-        for x, y in zip(speeds_mps, values, strict=True):
-            line = self.el(vt, "valueLine", xValue=float(x / KMH))
-            self.el(line, "values", yValue=float(y))
+        super().__init__(version, NAMESPACES)
 
     # ------------------------------------------------------------------ infrastructure
     def infrastructure(self, root: etree._Element, route: Route) -> None:

@@ -1497,3 +1497,50 @@ def vehicle_mass(
         return brutto, 0.0
     problems.add(el, "missing vehicle mass (tareWeight, bruttoWeight) [t]", attribute="tareWeight")
     return None
+
+
+class ElementWriter:
+    """Shared part of the railML writers: namespaced elements with trainsim extension attributes
+    (keyword ``ts_name`` writes ``ts:name``) and speed value tables."""
+
+    #: railML family for messages ("railML 2", "railML 3") and the tag of one value in a value line
+    family = ""
+    value_tag = ""
+
+    def __init__(self, version: str, namespaces: dict[str, str]) -> None:
+        if version not in namespaces:
+            raise InputError(
+                f"unsupported {self.family} version to write", value=version, allowed=", ".join(namespaces)
+            )
+        self.ns = namespaces[version]
+        self.version = version
+        self.notes: list[str] = []
+
+    def el(self, parent: etree._Element | None, tag_name: str, /, **attrs: Any) -> etree._Element:
+        tag = f"{{{self.ns}}}{tag_name}"
+        e = (
+            etree.SubElement(parent, tag)
+            if parent is not None
+            else etree.Element(tag, nsmap={None: self.ns, "ts": EXTENSION_NS})
+        )
+        for k, v in attrs.items():
+            if v is None:
+                continue
+            key = EXT + k[3:] if k.startswith("ts_") else k
+            if isinstance(v, bool):
+                e.set(key, str(v).lower())
+            elif isinstance(v, float | int):
+                e.set(key, fmt(v))
+            else:
+                e.set(key, str(v))
+        return e
+
+    def value_table(
+        self, parent: etree._Element, y_name: str, y_unit: str, speeds_mps: np.ndarray, values: np.ndarray
+    ) -> None:
+        vt = self.el(
+            parent, "valueTable", xValueName="speed", xValueUnit="km/h", yValueName=y_name, yValueUnit=y_unit
+        )
+        for x, y in zip(speeds_mps, values, strict=True):
+            line = self.el(vt, "valueLine", xValue=float(x / KMH))
+            self.el(line, self.value_tag, yValue=float(y))

@@ -157,6 +157,16 @@ def _targets(timetable: Timetable, fastest: list[float]) -> list[float] | None:
     return None
 
 
+def _proportional_targets(timetable: Timetable, fastest: list[float]) -> list[float]:
+    """Per-section schedules, or a line supplement shared in proportion to the fastest times (for the
+    strategies that do not split it by the price of time)."""
+    targets = _targets(timetable, fastest)
+    if targets is not None:
+        return targets
+    total = timetable.line.target_s(sum(fastest))
+    return [total * f / sum(fastest) for f in fastest]
+
+
 def _optimal_plans(solvers: list[SectionSolver], timetable: Timetable) -> tuple[list[SectionPlan], list[str]]:
     fastest = [sv.fastest_time_s for sv in solvers]
     targets = _targets(timetable, fastest)
@@ -259,9 +269,7 @@ def _run_lesov(train, route, timetable, settings, fastest) -> OptimizationResult
 
     solvers = _solvers(train, route, settings)
     fastest_s = [sv.fastest_time_s for sv in solvers]
-    targets = _targets(timetable, fastest_s) or [
-        timetable.line.target_s(sum(fastest_s)) * f / sum(fastest_s) for f in fastest_s
-    ]
+    targets = _proportional_targets(timetable, fastest_s)
     plans, warnings = lesov_plans(train, route, solvers, targets, settings)
     # source 004 brakes recuperatively at 0.8 x the traction curve: account the run with that brake
     return _result("lesov", lesov_train(train), route, settings, fastest, plans, targets, warnings)
@@ -296,25 +304,20 @@ def _run_reference(train, route, timetable, settings, fastest) -> OptimizationRe
     return _result("reference", train, route, settings, fastest, plans, targets, warnings)
 
 
+def _fastest_result(train, route, timetable, settings, fastest) -> OptimizationResult:
+    solvers = _solvers(train, route, settings)
+    fastest_s = [sv.fastest_time_s for sv in solvers]
+    targets = _proportional_targets(timetable, fastest_s)
+    plans = [sv.solve(0.0) for sv in solvers]
+    return _result("fastest", train, route, settings, fastest, plans, targets, [])
+
+
 STRATEGIES: dict[str, Callable[..., OptimizationResult]] = {
-    "fastest": lambda train, route, timetable, settings, fastest: _fastest_result(
-        train, route, timetable, settings, fastest
-    ),
+    "fastest": _fastest_result,
     "optimal": _run_optimal,
     "lesov": _run_lesov,
     "reference": _run_reference,
 }
-
-
-def _fastest_result(train, route, timetable, settings, fastest) -> OptimizationResult:
-    solvers = _solvers(train, route, settings)
-    fastest_s = [sv.fastest_time_s for sv in solvers]
-    targets = _targets(timetable, fastest_s)
-    if targets is None:
-        total = timetable.line.target_s(sum(fastest_s))
-        targets = [total * f / sum(fastest_s) for f in fastest_s]
-    plans = [sv.solve(0.0) for sv in solvers]
-    return _result("fastest", train, route, settings, fastest, plans, targets, [])
 
 
 def energy_time_curve(
