@@ -24,15 +24,6 @@ def serial(study):
     return table
 
 
-@pytest.fixture(scope="module")
-def dask_cluster():
-    distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
-    ) as cluster:
-        yield cluster
-
-
 def test_processes_identical_to_serial(study, serial, tmp_path):
     outcome = run_study(study, tmp_path / "out", executor="processes", workers=2, chunk_size=4)
     assert outcome.chunks == 5 and outcome.failed == 9

@@ -192,6 +192,7 @@ def test_example_studies_load_and_expand():
         sizes[path.stem] = len(load_study(path).expand())
     assert sizes == {
         "loco_adhesion": 300,
+        "metro_eco_driving": 24,
         "metro_load_efficiency": 35,
         "metro_monte_carlo": 500,
         "metro_timetable": 187,

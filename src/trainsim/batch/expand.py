@@ -100,6 +100,8 @@ class Expansion:
         entry: index of each run's entry (base or explicit run).
         departure_s: departure time of each run [s since midnight] or None.
         run_ids: stable id of each run.
+        driving: whether the runs are driven by a ``driving`` block (the results have the driving
+            columns).
     """
 
     study_name: str
@@ -109,6 +111,7 @@ class Expansion:
     entry: list[int]
     departure_s: list[float | None]
     run_ids: list[str]
+    driving: bool = False
     _overrides: list[ParamColumn] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -193,4 +196,13 @@ def expand(study: Study) -> Expansion:
                     entries.append(e)
                     departures.append(dep)
                     ids.append(rid)
-    return Expansion(study.name, study.fingerprint, list(study.columns), values, entries, departures, ids)
+    return Expansion(
+        study.name,
+        study.fingerprint,
+        list(study.columns),
+        values,
+        entries,
+        departures,
+        ids,
+        driving=study.driving,
+    )

@@ -55,7 +55,7 @@ class Path:
 
     @property
     def root(self) -> str:
-        """The first key: ``train``, ``route``, ``settings``, ``stops`` or ``dwell_s``."""
+        """The first key: ``train``, ``route``, ``settings``, ``stops``, ``dwell_s`` or ``driving``."""
         return self.steps[0].key or ""
 
     def tail(self) -> Path:

@@ -10,6 +10,8 @@ Written to ``OUT/report/``:
 * for each swept parameter: ``energy_net_kwh_by_<param>.csv`` (mean energy per value, one column per
   group) and ``by_<param>.png`` (net energy and running time against the parameter, one line per group:
   the explicit run, or another swept parameter with at most 10 values; means over the other parameters);
+  a parameter written as numbers with one unit (``driving.supplement: ["5%", "10%"]``) is plotted
+  against the number (``driving.supplement [%]``);
 * for each sampled parameter (or a swept one with more than 30 values): ``scatter_<param>.png``;
 * with 20 runs or more: ``distributions.png`` (histograms of running time and net energy);
 * for a timetable (departure times): ``timetable.png`` (net energy by departure, and the train graph:
@@ -29,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from trainsim.batch.sink import META_FILE, read_results
-from trainsim.batch.worker import METRICS
+from trainsim.batch.worker import DRIVING_METRICS, METRICS
 from trainsim.errors import InputError
 
 __all__ = ["Report", "write_report"]
@@ -40,6 +42,8 @@ PLOTTED = (("energy_net_kwh", "net energy [kWh]"), ("running_time_s", "running t
 MAX_LEVELS = 30
 #: Most groups (lines) in one plot.
 MAX_GROUPS = 10
+#: A number with a unit, as in ``supplement: "10%"`` or ``"30 s"``.
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(%|[A-Za-z]+)\s*$")
 
 
 @dataclass
@@ -81,6 +85,21 @@ def _is_numeric(series) -> bool:
     return pd.api.types.is_numeric_dtype(series) and not pd.api.types.is_bool_dtype(series)
 
 
+def _as_numbers(series) -> tuple[Any, str] | None:
+    """A text column whose values are all numbers with the same unit (``"5%"``, ``"10%"``) as floats,
+    and the unit; None for any other column."""
+    values, units = [], set()
+    for v in series:
+        m = _QUANTITY.match(v) if isinstance(v, str) else None
+        if m is None:
+            return None
+        values.append(float(m.group(1)))
+        units.add(m.group(2))
+    if len(units) != 1:
+        return None
+    return np.asarray(values, dtype=float), units.pop()
+
+
 def _group_column(df, x: str, params: list[str], kinds: dict[str, str]) -> str | None:
     """What the lines of a plot against ``x`` stand for: the explicit run, else another parameter
     with a few values."""
@@ -99,7 +118,7 @@ def _statistics(ok):
     import pandas as pd
 
     rows = []
-    for name in (*METRICS, "arrival_s"):
+    for name in (*METRICS, "arrival_s", *DRIVING_METRICS):
         if name not in ok.columns:
             continue
         v = pd.to_numeric(ok[name], errors="coerce").dropna().to_numpy(dtype=float)
@@ -268,14 +287,24 @@ def write_report(out: str | Path, directory: str | Path | None = None) -> Report
 
     figures: list[tuple[Path, str]] = []
     if len(ok):
-        for x in params:
-            if x in ("sample", "departure_s") or not _is_numeric(ok[x]) or ok[x].nunique() < 2:
+        for param in params:
+            if param in ("sample", "departure_s"):
                 continue
-            if kinds.get(x) != "sampled" and ok[x].nunique() <= MAX_LEVELS:
-                group = _group_column(ok, x, params, kinds)
-                png = rep.directory / f"by_{_slug(x)}.png"
+            x = param
+            if not _is_numeric(ok[param]):
+                numbers = _as_numbers(ok[param])
+                if numbers is None:
+                    continue
+                # a supplement sweep ("5%", "10%"...) is plotted against the number
+                x = f"{param} [{numbers[1]}]"
+                ok = ok.assign(**{x: numbers[0]})
+            if ok[x].nunique() < 2:
+                continue
+            if kinds.get(param) != "sampled" and ok[x].nunique() <= MAX_LEVELS:
+                group = _group_column(ok, param, params, kinds)
+                png = rep.directory / f"by_{_slug(param)}.png"
                 pivot = _plot_by_parameter(ok, x, group, png)
-                csv = rep.directory / f"energy_net_kwh_by_{_slug(x)}.csv"
+                csv = rep.directory / f"energy_net_kwh_by_{_slug(param)}.csv"
                 pivot.to_csv(csv)
                 rep.files += [png, csv]
                 what = f"net energy and running time against {x}" + (
@@ -283,7 +312,7 @@ def write_report(out: str | Path, directory: str | Path | None = None) -> Report
                 )
                 figures.append((png, what))
             else:
-                png = rep.directory / f"scatter_{_slug(x)}.png"
+                png = rep.directory / f"scatter_{_slug(param)}.png"
                 _plot_scatter(ok, x, png)
                 rep.files.append(png)
                 figures.append((png, f"every run against its {x}"))

@@ -197,7 +197,13 @@ def run_study(
     todo = [i for i, rid in enumerate(expansion.run_ids) if rid not in done]
     n_workers = 1 if executor == "serial" else (workers or default_workers())  # Dask: known once started
     size = chunk_size or study.spec.chunk_size  # None: automatic, shrinking towards the end
-    payload = Payload(study.fingerprint, study.name, tuple(e.data for e in study.entries))
+    payload = Payload(
+        study.fingerprint,
+        study.name,
+        tuple(e.data for e in study.entries),
+        timetables=tuple(study.timetables.items()),
+        driving=study.driving,
+    )
     already = len(expansion) - len(todo)
     computed = failed = stalled = chunks = 0
     t0 = time.perf_counter()

@@ -29,7 +29,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from trainsim.batch.expand import Expansion
-from trainsim.batch.worker import METRICS
+from trainsim.batch.worker import DRIVING_METRICS, METRICS
 from trainsim.errors import InputError
 
 __all__ = ["META_FILE", "RESULTS_DIR", "MemorySink", "ParquetSink", "read_results", "result_schema"]
@@ -90,6 +90,10 @@ def result_schema(expansion: Expansion) -> tuple[pa.Schema, dict[str, Any]]:
     fields += [pa.field(n, pa.float64()) for n in METRICS]
     if any(c.name == "departure_s" for c in expansion.columns):
         fields.append(pa.field("arrival_s", pa.float64()))
+    if expansion.driving:
+        # only studies with a driving block have them: the results of other studies are unchanged
+        fields.append(pa.field("strategy", pa.string()))
+        fields += [pa.field(n, pa.float64()) for n in DRIVING_METRICS]
     fields.append(pa.field("sections", pa.list_(SECTION_TYPE)))
     meta = {"trainsim.study": expansion.study_name, "trainsim.fingerprint": expansion.fingerprint}
     return pa.schema(fields, metadata=meta), convert

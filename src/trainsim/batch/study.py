@@ -28,6 +28,7 @@ from trainsim.batch.paths import Path, get_values, parse_path, set_value
 from trainsim.errors import InputError
 
 __all__ = [
+    "MULTI_POINT_KEYS",
     "PARTS",
     "STUDY_SCHEMA",
     "AxisSpec",
@@ -44,7 +45,9 @@ __all__ = [
 
 STUDY_SCHEMA = "trainsim/study"
 #: The top-level keys of a scenario a path may start with.
-PARTS = ("train", "route", "settings", "stops", "dwell_s")
+PARTS = ("train", "route", "settings", "stops", "dwell_s", "driving")
+#: Keys of a scenario file that choose the multi-point model: not supported in studies (docs/BATCH.md).
+MULTI_POINT_KEYS = ("model", "multi_point")
 #: Largest number of runs a study may expand to (its parameters are held in memory).
 MAX_RUNS = 5_000_000
 
@@ -206,6 +209,7 @@ class RunEntrySpec(_Model):
     stops: list[str] | None = None
     dwell_s: dict[str, Annotated[float, Field(ge=0)]] | None = None
     settings: dict[str, Any] | None = None
+    driving: dict[str, Any] | None = None
     set: dict[str, Any] | None = None
     departure: str | float | None = None
     departures: list[str | float] | DeparturesSpec | None = None
@@ -399,6 +403,12 @@ class Study:
         self.entries = self._entries()
         self.columns = self._columns()
         self._check_paths()
+        #: whether runs are driven by a ``driving`` block (base, explicit runs or a varied path): the
+        #: results then have the driving columns (strategy, schedule deviation, energy saved...)
+        self.driving = any("driving" in e.data for e in self.entries) or any(
+            c.path is not None and parse_path(c.path).root == "driving" for c in self.columns
+        )
+        self.timetables, self._timetable_digests = self._read_timetables()
         self.fingerprint = self._fingerprint()
 
     # ------------------------------------------------------------------ entries
@@ -432,19 +442,25 @@ class Study:
             data.setdefault("version", 1)
             data.setdefault("name", self.spec.name)
             where, origin = f"{self.file}: base", self.base_dir
+        if isinstance(data, dict):
+            if data.get("model") == "single_point" and "multi_point" not in data:
+                data = {k: v for k, v in data.items() if k != "model"}  # what studies compute anyway
+            for key in MULTI_POINT_KEYS:
+                if key in data:
+                    # the workers compute single-point runs; a silent fallback would mislead
+                    raise InputError(
+                        "studies compute single-point runs; a base scenario with "
+                        f"'{key}' (the multi-point model) is not supported yet",
+                        file=where,
+                        field=key,
+                        allowed="a scenario without 'model' and 'multi_point'",
+                    )
         # the scenario reader reports everything else (unknown fields, bad values) with the file
         for kind in ("train", "route"):
             if kind in data:
                 data[kind] = _read_part(data[kind], kind, origin, where, kind)
+        _resolve_timetable(data, origin)
         _validate_scenario(data, where)
-        for key in ("driving", "model", "multi_point"):
-            if key in data:
-                # the workers run the single-point fastest run; a silent fallback would mislead
-                raise InputError(
-                    f"studies run fastest single-point runs; a base scenario with '{key}' is not supported yet",
-                    file=where,
-                    field=key,
-                )
         return data
 
     def _entries(self) -> list[Entry]:
@@ -481,6 +497,13 @@ class Study:
                 data["dwell_s"] = {**(data.get("dwell_s") or {}), **run.dwell_s}
             if run.settings is not None:
                 data["settings"] = {**(data.get("settings") or {}), **run.settings}
+            if run.driving is not None:
+                driving = dict(data.get("driving") or {})
+                if {"supplement", "timetable"} & set(run.driving):
+                    # the run's schedule replaces the base's (a supplement and a timetable never mix)
+                    driving.pop("supplement", None)
+                    driving.pop("timetable", None)
+                data["driving"] = {**driving, **run.driving}
             copied: set[str] = set()
             for path, value in (run.set or {}).items():
                 root = self._check_root(path, f"{where}.set.{path}").root
@@ -491,6 +514,7 @@ class Study:
                     set_value(data, path, value)
                 except InputError as exc:
                     raise _at(exc, self.file, f"{where}.set.{path}") from None
+            _resolve_timetable(data, self.base_dir)
             _validate_scenario(data, f"{self.file}: {where} ({run.name})")
             departures: tuple[float, ...] | None = None
             if run.departure is not None:
@@ -526,6 +550,14 @@ class Study:
             parsed = parse_path(path)
         except InputError as exc:
             raise _at(exc, self.file, field) from None
+        if parsed.root in MULTI_POINT_KEYS:
+            raise InputError(
+                "studies compute single-point runs; the multi-point model cannot be chosen or varied yet",
+                file=self.file,
+                field=field,
+                value=path,
+                allowed=", ".join(PARTS),
+            )
         if parsed.root not in PARTS:
             raise InputError(
                 "a field path starts with the part of the scenario it changes",
@@ -627,7 +659,7 @@ class Study:
                 if existing is not None:
                     continue
                 try:
-                    _validate_scenario(trial, "trial")
+                    _validate_scenario(trial, "trial", self.base_dir)
                 except InputError as exc:
                     problems = getattr(exc, "problems", None) or [(exc.field, exc.reason)]
                     for field, reason in problems:
@@ -635,6 +667,45 @@ class Study:
                             raise fail(
                                 f"no such field in the scenario: '{field}': {reason}", exc.allowed
                             ) from None
+
+    # ------------------------------------------------------------------ timetables
+    def _read_timetables(self) -> tuple[dict[str, Any], dict[str, str | None]]:
+        """Every timetable file the runs may use, read here: the workers need no shared file system.
+
+        Returns (written name -> :class:`~trainsim.optimize.timetable.Timetable`, or the reader's error
+        as ``(reason, file, field, value, allowed)`` for the runs using it to fail with; written name
+        -> SHA-256 of the file, None if unreadable). The names are as written in the entries' data
+        (absolute) and in axis or sample values (relative to the study file).
+        """
+        from trainsim.optimize.timetable import read_timetable_yaml
+
+        names: set[str] = set()
+        for entry in self.entries:
+            names.update(_timetable_names("driving", entry.data.get("driving")))
+        values: list[tuple[str, Any]] = []
+        for axis in self.spec.axes:
+            for k, path in enumerate(axis.paths()):
+                values += [(path, point[k]) for point in axis.points()]
+        if self.spec.samples is not None:
+            for path, dist in self.spec.samples.fields.items():
+                values += [(path, v) for v in dist.values or []]
+        for path, value in values:
+            names.update(_timetable_names(parse_path(path).text, value))
+        tables: dict[str, Any] = {}
+        digests: dict[str, str | None] = {}
+        for name in sorted(names):
+            path = FsPath(name)
+            path = path if path.is_absolute() else self.base_dir / path
+            try:
+                tables[name] = read_timetable_yaml(path)
+                digests[name] = _file_digest(str(path))
+            except InputError as exc:
+                tables[name] = (exc.reason, exc.file, exc.field, exc.value, exc.allowed)
+                digests[name] = None
+            except OSError as exc:
+                tables[name] = (f"unreadable timetable file: {exc}", str(path), None, None, None)
+                digests[name] = None
+        return tables, digests
 
     # ------------------------------------------------------------------ fingerprint
     def _fingerprint(self) -> str:
@@ -651,6 +722,9 @@ class Study:
             "combine": self.spec.combine,
             "samples": self.spec.samples.model_dump(mode="json") if self.spec.samples else None,
         }
+        if self._timetable_digests:
+            # only when there are any, so that the fingerprints of other studies stay as they were
+            blob["timetables"] = self._timetable_digests
         return hashlib.sha256(_canonical(blob).encode()).hexdigest()[:32]
 
     def expand(self):  # -> trainsim.batch.expand.Expansion
@@ -664,11 +738,32 @@ def _at(exc: InputError, file: str, field: str) -> InputError:
     return InputError(exc.reason, file=file, field=field, value=exc.value, allowed=exc.allowed)
 
 
-def _validate_scenario(data: dict[str, Any], source: str) -> None:
-    """Build the scenario once: InputError if the reader rejects it."""
+def _validate_scenario(data: dict[str, Any], source: str, base_dir: FsPath | None = None) -> None:
+    """Build the scenario once: InputError if the reader rejects it. Relative file names (a driving
+    timetable written in an axis) are relative to ``base_dir``."""
     from trainsim.io import trainsim_yaml as tsy
 
-    tsy.scenario_from_dict(data, source)
+    tsy.scenario_from_dict(data, source, base_dir)
+
+
+def _resolve_timetable(data: dict[str, Any], origin: FsPath) -> None:
+    """Make the ``driving.timetable`` file name of a scenario's data absolute (relative to ``origin``,
+    the directory of the file that wrote it), in a new ``driving`` mapping (the old one may be shared)."""
+    driving = data.get("driving")
+    if isinstance(driving, dict) and isinstance(driving.get("timetable"), str):
+        path = FsPath(driving["timetable"])
+        if not path.is_absolute():
+            data["driving"] = {**driving, "timetable": str((origin / path).resolve())}
+
+
+def _timetable_names(path: str, value: Any) -> list[str]:
+    """The timetable file named by a value written at ``path`` (``driving.timetable`` or a whole
+    ``driving`` block), if any."""
+    if path == "driving.timetable" and isinstance(value, str):
+        return [value]
+    if path == "driving" and isinstance(value, dict) and isinstance(value.get("timetable"), str):
+        return [value["timetable"]]
+    return []
 
 
 def _check_header(data: Any, file: str) -> None:

@@ -6,6 +6,13 @@ and settings of every entry once and keeps them; a run rebuilds, from its data w
 written in, only the parts its values touch (a load sweep re-reads the train, never the route), so the
 per-run overhead stays well below the ~2 ms of a metro fastest run.
 
+A run with a ``driving`` block is computed as :func:`trainsim.run` computes its scenario: the fastest
+run (:func:`~trainsim.sim.fastest.run_fastest`) for ``strategy: fastest``, else
+:func:`trainsim.optimize.api.optimize` with the strategy and the timetable (a line supplement or a
+timetable file, read by the process that started the study). Its row then has the driving columns
+(:data:`DRIVING_COLUMNS`): the strategy, the schedule, the deviation from it and the energy saved
+against the fastest run (which ``optimize`` computes anyway).
+
 Every run is caught on its own: an exception becomes a failure row (``status: failed``, the error type
 and message) and the chunk goes on.
 """
@@ -24,17 +31,43 @@ from trainsim.batch.expand import RunTask
 from trainsim.batch.paths import parse_path, set_value
 from trainsim.errors import InputError
 
-__all__ = ["METRICS", "Payload", "WorkerState", "run_chunk", "state_for"]
+__all__ = [
+    "DRIVING_COLUMNS",
+    "DRIVING_METRICS",
+    "METRICS",
+    "Driving",
+    "Payload",
+    "WorkerState",
+    "driving_figures",
+    "run_chunk",
+    "state_for",
+]
 
 
 @dataclass(frozen=True)
 class Payload:
     """What every worker needs of a study: its entries' scenario data (train and route inlined) and
-    the fingerprint that names the study."""
+    the fingerprint that names the study.
+
+    ``timetables`` holds the driving timetable files the runs may use, read by the process that
+    started the study (file name as written -> ``Timetable``, or the reader's error as ``(reason,
+    file, field, value, allowed)``); ``driving`` says whether rows get the driving columns.
+    """
 
     fingerprint: str
     study_name: str
     entries: tuple[dict[str, Any], ...]
+    timetables: tuple[tuple[str, Any], ...] = ()
+    driving: bool = False
+
+
+@dataclass(frozen=True)
+class Driving:
+    """How a run is driven: ``strategy`` (a name of ``trainsim.optimize.api.STRATEGIES``) to
+    ``timetable`` (a ``trainsim.optimize.timetable.Timetable``, None for a fastest run without one)."""
+
+    strategy: str
+    timetable: Any = None
 
 
 #: Metric columns of a result row (see docs/BATCH.md), besides status, error_type, error, warnings.
@@ -54,6 +87,18 @@ METRICS = (
     "energy_net_kwh",
     "energy_paper_kwh",
 )
+
+#: Figures of studies that use ``driving`` (docs/BATCH.md), after the text column ``strategy``.
+DRIVING_METRICS = (
+    "scheduled_running_time_s",
+    "schedule_deviation_s",
+    "fastest_running_time_s",
+    "fastest_energy_net_kwh",
+    "energy_saved_kwh",
+    "energy_saved_percent",
+)
+#: Every driving column, in the order of the results.
+DRIVING_COLUMNS = ("strategy", *DRIVING_METRICS)
 
 
 class _Lru:
@@ -91,8 +136,9 @@ class WorkerState:
 
     def __init__(self, payload: Payload) -> None:
         self.payload = payload
-        # per entry: (train, route with the entry's stops, settings, route as in its file)
-        self._entries: list[tuple[Any, Any, Any, Any] | None] = [None] * len(payload.entries)
+        # per entry: (train, route with the entry's stops, settings, route as in its file, driving)
+        self._entries: list[tuple[Any, Any, Any, Any, Driving | None] | None] = [None] * len(payload.entries)
+        self._timetables = dict(payload.timetables)
         self._trains = _Lru(32)
         self._routes = _Lru(32)
         self._lock = threading.Lock()
@@ -154,8 +200,68 @@ class WorkerState:
                 )
         return tsy.apply_stops(route, stops, dwell, file=source)
 
+    def _timetable(self, name: str, source: str):
+        """The timetable file ``name`` (as written), read by the process that started the study."""
+        from trainsim.optimize.timetable import read_timetable_yaml
+
+        table = self._timetables.get(name)
+        if table is None:  # not expected (the study reads every name it can see); read it here
+            try:
+                table = read_timetable_yaml(name)
+            except InputError as exc:
+                table = (exc.reason, exc.file, exc.field, exc.value, exc.allowed)
+        if isinstance(table, tuple):
+            reason, file, field, value, allowed = table
+            inner = ", ".join(x for x in (file, f"field '{field}'" if field else None) if x)
+            raise InputError(
+                f"timetable {name}: {reason}" + (f" ({inner})" if inner else ""),
+                file=source,
+                field="driving.timetable",
+                value=value,
+                allowed=allowed,
+            )
+        return table
+
+    def _driving(self, data: Any, source: str) -> Driving | None:
+        """How a run with the scenario's ``driving`` block ``data`` is driven (None: no block).
+
+        The block is read as ``ScenarioSpec.to_scenario`` reads it (trainsim/io/trainsim_yaml.py): the
+        same validation, a timetable file before a supplement, a strategy other than fastest needs one.
+        """
+        if data is None:
+            return None
+        from pydantic import ValidationError
+
+        from trainsim.io import trainsim_yaml as tsy
+        from trainsim.optimize.timetable import line_supplement
+
+        try:
+            spec = tsy.DrivingSpec.model_validate(data)
+        except ValidationError as exc:
+            raise tsy._validation_error(exc, source, None, prefix="driving") from None
+        if spec.timetable is not None:
+            timetable = self._timetable(spec.timetable, source)
+        elif spec.supplement is not None:
+            try:
+                timetable = line_supplement(spec.supplement)
+            except InputError as exc:
+                raise _located(exc, source, "driving") from None
+        else:
+            timetable = None
+        if spec.strategy != "fastest" and timetable is None:
+            raise InputError(
+                "an energy-efficient strategy needs a supplement or a timetable",
+                file=source,
+                field="driving",
+                allowed="driving: {strategy: optimal, supplement: '10%'} or {timetable: FILE}",
+            )
+        return Driving(spec.strategy, timetable)
+
     def entry(self, e: int) -> tuple[Any, Any, Any]:
         """(train, route with the entry's stops, settings) of entry ``e``, built once."""
+        return self._entry(e)[:3]
+
+    def _entry(self, e: int) -> tuple[Any, Any, Any, Any, Driving | None]:
         built = self._entries[e]
         if built is None:
             data = self.payload.entries[e]
@@ -163,16 +269,18 @@ class WorkerState:
             train = self._train(data["train"], source)
             plain = self._route(data["route"], source)
             route = self._stops(plain, data, source)
-            built = (train, route, self._settings(data.get("settings"), source), plain)
+            settings = self._settings(data.get("settings"), source)
+            built = (train, route, settings, plain, self._driving(data.get("driving"), source))
             self._entries[e] = built
-        return built[:3]
+        return built
 
-    def scenario(self, task: RunTask) -> tuple[Any, Any, Any]:
-        """(train, route, settings) of one run: the entry's, rebuilt where the run's values touch it."""
+    def scenario(self, task: RunTask) -> tuple[Any, Any, Any, Driving | None]:
+        """(train, route, settings, driving) of one run: the entry's, rebuilt where the run's values
+        touch it (a supplement sweep rebuilds only the driving, never the train or the route)."""
         index, e, _, overrides = task
-        train, route, settings = self.entry(e)
+        train, route, settings, plain, driving = self._entry(e)
         if not overrides:
-            return train, route, settings
+            return train, route, settings, driving
         source = f"run {index}"
         base = self.payload.entries[e]
         touched = {parse_path(path).root for path, _, _ in overrides}
@@ -189,23 +297,100 @@ class WorkerState:
         if "route" in touched:
             route = self._stops(self._route(data["route"], source), data, source)
         elif touched & {"stops", "dwell_s"}:
-            plain = self._entries[e][3]  # type: ignore[index]
             route = self._stops(plain, data, source)
         if "settings" in touched:
             settings = self._settings(data.get("settings"), source)
-        return train, route, settings
+        if "driving" in touched:
+            driving = self._driving(data.get("driving"), source)
+        return train, route, settings, driving
 
     # -------------------------------------------------------------- running
     def run(self, task: RunTask) -> dict[str, Any]:
         """The result row of one run (metrics, or the failure)."""
-        from trainsim.sim.fastest import run_fastest
-
         try:
-            train, route, settings = self.scenario(task)
-            result = run_fastest(train, route, settings)
+            train, route, settings, driving = self.scenario(task)
+            result, figures, warnings = drive(train, route, settings, driving, source=f"run {task[0]}")
         except Exception as exc:  # a failed run must never stop the study
             return {"status": "failed", "error_type": type(exc).__name__, "error": str(exc) or repr(exc)}
-        return metrics_row(result, task[2])
+        row = metrics_row(result, task[2])
+        if self.payload.driving:
+            row.update(figures)
+            if warnings:
+                # as OptimizationResult.summary(): the optimiser's warnings first
+                row["warnings"] = "; ".join([*warnings, *result.warnings])
+        return row
+
+
+def drive(train, route, settings, driving: Driving | None, *, source: str = "<run>"):
+    """The run of a scenario as :func:`trainsim.run` computes it, with its driving figures.
+
+    Returns (RunResult, :func:`driving_figures`, the optimiser's warnings). ``driving`` None or
+    ``strategy: fastest``: the fastest run (``trainsim.run`` calls ``run_scenario``, that is
+    ``run_fastest``); else ``trainsim.optimize.api.optimize`` (``trainsim.run`` returns its ``.run``).
+    """
+    from trainsim.sim.fastest import run_fastest
+
+    strategy = driving.strategy if driving is not None else "fastest"
+    timetable = driving.timetable if driving is not None else None
+    if timetable is not None and timetable.sections:
+        # as read_timetable_yaml(path, n_sections) does when the scenario is read
+        n = len(route.stops) - 1
+        if len(timetable.sections) != n:
+            raise InputError(
+                "one schedule per section is needed",
+                file=source,
+                field="driving.timetable",
+                value=len(timetable.sections),
+                allowed=f"{n} (the route's sections between stops)",
+            )
+    if strategy == "fastest":
+        result = run_fastest(train, route, settings)
+        return result, driving_figures(strategy, timetable, result, None), []
+    from trainsim.optimize.api import optimize
+
+    opt = optimize(train, route, timetable, strategy, settings)
+    return opt.run, driving_figures(strategy, timetable, opt.run, opt), list(opt.warnings)
+
+
+def driving_figures(strategy: str, timetable, result, optimization=None) -> dict[str, Any]:
+    """The driving columns of a run (:data:`DRIVING_COLUMNS`).
+
+    Args:
+        strategy: the strategy that drove the run.
+        timetable: its ``Timetable`` (None: a fastest run without a schedule; the schedule columns are
+            then empty).
+        result: the run (``RunResult``).
+        optimization: the ``OptimizationResult`` of an energy-efficient run (its schedule, deviations
+            and fastest run); None for a fastest run, whose schedule is the timetable's, a line
+            supplement shared in proportion to the sections' fastest times (as ``optimize`` does for
+            the fastest strategy), and which is its own fastest run.
+    """
+    if optimization is not None:
+        targets = list(optimization.scheduled_running_time_s)
+        deviations = list(optimization.schedule_deviation_s)
+        fastest = optimization.fastest
+    else:
+        fastest = result
+        targets = deviations = None
+        if timetable is not None and result.status == "ok":
+            # the optimiser's own rule for the fastest strategy (private; one definition of it)
+            from trainsim.optimize.api import _proportional_targets
+
+            times = [sec.running_time_s for sec in result.sections]
+            targets = _proportional_targets(timetable, times)
+            deviations = [t - target for t, target in zip(times, targets, strict=True)]
+    fastest_net = fastest.energy_kwh.net
+    saved = fastest_net - result.energy_kwh.net
+    return {
+        "strategy": strategy,
+        "scheduled_running_time_s": _num(sum(targets)) if targets else None,
+        # the largest deviation of a section's running time from its schedule, early or late [s]
+        "schedule_deviation_s": _num(max(abs(d) for d in deviations)) if deviations else None,
+        "fastest_running_time_s": _num(fastest.running_time_s),
+        "fastest_energy_net_kwh": _num(fastest_net),
+        "energy_saved_kwh": _num(saved),
+        "energy_saved_percent": _num(100.0 * saved / fastest_net) if fastest_net > 0 else None,
+    }
 
 
 def _num(x: float) -> float | None:

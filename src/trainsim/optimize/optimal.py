@@ -39,6 +39,11 @@ COAST_POINT_TOLERANCE_M = 1e-2
 TIME_TOLERANCE_S = 1e-3
 #: Largest step of the adjoint-driven phase [m].
 ADJOINT_STEP_M = 20.0
+#: Half-width of the window around the previous holding speed's coasting point ahead of a lower
+#: limit that is searched first [m].
+LIMIT_COAST_WINDOW_M = 150.0
+#: ... when the holding speed differs from the previous one by less than this (in log) [-].
+WARM_START_LOG_SPEED = 0.005
 
 
 def price_of_time_w(train: Train, holding_speed_mps: float) -> float:
@@ -90,6 +95,14 @@ class SectionPlan:
     feasible: bool
 
 
+class _ConvergedError(Exception):
+    """Ends the holding speed search as soon as a plan meets the time (not an error)."""
+
+    def __init__(self, plan: SectionPlan) -> None:
+        super().__init__()
+        self.plan = plan
+
+
 class SectionSolver:
     """Energy-optimal runs of one section [s0, s1] for any running time."""
 
@@ -117,6 +130,16 @@ class SectionSolver:
         self._last_coast_point: float | None = None
         #: whether holding arcs are left early ahead of steep descents (coasting excursions)
         self.excursions = True
+        #: whether the train coasts ahead of lower limits (not only brakes to them)
+        self.limit_coasting = True
+        self._limit_coast_points: dict[int, float] = {}
+        self._has_descents = self._has_limit_braking = False
+        self._last_limit_speed: float | None = None
+        self._near_last_speed = False
+        #: the departure points chosen by the last phase A, (p, lowest, highest) per descent or
+        #: lower limit, and departure points imposed on the next (see _bridge)
+        self._decisions: dict[tuple[str, int], tuple[float, float, float]] = {}
+        self._forced: dict[tuple[str, int], float] = {}
         fastest = self._fastest_points()
         self.fastest = fastest
         self.fastest_time_s = float(fastest[2][-1])
@@ -133,6 +156,7 @@ class SectionSolver:
         tr = self.track
         if not np.isfinite(holding_speed) or holding_speed >= 10.0 * float(tr.vlim.max()):
             return self.fastest
+        self._decisions = {}
         vhold = np.minimum(tr.vlim, holding_speed)
         W = regenerative_holding_speed(self.train, price_of_time_w(self.train, holding_speed), self.eta_r)
         vtop = np.maximum(np.minimum(tr.vlim, W), vhold)
@@ -150,18 +174,174 @@ class SectionSolver:
                 return self._stalled()
             if steep_down.any():
                 self._has_descents = True
-            a = self._next_descent(seg, steep_down, vhold, last_pos, holding_speed)
-            if a is None:
+            found = None
+            after = last_pos
+            while found is None:
+                descent = self._next_descent(seg, steep_down, after, holding_speed)
+                if descent is None:
+                    break
+                a, after = descent
+                found = self._best_departure(
+                    seg, last_pos, a, W, holding_speed, mu, ("descent", round(after))
+                )
+            if found is None:
                 pieces.append(seg)
                 break
-            p_lo = self._first_at_speed(seg, holding_speed, last_pos)
-            p, excursion, q = self._shoot_departure(seg, p_lo, a, vtop, holding_speed, mu)
+            p, excursion, q = found
             keep = seg[0] < p
             pieces.append(tuple(arr[keep] for arr in seg))
             pieces.append(excursion)
             start = q
             last_pos = tr.x[q[0]] + q[1]
-        return tuple(np.concatenate([pc[k] for pc in pieces]) for k in range(4))
+        points = tuple(np.concatenate([pc[k] for pc in pieces]) for k in range(4))
+        # close to the last holding speed the best coasting points ahead of limits move little
+        last = self._last_limit_speed
+        self._near_last_speed = last is not None and abs(np.log(holding_speed / last)) < WARM_START_LOG_SPEED
+        self._last_limit_speed = holding_speed
+        if self.limit_coasting:
+            points = self._coast_before_limits(points, vtop, Cr, US, modes, mu)
+        return points
+
+    def _coast_before_limits(self, points, vtop, Cr, US, modes, mu: float):
+        """Coast ahead of every lower limit instead of holding up to its braking curve.
+
+        For each braking run down to a lower limit (not the stop), the train leaves its holding or
+        traction arc at a point p and coasts until it meets the same braking curve. p minimises the
+        local cost: energy + mu x time of the changed stretch, the quantity the optimal control
+        minimises for the section's price of time mu (Albrecht et al. 2016, Part 2: the approach to
+        a speed limit from above is hold, coast, brake). Coasting that reaches the limit before the
+        braking curve would be slower for no saving, so only points that meet the curve count."""
+        tr = self.track
+        out = [np.empty(self.n_max) for _ in range(3)] + [np.empty(self.n_max, dtype=np.int8)]
+        p_floor = after = self.s0
+        while True:
+            s, v, _, m = points
+            episode = self._next_limit_braking(m, s, after)
+            if episode is None:
+                return points
+            self._has_limit_braking = True
+            q, b = episode
+            i_last = int(np.searchsorted(tr.x, b - 1e-9, side="right")) - 1
+            cum = np.empty(len(s))
+            pk.path_energy(
+                s, v, m, tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.P, self.curves,
+                self.inv_eta_t, self.eta_r, cum,
+            )  # fmt: skip
+
+            def cost(p: float, keep: bool = False, points=points, cum=cum, q=q, b=b, i_last=i_last):
+                s = points[0]
+                i, u, vp, tp, _ = self._state_at(points, p)
+                n, status, i_r, u_r, v_r, t_r, e_coast = pk.coast_to_curve(
+                    tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, tr.traction_scale, i, u, vp, tp, i_last,
+                    self.i0, self.P, self.curves, self.bk, self.rk, Cr, US, modes, ADJOINT_STEP_M,
+                    self.eta_r, *out,
+                )  # fmt: skip
+                r = tr.x[i_r] + u_r
+                if status != 0 or n >= self.n_max - 8 or not q - 1e-6 <= r <= b + 1e-6:
+                    return np.inf, None  # came to rest, or met another limit's braking curve first
+                _, _, _, t_a, _ = self._state_at(points, r)
+                dj = e_coast - (np.interp(r, s, cum) - np.interp(p, s, cum)) + mu * (t_r - t_a)
+                if not keep:
+                    return dj, None
+                return dj, (tuple(arr[:n].copy() for arr in out), (r, v_r, t_r), t_r - t_a)
+
+            key = ("limit", round(b))
+            best_p, dj = np.nan, np.inf
+            warm = self._limit_coast_points.get(key) if self._near_last_speed else None
+            forced = self._forced.get(key)
+            if forced is not None:
+                best_p = min(max(forced, p_floor), q)
+                dj = cost(best_p)[0] if best_p < q - 1e-6 else 0.0
+                warm = None
+            elif warm is not None:
+                # the outer search moves V a little at a time: look near the last optimum first
+                lo, hi = max(p_floor, warm - LIMIT_COAST_WINDOW_M), min(q, warm + LIMIT_COAST_WINDOW_M)
+                if hi - lo > 1.0:
+                    best_p, dj = self._golden(cost, lo, hi)
+                    at_edge = min(best_p - lo, hi - best_p) < 1.0 and not (
+                        best_p - lo < 1.0 and lo <= p_floor
+                    )
+                    if at_edge:
+                        dj = np.inf
+            if not np.isfinite(dj) and forced is None:
+                best_p, dj = self._minimise(cost, p_floor, q)
+            if np.isfinite(dj):
+                self._limit_coast_points[key] = best_p
+            accepted = False
+            if np.isfinite(dj) and (dj < 0.0 or forced is not None):
+                dj, splice = cost(best_p, keep=True)
+                if splice is not None and (dj < 0.0 or forced is not None):
+                    points = self._splice(points, best_p, *splice)
+                    accepted = True
+            self._decisions[key] = (best_p if accepted else q, p_floor, q)
+            # a later approach may coast through this limit too (from the same holding arc) only
+            # if the train coasted here: it then passes under the limit
+            if not accepted:
+                p_floor = b
+            after = b
+
+    @staticmethod
+    def _next_limit_braking(m, s, after: float):
+        """(start, end) [m] of the first braking run after ``after`` that ends at a lower limit
+        (not at the stop), or None."""
+        braking = (m == kernel.REGEN) | (m == kernel.BRAKE)
+        idx = np.flatnonzero(braking[:-1] & (s[:-1] > after + 1e-6))
+        if not len(idx):
+            return None
+        j0 = int(idx[0])
+        j1 = j0
+        while j1 + 1 < len(s) - 1 and braking[j1 + 1]:
+            j1 += 1
+        if j1 + 1 >= len(s) - 1:
+            return None  # the approach to the stop
+        return float(s[j0]), float(s[j1 + 1])
+
+    @staticmethod
+    def _minimise(cost, lo: float, hi: float, tol_m: float = 0.5):
+        """(p, cost) of a scan of [lo, hi] refined by golden section around the best point."""
+        count = int(min(64, max(16, (hi - lo) / 250.0)))
+        grid = np.linspace(lo, hi, count + 1)[1:]
+        values = np.array([cost(p)[0] for p in grid])
+        k = int(np.argmin(values))
+        if not np.isfinite(values[k]):
+            return float(grid[k]), np.inf
+        a = grid[k - 1] if k > 0 else lo
+        z = grid[min(k + 1, len(grid) - 1)]
+        p, value = SectionSolver._golden(cost, a, z, tol_m)
+        return (p, value) if value <= values[k] else (float(grid[k]), values[k])
+
+    @staticmethod
+    def _golden(cost, a: float, z: float, tol_m: float = 0.5):
+        """(p, cost) of a golden-section search of [a, z]."""
+        g = 0.5 * (np.sqrt(5.0) - 1.0)
+        c, d = z - g * (z - a), a + g * (z - a)
+        fc, fd = cost(c)[0], cost(d)[0]
+        while z - a > tol_m:
+            if fc <= fd:
+                z, d, fd = d, c, fc
+                c = z - g * (z - a)
+                fc = cost(c)[0]
+            else:
+                a, c, fc = c, d, fd
+                d = a + g * (z - a)
+                fd = cost(d)[0]
+        return min((c, fc), (d, fd), key=lambda pv: pv[1])
+
+    @staticmethod
+    def _splice(points, p: float, coast, rejoin, dt: float):
+        """Points of ``points`` before p, the coasting path, the rejoin point on the braking curve
+        and the points after it (their times moved by dt)."""
+        s, v, t, m = points
+        r, v_r, t_r = rejoin
+        head = s < p - 1e-9
+        j_r = int(np.searchsorted(s, r, side="right"))
+        mode_r = m[max(j_r - 1, 0)]
+        return (
+            np.concatenate([s[head], coast[0], [r], s[j_r:]]),
+            np.concatenate([v[head], coast[1], [v_r], v[j_r:]]),
+            np.concatenate([t[head], coast[2], [t_r], t[j_r:] + dt]),
+            np.concatenate([m[head], coast[3], np.array([mode_r], dtype=np.int8), m[j_r:]]),
+        )
 
     def _ceiling(self, vtop: np.ndarray):
         """Braking ceiling for the holding phases: service braking on the final approach to the stop
@@ -223,55 +403,75 @@ class SectionSolver:
         )
         return (np.minimum(res_left, res_right) < 0.0) & (vhold >= V - 1e-9) & (vtop > V + 1e-6)
 
-    def _next_descent(self, seg, steep_down, vhold, after: float, V: float) -> float | None:
-        """Start of the next steep descent beyond ``after`` that the holding run meets at speed V."""
+    def _next_descent(self, seg, steep_down, after: float, V: float) -> tuple[float, float] | None:
+        """(a, end) [m] of the next steep descent ending beyond ``after``: a is where the run
+        without excursion is at speed V on it (its start, or where the train reaches V on it)."""
         tr = self.track
         idx = np.flatnonzero(steep_down[self.i0 : self.i1]) + self.i0
-        starts = idx[np.concatenate([[True], np.diff(idx) > 1])] if len(idx) else idx
-        for i in starts:
-            a = tr.x[i]
-            if a <= after + 1.0:
+        if not len(idx):
+            return None
+        breaks = np.flatnonzero(np.diff(idx) > 1)
+        starts = idx[np.concatenate([[0], breaks + 1])]
+        ends = idx[np.concatenate([breaks, [len(idx) - 1]])] + 1
+        s, v = seg[0], seg[1]
+        for i, j in zip(starts, ends, strict=True):
+            lo, hi = max(tr.x[i], after), tr.x[j]
+            if hi <= after + 1.0:
                 continue
-            v_at = np.interp(a, seg[0], seg[1])
-            if abs(v_at - V) <= 1e-6 * max(V, 1.0):
-                return float(a)
+            if np.interp(lo, s, v) >= V * (1.0 - 1e-6):
+                return float(lo), float(hi)
+            at_v = np.flatnonzero((s > lo) & (s < hi) & (v >= V * (1.0 - 1e-6)))
+            if len(at_v):
+                return float(s[at_v[0]]), float(hi)
         return None
 
-    def _first_at_speed(self, seg, V: float, after: float) -> float:
-        s, v = seg[0], seg[1]
-        ok = np.flatnonzero((s >= after) & (np.abs(v - V) <= 1e-6 * max(V, 1.0)))
-        return float(s[ok[0]]) if len(ok) else float(after)
+    def _best_departure(self, seg, p_lo: float, a: float, W: float, V: float, mu: float, key):
+        """The coasting excursion ahead of a steep descent that starts at a: (p, points, rejoin
+        state) with the departure point p in [p_lo, a] that minimises energy + mu x time against
+        the run without it, or None when no excursion is cheaper.
 
-    def _shoot_departure(self, seg, p_lo: float, a: float, vtop, V: float, mu: float):
-        """The departure point p in [p_lo, a] from which coasting rejoins the holding arc with the
-        adjoint back at 1/eta_t (bisection on the sign of the residual)."""
+        Cost minimisation rather than shooting on the adjoint's residual: on hilly lines the
+        residual has several roots and the excursion may start in the traction phase, before the
+        train has reached V."""
         tr = self.track
+        cum = np.empty(len(seg[0]))
+        pk.path_energy(
+            seg[0], seg[1], seg[3], tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.P, self.curves,
+            self.inv_eta_t, self.eta_r, cum,
+        )  # fmt: skip
+        out = [np.empty(self.n_max) for _ in range(3)] + [np.empty(self.n_max, dtype=np.int8)]
 
-        def excursion(p: float):
-            i, u, v, t, _ = self._state_at(seg, p)
-            out = [np.empty(self.n_max) for _ in range(3)] + [np.empty(self.n_max, dtype=np.int8)]
-            n, status, res, iq, uq, tq = pk.coast_excursion(
-                tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, tr.traction_scale, i, u, v, t, self.i1,
-                self.P, self.curves, self.bk, V, mu, self.inv_eta_t, ADJOINT_STEP_M, *out,
+        def cost(p: float, keep: bool = False):
+            i, u, vp, tp, _ = self._state_at(seg, p)
+            n, status, _, iq, uq, tq, e_path = pk.coast_excursion(
+                tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, W, tr.traction_scale, i, u, vp, tp, self.i1,
+                self.P, self.curves, self.bk, V, mu, self.inv_eta_t, self.eta_r, ADJOINT_STEP_M, *out,
             )  # fmt: skip
-            return (res if status == 0 else -np.inf), tuple(x[:n] for x in out), (iq, uq, V, tq)
+            if status != 0 or n >= self.n_max - 8:
+                return np.inf, None
+            q = tr.x[iq] + uq
+            _, _, _, t_a, _ = self._state_at(seg, q)
+            dj = e_path - (np.interp(q, seg[0], cum) - np.interp(p, seg[0], cum)) + mu * (tq - t_a)
+            if not keep:
+                return dj, None
+            return dj, (tuple(arr[:n].copy() for arr in out), (iq, uq, V, tq))
 
-        res_a, ex_a, q_a = excursion(a)
-        if res_a <= 0.0 or not np.isfinite(res_a):
-            return a, ex_a, q_a
-        lo, hi = p_lo, a
-        res_lo, ex_lo, q_lo = excursion(lo)
-        if res_lo >= 0.0:
-            return lo, ex_lo, q_lo
-        best = (a, ex_a, q_a)
-        while hi - lo > 0.5:
-            mid = 0.5 * (lo + hi)
-            res, ex, q = excursion(mid)
-            if res >= 0.0:
-                hi, best = mid, (mid, ex, q)
-            else:
-                lo = mid
-        return best
+        lo = min(p_lo + 1.0, a)
+        forced = self._forced.get(key)
+        if forced is not None:
+            p = min(max(forced, lo), a)
+            self._decisions[key] = (p, lo, a)
+            dj, found = cost(p, keep=True) if p < a - 1e-6 else (np.inf, None)
+            return None if found is None else (p, found[0], found[1])
+        p, dj = self._minimise(cost, lo, a) if a - lo > 1.0 else (a, cost(a)[0])
+        self._decisions[key] = (a, lo, a)
+        if not np.isfinite(dj) or dj >= 0.0:
+            return None
+        dj, found = cost(p, keep=True)
+        if found is None or dj >= 0.0:
+            return None
+        self._decisions[key] = (p, lo, a)
+        return p, found[0], found[1]
 
     def _fastest_points(self):
         tr = self.track
@@ -401,16 +601,34 @@ class SectionSolver:
         and without coasting excursions ahead of them and the one that needs less energy is kept:
         the excursions follow the optimality conditions locally, but on lines where descents,
         lower limits and the final approach interact they can lose to plain holding."""
-        self.excursions = True
         self._has_descents = False
-        with_excursions = self._solve_once(running_time_s)
-        if not self._has_descents:
-            return with_excursions
-        self.excursions = False
-        self._last_coast_point = None
-        plain = self._solve_once(running_time_s)
-        self.excursions = True
-        return min((with_excursions, plain), key=self.energy_j)
+        self._has_limit_braking = False
+        plans = []
+        for excursions, limit_coasting in ((True, True), (False, True), (True, False), (False, False)):
+            if plans and not excursions and not self._has_descents:
+                continue  # without steep descents there are no excursions to leave out
+            if not limit_coasting and not self._has_limit_braking:
+                continue  # no lower limit to coast ahead of: the same runs again
+            self.excursions, self.limit_coasting = excursions, limit_coasting
+            self._last_coast_point = None
+            self._limit_coast_points = {}
+            self._last_limit_speed = None
+            plans.append(self._solve_once(running_time_s))
+            if not plans[-1].feasible:
+                break
+        self.excursions = self.limit_coasting = True
+        meeting = [p for p in plans if self._meets(p, running_time_s)]
+        if meeting:
+            return min(meeting, key=self.energy_j)
+        return min(plans, key=lambda p: abs(p.running_time_s - running_time_s))
+
+    @staticmethod
+    def _meets(plan: SectionPlan, running_time_s: float) -> bool:
+        """Whether a plan keeps the schedule: within max(0.5 s, 0.05 %), or is the fastest run of an
+        infeasible schedule."""
+        if not plan.feasible:
+            return True
+        return abs(plan.running_time_s - running_time_s) <= max(0.5, 5e-4 * running_time_s)
 
     def energy_j(self, plan: SectionPlan) -> float:
         """Net electrical energy of a plan without auxiliaries [J] (what the strategy minimises)."""
@@ -439,7 +657,11 @@ class SectionSolver:
         vmax = float(self.track.vlim.max())
 
         def excess(log_v: float) -> float:
-            return self.plan(float(np.exp(log_v))).running_time_s - running_time_s
+            plan = self.plan(float(np.exp(log_v)))
+            error = plan.running_time_s - running_time_s
+            if abs(error) <= TIME_TOLERANCE_S:
+                raise _ConvergedError(plan)
+            return error
 
         lo, hi = np.log(0.5), np.log(vmax * 20.0)
         if excess(lo) < 0:
@@ -450,6 +672,100 @@ class SectionSolver:
             )
         if excess(hi) > 0:
             hi = np.log(vmax * 1000.0)
-        log_v = brentq(excess, lo, hi, xtol=1e-10, rtol=1e-10, maxiter=200)
-        plan = self.plan(float(np.exp(log_v)))
-        return plan
+        try:
+            log_v = brentq(excess, lo, hi, xtol=1e-10, rtol=1e-10, maxiter=200)
+        except _ConvergedError as done:
+            return done.plan
+        # the running time jumps at this holding speed (the structure of the run changes there):
+        # the closest plan on either side
+        candidates = []
+        decisions = []
+        for f in (1.0 - 1e-9, 1.0, 1.0 + 1e-9):
+            candidates.append(self.plan(float(np.exp(log_v * f))))
+            decisions.append(dict(self._decisions))
+        slow = [k for k, p in enumerate(candidates) if p.running_time_s > running_time_s]
+        fast = [k for k, p in enumerate(candidates) if p.running_time_s < running_time_s]
+        if slow and fast:
+            bridged = self._bridge(
+                float(np.exp(log_v)), decisions[slow[-1]], decisions[fast[0]], running_time_s
+            )
+            if bridged is not None:
+                return bridged
+        slow = [p for p in candidates if p.running_time_s > running_time_s]
+        if slow:
+            bridged = self._hold_longer(min(slow, key=lambda p: p.running_time_s), running_time_s)
+            if bridged is not None:
+                candidates.append(bridged)
+        return min(candidates, key=lambda p: abs(p.running_time_s - running_time_s))
+
+    def _bridge(self, V: float, slow: dict, fast: dict, running_time_s: float) -> SectionPlan | None:
+        """Where the running time jumps at holding speed V because departure points ahead of
+        descents or limits jump between two nearly equally good choices: move them together from
+        the slower run's to the faster run's (a homotopy in lambda) until the run takes
+        ``running_time_s``; None if the time cannot be met that way."""
+        keys = [
+            k
+            for k in set(slow) | set(fast)
+            if abs(slow.get(k, fast.get(k))[0] - fast.get(k, slow.get(k))[0]) > 1e-3
+        ]
+        if not keys:
+            return None
+
+        def plan_at(lam: float) -> SectionPlan:
+            self._forced = {}
+            for k in keys:
+                p_slow = slow[k][0] if k in slow else fast[k][2]
+                p_fast = fast[k][0] if k in fast else slow[k][2]
+                self._forced[k] = (1.0 - lam) * p_slow + lam * p_fast
+            try:
+                return self.plan(V)
+            finally:
+                self._forced = {}
+
+        lo, hi = 0.0, 1.0
+        best = None
+        for _ in range(40):
+            lam = 0.5 * (lo + hi)
+            plan = plan_at(lam)
+            error = plan.running_time_s - running_time_s
+            if best is None or abs(error) < abs(best.running_time_s - running_time_s):
+                best = plan
+            if abs(error) <= TIME_TOLERANCE_S:
+                break
+            if error > 0.0:
+                lo = lam
+            else:
+                hi = lam
+        if best is None or abs(best.running_time_s - running_time_s) > max(0.5, 5e-4 * running_time_s):
+            return None
+        return best
+
+    def _hold_longer(self, slow: SectionPlan, running_time_s: float) -> SectionPlan | None:
+        """A plan that keeps the time where the running time jumps with the holding speed: the
+        slower plan's holding speed, with its final coasting point moved later (a little faster,
+        at a little more energy) until the run takes ``running_time_s``; None if it cannot."""
+        V, mu = slow.holding_speed_mps, slow.price_of_time_w
+        phase_a = self._phase_a(V)
+
+        def run(s_c: float):
+            points, status, _ = self._phase_b(phase_a, s_c, mu, v_hold=V)
+            return (points if status == pk.HIT_CEILING else None), s_c
+
+        lo, hi = slow.coast_start_m, self.s1
+        fast, _ = run(hi)
+        if fast is None or fast[2][-1] > running_time_s:
+            return None
+        best = fast
+        for _ in range(60):
+            if hi - lo <= COAST_POINT_TOLERANCE_M:
+                break
+            mid = 0.5 * (lo + hi)
+            points, _ = run(mid)
+            if points is not None and points[2][-1] <= running_time_s:
+                hi, best = mid, points
+            else:
+                lo = mid
+        s, v, t, m = best
+        m = m.copy()
+        m[-1] = kernel.DWELL
+        return SectionPlan(s, v, t, m, float(t[-1]), V, hi, mu, self.fastest_time_s, True)

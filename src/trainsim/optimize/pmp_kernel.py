@@ -25,6 +25,8 @@ from trainsim.sim.kernel import (
     BRAKE,
     COAST,
     CRUISE,
+    P_BRAKE_FRACTION,
+    P_DECEL,
     P_INERTIAL_MASS,
     P_R1,
     P_R2,
@@ -107,11 +109,13 @@ def final_phase(
     E = 0.5 * v_start * v_start
     t = t_start
     u = u_start
-    for i in range(i_start, i_end):
+    i = i_start
+    while i < i_end:
         kk = i - (i_end - len(Cr))  # Cr and US are indexed from the section's first interval
         w = x[i + 1] - x[i]
         line = (a0[i], a1[i], b0[i], b1[i])
         P[P_TRACTION_SCALE] = tscale[i]
+        jumped = False
         while u < w - 1e-12:
             if n >= len(out_s) - 8:
                 # never write past the buffers: report the attempt as failed (stopped short)
@@ -190,33 +194,39 @@ def final_phase(
                     hm = _meet_brake_curve(E, u, u + h, mode, w, Cr[kk], line, P, curves, kinks, bk)
                     Em, dtm = step_energy_time(E, u, hm - u, mode, line, P, curves, kinks)
                     n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
-                    return _follow_ceiling(
-                        x, a0, a1, b0, b1, i, hm, Em, t + dtm, i_end, P, curves, bk, Cr, US, kk, vcap,
+                    n, j, uj, tj, found = _brake_to_plateau(
+                        x, a0, a1, b0, b1, i, hm, Em, t + dtm, i_end, P, curves, bk, Cr, US, kk,
                         out_s, out_v, out_t, out_m, n,
-                    ), HIT_CEILING, x[i] + hm  # fmt: skip
+                    )  # fmt: skip
+                    if not found:
+                        return n, HIT_CEILING, x[i] + hm
+                    # down to a lower limit: the adjoint drives the run on from there
+                    i, u, t = j, uj, tj
+                    E = 0.5 * vcap[j] * vcap[j]
+                    jumped = True
+                    break
             n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
             E, t, u, phi = E1, t + dt, u + h, phi1
-        u = 0.0
+        if not jumped:
+            u = 0.0
+            i += 1
     n = _emit(out_s, out_v, out_t, out_m, n, x[i_end], np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, BRAKE)
     return n, HIT_CEILING, x[i_end]
 
 
 @njit(cache=True)
-def _follow_ceiling(
-    x, a0, a1, b0, b1, i, u, E, t, i_end, P, curves, bk, Cr, US, kk, vcap, out_s, out_v, out_t, out_m, n
+def _brake_to_plateau(
+    x, a0, a1, b0, b1, i, u, E, t, i_end, P, curves, bk, Cr, US, kk, out_s, out_v, out_t, out_m, n
 ):  # fmt: skip
-    """Along the speed ceiling from (x[i] + u) to the stop at x[i_end]: maximum service braking on
-    its braking curves, holding the limit on its plateaus."""
+    """Maximum service braking along the speed ceiling from (x[i] + u) until it reaches the plateau
+    of a lower limit. Returns (n, j, u_j, t_j, found): the plateau's start at offset u_j of interval
+    j, or (found False) the stop at x[i_end], where the run then ends."""
     k = kk
     for j in range(i, i_end):
         w = x[j + 1] - x[j]
         line = (a0[j], a1[j], b0[j], b1[j])
-        if u < US[k]:
-            v = vcap[j]
-            n = _emit(out_s, out_v, out_t, out_m, n, x[j] + u, v, t, CRUISE)
-            t += (US[k] - u) / v
-            u = US[k]
-            E = 0.5 * v * v
+        if u < US[k] - 1e-9:
+            return n, j, u, t, True
         if u < w:
             n = _emit(out_s, out_v, out_t, out_m, n, x[j] + u, np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, BRAKE)
             _, dt = step_energy_time(E, u, w - u, BRAKE, line, P, curves, bk)
@@ -225,7 +235,7 @@ def _follow_ceiling(
         u = 0.0
         k += 1
     n = _emit(out_s, out_v, out_t, out_m, n, x[i_end], 0.0, t, BRAKE)
-    return n
+    return n, i_end, 0.0, t, False
 
 
 #: Shortest piece a step is cut into at an adjoint switching threshold [m]: near a singular arc the
@@ -383,20 +393,24 @@ def holding_segment(
 
 @njit(cache=True)
 def coast_excursion(
-    x, a0, a1, b0, b1, vtop, tscale, i, u, v0, t, i_end, P, curves, bk, V, mu, inv_eta_t, h_max,
+    x, a0, a1, b0, b1, vlim, W, tscale, i, u, v0, t, i_end, P, curves, bk, V, mu, inv_eta_t, eta_r, h_max,
     out_s, out_v, out_t, out_m,
 ):  # fmt: skip
-    """Leave the holding arc at speed V into coasting, ahead of a descent too steep to hold V on.
+    """Leave the holding arc (or the traction arc below V) into coasting, ahead of a descent too
+    steep to hold V on.
 
-    Coasts (holding ``vtop`` with braking where coasting would exceed it) and integrates the adjoint
-    from phi = 1/eta_t until the speed comes back down to V after having been above it: the rejoin
-    point q. Returns (n, status, phi(q) - 1/eta_t, i_q, u_q, t_q): status 0 rejoined, 1 came to rest
-    or reached the end without rejoining. Leaving earlier makes the residual smaller (Albrecht et
-    al. 2016: the optimal departure before a steep descent is where it vanishes)."""
+    Coasts and integrates the adjoint from phi = 1/eta_t until the speed comes back down to V
+    after having been above it: the rejoin point q. The train holds the speed limit ``vlim`` with
+    braking where coasting would exceed it, and the regenerative holding speed W once the adjoint
+    has fallen to eta_r (the singular regenerative arc; above eta_r the optimal control coasts).
+    Returns (n, status, phi(q) - 1/eta_t, i_q, u_q, t_q, energy_j): status 0 rejoined, 1 came to
+    rest or reached the end without rejoining; energy_j is the electrical energy of the path
+    (regenerated while holding with braking, so <= 0)."""
     phi = inv_eta_t
     E = 0.5 * v0 * v0
     EV = 0.5 * V * V
     above = False
+    energy = 0.0
     n = 0
     for ii in range(i, i_end):
         w = x[ii + 1] - x[ii]
@@ -406,6 +420,119 @@ def coast_excursion(
         while uu < w - 1e-12:
             v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
             h = min(h_max, w - uu)
+            cap = vlim[ii]
+            if eta_r > 0.0 and phi <= eta_r * (1.0 + 1e-9) and cap > W:
+                cap = W
+            mode = COAST
+            if v >= cap - 1e-9 and resistance_force(v, uu, line, P) < 0.0:
+                mode = CRUISE
+            if mode == CRUISE:
+                E1, dt = E, h / v
+            else:
+                E1, dt = step_energy_time(E, uu, h, COAST, line, P, curves, bk)
+                if 0.5 * cap * cap < E1:
+                    hc = distance_to_speed(E, uu, 0.5 * cap * cap, COAST, line, P, curves)
+                    if np.isfinite(hc) and 0.0 < hc < h:
+                        h = hc
+                        E1, dt = step_energy_time(E, uu, h, COAST, line, P, curves, bk)
+                    E1 = min(E1, 0.5 * cap * cap)
+            if E1 <= 0.0:
+                return n, 1, -np.inf, ii, uu, t, energy
+            if above and E1 < EV <= E:
+                # back down to V inside this step: the rejoin point
+                hq = distance_to_speed(E, uu, EV, COAST, line, P, curves)
+                if not np.isfinite(hq) or hq > h:
+                    hq = h
+                _, dtq = rk4_energy_time(E, uu, hq, COAST, line, P, curves)
+                phiq = phi_step(phi, E, EV, uu, hq, b0[ii], b1[ii], P, mu)
+                n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
+                return n, 0, phiq - inv_eta_t, ii, uu + hq, t + dtq, energy
+            if mode == CRUISE:
+                _, fr = point_forces(CRUISE, v, uu, line, P, curves)
+                energy -= eta_r * fr * h
+            phi = phi_step(phi, E, E1, uu, h, b0[ii], b1[ii], P, mu) if v > PHI_MIN_SPEED else phi
+            if mode == CRUISE and cap == W:
+                phi = eta_r  # on the singular regenerative arc the adjoint stays at eta_r
+            if E1 > EV * (1.0 + 1e-12):
+                above = True
+            n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
+            E, t, uu = E1, t + dt, uu + h
+    return n, 1, -np.inf, i_end - 1, x[i_end] - x[i_end - 1], t, energy
+
+
+@njit(cache=True)
+def point_forces(mode, v, u, line, P, curves):
+    """(traction, regenerative braking) force [N] at speed v in a regime, as the run's energy
+    accounting (``trainsim.sim.result``) counts them: holding takes what resistance needs, braking
+    returns what the electric brake can take of it."""
+    res = resistance_force(v, u, line, P)
+    regen_cap = effort(v, curves[8], curves[9], curves[10], curves[11])
+    if mode == TRACTION:
+        return P[P_TRACTION_SCALE] * effort(v, curves[0], curves[1], curves[2], curves[3]), 0.0
+    if mode == CRUISE:
+        if res >= 0.0:
+            return res, 0.0
+        return 0.0, min(-res, regen_cap)
+    if mode == BRAKE:
+        if P[P_DECEL] > 0.0:
+            f = P[P_INERTIAL_MASS] * P[P_DECEL] - res
+            f = f if f > 0.0 else 0.0
+        else:
+            f = P[P_BRAKE_FRACTION] * effort(v, curves[4], curves[5], curves[6], curves[7])
+        return 0.0, min(f, regen_cap)
+    if mode == REGEN:
+        return 0.0, regen_cap
+    return 0.0, 0.0
+
+
+@njit(cache=True)
+def path_energy(s, v, m, x, a0, a1, b0, b1, tscale, P, curves, inv_eta_t, eta_r, out):
+    """Cumulative electrical energy [J] (traction / eta_t - eta_r regenerated) along a run's
+    points into ``out``: trapezoids of each stretch's forces in the regime of its first point."""
+    out[0] = 0.0
+    i = 0
+    for k in range(len(s) - 1):
+        while i < len(x) - 2 and x[i + 1] <= s[k] + 1e-9:
+            i += 1
+        ds = s[k + 1] - s[k]
+        if ds <= 0.0:
+            out[k + 1] = out[k]
+            continue
+        line = (a0[i], a1[i], b0[i], b1[i])
+        P[P_TRACTION_SCALE] = tscale[i]
+        u0 = s[k] - x[i]
+        ft0, fr0 = point_forces(m[k], v[k], u0, line, P, curves)
+        ft1, fr1 = point_forces(m[k], v[k + 1], u0 + ds, line, P, curves)
+        out[k + 1] = out[k] + 0.5 * ds * ((ft0 + ft1) * inv_eta_t - eta_r * (fr0 + fr1))
+
+
+@njit(cache=True)
+def coast_to_curve(
+    x, a0, a1, b0, b1, vtop, tscale, i, u, v0, t, i_last, i0, P, curves, bk, rk, Cr, US, brake_modes,
+    h_max, eta_r, out_s, out_v, out_t, out_m,
+):  # fmt: skip
+    """Coast from (x[i] + u, v0) until the trajectory meets the braking curve (``Cr``/``US``, in
+    ``brake_modes``, indexed from interval ``i0``) that leads down to a lower limit; hold ``vtop``
+    with braking where coasting downhill would exceed it. Returns (n, status, i_r, u_r, v_r, t_r,
+    energy_j): status 0 met the curve at (i_r, u_r) before the end of interval ``i_last``; 1 came
+    to rest or did not meet it (the coasting started too early). energy_j is the electrical energy
+    of the coasting path (regenerated where holding vtop needs braking, so <= 0)."""
+    E = 0.5 * v0 * v0
+    energy = 0.0
+    n = 0
+    for ii in range(i, i_last + 1):
+        k = ii - i0
+        w = x[ii + 1] - x[ii]
+        line = (a0[ii], a1[ii], b0[ii], b1[ii])
+        P[P_TRACTION_SCALE] = tscale[ii]
+        mode_b = brake_modes[ii]
+        bkk = bk if mode_b == BRAKE else rk
+        uu = u if ii == i else 0.0
+        while uu < w - 1e-12:
+            v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+            h = min(h_max, w - uu)
+            if US[k] > uu:
+                h = min(h, US[k] - uu)
             mode = COAST
             if v >= vtop[ii] - 1e-9 and resistance_force(v, uu, line, P) < 0.0:
                 mode = CRUISE
@@ -420,19 +547,36 @@ def coast_excursion(
                         E1, dt = step_energy_time(E, uu, h, COAST, line, P, curves, bk)
                     E1 = min(E1, 0.5 * vtop[ii] * vtop[ii])
             if E1 <= 0.0:
-                return n, 1, -np.inf, ii, uu, t
-            if above and E1 < EV <= E:
-                # back down to V inside this step: the rejoin point
-                hq = distance_to_speed(E, uu, EV, COAST, line, P, curves)
-                if not np.isfinite(hq) or hq > h:
-                    hq = h
-                _, dtq = rk4_energy_time(E, uu, hq, COAST, line, P, curves)
-                phiq = phi_step(phi, E, EV, uu, hq, b0[ii], b1[ii], P, mu)
-                n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
-                return n, 0, phiq - inv_eta_t, ii, uu + hq, t + dtq
-            phi = phi_step(phi, E, E1, uu, h, b0[ii], b1[ii], P, mu)
-            if E1 > EV * (1.0 + 1e-12):
-                above = True
+                return n, 1, ii, uu, 0.0, t, energy
+            if uu + h > US[k]:
+                vb = _curve_speed(uu + h, w, Cr[k], mode_b, line, P, curves, bkk)
+                v1 = np.sqrt(2.0 * E1)
+                if v1 >= vb - 1e-9:
+                    if mode == CRUISE:
+                        hm = uu + h
+                        lo, hi = uu, uu + h
+                        for _ in range(60):
+                            mid = 0.5 * (lo + hi)
+                            if v >= _curve_speed(mid, w, Cr[k], mode_b, line, P, curves, bkk):
+                                hi = mid
+                            else:
+                                lo = mid
+                            if hi - lo < 1e-7:
+                                break
+                        hm = hi
+                        dtm = (hm - uu) / v
+                        Em = E
+                    else:
+                        hm = _meet_curve(E, uu, uu + h, COAST, w, Cr[k], mode_b, line, P, curves, bk, bkk)
+                        Em, dtm = step_energy_time(E, uu, hm - uu, COAST, line, P, curves, bk)
+                    n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
+                    if mode == CRUISE:
+                        _, fr = point_forces(CRUISE, v, uu, line, P, curves)
+                        energy -= eta_r * fr * (hm - uu)
+                    return n, 0, ii, hm, np.sqrt(2.0 * Em) if Em > 0.0 else 0.0, t + dtm, energy
+            if mode == CRUISE:
+                _, fr = point_forces(CRUISE, v, uu, line, P, curves)
+                energy -= eta_r * fr * h
             n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
             E, t, uu = E1, t + dt, uu + h
-    return n, 1, -np.inf, i_end - 1, x[i_end] - x[i_end - 1], t
+    return n, 1, i_last, x[i_last + 1] - x[i_last], np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, energy
