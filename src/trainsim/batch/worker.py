@@ -225,37 +225,16 @@ class WorkerState:
     def _driving(self, data: Any, source: str) -> Driving | None:
         """How a run with the scenario's ``driving`` block ``data`` is driven (None: no block).
 
-        The block is read as ``ScenarioSpec.to_scenario`` reads it (trainsim/io/trainsim_yaml.py): the
-        same validation, a timetable file before a supplement, a strategy other than fastest needs one.
+        The block is read as ``ScenarioSpec.to_scenario`` reads it (the same functions of
+        trainsim/io/trainsim_yaml.py), its timetable file as read by the process that started the study.
         """
         if data is None:
             return None
-        from pydantic import ValidationError
-
         from trainsim.io import trainsim_yaml as tsy
-        from trainsim.optimize.timetable import line_supplement
 
-        try:
-            spec = tsy.DrivingSpec.model_validate(data)
-        except ValidationError as exc:
-            raise tsy._validation_error(exc, source, None, prefix="driving") from None
-        if spec.timetable is not None:
-            timetable = self._timetable(spec.timetable, source)
-        elif spec.supplement is not None:
-            try:
-                timetable = line_supplement(spec.supplement)
-            except InputError as exc:
-                raise _located(exc, source, "driving") from None
-        else:
-            timetable = None
-        if spec.strategy != "fastest" and timetable is None:
-            raise InputError(
-                "an energy-efficient strategy needs a supplement or a timetable",
-                file=source,
-                field="driving",
-                allowed="driving: {strategy: optimal, supplement: '10%'} or {timetable: FILE}",
-            )
-        return Driving(spec.strategy, timetable)
+        spec = tsy.driving_spec_from_dict(data, source)
+        strategy, timetable = tsy.driving_from_spec(spec, source, lambda name: self._timetable(name, source))
+        return Driving(strategy, timetable)
 
     def entry(self, e: int) -> tuple[Any, Any, Any]:
         """(train, route with the entry's stops, settings) of entry ``e``, built once."""
@@ -373,11 +352,11 @@ def driving_figures(strategy: str, timetable, result, optimization=None) -> dict
         fastest = result
         targets = deviations = None
         if timetable is not None and result.status == "ok":
-            # the optimiser's own rule for the fastest strategy (private; one definition of it)
-            from trainsim.optimize.api import _proportional_targets
+            # the optimiser's own rule for the fastest strategy (one definition of it)
+            from trainsim.optimize.api import proportional_targets
 
             times = [sec.running_time_s for sec in result.sections]
-            targets = _proportional_targets(timetable, times)
+            targets = proportional_targets(timetable, times)
             deviations = [t - target for t, target in zip(times, targets, strict=True)]
     fastest_net = fastest.energy_kwh.net
     saved = fastest_net - result.energy_kwh.net

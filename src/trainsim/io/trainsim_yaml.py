@@ -29,7 +29,7 @@ import math
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated, Any, ClassVar, Literal, NoReturn
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, NoReturn
 
 import numpy as np
 import yaml
@@ -61,11 +61,16 @@ from trainsim.model.scenario import RunSettings, Scenario
 from trainsim.physics import line_resistance
 from trainsim.physics import resistance as res
 
+if TYPE_CHECKING:  # trainsim.optimize is imported where a driving block is read, not by every reader
+    from trainsim.optimize.timetable import Timetable
+
 __all__ = [
     "SCHEMAS",
     "RouteSpec",
     "ScenarioSpec",
     "TrainSpec",
+    "driving_from_spec",
+    "driving_spec_from_dict",
     "dump_yaml",
     "load_route_yaml",
     "load_scenario_yaml",
@@ -1645,25 +1650,69 @@ class ScenarioSpec(_Spec):
         scenario = Scenario(name=self.name, train=train, route=route, settings=self.settings.build())
         if self.driving is None:
             return scenario
-        from trainsim.optimize.timetable import line_supplement, read_timetable_yaml
+        from trainsim.optimize.timetable import read_timetable_yaml
 
-        d = self.driving
-        if d.timetable is not None:
-            timetable = read_timetable_yaml(
-                _resolve(base, d.timetable, file, "driving.timetable"), len(route.stops) - 1
-            )
-        elif d.supplement is not None:
-            timetable = line_supplement(d.supplement)
-        else:
-            timetable = None
-        if d.strategy != "fastest" and timetable is None:
+        def read_timetable(name: str) -> Timetable:
+            path = _resolve(base, name, file, "driving.timetable")
+            return read_timetable_yaml(path, len(route.stops) - 1)
+
+        strategy, timetable = driving_from_spec(self.driving, file, read_timetable)
+        return dataclasses.replace(scenario, strategy=strategy, timetable=timetable)
+
+
+def driving_spec_from_dict(data: Any, source: str = "<scenario>") -> DrivingSpec:
+    """Validate a scenario's ``driving`` mapping; InputError naming ``source`` and ``driving.<field>``."""
+    try:
+        return DrivingSpec.model_validate(data)
+    except ValidationError as exc:
+        raise _validation_error(exc, source, None, prefix="driving") from None
+
+
+def driving_from_spec(
+    spec: DrivingSpec, file: str, read_timetable: Callable[[str], Timetable]
+) -> tuple[str, Timetable | None]:
+    """The strategy and the timetable of a scenario's ``driving`` block.
+
+    A timetable file comes before a supplement; a strategy other than ``fastest`` needs one of them.
+
+    Args:
+        spec: the validated block (:func:`driving_spec_from_dict`).
+        file: the scenario's file (or run) named by the errors.
+        read_timetable: the ``Timetable`` of a timetable file name as written in the block (the
+            caller resolves it and checks its sections; its errors pass through).
+
+    Returns:
+        (strategy name, ``Timetable``, None for a fastest run without a schedule).
+
+    Raises:
+        InputError: an unreadable supplement (field ``driving.supplement``) or an energy-efficient
+            strategy without a schedule (field ``driving``), naming ``file``.
+    """
+    from trainsim.optimize.timetable import line_supplement
+
+    if spec.timetable is not None:
+        timetable = read_timetable(spec.timetable)
+    elif spec.supplement is not None:
+        try:
+            timetable = line_supplement(spec.supplement)
+        except InputError as exc:
             raise InputError(
-                "an energy-efficient strategy needs a supplement or a timetable",
+                exc.reason,
                 file=file,
-                field="driving",
-                allowed="driving: {strategy: optimal, supplement: '10%'} or {timetable: FILE}",
-            )
-        return dataclasses.replace(scenario, strategy=d.strategy, timetable=timetable)
+                field=f"driving.{exc.field}" if exc.field else "driving",
+                value=exc.value,
+                allowed=exc.allowed,
+            ) from None
+    else:
+        timetable = None
+    if spec.strategy != "fastest" and timetable is None:
+        raise InputError(
+            "an energy-efficient strategy needs a supplement or a timetable",
+            file=file,
+            field="driving",
+            allowed="driving: {strategy: optimal, supplement: '10%'} or {timetable: FILE}",
+        )
+    return spec.strategy, timetable
 
 
 def _resolve(base: Path, name: str, file: str, field: str) -> Path:

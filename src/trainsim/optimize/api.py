@@ -157,9 +157,21 @@ def _targets(timetable: Timetable, fastest: list[float]) -> list[float] | None:
     return None
 
 
-def _proportional_targets(timetable: Timetable, fastest: list[float]) -> list[float]:
-    """Per-section schedules, or a line supplement shared in proportion to the fastest times (for the
-    strategies that do not split it by the price of time)."""
+def proportional_targets(timetable: Timetable, fastest: list[float]) -> list[float]:
+    """The scheduled running time of every section [s]: the timetable's per-section schedules, or its
+    line supplement shared in proportion to the sections' fastest running times (the rule of the
+    strategies that do not split it by the price of time, ``fastest`` among them).
+
+    Args:
+        timetable: the timetable (per-section schedules or one line supplement).
+        fastest: the fastest running time of every section between stops [s].
+
+    Returns:
+        One target running time per section [s], in the order of ``fastest``.
+
+    Raises:
+        InputError: the timetable's per-section schedules are not one per section.
+    """
     targets = _targets(timetable, fastest)
     if targets is not None:
         return targets
@@ -269,7 +281,7 @@ def _run_lesov(train, route, timetable, settings, fastest) -> OptimizationResult
 
     solvers = _solvers(train, route, settings)
     fastest_s = [sv.fastest_time_s for sv in solvers]
-    targets = _proportional_targets(timetable, fastest_s)
+    targets = proportional_targets(timetable, fastest_s)
     plans, warnings = lesov_plans(train, route, solvers, targets, settings)
     # source 004 brakes recuperatively at 0.8 x the traction curve: account the run with that brake
     return _result("lesov", lesov_train(train), route, settings, fastest, plans, targets, warnings)
@@ -307,7 +319,7 @@ def _run_reference(train, route, timetable, settings, fastest) -> OptimizationRe
 def _fastest_result(train, route, timetable, settings, fastest) -> OptimizationResult:
     solvers = _solvers(train, route, settings)
     fastest_s = [sv.fastest_time_s for sv in solvers]
-    targets = _proportional_targets(timetable, fastest_s)
+    targets = proportional_targets(timetable, fastest_s)
     plans = [sv.solve(0.0) for sv in solvers]
     return _result("fastest", train, route, settings, fastest, plans, targets, [])
 
