@@ -34,9 +34,9 @@ from trainsim.sim.fastest import kernel_parameters, kink_speeds, regenerative_ar
 from trainsim.sim.profile import compile_track
 
 #: Shooting on the coasting point stops when its bracket is shorter than this [m].
-COAST_POINT_TOLERANCE_M = 5e-2
+COAST_POINT_TOLERANCE_M = 0.25
 #: The section time is met to this [s] (far inside the max(0.5 s, 0.05 %) the schedule needs).
-TIME_TOLERANCE_S = 1e-2
+TIME_TOLERANCE_S = 5e-2
 #: Largest step of the adjoint-driven phase [m].
 ADJOINT_STEP_M = 20.0
 #: Half-width of the window around the previous holding speed's coasting point ahead of a lower
@@ -598,30 +598,36 @@ class SectionSolver:
         """The least-energy run that takes ``running_time_s``; the fastest run (``feasible`` False)
         when that is shorter than the fastest possible.
 
-        Where the section has descents too steep to hold the speed on, the run is built both with
-        and without coasting excursions ahead of them and the one that needs less energy is kept:
-        the excursions follow the optimality conditions locally, but on lines where descents,
-        lower limits and the final approach interact they can lose to plain holding."""
+        Runs are built with the departures ahead of steep descents and lower limits, and, where the
+        section has any, also without them; the one that needs less energy among those that keep the
+        schedule is kept. Each departure minimises the cost locally, and on lines where descents,
+        lower limits and the final approach interact the local choices can lose to plain holding.
+        The two mixed variants are tried only when neither keeps the schedule."""
         self._has_descents = False
         self._has_limit_braking = False
-        plans = []
-        for excursions, limit_coasting in ((True, True), (False, True), (True, False), (False, False)):
-            if plans and not excursions and not self._has_descents:
-                continue  # without steep descents there are no excursions to leave out
-            if not limit_coasting and not self._has_limit_braking:
-                continue  # no lower limit to coast ahead of: the same runs again
-            self.excursions, self.limit_coasting = excursions, limit_coasting
-            self._last_coast_point = None
-            self._limit_coast_points = {}
-            self._last_limit_speed = None
-            plans.append(self._solve_once(running_time_s))
-            if not plans[-1].feasible:
-                break
+        plans = [self._solve_variant(running_time_s, True, True)]
+        if plans[0].feasible and (self._has_descents or self._has_limit_braking):
+            plans.append(self._solve_variant(running_time_s, False, False))
+            if not any(self._meets(p, running_time_s) for p in plans):
+                if self._has_limit_braking:
+                    plans.append(self._solve_variant(running_time_s, False, True))
+                if self._has_descents and self._has_limit_braking:
+                    plans.append(self._solve_variant(running_time_s, True, False))
         self.excursions = self.limit_coasting = True
         meeting = [p for p in plans if self._meets(p, running_time_s)]
         if meeting:
             return min(meeting, key=self.energy_j)
         return min(plans, key=lambda p: abs(p.running_time_s - running_time_s))
+
+    def _solve_variant(self, running_time_s: float, excursions: bool, limit_coasting: bool) -> SectionPlan:
+        """The run with or without departures ahead of descents and lower limits, from a fresh
+        start (no warm start from an earlier solve: results never depend on history)."""
+        self.excursions, self.limit_coasting = excursions, limit_coasting
+        self._last_coast_point = None
+        self._limit_coast_points = {}
+        self._last_limit_speed = None
+        self._last_holding_speed = None
+        return self._solve_once(running_time_s)
 
     @staticmethod
     def _meets(plan: SectionPlan, running_time_s: float) -> bool:
@@ -657,11 +663,15 @@ class SectionSolver:
             )  # fmt: skip
         vmax = float(self.track.vlim.max())
 
+        on_time: list[SectionPlan] = []  # plans that keep the schedule, if not to TIME_TOLERANCE_S
+
         def excess(log_v: float) -> float:
             plan = self.plan(float(np.exp(log_v)))
             error = plan.running_time_s - running_time_s
             if abs(error) <= TIME_TOLERANCE_S:
                 raise _ConvergedError(plan)
+            if self._meets(plan, running_time_s):
+                on_time.append(plan)
             return error
 
         try:
@@ -690,6 +700,16 @@ class SectionSolver:
             bridged = self._hold_longer(min(slow, key=lambda p: p.running_time_s), running_time_s)
             if bridged is not None:
                 candidates.append(bridged)
+        on_time += [p for p in candidates if self._meets(p, running_time_s)]
+        if not on_time:
+            # the running time is ragged in V here (long adjoint-driven phases on hilly lines are
+            # sensitive to it): look around the crossing for holding speeds that keep the schedule
+            for f in np.linspace(-0.01, 0.01, 21):
+                plan = self.plan(float(np.exp(log_v + f)))
+                if self._meets(plan, running_time_s):
+                    on_time.append(plan)
+        if on_time:
+            return min(on_time, key=self.energy_j)
         return min(candidates, key=lambda p: abs(p.running_time_s - running_time_s))
 
     def _bracket(self, excess, running_time_s: float, vmax: float) -> tuple[float, float]:
