@@ -426,6 +426,37 @@ class SectionSolver:
                 return float(s[at_v[0]]), float(hi)
         return None
 
+    @staticmethod
+    def _back_at(seg, after: float, V: float) -> float:
+        """First position [m] from ``after`` where ``seg`` holds V (or ``after`` if it never does)."""
+        s, v, _, m = seg
+        tol = 1e-6 * max(V, 1.0)
+        holding = np.flatnonzero((s >= after - 1e-9) & (m == kernel.CRUISE) & (np.abs(v - V) <= tol))
+        if not len(holding):
+            return after
+        j = int(holding[0])
+        # the hold may have started before this point: it then holds already at ``after``
+        if j > 0 and m[j - 1] == kernel.CRUISE and abs(v[j - 1] - V) <= tol and s[j - 1] <= after:
+            return after
+        return float(s[j])
+
+    def _holding_cost(self, a: float, b: float, V: float) -> tuple[float, float]:
+        """(electrical energy [J], time [s]) of holding V from a to b (traction for the resistance
+        where it pulls back, regenerative braking where the line pushes)."""
+        if b <= a + 1e-9:
+            return 0.0, 0.0
+        tr = self.track
+        inner = tr.x[(tr.x > a) & (tr.x < b)]
+        s = np.concatenate([[a], inner, [b]])
+        v = np.full(len(s), V)
+        m = np.full(len(s), kernel.CRUISE, dtype=np.int8)
+        cum = np.empty(len(s))
+        pk.path_energy(
+            s, v, m, tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.P, self.curves,
+            self.inv_eta_t, self.eta_r, cum,
+        )  # fmt: skip
+        return float(cum[-1]), (b - a) / V
+
     def _best_departure(self, seg, p_lo: float, a: float, W: float, V: float, mu: float, key):
         """The coasting excursion ahead of a steep descent that starts at a: (p, points, rejoin
         state) with the departure point p in [p_lo, a] that minimises energy + mu x time against
@@ -451,8 +482,15 @@ class SectionSolver:
             if status != 0 or n >= self.n_max - 8:
                 return np.inf, None
             q = tr.x[iq] + uq
-            _, _, _, t_a, _ = self._state_at(seg, q)
-            dj = e_path - (np.interp(q, seg[0], cum) - np.interp(p, seg[0], cum)) + mu * (tq - t_a)
+            # compare where both runs hold V again: the run without the excursion may still be
+            # coasting down from above V at q; the excursion then holds V up to where it is back
+            q_both = max(q, self._back_at(seg, q, V))
+            _, _, _, t_a, _ = self._state_at(seg, q_both)
+            e_hold, t_hold = self._holding_cost(q, q_both, V)
+            dj = (
+                e_path + e_hold - (np.interp(q_both, seg[0], cum) - np.interp(p, seg[0], cum))
+                + mu * (tq + t_hold - t_a)
+            )  # fmt: skip
             if not keep:
                 return dj, None
             return dj, (tuple(arr[:n].copy() for arr in out), (iq, uq, V, tq))
