@@ -178,12 +178,12 @@ class SectionSolver:
             found = None
             after = last_pos
             while found is None:
-                descent = self._next_descent(seg, steep_down, after, holding_speed)
+                descent = self._next_descent(seg, steep_down, after, vhold)
                 if descent is None:
                     break
-                a, after = descent
+                a, after, v_rejoin = descent
                 found = self._best_departure(
-                    seg, last_pos, a, W, holding_speed, mu, ("descent", round(after))
+                    seg, last_pos, a, W, holding_speed, mu, ("descent", round(after)), v_rejoin
                 )
             if found is None:
                 pieces.append(seg)
@@ -393,20 +393,24 @@ class SectionSolver:
         return s, np.array([0.0, 1.0]), np.array([0.0, np.inf]), np.array([0, kernel.DWELL], dtype=np.int8)
 
     def _steep_descents(self, V: float, vhold: np.ndarray, vtop: np.ndarray) -> np.ndarray:
-        """Intervals where coasting at V speeds the train up (holding V would need braking) and the
-        train may go faster than V there."""
+        """Intervals where holding the local holding speed (V, or the limit where lower) would need
+        braking: coasting speeds the train up there. On holding arcs at V the train must also be
+        allowed faster than V; on a speed limit it holds the limit with braking on the descent, and
+        coasting ahead of it saves that braking."""
         tr = self.track
         law = self.train.resistance_law
         weight = self.P[kernel.P_WEIGHT]
-        res_left = law(V) + weight * (tr.a0 + tr.b0 * V * V)
-        res_right = law(V) + weight * (
-            tr.a0 + tr.a1 * np.diff(tr.x) + (tr.b0 + tr.b1 * np.diff(tr.x)) * V * V
-        )
-        return (np.minimum(res_left, res_right) < 0.0) & (vhold >= V - 1e-9) & (vtop > V + 1e-6)
+        w = np.diff(tr.x)
+        res_left = law(vhold) + weight * (tr.a0 + tr.b0 * vhold * vhold)
+        res_right = law(vhold) + weight * (tr.a0 + tr.a1 * w + (tr.b0 + tr.b1 * w) * vhold * vhold)
+        on_v = (vhold >= V - 1e-9) & (vtop > V + 1e-6)
+        on_limit = vhold < V - 1e-9
+        return (np.minimum(res_left, res_right) < 0.0) & (on_v | on_limit)
 
-    def _next_descent(self, seg, steep_down, after: float, V: float) -> tuple[float, float] | None:
-        """(a, end) [m] of the next steep descent ending beyond ``after``: a is where the run
-        without excursion is at speed V on it (its start, or where the train reaches V on it)."""
+    def _next_descent(self, seg, steep_down, after: float, vhold: np.ndarray):
+        """(a, end, hold speed) of the next steep descent ending beyond ``after``: a [m] is where
+        the run without excursion is at its holding speed [m/s] on it (its start, or where the train
+        reaches that speed on it); None if there is none."""
         tr = self.track
         idx = np.flatnonzero(steep_down[self.i0 : self.i1]) + self.i0
         if not len(idx):
@@ -419,11 +423,13 @@ class SectionSolver:
             lo, hi = max(tr.x[i], after), tr.x[j]
             if hi <= after + 1.0:
                 continue
-            if np.interp(lo, s, v) >= V * (1.0 - 1e-6):
-                return float(lo), float(hi)
-            at_v = np.flatnonzero((s > lo) & (s < hi) & (v >= V * (1.0 - 1e-6)))
+            k = min(int(np.searchsorted(tr.x, lo, side="right")) - 1, j - 1)
+            v_hold = float(vhold[k])
+            if np.interp(lo, s, v) >= v_hold * (1.0 - 1e-6):
+                return float(lo), float(hi), v_hold
+            at_v = np.flatnonzero((s > lo) & (s < hi) & (v >= v_hold * (1.0 - 1e-6)))
             if len(at_v):
-                return float(s[at_v[0]]), float(hi)
+                return float(s[at_v[0]]), float(hi), v_hold
         return None
 
     @staticmethod
@@ -457,7 +463,9 @@ class SectionSolver:
         )  # fmt: skip
         return float(cum[-1]), (b - a) / V
 
-    def _best_departure(self, seg, p_lo: float, a: float, W: float, V: float, mu: float, key):
+    def _best_departure(
+        self, seg, p_lo: float, a: float, W: float, V: float, mu: float, key, v_rejoin: float
+    ):
         """The coasting excursion ahead of a steep descent that starts at a: (p, points, rejoin
         state) with the departure point p in [p_lo, a] that minimises energy + mu x time against
         the run without it, or None when no excursion is cheaper.
@@ -477,23 +485,24 @@ class SectionSolver:
             i, u, vp, tp, _ = self._state_at(seg, p)
             n, status, _, iq, uq, tq, e_path = pk.coast_excursion(
                 tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, W, tr.traction_scale, i, u, vp, tp, self.i1,
-                self.P, self.curves, self.bk, V, mu, self.inv_eta_t, self.eta_r, ADJOINT_STEP_M, *out,
+                self.P, self.curves, self.bk, V, v_rejoin, mu, self.inv_eta_t, self.eta_r, ADJOINT_STEP_M,
+                *out,
             )  # fmt: skip
             if status != 0 or n >= self.n_max - 8:
                 return np.inf, None
             q = tr.x[iq] + uq
-            # compare where both runs hold V again: the run without the excursion may still be
+            # compare where both runs hold again: the run without the excursion may still be
             # coasting down from above V at q; the excursion then holds V up to where it is back
-            q_both = max(q, self._back_at(seg, q, V))
+            q_both = max(q, self._back_at(seg, q, v_rejoin))
             _, _, _, t_a, _ = self._state_at(seg, q_both)
-            e_hold, t_hold = self._holding_cost(q, q_both, V)
+            e_hold, t_hold = self._holding_cost(q, q_both, v_rejoin)
             dj = (
                 e_path + e_hold - (np.interp(q_both, seg[0], cum) - np.interp(p, seg[0], cum))
                 + mu * (tq + t_hold - t_a)
             )  # fmt: skip
             if not keep:
                 return dj, None
-            return dj, (tuple(arr[:n].copy() for arr in out), (iq, uq, V, tq))
+            return dj, (tuple(arr[:n].copy() for arr in out), (iq, uq, v_rejoin, tq))
 
         lo = min(p_lo + 1.0, a)
         forced = self._forced.get(key)

@@ -393,14 +393,15 @@ def holding_segment(
 
 @njit(cache=True)
 def coast_excursion(
-    x, a0, a1, b0, b1, vlim, W, tscale, i, u, v0, t, i_end, P, curves, bk, V, mu, inv_eta_t, eta_r, h_max,
-    out_s, out_v, out_t, out_m,
+    x, a0, a1, b0, b1, vlim, W, tscale, i, u, v0, t, i_end, P, curves, bk, V, v_rejoin, mu, inv_eta_t, eta_r,
+    h_max, out_s, out_v, out_t, out_m,
 ):  # fmt: skip
     """Leave the holding arc (or the traction arc below V) into coasting, ahead of a descent too
     steep to hold V on.
 
     Coasts and integrates the adjoint from phi = 1/eta_t until the speed comes back down to V
-    after having been above it: the rejoin point q. The train holds the speed limit ``vlim`` with
+    after having been above it: the rejoin point q. Leaving a speed limit ``v_rejoin`` below V, the
+    train rejoins where coasting brings it back up to that limit. The train holds the speed limit ``vlim`` with
     braking where coasting would exceed it, and the regenerative holding speed W once the adjoint
     has fallen to eta_r (the singular regenerative arc; above eta_r the optimal control coasts).
     Returns (n, status, phi(q) - 1/eta_t, i_q, u_q, t_q, energy_j): status 0 rejoined, 1 came to
@@ -409,6 +410,9 @@ def coast_excursion(
     phi = inv_eta_t
     E = 0.5 * v0 * v0
     EV = 0.5 * V * V
+    on_limit = v_rejoin < V * (1.0 - 1e-9)
+    ER = 0.5 * v_rejoin * v_rejoin
+    below = False
     above = False
     energy = 0.0
     n = 0
@@ -438,7 +442,19 @@ def coast_excursion(
                     E1 = min(E1, 0.5 * cap * cap)
             if E1 <= 0.0:
                 return n, 1, -np.inf, ii, uu, t, energy
-            if above and E1 < EV <= E:
+            if on_limit and below and E1 >= ER * (1.0 - 1e-12):
+                # back up to the limit: the rejoin point, where the limit is held again
+                hq = h
+                if E1 > ER * (1.0 + 1e-12):
+                    hq = distance_to_speed(E, uu, ER, COAST, line, P, curves)
+                    if not np.isfinite(hq) or hq > h:
+                        hq = h
+                _, dtq = rk4_energy_time(E, uu, hq, COAST, line, P, curves)
+                n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
+                return n, 0, 0.0, ii, uu + hq, t + dtq, energy
+            if on_limit and E1 < ER * (1.0 - 1e-9):
+                below = True
+            if not on_limit and above and E1 < EV <= E:
                 # back down to V inside this step: the rejoin point
                 hq = distance_to_speed(E, uu, EV, COAST, line, P, curves)
                 if not np.isfinite(hq) or hq > h:
