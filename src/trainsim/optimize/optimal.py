@@ -795,10 +795,15 @@ class SectionSolver:
         descents or limits jump between two nearly equally good choices: move them together from
         the slower run's to the faster run's (a homotopy in lambda) until the run takes
         ``running_time_s``; None if the time cannot be met that way."""
+
+        def departure(decisions: dict, other: dict, k) -> float:
+            # a departure the other run did not consider is the run without it: its latest point
+            return decisions[k][0] if k in decisions else other[k][2]
+
         keys = [
             k
             for k in set(slow) | set(fast)
-            if abs(slow.get(k, fast.get(k))[0] - fast.get(k, slow.get(k))[0]) > 1e-3
+            if abs(departure(slow, fast, k) - departure(fast, slow, k)) > 1e-3
         ]
         if not keys:
             return None
@@ -806,9 +811,7 @@ class SectionSolver:
         def plan_at(lam: float) -> SectionPlan:
             self._forced = {}
             for k in keys:
-                p_slow = slow[k][0] if k in slow else fast[k][2]
-                p_fast = fast[k][0] if k in fast else slow[k][2]
-                self._forced[k] = (1.0 - lam) * p_slow + lam * p_fast
+                self._forced[k] = (1.0 - lam) * departure(slow, fast, k) + lam * departure(fast, slow, k)
             try:
                 return self.plan(V)
             finally:
