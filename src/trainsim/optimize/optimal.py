@@ -654,7 +654,7 @@ class SectionSolver:
         self._has_limit_braking = False
         plans = [self._solve_variant(running_time_s, True, True)]
         if plans[0].feasible and (self._has_descents or self._has_limit_braking):
-            plans.append(self._solve_variant(running_time_s, False, False))
+            plans.append(self._solve_variant(running_time_s, False, False, plans[0].holding_speed_mps))
             if not any(self._meets(p, running_time_s) for p in plans):
                 if self._has_limit_braking:
                     plans.append(self._solve_variant(running_time_s, False, True))
@@ -666,14 +666,17 @@ class SectionSolver:
             return min(meeting, key=self.energy_j)
         return min(plans, key=lambda p: abs(p.running_time_s - running_time_s))
 
-    def _solve_variant(self, running_time_s: float, excursions: bool, limit_coasting: bool) -> SectionPlan:
+    def _solve_variant(
+        self, running_time_s: float, excursions: bool, limit_coasting: bool, guess_mps: float | None = None
+    ) -> SectionPlan:
         """The run with or without departures ahead of descents and lower limits, from a fresh
-        start (no warm start from an earlier solve: results never depend on history)."""
+        start (no warm start from an earlier solve: results never depend on history) or from the
+        holding speed ``guess_mps`` of another variant of this solve."""
         self.excursions, self.limit_coasting = excursions, limit_coasting
         self._last_coast_point = None
         self._limit_coast_points = {}
         self._last_limit_speed = None
-        self._last_holding_speed = None
+        self._last_holding_speed = guess_mps if guess_mps is not None and np.isfinite(guess_mps) else None
         return self._solve_once(running_time_s)
 
     @staticmethod
@@ -712,13 +715,20 @@ class SectionSolver:
 
         on_time: list[SectionPlan] = []  # plans that keep the schedule, if not to TIME_TOLERANCE_S
 
+        seen: dict[float, float] = {}
+
         def excess(log_v: float) -> float:
+            # the same holding speed twice gives the same answer (plans warm-start from the last
+            # one, so a second evaluation could land on the other side of a jump)
+            if log_v in seen:
+                return seen[log_v]
             plan = self.plan(float(np.exp(log_v)))
             error = plan.running_time_s - running_time_s
             if abs(error) <= TIME_TOLERANCE_S:
                 raise _ConvergedError(plan)
             if self._meets(plan, running_time_s):
                 on_time.append(plan)
+            seen[log_v] = error
             return error
 
         try:
@@ -762,13 +772,13 @@ class SectionSolver:
     def _bracket(self, excess, running_time_s: float, vmax: float) -> tuple[float, float]:
         """(log V) bracket of the holding speed that meets the time, grown geometrically from a
         guess: the average speed the schedule needs, a little higher (the train also accelerates
-        and brakes), or the holding speed of the last solve (the energy-time curve and a line's
-        split solve neighbouring times one after the other)."""
+        and brakes), or the holding speed another variant of this solve found."""
         length = self.s1 - self.s0
         guess = self._last_holding_speed or 1.1 * length / running_time_s
         log_lo = log_hi = float(np.log(guess))
         e_lo = e_hi = excess(log_lo)
-        factor = np.log(1.25)
+        # from another variant's holding speed the answer is near: small first steps
+        factor = np.log(1.25) if self._last_holding_speed is None else np.log(1.03)
         while e_hi > 0.0:  # too slow: a higher holding speed
             log_lo, e_lo = log_hi, e_hi
             log_hi += factor
