@@ -35,6 +35,8 @@ from trainsim.sim.profile import compile_track
 
 #: Shooting on the coasting point stops when its bracket is shorter than this [m].
 COAST_POINT_TOLERANCE_M = 0.25
+#: ... and until the run meets the braking curve to the stop no farther than this before it [m].
+CEILING_MISS_M = 2.0
 #: The section time is met to this [s] (far inside the max(0.5 s, 0.05 %) the schedule needs).
 TIME_TOLERANCE_S = 5e-2
 #: Largest step of the adjoint-driven phase [m].
@@ -627,11 +629,16 @@ class SectionSolver:
             lo = hi - step
         # bisection: the outcome is discontinuous at the boundary (the train meets the service braking
         # curve some metres before the stop), so a secant on a residual does not converge faster
-        while hi - lo > COAST_POINT_TOLERANCE_M and r_lo < 0.0:
+        r_hi = np.inf
+        # on to COAST_POINT_TOLERANCE_M, and further while the run meets the braking curve to the
+        # stop far before it (at speed: friction braking would waste what regeneration returns)
+        while r_lo < 0.0 and (
+            hi - lo > COAST_POINT_TOLERANCE_M or (r_hi > CEILING_MISS_M and hi - lo > 1e-3)
+        ):
             mid = 0.5 * (lo + hi)
             r_mid, points = residual(mid)
             if r_mid >= 0.0:
-                hi, best = mid, points
+                hi, best, r_hi = mid, points, r_mid
             else:
                 lo = mid
         self._last_coast_point = hi
