@@ -9,11 +9,10 @@ holding, found so that the train stops exactly at the next station; V is solved 
 section takes its scheduled time. Sections of a line that share mu share the marginal energy per
 second of running time, which makes a split of a line's supplement optimal.
 
-Scope of this implementation (see docs/OPTIMIZATION.md): holding arcs follow V or the speed
-limit where it is lower, with maximum traction where the train cannot hold V uphill and
-regenerative-then-friction braking where holding needs braking downhill; the coasting phases that
-the exact theory also places before steep downhill and before lower speed limits are not
-constructed, so on hilly lines the result is an upper bound close to the optimum.
+For a fixed mu the optimal run minimises energy + mu x time; the local choices of the
+construction (where to stop driving ahead of steep descents and lower limits, where to start the
+final coast) are made by comparing that cost on the stretch they change. docs/OPTIMIZATION.md
+describes the construction step by step and where it still falls short of the reference optimum.
 """
 
 from __future__ import annotations
