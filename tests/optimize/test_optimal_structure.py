@@ -169,6 +169,22 @@ def test_schedule_kept_where_the_running_time_jumps_with_the_holding_speed():
     assert abs(plan.running_time_s - T) <= tolerance(T)
 
 
+@pytest.mark.skipif(not TTOBENCH.exists(), reason="TTOBench data not found beside the checkout")
+def test_net_regenerating_descent_ends_on_regenerative_braking():
+    # Zurich Stadelhofen - Altstetten, first 1.7 km: downhill all the way, the train returns more
+    # than it draws. The final coast must end on the regenerative braking curve to the stop, not on
+    # the friction brakes a few metres too late (that cost 7 % of the energy returned)
+    tt = read_ttobench_train(TTOBENCH / "trains" / "NL_Intercity_VIRM6.json")
+    route = read_ttobench_track(TTOBENCH / "tracks" / "CH_Stadelhofen_Altstetten.json", tt)
+    solver = SectionSolver(tt.train, route, 0.0, 1690.0)
+    T = solver.fastest_time_s * 1.30
+    plan = solver.solve(T)
+    assert abs(plan.running_time_s - T) <= tolerance(T)
+    energy, reference = net_energy_j(solver, plan), reference_energy_j(solver, T)
+    assert reference < 0.0
+    assert abs(energy - reference) <= 5e-3 * abs(reference)
+
+
 def test_solves_do_not_depend_on_earlier_solves():
     route = lower_limit_route()
     solver = SectionSolver(regen_train(), route, 0.0, 10_000.0)
