@@ -42,7 +42,7 @@ TIME_TOLERANCE_S = 5e-2
 ADJOINT_STEP_M = 20.0
 #: Half-width of the window around the previous holding speed's coasting point ahead of a lower
 #: limit that is searched first [m].
-LIMIT_COAST_WINDOW_M = 150.0
+DEPARTURE_WINDOW_M = 150.0
 #: ... when the holding speed differs from the previous one by less than this (in log) [-].
 WARM_START_LOG_SPEED = 0.005
 
@@ -133,9 +133,9 @@ class SectionSolver:
         self.excursions = True
         #: whether the train coasts ahead of lower limits (not only brakes to them)
         self.limit_coasting = True
-        self._limit_coast_points: dict[int, float] = {}
+        self._departure_points: dict[tuple[str, int], float] = {}
         self._has_descents = self._has_limit_braking = False
-        self._last_limit_speed: float | None = None
+        self._last_departure_speed: float | None = None
         self._near_last_speed = False
         #: the departure points chosen by the last phase A, (p, lowest, highest) per descent or
         #: lower limit, and departure points imposed on the next (see _bridge)
@@ -159,6 +159,11 @@ class SectionSolver:
         if not np.isfinite(holding_speed) or holding_speed >= 10.0 * float(tr.vlim.max()):
             return self.fastest
         self._decisions = {}
+        # close to the last holding speed the best departure points move little: searched near
+        # the last ones first
+        last = self._last_departure_speed
+        self._near_last_speed = last is not None and abs(np.log(holding_speed / last)) < WARM_START_LOG_SPEED
+        self._last_departure_speed = holding_speed
         vhold = np.minimum(tr.vlim, holding_speed)
         W = regenerative_holding_speed(self.train, price_of_time_w(self.train, holding_speed), self.eta_r)
         vtop = np.maximum(np.minimum(tr.vlim, W), vhold)
@@ -197,9 +202,6 @@ class SectionSolver:
             last_pos = tr.x[q[0]] + q[1]
         points = tuple(np.concatenate([pc[k] for pc in pieces]) for k in range(4))
         # close to the last holding speed the best coasting points ahead of limits move little
-        last = self._last_limit_speed
-        self._near_last_speed = last is not None and abs(np.log(holding_speed / last)) < WARM_START_LOG_SPEED
-        self._last_limit_speed = holding_speed
         if self.limit_coasting:
             points = self._coast_before_limits(points, vtop, Cr, US, modes, mu)
         return points
@@ -249,7 +251,7 @@ class SectionSolver:
 
             key = ("limit", round(b))
             best_p, dj = np.nan, np.inf
-            warm = self._limit_coast_points.get(key) if self._near_last_speed else None
+            warm = self._departure_points.get(key) if self._near_last_speed else None
             forced = self._forced.get(key)
             if forced is not None:
                 best_p = min(max(forced, p_floor), q)
@@ -257,7 +259,7 @@ class SectionSolver:
                 warm = None
             elif warm is not None:
                 # the outer search moves V a little at a time: look near the last optimum first
-                lo, hi = max(p_floor, warm - LIMIT_COAST_WINDOW_M), min(q, warm + LIMIT_COAST_WINDOW_M)
+                lo, hi = max(p_floor, warm - DEPARTURE_WINDOW_M), min(q, warm + DEPARTURE_WINDOW_M)
                 if hi - lo > 1.0:
                     best_p, dj = self._golden(cost, lo, hi)
                     at_edge = min(best_p - lo, hi - best_p) < 1.0 and not (
@@ -268,7 +270,7 @@ class SectionSolver:
             if not np.isfinite(dj) and forced is None:
                 best_p, dj = self._minimise(cost, p_floor, q)
             if np.isfinite(dj):
-                self._limit_coast_points[key] = best_p
+                self._departure_points[key] = best_p
             accepted = False
             if np.isfinite(dj) and (dj < 0.0 or forced is not None):
                 dj, splice = cost(best_p, keep=True)
@@ -512,6 +514,8 @@ class SectionSolver:
             self._decisions[key] = (p, lo, a)
             dj, found = cost(p, keep=True) if p < a - 1e-6 else (np.inf, None)
             return None if found is None else (p, found[0], found[1])
+        # no warm start here: on hilly lines the best departure ahead of a descent jumps between
+        # distant local optima as V moves, and a window around the last one would miss them
         p, dj = self._minimise(cost, lo, a) if a - lo > 1.0 else (a, cost(a)[0])
         self._decisions[key] = (a, lo, a)
         if not np.isfinite(dj) or dj >= 0.0:
@@ -680,8 +684,8 @@ class SectionSolver:
         holding speed ``guess_mps`` of another variant of this solve."""
         self.excursions, self.limit_coasting = excursions, limit_coasting
         self._last_coast_point = None
-        self._limit_coast_points = {}
-        self._last_limit_speed = None
+        self._departure_points = {}
+        self._last_departure_speed = None
         self._last_holding_speed = guess_mps if guess_mps is not None and np.isfinite(guess_mps) else None
         return self._solve_once(running_time_s)
 
