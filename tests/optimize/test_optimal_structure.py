@@ -194,3 +194,20 @@ def test_solves_do_not_depend_on_earlier_solves():
     fresh = SectionSolver(regen_train(), route, 0.0, 10_000.0).solve(T)
     np.testing.assert_array_equal(after_other.s, fresh.s)
     np.testing.assert_array_equal(after_other.v, fresh.v)
+
+
+@pytest.mark.skipif(not TTOBENCH.exists(), reason="TTOBench data not found beside the checkout")
+def test_line_supplement_on_a_hilly_line_with_lower_limits_is_met():
+    from trainsim.optimize.api import optimize
+    from trainsim.optimize.timetable import line_supplement
+
+    tt = read_ttobench_train(TTOBENCH / "trains" / "NL_Intercity_VIRM6.json")
+    route = read_ttobench_track(TTOBENCH / "tracks" / "CN_Songjiazhuang_Yizhuang.json", tt)
+    res = optimize(tt.train, route, line_supplement("5%"))
+    total = res.fastest.running_time_s * 1.05
+    assert res.run.running_time_s == pytest.approx(total, abs=max(0.5, 5e-4 * total))
+    assert res.energy_saved_kwh > 0.0
+    assert all(
+        abs(d) <= tolerance(T)
+        for d, T in zip(res.schedule_deviation_s, res.scheduled_running_time_s, strict=True)
+    )

@@ -29,7 +29,7 @@ from trainsim.errors import InputError
 from trainsim.model.route import Route, Station
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
-from trainsim.optimize.optimal import SectionPlan, SectionSolver
+from trainsim.optimize.optimal import TIME_TOLERANCE_S, SectionPlan, SectionSolver
 from trainsim.optimize.timetable import Timetable
 from trainsim.sim import kernel
 from trainsim.sim.fastest import run_fastest, stops_of
@@ -190,15 +190,44 @@ def _optimal_plans(solvers: list[SectionSolver], timetable: Timetable) -> tuple[
         return [sv.solve(f) for sv, f in zip(solvers, fastest, strict=True)], warnings
 
     # one holding speed for every section: equal price of time, equal marginal energy per second
+    seen: dict[float, tuple[float, list[SectionPlan]]] = {}
+
     def excess(log_v: float) -> float:
-        return sum(sv.plan(float(np.exp(log_v))).running_time_s for sv in solvers) - total
+        if log_v not in seen:
+            plans = [sv.plan(float(np.exp(log_v))) for sv in solvers]
+            seen[log_v] = (sum(p.running_time_s for p in plans) - total, plans)
+        error, plans = seen[log_v]
+        if abs(error) <= TIME_TOLERANCE_S:
+            raise _SplitFoundError(plans)
+        return error
 
     vmax = max(float(sv.track.vlim.max()) for sv in solvers)
-    lo, hi = np.log(0.5), np.log(vmax * 20.0)
-    if excess(hi) > 0:
-        hi = np.log(vmax * 1000.0)
-    log_v = brentq(excess, lo, hi, xtol=1e-12, rtol=1e-12, maxiter=200)
-    return [sv.plan(float(np.exp(log_v))) for sv in solvers], warnings
+    try:
+        # bracket from the speed the schedule needs, a little higher (the train accelerates and brakes)
+        log_lo = log_hi = float(np.log(1.1 * sum(sv.s1 - sv.s0 for sv in solvers) / total))
+        step = np.log(1.25)
+        while excess(log_hi) > 0.0 and log_hi < np.log(vmax * 1000.0):
+            log_lo, log_hi, step = log_hi, log_hi + step, 1.5 * step
+        while excess(log_lo) < 0.0 and log_lo > np.log(0.5):
+            log_hi, log_lo, step = log_lo, log_lo - step, 1.5 * step
+        log_v = brentq(excess, log_lo, log_hi, xtol=1e-12, rtol=1e-12, maxiter=200)
+        plans = seen[log_v][1] if log_v in seen else [sv.plan(float(np.exp(log_v))) for sv in solvers]
+    except _SplitFoundError as found:
+        return found.plans, warnings
+    except ValueError:  # no sign change: the runs at the extreme holding speeds
+        plans = seen[min(seen, key=lambda k: abs(seen[k][0]))][1]
+    # the running time jumps with V here: keep the split of that V and meet it section by section
+    times = [p.running_time_s for p in plans]
+    scale = total / sum(times)
+    return [sv.solve(t * scale) for sv, t in zip(solvers, times, strict=True)], warnings
+
+
+class _SplitFoundError(Exception):
+    """Ends the search for the common holding speed of a line's sections (a result, not an error)."""
+
+    def __init__(self, plans: list[SectionPlan]) -> None:
+        super().__init__()
+        self.plans = plans
 
 
 def optimize(
