@@ -38,6 +38,12 @@ COAST_POINT_TOLERANCE_M = 0.25
 CEILING_MISS_M = 2.0
 #: The section time is met to this [s] (far inside the max(0.5 s, 0.05 %) the schedule needs).
 TIME_TOLERANCE_S = 5e-2
+#: Iterations of the holding speed search before the fallbacks take over.
+HOLDING_SPEED_ITERATIONS = 12
+#: Bisection steps of the homotopy between departure choices where the running time jumps.
+BRIDGE_ITERATIONS = 16
+#: Runs that keep the schedule collected around a ragged crossing before the least-energy one is kept.
+RAGGED_SAMPLES = 3
 #: Largest step of the adjoint-driven phase [m].
 ADJOINT_STEP_M = 20.0
 #: Half-width of the window around the previous holding speed's coasting point ahead of a lower
@@ -743,10 +749,14 @@ class SectionSolver:
 
         try:
             lo, hi = self._bracket(excess, running_time_s, vmax)
-            log_v = brentq(excess, lo, hi, xtol=1e-10, rtol=1e-10, maxiter=200)
+            # smooth cases converge in well under HOLDING_SPEED_ITERATIONS; more means the running
+            # time is ragged or jumps in V, which the fallbacks below handle better than more steps
+            log_v = brentq(excess, lo, hi, xtol=1e-10, rtol=1e-10, maxiter=HOLDING_SPEED_ITERATIONS)
         except _ConvergedError as done:
             self._last_holding_speed = done.plan.holding_speed_mps
             return done.plan
+        except RuntimeError:  # not converged in HOLDING_SPEED_ITERATIONS
+            log_v = min(seen, key=lambda k: abs(seen[k]))
         # the running time jumps at this holding speed (the structure of the run changes there):
         # the closest plan on either side
         candidates = []
@@ -771,10 +781,12 @@ class SectionSolver:
         if not on_time:
             # the running time is ragged in V here (long adjoint-driven phases on hilly lines are
             # sensitive to it): look around the crossing for holding speeds that keep the schedule
-            for f in np.linspace(-0.01, 0.01, 21):
+            for tried, f in enumerate(sorted(np.linspace(-0.01, 0.01, 21), key=abs), start=1):
                 plan = self.plan(float(np.exp(log_v + f)))
                 if self._meets(plan, running_time_s):
                     on_time.append(plan)
+                if len(on_time) >= RAGGED_SAMPLES or (on_time and tried >= 3 * RAGGED_SAMPLES):
+                    break
         if on_time:
             return min(on_time, key=self.energy_j)
         return min(candidates, key=lambda p: abs(p.running_time_s - running_time_s))
@@ -839,7 +851,7 @@ class SectionSolver:
 
         lo, hi = 0.0, 1.0
         best = None
-        for _ in range(40):
+        for _ in range(BRIDGE_ITERATIONS):
             lam = 0.5 * (lo + hi)
             plan = plan_at(lam)
             error = plan.running_time_s - running_time_s
