@@ -204,10 +204,18 @@ def test_bad_driving_values_are_failure_rows():
             "did you mean 'supplement'",
         ),
         ({"axes": [{"field": "driving.supplement", "values": [1.1], "relative": True}]}, "scales a number"),
-        ({"axes": [{"field": "model", "values": ["multi_point"]}]}, "the multi-point model cannot be chosen"),
         (
-            {"axes": [{"field": "multi_point.coupler", "values": [1]}]},
-            "the multi-point model cannot be chosen",
+            {
+                "axes": [
+                    {"field": "model", "values": ["multi_point"]},
+                    {"field": "driving.supplement", "values": ["5%"]},
+                ]
+            },
+            "the multi-point model is not driven by a 'driving' block",
+        ),
+        (
+            {"axes": [{"field": "multi_point.couplers.slack_m", "values": [0.01]}]},
+            "is a setting of the multi-point model",
         ),
     ],
 )
@@ -217,16 +225,22 @@ def test_bad_driving_paths_are_study_errors(extra, message):
     assert message in str(info.value) and str(info.value).startswith("study.yaml")
 
 
-def test_multi_point_bases_are_refused_with_a_clear_error(tmp_path):
+def test_model_and_multi_point_block_are_read_as_the_scenario_reader_does(tmp_path):
+    # multi-point studies: tests/batch/test_multipoint.py
     data = metro_study()
     data["base"]["model"] = "multi_point"
-    with pytest.raises(InputError, match=r"field 'model': studies compute single-point runs.*multi-point"):
-        study_from_dict(data, "s.yaml")
+    assert study_from_dict(data, "s.yaml").multi_point
     data["base"]["model"] = "single_point"
-    assert len(study_from_dict(data, "s.yaml").expand()) == 1  # what studies compute anyway
+    study = study_from_dict(data, "s.yaml")
+    assert len(study.expand()) == 1 and not study.multi_point
+    data["base"]["model"] = "multipoint"
+    with pytest.raises(InputError, match=r"field 'model': unknown model"):
+        study_from_dict(data, "s.yaml")
     del data["base"]["model"]
     data["base"]["multi_point"] = {}
-    with pytest.raises(InputError, match=r"field 'multi_point': .*multi-point model"):
+    with pytest.raises(
+        InputError, match=r"field 'multi_point': a 'multi_point' block needs 'model: multi_point'"
+    ):
         study_from_dict(data, "s.yaml")
 
 

@@ -191,6 +191,7 @@ def test_example_studies_load_and_expand():
     for path in sorted((REPO / "examples" / "studies").glob("*.yaml")):
         sizes[path.stem] = len(load_study(path).expand())
     assert sizes == {
+        "heavy_haul_couplers": 12,
         "loco_adhesion": 300,
         "metro_eco_driving": 24,
         "metro_load_efficiency": 35,

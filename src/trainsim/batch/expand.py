@@ -102,6 +102,8 @@ class Expansion:
         run_ids: stable id of each run.
         driving: whether the runs are driven by a ``driving`` block (the results have the driving
             columns).
+        multi_point: whether some runs use the multi-point model (the results have the coupler-force
+            columns).
     """
 
     study_name: str
@@ -112,6 +114,7 @@ class Expansion:
     departure_s: list[float | None]
     run_ids: list[str]
     driving: bool = False
+    multi_point: bool = False
     _overrides: list[ParamColumn] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -205,4 +208,5 @@ def expand(study: Study) -> Expansion:
         departures,
         ids,
         driving=study.driving,
+        multi_point=study.multi_point,
     )

@@ -55,7 +55,8 @@ class Path:
 
     @property
     def root(self) -> str:
-        """The first key: ``train``, ``route``, ``settings``, ``stops``, ``dwell_s`` or ``driving``."""
+        """The first key: ``train``, ``route``, ``settings``, ``stops``, ``dwell_s``, ``driving``, ``model`` or
+        ``multi_point``."""
         return self.steps[0].key or ""
 
     def tail(self) -> Path:

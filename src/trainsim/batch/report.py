@@ -118,7 +118,7 @@ def _statistics(ok):
     import pandas as pd
 
     rows = []
-    for name in (*METRICS, "arrival_s", *DRIVING_METRICS):
+    for name in (*METRICS, "arrival_s", *DRIVING_METRICS, "max_draft_force_n", "max_buff_force_n"):
         if name not in ok.columns:
             continue
         v = pd.to_numeric(ok[name], errors="coerce").dropna().to_numpy(dtype=float)

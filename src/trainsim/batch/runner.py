@@ -203,6 +203,8 @@ def run_study(
         tuple(e.data for e in study.entries),
         timetables=tuple(study.timetables.items()),
         driving=study.driving,
+        profiles=tuple(study.profiles.items()),
+        multi_point=study.multi_point,
     )
     already = len(expansion) - len(todo)
     computed = failed = stalled = chunks = 0

@@ -29,7 +29,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from trainsim.batch.expand import Expansion
-from trainsim.batch.worker import DRIVING_METRICS, METRICS
+from trainsim.batch.worker import DRIVING_METRICS, METRICS, MULTI_POINT_COLUMNS
 from trainsim.errors import InputError
 
 __all__ = ["META_FILE", "RESULTS_DIR", "MemorySink", "ParquetSink", "read_results", "result_schema"]
@@ -94,6 +94,11 @@ def result_schema(expansion: Expansion) -> tuple[pa.Schema, dict[str, Any]]:
         # only studies with a driving block have them: the results of other studies are unchanged
         fields.append(pa.field("strategy", pa.string()))
         fields += [pa.field(n, pa.float64()) for n in DRIVING_METRICS]
+    if expansion.multi_point:
+        # only studies with multi-point runs have them, as the driving columns
+        fields += [
+            pa.field(n, pa.int64() if n.endswith("_coupler") else pa.float64()) for n in MULTI_POINT_COLUMNS
+        ]
     fields.append(pa.field("sections", pa.list_(SECTION_TYPE)))
     meta = {"trainsim.study": expansion.study_name, "trainsim.fingerprint": expansion.fingerprint}
     return pa.schema(fields, metadata=meta), convert

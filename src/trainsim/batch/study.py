@@ -40,13 +40,14 @@ __all__ = [
     "StudySpec",
     "load_study",
     "parse_clock",
+    "scenario_from_data",
     "study_from_dict",
 ]
 
 STUDY_SCHEMA = "trainsim/study"
 #: The top-level keys of a scenario a path may start with.
-PARTS = ("train", "route", "settings", "stops", "dwell_s", "driving")
-#: Keys of a scenario file that choose the multi-point model: not supported in studies (docs/BATCH.md).
+PARTS = ("train", "route", "settings", "stops", "dwell_s", "driving", "model", "multi_point")
+#: Keys of a scenario file that choose the multi-point model and give its settings (docs/MULTIPOINT.md).
 MULTI_POINT_KEYS = ("model", "multi_point")
 #: Largest number of runs a study may expand to (its parameters are held in memory).
 MAX_RUNS = 5_000_000
@@ -408,7 +409,10 @@ class Study:
         self.driving = any("driving" in e.data for e in self.entries) or any(
             c.path is not None and parse_path(c.path).root == "driving" for c in self.columns
         )
+        #: whether some runs use the multi-point model: the results then have the coupler-force columns
+        self.multi_point = self._check_models()
         self.timetables, self._timetable_digests = self._read_timetables()
+        self.profiles, self._profile_digests = self._read_profiles()
         self.fingerprint = self._fingerprint()
 
     # ------------------------------------------------------------------ entries
@@ -442,24 +446,12 @@ class Study:
             data.setdefault("version", 1)
             data.setdefault("name", self.spec.name)
             where, origin = f"{self.file}: base", self.base_dir
-        if isinstance(data, dict):
-            if data.get("model") == "single_point" and "multi_point" not in data:
-                data = {k: v for k, v in data.items() if k != "model"}  # what studies compute anyway
-            for key in MULTI_POINT_KEYS:
-                if key in data:
-                    # the workers compute single-point runs; a silent fallback would mislead
-                    raise InputError(
-                        "studies compute single-point runs; a base scenario with "
-                        f"'{key}' (the multi-point model) is not supported yet",
-                        file=where,
-                        field=key,
-                        allowed="a scenario without 'model' and 'multi_point'",
-                    )
         # the scenario reader reports everything else (unknown fields, bad values) with the file
         for kind in ("train", "route"):
             if kind in data:
                 data[kind] = _read_part(data[kind], kind, origin, where, kind)
         _resolve_timetable(data, origin)
+        _resolve_profile(data, origin)
         _validate_scenario(data, where)
         return data
 
@@ -505,6 +497,7 @@ class Study:
                     driving.pop("timetable", None)
                 data["driving"] = {**driving, **run.driving}
             copied: set[str] = set()
+            model_set = False
             for path, value in (run.set or {}).items():
                 root = self._check_root(path, f"{where}.set.{path}").root
                 if root not in copied and root in data:
@@ -514,7 +507,11 @@ class Study:
                     set_value(data, path, value)
                 except InputError as exc:
                     raise _at(exc, self.file, f"{where}.set.{path}") from None
+                model_set = model_set or root == "model"
+            if model_set:
+                drop_unused_block(data)
             _resolve_timetable(data, self.base_dir)
+            _resolve_profile(data, self.base_dir)
             _validate_scenario(data, f"{self.file}: {where} ({run.name})")
             departures: tuple[float, ...] | None = None
             if run.departure is not None:
@@ -550,14 +547,6 @@ class Study:
             parsed = parse_path(path)
         except InputError as exc:
             raise _at(exc, self.file, field) from None
-        if parsed.root in MULTI_POINT_KEYS:
-            raise InputError(
-                "studies compute single-point runs; the multi-point model cannot be chosen or varied yet",
-                file=self.file,
-                field=field,
-                value=path,
-                allowed=", ".join(PARTS),
-            )
         if parsed.root not in PARTS:
             raise InputError(
                 "a field path starts with the part of the scenario it changes",
@@ -634,7 +623,7 @@ class Study:
                     return InputError(f"{what}: {reason}", file=self.file, field=col.where, allowed=allowed)
 
                 part = parse_path(col.path).root
-                if isinstance(entry.data.get(part), str):
+                if part in ("train", "route") and isinstance(entry.data.get(part), str):
                     raise fail(
                         f"the {part} comes from a file that is not a trainsim file ({entry.data[part]}, "
                         "e.g. railtoolkit), whose fields cannot be varied; use a trainsim file"
@@ -656,6 +645,8 @@ class Study:
                     set_value(trial, col.path, first[col.path])
                 except InputError as exc:
                     raise fail(exc.reason, exc.allowed) from None
+                if part == "model":
+                    drop_unused_block(trial)
                 if existing is not None:
                     continue
                 try:
@@ -667,6 +658,57 @@ class Study:
                             raise fail(
                                 f"no such field in the scenario: '{field}': {reason}", exc.allowed
                             ) from None
+
+    # ------------------------------------------------------------------ models
+    def _model_values(self) -> tuple[list[Any], str | None]:
+        """The values the study writes at ``model`` (axes, samples) and where it writes them."""
+        for i, axis in enumerate(self.spec.axes):
+            for k, path in enumerate(axis.paths()):
+                if parse_path(path).text == "model":
+                    where = f"axes[{i}].field" if axis.field is not None else f"axes[{i}].fields[{k}]"
+                    return [point[k] for point in axis.points()], where
+        if self.spec.samples is not None:
+            for path, dist in self.spec.samples.fields.items():
+                if parse_path(path).text == "model":
+                    return list(dist.values or []), f"samples.fields.{path}"
+        return [], None
+
+    def _check_models(self) -> bool:
+        """Whether some runs use the multi-point model; InputError for combinations no run can compute.
+
+        ``trainsim.run`` ignores a ``driving`` block with ``model: multi_point`` (it computes the
+        multi-point fastest run): a study refuses the combination rather than reporting runs that were
+        not driven as asked. A varied ``multi_point`` field needs runs that use the model.
+        """
+        values, model_where = self._model_values()
+        varied = {c.path and parse_path(c.path).root for c in self.columns}
+        driving_where = next(
+            (c.where for c in self.columns if c.path and parse_path(c.path).root == "driving"), None
+        )
+        any_multi = False
+        for i, entry in enumerate(self.entries):
+            models = set(values) | {entry.data.get("model", "single_point")}
+            multi = "multi_point" in models
+            any_multi = any_multi or multi
+            where = f"runs[{i}] ({entry.name})" if entry.name else "base"
+            if multi and ("driving" in entry.data or driving_where):
+                raise InputError(
+                    "the multi-point model is not driven by a 'driving' block (trainsim.run ignores it "
+                    "for model: multi_point and computes the fastest run); remove 'driving' or use the "
+                    f"single-point model (multi-point runs from {model_where or where})",
+                    file=self.file,
+                    field=driving_where or f"{where}: driving",
+                    allowed="driving with model: single_point only",
+                )
+            if "multi_point" in varied and not multi:
+                col = next(c for c in self.columns if c.path and parse_path(c.path).root == "multi_point")
+                raise InputError(
+                    f"'{col.path}' is a setting of the multi-point model, and the runs of {where} use the "
+                    "single-point model: give the scenario 'model: multi_point' (or vary 'model')",
+                    file=self.file,
+                    field=col.where,
+                )
+        return any_multi
 
     # ------------------------------------------------------------------ timetables
     def _read_timetables(self) -> tuple[dict[str, Any], dict[str, str | None]]:
@@ -707,6 +749,42 @@ class Study:
                 digests[name] = None
         return tables, digests
 
+    def _read_profiles(self) -> tuple[dict[str, Any], dict[str, str | None]]:
+        """Every speed-profile file (``multi_point.profile``) the runs may use, read here as the
+        timetables are: written name -> ``SpeedProfile`` (or the reader's error as ``(reason, file,
+        field, value, allowed)``), and written name -> SHA-256 of the file (None if unreadable)."""
+        if not self.multi_point:
+            return {}, {}
+        from trainsim.multipoint.spec import read_profile
+
+        names: set[str] = set()
+        for entry in self.entries:
+            names.update(_profile_names("multi_point", entry.data.get("multi_point")))
+        values: list[tuple[str, Any]] = []
+        for axis in self.spec.axes:
+            for k, path in enumerate(axis.paths()):
+                values += [(path, point[k]) for point in axis.points()]
+        if self.spec.samples is not None:
+            for path, dist in self.spec.samples.fields.items():
+                values += [(path, v) for v in dist.values or []]
+        for path, value in values:
+            names.update(_profile_names(parse_path(path).text, value))
+        profiles: dict[str, Any] = {}
+        digests: dict[str, str | None] = {}
+        for name in sorted(names):
+            path = FsPath(name)
+            path = path if path.is_absolute() else self.base_dir / path
+            try:
+                profiles[name] = read_profile(path, str(path))
+                digests[name] = _file_digest(str(path))
+            except InputError as exc:
+                profiles[name] = (exc.reason, exc.file, exc.field, exc.value, exc.allowed)
+                digests[name] = None
+            except (OSError, ValueError) as exc:  # pandas: an unreadable or malformed CSV file
+                profiles[name] = (f"unreadable profile file: {exc}", str(path), None, None, None)
+                digests[name] = None
+        return profiles, digests
+
     # ------------------------------------------------------------------ fingerprint
     def _fingerprint(self) -> str:
         files = {}
@@ -725,6 +803,8 @@ class Study:
         if self._timetable_digests:
             # only when there are any, so that the fingerprints of other studies stay as they were
             blob["timetables"] = self._timetable_digests
+        if self._profile_digests:
+            blob["profiles"] = self._profile_digests
         return hashlib.sha256(_canonical(blob).encode()).hexdigest()[:32]
 
     def expand(self):  # -> trainsim.batch.expand.Expansion
@@ -741,9 +821,54 @@ def _at(exc: InputError, file: str, field: str) -> InputError:
 def _validate_scenario(data: dict[str, Any], source: str, base_dir: FsPath | None = None) -> None:
     """Build the scenario once: InputError if the reader rejects it. Relative file names (a driving
     timetable written in an axis) are relative to ``base_dir``."""
+    scenario_from_data(data, source, base_dir)
+
+
+def scenario_from_data(data: dict[str, Any], source: str = "<scenario>", base_dir: FsPath | None = None):
+    """The :class:`~trainsim.model.scenario.Scenario` of a scenario's data, as ``trainsim.load_scenario``
+    reads the same file: without ``model``/``multi_point`` the scenario reader's; else as
+    ``trainsim.multipoint.spec.load_multipoint_scenario`` (same checks, same public functions), with
+    ``model="multi_point"`` and the validated block as ``trainsim.io.loader.load_scenario`` returns it.
+    """
     from trainsim.io import trainsim_yaml as tsy
 
-    tsy.scenario_from_dict(data, source, base_dir)
+    if not isinstance(data, dict) or not ({"model", "multi_point"} & set(data)):
+        return tsy.scenario_from_dict(data, source, base_dir)
+    import dataclasses
+
+    from trainsim.multipoint.spec import multipoint_scenario_from_dict
+
+    scenario, spec = multipoint_scenario_from_dict(data, source, base_dir)
+    if spec is None:
+        return scenario
+    return dataclasses.replace(scenario, model="multi_point", multi_point=spec)
+
+
+def drop_unused_block(data: dict[str, Any]) -> None:
+    """A run the study sets to ``model: single_point`` does not use the scenario's ``multi_point``
+    block (kept for the study's multi-point runs; the reader would refuse the pair in one file)."""
+    if data.get("model") == "single_point":
+        data.pop("multi_point", None)
+
+
+def _resolve_profile(data: dict[str, Any], origin: FsPath) -> None:
+    """Make the ``multi_point.profile`` file name of a scenario's data absolute (relative to
+    ``origin``), in a new ``multi_point`` mapping (the old one may be shared)."""
+    block = data.get("multi_point")
+    if isinstance(block, dict) and isinstance(block.get("profile"), str):
+        path = FsPath(block["profile"])
+        if not path.is_absolute():
+            data["multi_point"] = {**block, "profile": str((origin / path).resolve())}
+
+
+def _profile_names(path: str, value: Any) -> list[str]:
+    """The profile file named by a value written at ``path`` (``multi_point.profile`` or a whole
+    ``multi_point`` block), if any."""
+    if path == "multi_point.profile" and isinstance(value, str):
+        return [value]
+    if path == "multi_point" and isinstance(value, dict) and isinstance(value.get("profile"), str):
+        return [value["profile"]]
+    return []
 
 
 def _resolve_timetable(data: dict[str, Any], origin: FsPath) -> None:

@@ -13,6 +13,12 @@ timetable file, read by the process that started the study). Its row then has th
 (:data:`DRIVING_COLUMNS`): the strategy, the schedule, the deviation from it and the energy saved
 against the fastest run (which ``optimize`` computes anyway).
 
+A run with ``model: multi_point`` is computed as :func:`trainsim.run` computes its scenario too: the
+scenario built from the run's data as the scenario reader builds it
+(:func:`trainsim.batch.study.scenario_from_data`), then
+:func:`trainsim.multipoint.spec.run_multipoint_scenario`; its row has the coupler-force columns
+(:data:`MULTI_POINT_COLUMNS`).
+
 Every run is caught on its own: an exception becomes a failure row (``status: failed``, the error type
 and message) and the chunk goes on.
 """
@@ -25,6 +31,7 @@ import os
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from trainsim.batch.expand import RunTask
@@ -35,10 +42,12 @@ __all__ = [
     "DRIVING_COLUMNS",
     "DRIVING_METRICS",
     "METRICS",
+    "MULTI_POINT_COLUMNS",
     "Driving",
     "Payload",
     "WorkerState",
     "driving_figures",
+    "multipoint_figures",
     "run_chunk",
     "state_for",
 ]
@@ -52,6 +61,9 @@ class Payload:
     ``timetables`` holds the driving timetable files the runs may use, read by the process that
     started the study (file name as written -> ``Timetable``, or the reader's error as ``(reason,
     file, field, value, allowed)``); ``driving`` says whether rows get the driving columns.
+    ``profiles`` holds the speed-profile files of ``multi_point.profile`` (read alike, name ->
+    ``SpeedProfile`` or the error); ``multi_point`` says whether some runs use the multi-point model
+    (rows then get :data:`MULTI_POINT_COLUMNS`).
     """
 
     fingerprint: str
@@ -59,6 +71,8 @@ class Payload:
     entries: tuple[dict[str, Any], ...]
     timetables: tuple[tuple[str, Any], ...] = ()
     driving: bool = False
+    profiles: tuple[tuple[str, Any], ...] = ()
+    multi_point: bool = False
 
 
 @dataclass(frozen=True)
@@ -100,6 +114,16 @@ DRIVING_METRICS = (
 #: Every driving column, in the order of the results.
 DRIVING_COLUMNS = ("strategy", *DRIVING_METRICS)
 
+#: Columns of studies with multi-point runs (docs/BATCH.md; empty in single-point rows): the largest
+#: draft (tension, > 0) and buff (compression, < 0) coupler force of the run [N], the coupling (0 =
+#: between vehicles 0 and 1), when [s], where the head was and where the coupling was on the route [m]
+#: (``MultiPointResult.max_draft`` / ``max_buff``).
+MULTI_POINT_COLUMNS = tuple(
+    f"max_{kind}_{name}"
+    for kind in ("draft", "buff")
+    for name in ("force_n", "coupler", "time_s", "head_position_m", "coupler_position_m")
+)
+
 
 class _Lru:
     """A small least-recently-used cache (thread-safe: a Dask worker may run chunks in threads)."""
@@ -139,6 +163,7 @@ class WorkerState:
         # per entry: (train, route with the entry's stops, settings, route as in its file, driving)
         self._entries: list[tuple[Any, Any, Any, Any, Driving | None] | None] = [None] * len(payload.entries)
         self._timetables = dict(payload.timetables)
+        self._profiles = dict(payload.profiles)
         self._trains = _Lru(32)
         self._routes = _Lru(32)
         self._lock = threading.Lock()
@@ -261,16 +286,7 @@ class WorkerState:
         if not overrides:
             return train, route, settings, driving
         source = f"run {index}"
-        base = self.payload.entries[e]
-        touched = {parse_path(path).root for path, _, _ in overrides}
-        data = {k: (copy.deepcopy(v) if k in touched else v) for k, v in base.items()}
-        for path, value, relative in overrides:
-            try:
-                set_value(data, path, value, scale=relative)
-            except InputError as exc:
-                raise InputError(
-                    exc.reason, file=source, field=path, value=exc.value, allowed=exc.allowed
-                ) from None
+        data, touched = self.run_data(task)
         if "train" in touched:
             train = self._train(data["train"], source)
         if "route" in touched:
@@ -283,9 +299,86 @@ class WorkerState:
             driving = self._driving(data.get("driving"), source)
         return train, route, settings, driving
 
+    def run_data(self, task: RunTask) -> tuple[dict[str, Any], set[str]]:
+        """The scenario data of one run (the entry's with the run's values written in; parts not
+        touched are shared, never to be written into) and the parts its values touch."""
+        index, e, _, overrides = task
+        source = f"run {index}"
+        base = self.payload.entries[e]
+        touched = {parse_path(path).root for path, _, _ in overrides}
+        data = {k: (copy.deepcopy(v) if k in touched else v) for k, v in base.items()}
+        for path, value, relative in overrides:
+            try:
+                set_value(data, path, value, scale=relative)
+            except InputError as exc:
+                raise InputError(
+                    exc.reason, file=source, field=path, value=exc.value, allowed=exc.allowed
+                ) from None
+        if "model" in touched:
+            from trainsim.batch.study import drop_unused_block
+
+            drop_unused_block(data)
+        return data, touched
+
+    def _is_multipoint(self, task: RunTask) -> bool:
+        for path, value, _ in task[3]:
+            if path == "model":
+                return value != "single_point"  # an unknown model fails in the reader
+        return self.payload.entries[task[1]].get("model", "single_point") != "single_point"
+
+    def _profile(self, name: str, source: str):
+        """The speed-profile file ``name`` (as written), read by the process that started the study."""
+        from trainsim.multipoint.spec import read_profile
+
+        profile = self._profiles.get(name)
+        if profile is None:  # not expected (the study reads every name it can see); read it here
+            try:
+                profile = read_profile(Path(name), name)
+            except InputError as exc:
+                profile = (exc.reason, exc.file, exc.field, exc.value, exc.allowed)
+        if isinstance(profile, tuple):
+            reason, file, field, value, allowed = profile
+            inner = ", ".join(x for x in (file, f"field '{field}'" if field else None) if x)
+            raise InputError(
+                f"profile {name}: {reason}" + (f" ({inner})" if inner else ""),
+                file=source,
+                field="multi_point.profile",
+                value=value,
+                allowed=allowed,
+            )
+        return profile
+
+    def run_multipoint(self, task: RunTask):
+        """The ``MultiPointResult`` of a run with ``model: multi_point``, as :func:`trainsim.run`
+        computes its scenario (``run_multipoint_scenario(scenario, scenario.multi_point)``); the block's
+        profile file as read by the process that started the study."""
+        from trainsim.batch.study import scenario_from_data
+        from trainsim.multipoint.spec import run_multipoint_scenario
+
+        source = f"run {task[0]}"
+        data, _ = self.run_data(task)
+        if data.get("driving") is not None:  # refused when the study is read; kept for direct callers
+            raise InputError(
+                "the multi-point model is not driven by a 'driving' block (trainsim.run ignores it)",
+                file=source,
+                field="driving",
+            )
+        scenario = scenario_from_data(data, source)
+        spec = scenario.multi_point
+        profile = self._profile(spec.profile, source) if spec.profile else None
+        return run_multipoint_scenario(scenario, spec, profile=profile)
+
     # -------------------------------------------------------------- running
     def run(self, task: RunTask) -> dict[str, Any]:
         """The result row of one run (metrics, or the failure)."""
+        if self.payload.multi_point and self._is_multipoint(task):
+            try:
+                result = self.run_multipoint(task)
+            except Exception as exc:  # a failed run must never stop the study
+                return {"status": "failed", "error_type": type(exc).__name__, "error": str(exc) or repr(exc)}
+            row = metrics_row(result.run, task[2])
+            row.update(multipoint_figures(result))
+            return row
         try:
             train, route, settings, driving = self.scenario(task)
             result, figures, warnings = drive(train, route, settings, driving, source=f"run {task[0]}")
@@ -370,6 +463,18 @@ def driving_figures(strategy: str, timetable, result, optimization=None) -> dict
         "energy_saved_kwh": _num(saved),
         "energy_saved_percent": _num(100.0 * saved / fastest_net) if fastest_net > 0 else None,
     }
+
+
+def multipoint_figures(result) -> dict[str, Any]:
+    """The :data:`MULTI_POINT_COLUMNS` of a ``MultiPointResult``: its largest draft and buff forces."""
+    row: dict[str, Any] = {}
+    for kind, ext in (("draft", result.max_draft), ("buff", result.max_buff)):
+        row[f"max_{kind}_force_n"] = _num(ext.force_n)
+        row[f"max_{kind}_coupler"] = int(ext.coupler)
+        row[f"max_{kind}_time_s"] = _num(ext.time_s)
+        row[f"max_{kind}_head_position_m"] = _num(ext.head_position_m)
+        row[f"max_{kind}_coupler_position_m"] = _num(ext.coupler_position_m)
+    return row
 
 
 def _num(x: float) -> float | None:

@@ -38,7 +38,9 @@ from trainsim.multipoint.simulate import SpeedProfile, follow_profile, run_multi
 __all__ = [
     "MultiPointSpec",
     "load_multipoint_scenario",
+    "multipoint_scenario_from_dict",
     "multipoint_settings_from_dict",
+    "read_profile",
     "run_multipoint_scenario",
 ]
 
@@ -175,7 +177,7 @@ def multipoint_settings_from_dict(data: Any, source: str = "<scenario>", *, path
     return spec
 
 
-def _read_profile(path: Path, source: str) -> SpeedProfile:
+def read_profile(path: Path, source: str) -> SpeedProfile:
     """A speed profile from a CSV file with columns ``position_m`` and ``speed_kmh`` (or ``speed_mps``),
     optionally ``regime`` (names as in trainsim traces) and ``time_s``; a ``trace.csv`` written by
     ``trainsim run`` qualifies."""
@@ -242,33 +244,52 @@ def run_multipoint_scenario(
         path = Path(profile_file)
         if not path.is_absolute():
             path = Path(base_dir or ".") / path
-        profile = _read_profile(path, str(path))
+        profile = read_profile(path, str(path))
     if strategy == "follow":
         assert profile is not None
         return follow_profile(scenario.train, scenario.route, profile, mp_settings, scenario.settings)
     return run_multipoint_fastest(scenario.train, scenario.route, mp_settings, scenario.settings)
 
 
-def load_multipoint_scenario(path: str | Path) -> tuple[Scenario, MultiPointSpec | None]:
-    """Read a scenario file that may choose ``model: multi_point``: the scenario and its validated
-    ``multi_point`` block (None for ``model: single_point`` or no ``model`` key)."""
-    from trainsim.io.trainsim_yaml import read_yaml, scenario_from_dict
+def multipoint_scenario_from_dict(
+    data: dict[str, Any],
+    source: str = "<scenario>",
+    base_dir: str | Path | None = None,
+    *,
+    path: str | Path | None = None,
+) -> tuple[Scenario, MultiPointSpec | None]:
+    """The scenario of a scenario mapping that may choose ``model: multi_point``, and its validated
+    ``multi_point`` block (None for ``model: single_point`` or no ``model`` key). File names in the
+    mapping (route, train, the block's ``profile``) are relative to ``base_dir``; the profile's is
+    made absolute here, so the scenario runs the same from any working directory. ``path``: the file
+    the mapping was read from, for line numbers in errors."""
+    from trainsim.io.trainsim_yaml import scenario_from_dict
 
-    path = Path(path)
-    data = read_yaml(path)
-    if not isinstance(data, dict):
-        raise InputError("expected a mapping of fields at the top level", file=str(path))
     data = dict(data)
     model = data.pop("model", "single_point")
     block = data.pop("multi_point", None)
     if model not in ("single_point", "multi_point"):
         raise InputError(
-            "unknown model", file=str(path), field="model", value=model, allowed="single_point, multi_point"
+            "unknown model", file=source, field="model", value=model, allowed="single_point, multi_point"
         )
     if model == "single_point" and block is not None:
-        raise InputError(
-            "a 'multi_point' block needs 'model: multi_point'", file=str(path), field="multi_point"
-        )
-    scenario = scenario_from_dict(data, str(path), base_dir=path.parent)
-    spec = multipoint_settings_from_dict(block, str(path), path=path) if model == "multi_point" else None
+        raise InputError("a 'multi_point' block needs 'model: multi_point'", file=source, field="multi_point")
+    scenario = scenario_from_dict(data, source, base_dir=base_dir)
+    if model != "multi_point":
+        return scenario, None
+    spec = multipoint_settings_from_dict(block, source, path=path)
+    if spec.profile and base_dir is not None and not Path(spec.profile).is_absolute():
+        spec = spec.model_copy(update={"profile": str(Path(base_dir) / spec.profile)})
     return scenario, spec
+
+
+def load_multipoint_scenario(path: str | Path) -> tuple[Scenario, MultiPointSpec | None]:
+    """Read a scenario file that may choose ``model: multi_point``: the scenario and its validated
+    ``multi_point`` block (None for ``model: single_point`` or no ``model`` key)."""
+    from trainsim.io.trainsim_yaml import read_yaml
+
+    path = Path(path)
+    data = read_yaml(path)
+    if not isinstance(data, dict):
+        raise InputError("expected a mapping of fields at the top level", file=str(path))
+    return multipoint_scenario_from_dict(data, str(path), base_dir=path.parent, path=path)
