@@ -139,6 +139,7 @@ class SectionSolver:
         self.excursions = True
         #: whether the train coasts ahead of lower limits (not only brakes to them)
         self.limit_coasting = True
+        #: the last departure point ahead of each lower limit, to search near first
         self._departure_points: dict[tuple[str, int], float] = {}
         self._has_descents = self._has_limit_braking = False
         self._last_departure_speed: float | None = None
@@ -159,14 +160,16 @@ class SectionSolver:
 
     # ------------------------------------------------------------------ phases
     def _phase_a(self, holding_speed: float):
-        """Maximum traction to min(V, limit), hold it; coast down steep descents up to min(limit, W)
-        and hold there with braking; brake to lower limits and the stop."""
+        """The run for holding speed V up to the stop, before the final coast: maximum traction to
+        min(V, limit), hold it; coast down steep descents up to min(limit, W) and hold there with
+        braking; brake to lower limits and the stop; with the departures ahead of steep descents
+        (``excursions``) and lower limits (``limit_coasting``) that lower energy + mu x time."""
         tr = self.track
         if not np.isfinite(holding_speed) or holding_speed >= 10.0 * float(tr.vlim.max()):
             return self.fastest
         self._decisions = {}
-        # close to the last holding speed the best departure points move little: searched near
-        # the last ones first
+        # close to the last holding speed the best departures ahead of lower limits move little:
+        # searched near the last ones first
         last = self._last_departure_speed
         self._near_last_speed = last is not None and abs(np.log(holding_speed / last)) < WARM_START_LOG_SPEED
         self._last_departure_speed = holding_speed
@@ -207,7 +210,6 @@ class SectionSolver:
             start = q
             last_pos = tr.x[q[0]] + q[1]
         points = tuple(np.concatenate([pc[k] for pc in pieces]) for k in range(4))
-        # close to the last holding speed the best coasting points ahead of limits move little
         if self.limit_coasting:
             points = self._coast_before_limits(points, vtop, Cr, US, modes, mu)
         return points
