@@ -225,7 +225,7 @@ def _brake_to_plateau(
     for j in range(i, i_end):
         w = x[j + 1] - x[j]
         line = (a0[j], a1[j], b0[j], b1[j])
-        if u < US[k] - 1e-9:
+        if j > i and u < US[k] - 1e-9:  # (in the first interval the run is on the curve already)
             return n, j, u, t, True
         if u < w:
             n = _emit(out_s, out_v, out_t, out_m, n, x[j] + u, np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, BRAKE)
