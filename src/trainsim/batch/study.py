@@ -450,8 +450,7 @@ class Study:
         for kind in ("train", "route"):
             if kind in data:
                 data[kind] = _read_part(data[kind], kind, origin, where, kind)
-        _resolve_timetable(data, origin)
-        _resolve_profile(data, origin)
+        _resolve_files(data, origin)
         _validate_scenario(data, where)
         return data
 
@@ -510,8 +509,7 @@ class Study:
                 model_set = model_set or root == "model"
             if model_set:
                 drop_unused_block(data)
-            _resolve_timetable(data, self.base_dir)
-            _resolve_profile(data, self.base_dir)
+            _resolve_files(data, self.base_dir)
             _validate_scenario(data, f"{self.file}: {where} ({run.name})")
             departures: tuple[float, ...] | None = None
             if run.departure is not None:
@@ -710,56 +708,38 @@ class Study:
                 )
         return any_multi
 
-    # ------------------------------------------------------------------ timetables
+    # ------------------------------------------------------------------ referenced files
     def _read_timetables(self) -> tuple[dict[str, Any], dict[str, str | None]]:
-        """Every timetable file the runs may use, read here: the workers need no shared file system.
-
-        Returns (written name -> :class:`~trainsim.optimize.timetable.Timetable`, or the reader's error
-        as ``(reason, file, field, value, allowed)`` for the runs using it to fail with; written name
-        -> SHA-256 of the file, None if unreadable). The names are as written in the entries' data
-        (absolute) and in axis or sample values (relative to the study file).
-        """
+        """Every timetable file (``driving.timetable``) the runs may use: see :meth:`_read_files`."""
         from trainsim.optimize.timetable import read_timetable_yaml
 
-        names: set[str] = set()
-        for entry in self.entries:
-            names.update(_timetable_names("driving", entry.data.get("driving")))
-        values: list[tuple[str, Any]] = []
-        for axis in self.spec.axes:
-            for k, path in enumerate(axis.paths()):
-                values += [(path, point[k]) for point in axis.points()]
-        if self.spec.samples is not None:
-            for path, dist in self.spec.samples.fields.items():
-                values += [(path, v) for v in dist.values or []]
-        for path, value in values:
-            names.update(_timetable_names(parse_path(path).text, value))
-        tables: dict[str, Any] = {}
-        digests: dict[str, str | None] = {}
-        for name in sorted(names):
-            path = FsPath(name)
-            path = path if path.is_absolute() else self.base_dir / path
-            try:
-                tables[name] = read_timetable_yaml(path)
-                digests[name] = _file_digest(str(path))
-            except InputError as exc:
-                tables[name] = (exc.reason, exc.file, exc.field, exc.value, exc.allowed)
-                digests[name] = None
-            except OSError as exc:
-                tables[name] = (f"unreadable timetable file: {exc}", str(path), None, None, None)
-                digests[name] = None
-        return tables, digests
+        return self._read_files("driving", "timetable", read_timetable_yaml, (OSError,))
 
     def _read_profiles(self) -> tuple[dict[str, Any], dict[str, str | None]]:
-        """Every speed-profile file (``multi_point.profile``) the runs may use, read here as the
-        timetables are: written name -> ``SpeedProfile`` (or the reader's error as ``(reason, file,
-        field, value, allowed)``), and written name -> SHA-256 of the file (None if unreadable)."""
+        """Every speed-profile file (``multi_point.profile``) the runs may use: see :meth:`_read_files`."""
         if not self.multi_point:
             return {}, {}
         from trainsim.multipoint.spec import read_profile
 
+        # pandas raises ValueError on a malformed CSV file
+        return self._read_files(
+            "multi_point", "profile", lambda p: read_profile(p, str(p)), (OSError, ValueError)
+        )
+
+    def _read_files(
+        self, block: str, key: str, read: Any, unreadable: tuple[type[Exception], ...]
+    ) -> tuple[dict[str, Any], dict[str, str | None]]:
+        """Every file named by ``<block>.<key>`` that the runs may use, read here: the workers need no
+        shared file system.
+
+        Returns (written name -> what ``read`` makes of it, or the reader's error as ``(reason, file,
+        field, value, allowed)`` for the runs using it to fail with; written name -> SHA-256 of the
+        file, None if unreadable). The names are as written in the entries' data (absolute) and in
+        axis or sample values (relative to the study file).
+        """
         names: set[str] = set()
         for entry in self.entries:
-            names.update(_profile_names("multi_point", entry.data.get("multi_point")))
+            names.update(_file_names(block, key, block, entry.data.get(block)))
         values: list[tuple[str, Any]] = []
         for axis in self.spec.axes:
             for k, path in enumerate(axis.paths()):
@@ -768,22 +748,21 @@ class Study:
             for path, dist in self.spec.samples.fields.items():
                 values += [(path, v) for v in dist.values or []]
         for path, value in values:
-            names.update(_profile_names(parse_path(path).text, value))
-        profiles: dict[str, Any] = {}
+            names.update(_file_names(block, key, parse_path(path).text, value))
+        contents: dict[str, Any] = {}
         digests: dict[str, str | None] = {}
         for name in sorted(names):
             path = FsPath(name)
             path = path if path.is_absolute() else self.base_dir / path
+            digests[name] = None
             try:
-                profiles[name] = read_profile(path, str(path))
+                contents[name] = read(path)
                 digests[name] = _file_digest(str(path))
             except InputError as exc:
-                profiles[name] = (exc.reason, exc.file, exc.field, exc.value, exc.allowed)
-                digests[name] = None
-            except (OSError, ValueError) as exc:  # pandas: an unreadable or malformed CSV file
-                profiles[name] = (f"unreadable profile file: {exc}", str(path), None, None, None)
-                digests[name] = None
-        return profiles, digests
+                contents[name] = (exc.reason, exc.file, exc.field, exc.value, exc.allowed)
+            except unreadable as exc:
+                contents[name] = (f"unreadable {key} file: {exc}", str(path), None, None, None)
+        return contents, digests
 
     # ------------------------------------------------------------------ fingerprint
     def _fingerprint(self) -> str:
@@ -851,43 +830,29 @@ def drop_unused_block(data: dict[str, Any]) -> None:
         data.pop("multi_point", None)
 
 
-def _resolve_profile(data: dict[str, Any], origin: FsPath) -> None:
-    """Make the ``multi_point.profile`` file name of a scenario's data absolute (relative to
-    ``origin``), in a new ``multi_point`` mapping (the old one may be shared)."""
-    block = data.get("multi_point")
-    if isinstance(block, dict) and isinstance(block.get("profile"), str):
-        path = FsPath(block["profile"])
-        if not path.is_absolute():
-            data["multi_point"] = {**block, "profile": str((origin / path).resolve())}
+#: The files a scenario's data may name, as (block, key): ``driving.timetable``, ``multi_point.profile``.
+REFERENCED_FILES = (("driving", "timetable"), ("multi_point", "profile"))
 
 
-def _profile_names(path: str, value: Any) -> list[str]:
-    """The profile file named by a value written at ``path`` (``multi_point.profile`` or a whole
-    ``multi_point`` block), if any."""
-    if path == "multi_point.profile" and isinstance(value, str):
+def _resolve_files(data: dict[str, Any], origin: FsPath) -> None:
+    """Make the file names of :data:`REFERENCED_FILES` in a scenario's data absolute (relative to
+    ``origin``, the directory of the file that wrote them), in new block mappings (the old ones may be
+    shared)."""
+    for block, key in REFERENCED_FILES:
+        mapping = data.get(block)
+        if isinstance(mapping, dict) and isinstance(mapping.get(key), str):
+            path = FsPath(mapping[key])
+            if not path.is_absolute():
+                data[block] = {**mapping, key: str((origin / path).resolve())}
+
+
+def _file_names(block: str, key: str, path: str, value: Any) -> list[str]:
+    """The file named by a value written at ``path`` (``<block>.<key>`` or a whole ``<block>``
+    mapping), if any."""
+    if path == f"{block}.{key}" and isinstance(value, str):
         return [value]
-    if path == "multi_point" and isinstance(value, dict) and isinstance(value.get("profile"), str):
-        return [value["profile"]]
-    return []
-
-
-def _resolve_timetable(data: dict[str, Any], origin: FsPath) -> None:
-    """Make the ``driving.timetable`` file name of a scenario's data absolute (relative to ``origin``,
-    the directory of the file that wrote it), in a new ``driving`` mapping (the old one may be shared)."""
-    driving = data.get("driving")
-    if isinstance(driving, dict) and isinstance(driving.get("timetable"), str):
-        path = FsPath(driving["timetable"])
-        if not path.is_absolute():
-            data["driving"] = {**driving, "timetable": str((origin / path).resolve())}
-
-
-def _timetable_names(path: str, value: Any) -> list[str]:
-    """The timetable file named by a value written at ``path`` (``driving.timetable`` or a whole
-    ``driving`` block), if any."""
-    if path == "driving.timetable" and isinstance(value, str):
-        return [value]
-    if path == "driving" and isinstance(value, dict) and isinstance(value.get("timetable"), str):
-        return [value["timetable"]]
+    if path == block and isinstance(value, dict) and isinstance(value.get(key), str):
+        return [value[key]]
     return []
 
 

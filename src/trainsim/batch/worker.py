@@ -229,23 +229,7 @@ class WorkerState:
         """The timetable file ``name`` (as written), read by the process that started the study."""
         from trainsim.optimize.timetable import read_timetable_yaml
 
-        table = self._timetables.get(name)
-        if table is None:  # not expected (the study reads every name it can see); read it here
-            try:
-                table = read_timetable_yaml(name)
-            except InputError as exc:
-                table = (exc.reason, exc.file, exc.field, exc.value, exc.allowed)
-        if isinstance(table, tuple):
-            reason, file, field, value, allowed = table
-            inner = ", ".join(x for x in (file, f"field '{field}'" if field else None) if x)
-            raise InputError(
-                f"timetable {name}: {reason}" + (f" ({inner})" if inner else ""),
-                file=source,
-                field="driving.timetable",
-                value=value,
-                allowed=allowed,
-            )
-        return table
+        return _shared_file(self._timetables, name, source, read_timetable_yaml, "driving.timetable")
 
     def _driving(self, data: Any, source: str) -> Driving | None:
         """How a run with the scenario's ``driving`` block ``data`` is driven (None: no block).
@@ -330,23 +314,9 @@ class WorkerState:
         """The speed-profile file ``name`` (as written), read by the process that started the study."""
         from trainsim.multipoint.spec import read_profile
 
-        profile = self._profiles.get(name)
-        if profile is None:  # not expected (the study reads every name it can see); read it here
-            try:
-                profile = read_profile(Path(name), name)
-            except InputError as exc:
-                profile = (exc.reason, exc.file, exc.field, exc.value, exc.allowed)
-        if isinstance(profile, tuple):
-            reason, file, field, value, allowed = profile
-            inner = ", ".join(x for x in (file, f"field '{field}'" if field else None) if x)
-            raise InputError(
-                f"profile {name}: {reason}" + (f" ({inner})" if inner else ""),
-                file=source,
-                field="multi_point.profile",
-                value=value,
-                allowed=allowed,
-            )
-        return profile
+        return _shared_file(
+            self._profiles, name, source, lambda n: read_profile(Path(n), n), "multi_point.profile"
+        )
 
     def run_multipoint(self, task: RunTask):
         """The ``MultiPointResult`` of a run with ``model: multi_point``, as :func:`trainsim.run`
@@ -391,6 +361,29 @@ class WorkerState:
                 # as OptimizationResult.summary(): the optimiser's warnings first
                 row["warnings"] = "; ".join([*warnings, *result.warnings])
         return row
+
+
+def _shared_file(contents: dict[str, Any], name: str, source: str, read: Any, field: str):
+    """What the study read from the file ``name`` (as written) that a run's ``field`` names; the
+    reader's error, kept as ``(reason, file, field, value, allowed)``, is raised for this run."""
+    content = contents.get(name)
+    if content is None:  # not expected (the study reads every name it can see); read it here
+        try:
+            content = read(name)
+        except InputError as exc:
+            content = (exc.reason, exc.file, exc.field, exc.value, exc.allowed)
+    if isinstance(content, tuple):
+        reason, file, inner_field, value, allowed = content
+        inner = ", ".join(x for x in (file, f"field '{inner_field}'" if inner_field else None) if x)
+        kind = field.rsplit(".", 1)[-1]
+        raise InputError(
+            f"{kind} {name}: {reason}" + (f" ({inner})" if inner else ""),
+            file=source,
+            field=field,
+            value=value,
+            allowed=allowed,
+        )
+    return content
 
 
 def drive(train, route, settings, driving: Driving | None, *, source: str = "<run>"):

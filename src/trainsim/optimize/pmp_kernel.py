@@ -392,6 +392,24 @@ def holding_segment(
 
 
 @njit(cache=True)
+def _capped_coast_step(E, v, u, h, cap, line, P, curves, bk):
+    """(mode, step, E, time) of a coasting step of at most h [m] from offset u that never exceeds the
+    speed ``cap`` [m/s]: at the cap on a descent the train holds it with braking (CRUISE); reaching
+    the cap the step ends there."""
+    if v >= cap - 1e-9 and resistance_force(v, u, line, P) < 0.0:
+        return CRUISE, h, E, h / v
+    E1, dt = step_energy_time(E, u, h, COAST, line, P, curves, bk)
+    E_cap = 0.5 * cap * cap
+    if E_cap < E1:
+        hc = distance_to_speed(E, u, E_cap, COAST, line, P, curves)
+        if np.isfinite(hc) and 0.0 < hc < h:
+            h = hc
+            E1, dt = step_energy_time(E, u, h, COAST, line, P, curves, bk)
+        E1 = min(E1, E_cap)
+    return COAST, h, E1, dt
+
+
+@njit(cache=True)
 def coast_excursion(
     x, a0, a1, b0, b1, vlim, W, tscale, i, u, v0, t, i_end, P, curves, bk, V, v_rejoin, mu, inv_eta_t, eta_r,
     h_max, out_s, out_v, out_t, out_m,
@@ -427,19 +445,7 @@ def coast_excursion(
             cap = vlim[ii]
             if eta_r > 0.0 and phi <= eta_r * (1.0 + 1e-9) and cap > W:
                 cap = W
-            mode = COAST
-            if v >= cap - 1e-9 and resistance_force(v, uu, line, P) < 0.0:
-                mode = CRUISE
-            if mode == CRUISE:
-                E1, dt = E, h / v
-            else:
-                E1, dt = step_energy_time(E, uu, h, COAST, line, P, curves, bk)
-                if 0.5 * cap * cap < E1:
-                    hc = distance_to_speed(E, uu, 0.5 * cap * cap, COAST, line, P, curves)
-                    if np.isfinite(hc) and 0.0 < hc < h:
-                        h = hc
-                        E1, dt = step_energy_time(E, uu, h, COAST, line, P, curves, bk)
-                    E1 = min(E1, 0.5 * cap * cap)
+            mode, h, E1, dt = _capped_coast_step(E, v, uu, h, cap, line, P, curves, bk)
             if E1 <= 0.0:
                 return n, 1, -np.inf, ii, uu, t, energy
             if on_limit and below and E1 >= ER * (1.0 - 1e-12):
@@ -549,19 +555,7 @@ def coast_to_curve(
             h = min(h_max, w - uu)
             if US[k] > uu:
                 h = min(h, US[k] - uu)
-            mode = COAST
-            if v >= vtop[ii] - 1e-9 and resistance_force(v, uu, line, P) < 0.0:
-                mode = CRUISE
-            if mode == CRUISE:
-                E1, dt = E, h / v
-            else:
-                E1, dt = step_energy_time(E, uu, h, COAST, line, P, curves, bk)
-                if 0.5 * vtop[ii] * vtop[ii] < E1:
-                    hc = distance_to_speed(E, uu, 0.5 * vtop[ii] * vtop[ii], COAST, line, P, curves)
-                    if np.isfinite(hc) and 0.0 < hc < h:
-                        h = hc
-                        E1, dt = step_energy_time(E, uu, h, COAST, line, P, curves, bk)
-                    E1 = min(E1, 0.5 * vtop[ii] * vtop[ii])
+            mode, h, E1, dt = _capped_coast_step(E, v, uu, h, vtop[ii], line, P, curves, bk)
             if E1 <= 0.0:
                 return n, 1, ii, uu, 0.0, t, energy
             if uu + h > US[k]:
