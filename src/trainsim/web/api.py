@@ -329,6 +329,17 @@ async def train_upload(request: Request, file: Annotated[UploadFile, File(descri
         return _train_out(session)
 
 
+def _yaml_attachment(loaded: Any, kind: str) -> Response:
+    """The loaded train or route (``kind``) as a trainsim YAML file to download (404 if none)."""
+    if loaded is None:
+        raise ApiError(404, f"no {kind} loaded")
+    return PlainTextResponse(
+        tsy.dump_yaml(loaded.spec),
+        media_type="application/yaml",
+        headers={"Content-Disposition": f'attachment; filename="{_slug(loaded.model.name)}.{kind}.yaml"'},
+    )
+
+
 @router.get(
     "/train/yaml",
     tags=["train"],
@@ -339,15 +350,7 @@ async def train_upload(request: Request, file: Annotated[UploadFile, File(descri
 def train_yaml(request: Request) -> Response:
     session = session_of(request)
     with session.lock:
-        if session.train is None:
-            raise ApiError(404, "no train loaded")
-        text = tsy.dump_yaml(session.train.spec)
-        name = _slug(session.train.model.name)
-    return PlainTextResponse(
-        text,
-        media_type="application/yaml",
-        headers={"Content-Disposition": f'attachment; filename="{name}.train.yaml"'},
-    )
+        return _yaml_attachment(session.train, "train")
 
 
 # ====================================================================== route
@@ -426,15 +429,7 @@ async def route_upload(request: Request, file: Annotated[UploadFile, File(descri
 def route_yaml(request: Request) -> Response:
     session = session_of(request)
     with session.lock:
-        if session.route is None:
-            raise ApiError(404, "no route loaded")
-        text = tsy.dump_yaml(session.route.spec)
-        name = _slug(session.route.model.name)
-    return PlainTextResponse(
-        text,
-        media_type="application/yaml",
-        headers={"Content-Disposition": f'attachment; filename="{name}.route.yaml"'},
-    )
+        return _yaml_attachment(session.route, "route")
 
 
 # ====================================================================== runs

@@ -309,6 +309,19 @@ def _decode(content: bytes, name: str) -> str:
         raise InputError("not a text file in UTF-8", file=name) from exc
 
 
+def _inline_part(data: dict[str, Any], kind: str, name: str) -> dict[str, Any]:
+    """The train or route (``kind``) written inline in an uploaded scenario, as its own file's mapping."""
+    inline = data.get(kind)
+    if not isinstance(inline, dict):
+        raise InputError(
+            f"this scenario names its {kind} file; open the {kind} file itself",
+            file=name,
+            field=kind,
+            value=inline,
+        )
+    return {"schema": f"trainsim/{kind}", "version": 1, **inline}
+
+
 def load_train_upload(content: bytes, name: str) -> tuple[dict[str, Any], Loaded]:
     """An uploaded train file of any format trainsim reads, as (editable mapping, loaded train).
 
@@ -325,15 +338,7 @@ def load_train_upload(content: bytes, name: str) -> tuple[dict[str, Any], Loaded
                 loaded = loaded_train(data, name)
                 return spec_dict(loaded.spec), loaded
             if detected.format == "trainsim/scenario":
-                inline = data.get("train")
-                if not isinstance(inline, dict):
-                    raise InputError(
-                        "this scenario names its train file; open the train file itself",
-                        file=name,
-                        field="train",
-                        value=inline,
-                    )
-                loaded = loaded_train({"schema": "trainsim/train", "version": 1, **inline}, name)
+                loaded = loaded_train(_inline_part(data, "train", name), name)
                 return spec_dict(loaded.spec), loaded
             if detected.format == "railtoolkit/rolling-stock":
                 from trainsim.io import railtoolkit as rtk
@@ -365,15 +370,7 @@ def load_route_upload(content: bytes, name: str) -> tuple[dict[str, Any], Loaded
                 loaded = loaded_route(data, name)
                 return spec_dict(loaded.spec), loaded
             if detected.format == "trainsim/scenario":
-                inline = data.get("route")
-                if not isinstance(inline, dict):
-                    raise InputError(
-                        "this scenario names its route file; open the route file itself",
-                        file=name,
-                        field="route",
-                        value=inline,
-                    )
-                loaded = loaded_route({"schema": "trainsim/route", "version": 1, **inline}, name)
+                loaded = loaded_route(_inline_part(data, "route", name), name)
                 return spec_dict(loaded.spec), loaded
             if detected.format == "railtoolkit/running-path":
                 from trainsim.io import railtoolkit as rtk
