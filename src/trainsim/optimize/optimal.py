@@ -36,14 +36,23 @@ from trainsim.sim.profile import compile_track
 COAST_POINT_TOLERANCE_M = 0.25
 #: ... and until the run meets the braking curve to the stop no farther than this before it [m].
 CEILING_MISS_M = 2.0
+#: A run that coasts to rest no farther than this before the stop stops there [m].
+STOP_TOLERANCE_M = 0.1
 #: The section time is met to this [s] (far inside the max(0.5 s, 0.05 %) the schedule needs).
 TIME_TOLERANCE_S = 5e-2
 #: Iterations of the holding speed search before the fallbacks take over.
 HOLDING_SPEED_ITERATIONS = 12
+#: Holding speeds closer than this (in log) with running times on either side of the schedule...
+JUMP_LOG_SPEED = 1e-3
+#: ... whose running times differ by more than this many times the slope over the whole bracket
+#: predicts mark a jump of the running time [-].
+JUMP_FACTOR = 5.0
 #: Bisection steps of the homotopy between departure choices where the running time jumps.
 BRIDGE_ITERATIONS = 16
 #: Runs that keep the schedule collected around a ragged crossing before the least-energy one is kept.
 RAGGED_SAMPLES = 3
+#: First half-width of the bracket around the previous holding speed's final coasting point [m].
+WARM_COAST_STEP_M = 20.0
 #: Largest step of the adjoint-driven phase [m].
 ADJOINT_STEP_M = 20.0
 #: Half-width of the window around the previous holding speed's coasting point ahead of a lower
@@ -110,6 +119,10 @@ class _ConvergedError(Exception):
         self.plan = plan
 
 
+class _JumpError(RuntimeError):
+    """Ends the holding speed search where the running time jumps in V (not an error)."""
+
+
 class SectionSolver:
     """Energy-optimal runs of one section [s0, s1] for any running time."""
 
@@ -139,6 +152,9 @@ class SectionSolver:
         self.excursions = True
         #: whether the train coasts ahead of lower limits (not only brakes to them)
         self.limit_coasting = True
+        #: whether excursions must be back on the holding arc before the next steep descent
+        self.short_excursions = False
+        self._has_long_excursions = False
         #: the last departure point ahead of each lower limit, to search near first
         self._departure_points: dict[tuple[str, int], float] = {}
         self._has_descents = self._has_limit_braking = False
@@ -198,8 +214,9 @@ class SectionSolver:
                     break
                 a, after, v_rejoin = descent
                 found = self._best_departure(
-                    seg, last_pos, a, W, holding_speed, mu, ("descent", round(after)), v_rejoin
-                )
+                    seg, last_pos, a, W, holding_speed, mu, ("descent", round(after)), v_rejoin,
+                    self._next_steep_start(steep_down, after),
+                )  # fmt: skip
             if found is None:
                 pieces.append(seg)
                 break
@@ -474,9 +491,16 @@ class SectionSolver:
         )  # fmt: skip
         return float(cum[-1]), (b - a) / V
 
+    def _next_steep_start(self, steep_down: np.ndarray, after: float) -> float:
+        """Start [m] of the first steep descent that begins after ``after`` (the section's end if none)."""
+        tr = self.track
+        idx = np.flatnonzero(steep_down[self.i0 : self.i1] & (tr.x[self.i0 : self.i1] >= after + 1.0))
+        return float(tr.x[self.i0 + idx[0]]) if len(idx) else self.s1
+
     def _best_departure(
-        self, seg, p_lo: float, a: float, W: float, V: float, mu: float, key, v_rejoin: float
-    ):
+        self, seg, p_lo: float, a: float, W: float, V: float, mu: float, key, v_rejoin: float,
+        horizon: float = np.inf,
+    ):  # fmt: skip
         """The coasting excursion ahead of a steep descent that starts at a: (p, points, rejoin
         state) with the departure point p in [p_lo, a] that minimises energy + mu x time against
         the run without it, or None when no excursion is cheaper.
@@ -505,6 +529,8 @@ class SectionSolver:
             # compare where both runs hold again: the run without the excursion may still be
             # coasting down from above V at q; the excursion then holds V up to where it is back
             q_both = max(q, self._back_at(seg, q, v_rejoin))
+            if q_both > horizon and self.short_excursions:
+                return np.inf, None
             _, _, _, t_a, _ = self._state_at(seg, q_both)
             e_hold, t_hold = self._holding_cost(q, q_both, v_rejoin)
             dj = (
@@ -513,6 +539,7 @@ class SectionSolver:
             )  # fmt: skip
             if not keep:
                 return dj, None
+            self._has_long_excursions |= q_both > horizon
             return dj, (tuple(arr[:n].copy() for arr in out), (iq, uq, v_rejoin, tq))
 
         lo = min(p_lo + 1.0, a)
@@ -617,33 +644,41 @@ class SectionSolver:
             # < 0: stops short of the station by that much; >= 0: meets the braking curve to it
             return (self.s1 - s_event if status == pk.HIT_CEILING else s_event - self.s1), points
 
-        hi = self.s1
-        _, best = residual(hi)
         step = max(50.0, (self.s1 - self.s0) / 200.0)
-        lo = hi - step
         guess = self._last_coast_point
-        step_guess = 20.0
-        if guess is not None and self.s0 < guess - step_guess < guess + step_guess < self.s1:
-            # warm start from the previous holding speed's coasting point (the outer solve moves V
-            # a little at a time)
-            r_g, points = residual(guess + step_guess)
-            if r_g >= 0.0:
-                hi, best = guess + step_guess, points
-                lo = guess - step_guess
-        while True:
-            lo = max(lo, self.s0)
-            r_lo, points = residual(lo)
-            if r_lo < 0.0 or lo <= self.s0:
-                break
-            hi, best = lo, points
-            step *= 1.5
-            lo = hi - step
+        below = None  # a coasting point after which the run stops short, with its residual
+        if guess is not None and self.s0 < guess < self.s1:
+            # warm start: the outer solve moves V a little at a time and the coasting point with
+            # it, so the bracket grows outwards from the previous one
+            width = WARM_COAST_STEP_M
+            while True:
+                hi = min(guess + width, self.s1)
+                r_hi, best = residual(hi)
+                if r_hi >= 0.0 or hi >= self.s1:
+                    break
+                below = (hi, r_hi)
+                width *= 2.0
+            step = 2.0 * WARM_COAST_STEP_M
+        else:
+            hi = self.s1
+            _, best = residual(hi)
+        if below is not None:
+            lo, r_lo = below
+        else:
+            while True:
+                lo = max(hi - step, self.s0)
+                r_lo, points = residual(lo)
+                if r_lo < 0.0 or lo <= self.s0:
+                    break
+                hi, best = lo, points
+                step *= 1.5
         # bisection: the outcome is discontinuous at the boundary (the train meets the service braking
         # curve some metres before the stop), so a secant on a residual does not converge faster
         r_hi = np.inf
         # on to COAST_POINT_TOLERANCE_M, and further while the run meets the braking curve to the
-        # stop far before it (at speed: friction braking would waste what regeneration returns)
-        while r_lo < 0.0 and (
+        # stop far before it (at speed: friction braking would waste what regeneration returns),
+        # unless the train coasts to rest at the stop itself
+        while -STOP_TOLERANCE_M > r_lo and (
             hi - lo > COAST_POINT_TOLERANCE_M or (r_hi > CEILING_MISS_M and hi - lo > 1e-3)
         ):
             mid = 0.5 * (lo + hi)
@@ -651,13 +686,20 @@ class SectionSolver:
             if r_mid >= 0.0:
                 hi, best, r_hi = mid, points, r_mid
             else:
-                lo = mid
-        self._last_coast_point = hi
+                lo, r_lo = mid, r_mid
+        coast_point = hi
+        if -STOP_TOLERANCE_M <= r_lo < 0.0:
+            coast_point = lo
+            best = residual(lo)[1]
+        self._last_coast_point = coast_point
         s, v, t, m = best
         # the stop point closes the section
-        m = m.copy()
+        s, m = s.copy(), m.copy()
+        s[-1] = self.s1
         m[-1] = kernel.DWELL
-        return SectionPlan(s, v, t, m, float(t[-1]), holding_speed_mps, hi, mu, self.fastest_time_s, True)
+        return SectionPlan(
+            s, v, t, m, float(t[-1]), holding_speed_mps, coast_point, mu, self.fastest_time_s, True
+        )
 
     def solve(self, running_time_s: float) -> SectionPlan:
         """The least-energy run that takes ``running_time_s``; the fastest run (``feasible`` False)
@@ -670,7 +712,15 @@ class SectionSolver:
         The two mixed variants are tried only when neither keeps the schedule."""
         self._has_descents = False
         self._has_limit_braking = False
+        self._has_long_excursions = False
         plans = [self._solve_variant(running_time_s, True, True)]
+        if plans[0].feasible and self._has_long_excursions:
+            # a coast through several descents is compared with a run that has none of their own
+            # departures, which favours it: also build the runs whose excursions end before the
+            # next descent
+            plans.append(
+                self._solve_variant(running_time_s, True, True, plans[0].holding_speed_mps, short=True)
+            )
         if plans[0].feasible and (self._has_descents or self._has_limit_braking):
             plans.append(self._solve_variant(running_time_s, False, False, plans[0].holding_speed_mps))
             if not any(self._meets(p, running_time_s) for p in plans):
@@ -679,18 +729,25 @@ class SectionSolver:
                 if self._has_descents and self._has_limit_braking:
                     plans.append(self._solve_variant(running_time_s, True, False))
         self.excursions = self.limit_coasting = True
+        self.short_excursions = False
         meeting = [p for p in plans if self._meets(p, running_time_s)]
         if meeting:
             return min(meeting, key=self.energy_j)
         return min(plans, key=lambda p: abs(p.running_time_s - running_time_s))
 
     def _solve_variant(
-        self, running_time_s: float, excursions: bool, limit_coasting: bool, guess_mps: float | None = None
+        self,
+        running_time_s: float,
+        excursions: bool,
+        limit_coasting: bool,
+        guess_mps: float | None = None,
+        short: bool = False,
     ) -> SectionPlan:
-        """The run with or without departures ahead of descents and lower limits, from a fresh
-        start (no warm start from an earlier solve: results never depend on history) or from the
-        holding speed ``guess_mps`` of another variant of this solve."""
-        self.excursions, self.limit_coasting = excursions, limit_coasting
+        """The run with or without departures ahead of descents and lower limits (with ``short``,
+        excursions that end before the next descent only), from a fresh start (no warm start from
+        an earlier solve: results never depend on history) or from the holding speed
+        ``guess_mps`` of another variant of this solve."""
+        self.excursions, self.limit_coasting, self.short_excursions = excursions, limit_coasting, short
         self._last_coast_point = None
         self._departure_points = {}
         self._last_departure_speed = None
@@ -734,6 +791,7 @@ class SectionSolver:
         on_time: list[SectionPlan] = []  # plans that keep the schedule, if not to TIME_TOLERANCE_S
 
         seen: dict[float, float] = {}
+        seen_decisions: dict[float, dict] = {}
 
         def excess(log_v: float) -> float:
             # the same holding speed twice gives the same answer (plans warm-start from the last
@@ -747,6 +805,17 @@ class SectionSolver:
             if self._meets(plan, running_time_s):
                 on_time.append(plan)
             seen[log_v] = error
+            seen_decisions[log_v] = dict(self._decisions)
+            slow = [k for k in seen if seen[k] > 0.0]
+            fast = [k for k in seen if seen[k] < 0.0]
+            if slow and fast:
+                # a step of the running time far above what the slope over the whole bracket
+                # predicts over a very narrow bracket is a jump: bridged below
+                width = min(fast) - max(slow)
+                step = seen[max(slow)] - seen[min(fast)]
+                slope = (seen[min(slow)] - seen[max(fast)]) / (max(fast) - min(slow))
+                if width < JUMP_LOG_SPEED and step > JUMP_FACTOR * slope * width + 2.0 * TIME_TOLERANCE_S:
+                    raise _JumpError
             return error
 
         try:
@@ -757,9 +826,19 @@ class SectionSolver:
         except _ConvergedError as done:
             self._last_holding_speed = done.plan.holding_speed_mps
             return done.plan
-        except RuntimeError:  # not converged in HOLDING_SPEED_ITERATIONS
+        except RuntimeError:  # a jump, or not converged in HOLDING_SPEED_ITERATIONS
             log_v = min(seen, key=lambda k: abs(seen[k]))
-        # the running time jumps at this holding speed (the structure of the run changes there):
+        # the running time jumps between the two closest holding speeds on either side of the
+        # schedule when the departures chosen there differ: move them together at the faster speed
+        speeds = sorted(seen)
+        pairs = [(a, b) for a, b in zip(speeds, speeds[1:], strict=False) if seen[a] > 0.0 > seen[b]]
+        if pairs:
+            slow_v, fast_v = min(pairs, key=lambda ab: ab[1] - ab[0])
+            bridged = self._bridge(
+                float(np.exp(fast_v)), seen_decisions[slow_v], seen_decisions[fast_v], running_time_s
+            )
+            if bridged is not None:
+                return bridged
         # the closest plan on either side
         candidates = []
         decisions = []
