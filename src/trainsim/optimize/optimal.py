@@ -43,7 +43,7 @@ TIME_TOLERANCE_S = 5e-2
 #: Iterations of the holding speed search before the fallbacks take over.
 HOLDING_SPEED_ITERATIONS = 12
 #: Holding speeds closer than this (in log) with running times on either side of the schedule...
-JUMP_LOG_SPEED = 1e-3
+JUMP_LOG_SPEED = 5e-3
 #: ... whose running times differ by more than this many times the slope over the whole bracket
 #: predicts mark a jump of the running time [-].
 JUMP_FACTOR = 5.0
@@ -184,6 +184,7 @@ class SectionSolver:
         if not np.isfinite(holding_speed) or holding_speed >= 10.0 * float(tr.vlim.max()):
             return self.fastest
         self._decisions = {}
+        self._has_long_excursions = False
         # close to the last holding speed the best departures ahead of lower limits move little:
         # searched near the last ones first
         last = self._last_departure_speed
@@ -675,6 +676,9 @@ class SectionSolver:
         # bisection: the outcome is discontinuous at the boundary (the train meets the service braking
         # curve some metres before the stop), so a secant on a residual does not converge faster
         r_hi = np.inf
+        lo_points = None
+        previous = None  # the coasting point before lo with its residual (the run stopped short)
+        bisect = True
         # on to COAST_POINT_TOLERANCE_M, and further while the run meets the braking curve to the
         # stop far before it (at speed: friction braking would waste what regeneration returns),
         # unless the train coasts to rest at the stop itself
@@ -682,15 +686,25 @@ class SectionSolver:
             hi - lo > COAST_POINT_TOLERANCE_M or (r_hi > CEILING_MISS_M and hi - lo > 1e-3)
         ):
             mid = 0.5 * (lo + hi)
+            if not bisect and previous is not None and previous[1] < r_lo:
+                # where a run stops short moves on continuously with the coasting point (the
+                # residual of a run that meets the braking curve does not): a secant step on
+                # those runs, every other step, the bisection keeping the bracket
+                p0, r0 = previous
+                guess = lo - r_lo * (lo - p0) / (r_lo - r0)
+                if lo < guess < hi:
+                    mid = guess
+            bisect = not bisect
             r_mid, points = residual(mid)
             if r_mid >= 0.0:
                 hi, best, r_hi = mid, points, r_mid
             else:
-                lo, r_lo = mid, r_mid
+                previous = (lo, r_lo)
+                lo, r_lo, lo_points = mid, r_mid, points
         coast_point = hi
         if -STOP_TOLERANCE_M <= r_lo < 0.0:
             coast_point = lo
-            best = residual(lo)[1]
+            best = lo_points if lo_points is not None else residual(lo)[1]
         self._last_coast_point = coast_point
         s, v, t, m = best
         # the stop point closes the section
@@ -712,12 +726,11 @@ class SectionSolver:
         The two mixed variants are tried only when neither keeps the schedule."""
         self._has_descents = False
         self._has_limit_braking = False
-        self._has_long_excursions = False
         plans = [self._solve_variant(running_time_s, True, True)]
         if plans[0].feasible and self._has_long_excursions:
-            # a coast through several descents is compared with a run that has none of their own
-            # departures, which favours it: also build the runs whose excursions end before the
-            # next descent
+            # the last run built (in most cases the one returned) coasts through several descents;
+            # it was compared with a run that has none of their own departures, which favours it:
+            # also build the runs whose excursions end before the next descent
             plans.append(
                 self._solve_variant(running_time_s, True, True, plans[0].holding_speed_mps, short=True)
             )
@@ -932,14 +945,18 @@ class SectionSolver:
 
         lo, hi = 0.0, 1.0
         best = None
+        errors = []
         for _ in range(BRIDGE_ITERATIONS):
             lam = 0.5 * (lo + hi)
             plan = plan_at(lam)
             error = plan.running_time_s - running_time_s
+            errors.append(error)
             if best is None or abs(error) < abs(best.running_time_s - running_time_s):
                 best = plan
             if abs(error) <= TIME_TOLERANCE_S:
                 break
+            if len(errors) >= 3 and np.ptp(errors) < 2.0 * TIME_TOLERANCE_S:
+                break  # the time does not move with these departures: no bridge here
             if error > 0.0:
                 lo = lam
             else:
