@@ -224,7 +224,9 @@ def test_line_supplement_on_a_hilly_line_with_lower_limits_is_met():
         ("CH_Fribourg_Bern", "NL_Intercity_VIRM6", 31240.7, 0.10),
     ],
 )
-def test_excursions_that_swallow_later_descents_are_weighed_against_short_ones(track, train, end_m, supplement):
+def test_excursions_that_swallow_later_descents_are_weighed_against_short_ones(
+    track, train, end_m, supplement
+):
     tt = read_ttobench_train(TTOBENCH / "trains" / f"{train}.json")
     route = read_ttobench_track(TTOBENCH / "tracks" / f"{track}.json", tt)
     solver = SectionSolver(tt.train, route, 0.0, end_m)

@@ -18,6 +18,7 @@ describes the construction step by step and where it still falls short of the re
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 from scipy.optimize import brentq
@@ -682,7 +683,7 @@ class SectionSolver:
         # on to COAST_POINT_TOLERANCE_M, and further while the run meets the braking curve to the
         # stop far before it (at speed: friction braking would waste what regeneration returns),
         # unless the train coasts to rest at the stop itself
-        while -STOP_TOLERANCE_M > r_lo and (
+        while r_lo < -STOP_TOLERANCE_M and (
             hi - lo > COAST_POINT_TOLERANCE_M or (r_hi > CEILING_MISS_M and hi - lo > 1e-3)
         ):
             mid = 0.5 * (lo + hi)
@@ -844,7 +845,7 @@ class SectionSolver:
         # the running time jumps between the two closest holding speeds on either side of the
         # schedule when the departures chosen there differ: move them together at the faster speed
         speeds = sorted(seen)
-        pairs = [(a, b) for a, b in zip(speeds, speeds[1:], strict=False) if seen[a] > 0.0 > seen[b]]
+        pairs = [(a, b) for a, b in pairwise(speeds) if seen[a] > 0.0 > seen[b]]
         if pairs:
             slow_v, fast_v = min(pairs, key=lambda ab: ab[1] - ab[0])
             bridged = self._bridge(
