@@ -41,10 +41,12 @@ CEILING_MISS_M = 2.0
 STOP_TOLERANCE_M = 0.1
 #: The section time is met to this [s] (far inside the max(0.5 s, 0.05 %) the schedule needs).
 TIME_TOLERANCE_S = 5e-2
+#: ... and the variants built to compare with the first run of a solve, to this [s].
+VARIANT_TIME_TOLERANCE_S = 0.1
 #: Iterations of the holding speed search before the fallbacks take over.
 HOLDING_SPEED_ITERATIONS = 12
 #: Holding speeds closer than this (in log) with running times on either side of the schedule...
-JUMP_LOG_SPEED = 5e-3
+JUMP_LOG_SPEED = 1e-2
 #: ... whose running times differ by more than this many times the slope over the whole bracket
 #: predicts mark a jump of the running time [-].
 JUMP_FACTOR = 5.0
@@ -148,7 +150,10 @@ class SectionSolver:
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, self.i0, self.i1, P, self.curves, self.bk
         )
         self.n_max = 8 * len(tr.x) + int((s1 - s0) / pk.MIN_SWITCH_STEP_M) + 64
-        self._last_coast_point: float | None = None
+        #: (holding speed, final coasting point) of the plans built in this solve
+        self._coast_points: list[tuple[float, float]] = []
+        #: d(running time)/d(log V) [s] over the first variant's bracket in this solve
+        self._time_slope: float | None = None
         #: whether holding arcs are left early ahead of steep descents (coasting excursions)
         self.excursions = True
         #: whether the train coasts ahead of lower limits (not only brakes to them)
@@ -166,6 +171,8 @@ class SectionSolver:
         self._decisions: dict[tuple[str, int], tuple[float, float, float]] = {}
         self._forced: dict[tuple[str, int], float] = {}
         self._last_holding_speed: float | None = None
+        #: whether the variant being built is only compared with the first one of its solve
+        self._secondary = False
         fastest = self._fastest_points()
         self.fastest = fastest
         self.fastest_time_s = float(fastest[2][-1])
@@ -580,22 +587,12 @@ class SectionSolver:
     def _state_at(self, phase_a, s_c: float) -> tuple[int, float, float, float, int]:
         """(interval, offset, speed, time, index of the last phase-A point before) at s_c."""
         s, v, t, m = phase_a
-        j = int(np.searchsorted(s, s_c, side="right")) - 1
-        j = min(max(j, 0), len(s) - 2)
         tr = self.track
-        i = min(int(np.searchsorted(tr.x, s[j], side="right")) - 1, self.i1 - 1)
-        u0 = s[j] - tr.x[i]
-        h = s_c - s[j]
-        mode = int(m[j])
-        self.P[kernel.P_TRACTION_SCALE] = tr.traction_scale[i]
-        if h <= 0.0:
-            return i, u0, float(v[j]), float(t[j]), j
-        if mode in (kernel.CRUISE, kernel.DWELL):
-            return i, u0 + h, float(v[j]), float(t[j] + h / v[j]) if v[j] > 0 else float(t[j]), j
-        line = (tr.a0[i], tr.a1[i], tr.b0[i], tr.b1[i])
-        kinks = self.tk if mode == kernel.TRACTION else self.bk  # coasting has no kinks: any list works
-        E1, dt = kernel.step_energy_time(0.5 * v[j] ** 2, u0, h, mode, line, self.P, self.curves, kinks)
-        return i, u0 + h, float(np.sqrt(max(2.0 * E1, 0.0))), float(t[j] + dt), j
+        i, u, vc, tc, j = pk.state_at(
+            s, v, t, m, tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.i1, self.P,
+            self.curves, self.tk, self.bk, float(s_c),
+        )  # fmt: skip
+        return int(i), float(u), float(vc), float(tc), int(j)
 
     def _phase_b_forced(self, phase_a, s_c: float):
         """From s_c on phase A, maximum regenerative braking until the service braking curve to the
@@ -632,6 +629,19 @@ class SectionSolver:
             s_event,
         )
 
+    def _coast_point_guess(self, holding_speed_mps: float) -> float | None:
+        """Where the final coast of holding speed V probably starts: interpolated (or extrapolated)
+        from the two plans of this solve with the closest holding speeds, or the last one's."""
+        if not self._coast_points:
+            return None
+        if len(self._coast_points) == 1:
+            return self._coast_points[0][1]
+        (v0, c0), (v1, c1) = sorted(self._coast_points, key=lambda vc: abs(vc[0] - holding_speed_mps))[:2]
+        if abs(v1 - v0) < 1e-9:
+            return c0
+        guess = c0 + (c1 - c0) * (holding_speed_mps - v0) / (v1 - v0)
+        return float(min(max(guess, self.s0), self.s1))
+
     def plan(self, holding_speed_mps: float) -> SectionPlan:
         """The optimal run for holding speed V: the coasting point found by bisection so that the
         train stops exactly at the next station."""
@@ -647,7 +657,7 @@ class SectionSolver:
             return (self.s1 - s_event if status == pk.HIT_CEILING else s_event - self.s1), points
 
         step = max(50.0, (self.s1 - self.s0) / 200.0)
-        guess = self._last_coast_point
+        guess = self._coast_point_guess(holding_speed_mps)
         below = None  # a coasting point after which the run stops short, with its residual
         if guess is not None and self.s0 < guess < self.s1:
             # warm start: the outer solve moves V a little at a time and the coasting point with
@@ -692,7 +702,10 @@ class SectionSolver:
                 # residual of a run that meets the braking curve does not): a secant step on
                 # those runs, every other step, the bisection keeping the bracket
                 p0, r0 = previous
-                guess = lo - r_lo * (lo - p0) / (r_lo - r0)
+                # aimed inside the stop tolerance: just beyond the root the run meets the braking
+                # curve instead, which only moves the bracket's upper end
+                target = -0.5 * STOP_TOLERANCE_M
+                guess = lo + (target - r_lo) * (lo - p0) / (r_lo - r0)
                 if lo < guess < hi:
                     mid = guess
             bisect = not bisect
@@ -706,7 +719,7 @@ class SectionSolver:
         if -STOP_TOLERANCE_M <= r_lo < 0.0:
             coast_point = lo
             best = lo_points if lo_points is not None else residual(lo)[1]
-        self._last_coast_point = coast_point
+        self._coast_points = [*self._coast_points[-7:], (holding_speed_mps, coast_point)]
         s, v, t, m = best
         # the stop point closes the section
         s, m = s.copy(), m.copy()
@@ -727,27 +740,51 @@ class SectionSolver:
         The two mixed variants are tried only when neither keeps the schedule."""
         self._has_descents = False
         self._has_limit_braking = False
-        plans = [self._solve_variant(running_time_s, True, True)]
-        if plans[0].feasible and self._has_long_excursions:
-            # the last run built (in most cases the one returned) coasts through several descents;
-            # it was compared with a run that has none of their own departures, which favours it:
-            # also build the runs whose excursions end before the next descent
-            plans.append(
-                self._solve_variant(running_time_s, True, True, plans[0].holding_speed_mps, short=True)
-            )
-        if plans[0].feasible and (self._has_descents or self._has_limit_braking):
-            plans.append(self._solve_variant(running_time_s, False, False, plans[0].holding_speed_mps))
-            if not any(self._meets(p, running_time_s) for p in plans):
+        self._coast_points = []
+        self._time_slope = None
+        built: list[tuple[tuple[bool, bool, bool], SectionPlan]] = []
+
+        def build(excursions: bool, limit_coasting: bool, short: bool = False, first: bool = False) -> None:
+            guess = None if first else built[0][1].holding_speed_mps
+            plan = self._solve_variant(running_time_s, excursions, limit_coasting, guess, short=short)
+            built.append(((excursions, limit_coasting, short), plan))
+
+        build(True, True, first=True)
+        first = built[0][1]
+        # whether the last run built (in most cases the one returned) left any arc early: if not,
+        # the run without departures is the same run
+        departed = any(p < latest - 1e-9 for p, _, latest in self._decisions.values())
+        if first.feasible and self._has_long_excursions:
+            # the last run built coasts through several descents; it was compared with a run that
+            # has none of their own departures, which favours it: also build the runs whose
+            # excursions end before the next descent
+            build(True, True, short=True)
+        if (
+            first.feasible
+            and (self._has_descents or self._has_limit_braking)
+            and (departed or not self._meets(first, running_time_s))
+        ):
+            build(False, False)
+            if not any(self._meets(p, running_time_s) for _, p in built):
                 if self._has_limit_braking:
-                    plans.append(self._solve_variant(running_time_s, False, True))
+                    build(False, True)
                 if self._has_descents and self._has_limit_braking:
-                    plans.append(self._solve_variant(running_time_s, True, False))
+                    build(True, False)
+        meeting = [(k, p) for k, p in built if self._meets(p, running_time_s)]
+        if meeting:
+            # compared at the scheduled time (dE/dT = -mu): the variants after the first stop within
+            # VARIANT_TIME_TOLERANCE_S of it
+            _, best = min(
+                meeting,
+                key=lambda kp: (
+                    self.energy_j(kp[1]) + kp[1].price_of_time_w * (kp[1].running_time_s - running_time_s)
+                ),
+            )
+        else:
+            best = min((p for _, p in built), key=lambda p: abs(p.running_time_s - running_time_s))
         self.excursions = self.limit_coasting = True
         self.short_excursions = False
-        meeting = [p for p in plans if self._meets(p, running_time_s)]
-        if meeting:
-            return min(meeting, key=self.energy_j)
-        return min(plans, key=lambda p: abs(p.running_time_s - running_time_s))
+        return best
 
     def _solve_variant(
         self,
@@ -756,17 +793,23 @@ class SectionSolver:
         limit_coasting: bool,
         guess_mps: float | None = None,
         short: bool = False,
+        secondary: bool | None = None,
     ) -> SectionPlan:
         """The run with or without departures ahead of descents and lower limits (with ``short``,
-        excursions that end before the next descent only), from a fresh start (no warm start from
-        an earlier solve: results never depend on history) or from the holding speed
-        ``guess_mps`` of another variant of this solve."""
+        excursions that end before the next descent only), starting from the holding speed
+        ``guess_mps`` and the coasting points of the variants built before in this solve, never
+        from an earlier solve (results do not depend on history). A ``secondary`` variant (by
+        default one started from another's holding speed) meets the time to
+        VARIANT_TIME_TOLERANCE_S."""
         self.excursions, self.limit_coasting, self.short_excursions = excursions, limit_coasting, short
-        self._last_coast_point = None
         self._departure_points = {}
         self._last_departure_speed = None
         self._last_holding_speed = guess_mps if guess_mps is not None and np.isfinite(guess_mps) else None
-        return self._solve_once(running_time_s)
+        self._secondary = self._last_holding_speed is not None if secondary is None else secondary
+        try:
+            return self._solve_once(running_time_s)
+        finally:
+            self._secondary = False
 
     @staticmethod
     def _meets(plan: SectionPlan, running_time_s: float) -> bool:
@@ -804,8 +847,10 @@ class SectionSolver:
 
         on_time: list[SectionPlan] = []  # plans that keep the schedule, if not to TIME_TOLERANCE_S
 
+        secondary = self._secondary
         seen: dict[float, float] = {}
         seen_decisions: dict[float, dict] = {}
+        seen_plans: dict[float, SectionPlan] = {}
 
         def excess(log_v: float) -> float:
             # the same holding speed twice gives the same answer (plans warm-start from the last
@@ -814,12 +859,13 @@ class SectionSolver:
                 return seen[log_v]
             plan = self.plan(float(np.exp(log_v)))
             error = plan.running_time_s - running_time_s
-            if abs(error) <= TIME_TOLERANCE_S:
+            if abs(error) <= (VARIANT_TIME_TOLERANCE_S if secondary else TIME_TOLERANCE_S):
                 raise _ConvergedError(plan)
             if self._meets(plan, running_time_s):
                 on_time.append(plan)
             seen[log_v] = error
             seen_decisions[log_v] = dict(self._decisions)
+            seen_plans[log_v] = plan
             slow = [k for k in seen if seen[k] > 0.0]
             fast = [k for k in seen if seen[k] < 0.0]
             if slow and fast:
@@ -834,6 +880,8 @@ class SectionSolver:
 
         try:
             lo, hi = self._bracket(excess, running_time_s, vmax)
+            if self._time_slope is None and hi > lo:
+                self._time_slope = (seen[hi] - seen[lo]) / (hi - lo)
             # smooth cases converge in well under HOLDING_SPEED_ITERATIONS; more means the running
             # time is ragged or jumps in V, which the fallbacks below handle better than more steps
             log_v = brentq(excess, lo, hi, xtol=1e-10, rtol=1e-10, maxiter=HOLDING_SPEED_ITERATIONS)
@@ -853,20 +901,22 @@ class SectionSolver:
             )
             if bridged is not None:
                 return bridged
-        # the closest plan on either side
-        candidates = []
-        decisions = []
-        for f in (1.0 - 1e-9, 1.0, 1.0 + 1e-9):
-            candidates.append(self.plan(float(np.exp(log_v * f))))
-            decisions.append(dict(self._decisions))
-        slow = [k for k, p in enumerate(candidates) if p.running_time_s > running_time_s]
-        fast = [k for k, p in enumerate(candidates) if p.running_time_s < running_time_s]
-        if slow and fast:
-            bridged = self._bridge(
-                float(np.exp(log_v)), decisions[slow[-1]], decisions[fast[0]], running_time_s
-            )
-            if bridged is not None:
-                return bridged
+            candidates = [seen_plans[slow_v], seen_plans[fast_v]]
+        else:
+            # the closest plan on either side
+            candidates = []
+            decisions = []
+            for f in (1.0 - 1e-9, 1.0, 1.0 + 1e-9):
+                candidates.append(self.plan(float(np.exp(log_v * f))))
+                decisions.append(dict(self._decisions))
+            slow = [k for k, p in enumerate(candidates) if p.running_time_s > running_time_s]
+            fast = [k for k, p in enumerate(candidates) if p.running_time_s < running_time_s]
+            if slow and fast:
+                bridged = self._bridge(
+                    float(np.exp(log_v)), decisions[slow[-1]], decisions[fast[0]], running_time_s
+                )
+                if bridged is not None:
+                    return bridged
         slow = [p for p in candidates if p.running_time_s > running_time_s]
         if slow:
             bridged = self._hold_longer(min(slow, key=lambda p: p.running_time_s), running_time_s)
@@ -894,8 +944,13 @@ class SectionSolver:
         guess = self._last_holding_speed or 1.1 * length / running_time_s
         log_lo = log_hi = float(np.log(guess))
         e_lo = e_hi = excess(log_lo)
-        # from another variant's holding speed the answer is near: small first steps
-        factor = np.log(1.25) if self._last_holding_speed is None else np.log(1.03)
+        # from another variant's holding speed the answer is near: a first step from the slope of
+        # the running time in log V that variant saw, a little long so that it brackets
+        factor = np.log(1.25)
+        if self._last_holding_speed is not None:
+            factor = np.log(1.03)
+            if self._time_slope is not None and self._time_slope < 0.0:
+                factor = float(np.clip(-1.2 * abs(e_lo) / self._time_slope, np.log(1.01), np.log(1.25)))
         while e_hi > 0.0:  # too slow: a higher holding speed
             log_lo, e_lo = log_hi, e_hi
             log_hi += factor

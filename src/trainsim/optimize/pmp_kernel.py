@@ -25,6 +25,7 @@ from trainsim.sim.kernel import (
     BRAKE,
     COAST,
     CRUISE,
+    DWELL,
     P_BRAKE_FRACTION,
     P_DECEL,
     P_INERTIAL_MASS,
@@ -590,3 +591,25 @@ def coast_to_curve(
             n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
             E, t, uu = E1, t + dt, uu + h
     return n, 1, i_last, x[i_last + 1] - x[i_last], np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, energy
+
+
+@njit(cache=True)
+def state_at(s, v, t, m, x, a0, a1, b0, b1, tscale, i1, P, curves, tk, bk, s_c):
+    """(interval, offset [m], speed [m/s], time [s], index of the last point at or before) of the
+    run (s, v, t, m) at s_c, integrating its regime from that last point (what the optimal
+    strategy's searches ask of a run thousands of times per solve)."""
+    j = np.searchsorted(s, s_c, side="right") - 1
+    j = min(max(j, 0), len(s) - 2)
+    i = min(np.searchsorted(x, s[j], side="right") - 1, i1 - 1)
+    u0 = s[j] - x[i]
+    h = s_c - s[j]
+    mode = m[j]
+    P[P_TRACTION_SCALE] = tscale[i]
+    if h <= 0.0:
+        return i, u0, v[j], t[j], j
+    if mode in (CRUISE, DWELL):
+        return i, u0 + h, v[j], (t[j] + h / v[j]) if v[j] > 0.0 else t[j], j
+    line = (a0[i], a1[i], b0[i], b1[i])
+    kinks = tk if mode == TRACTION else bk  # coasting has no kinks: any list works
+    E1, dt = step_energy_time(0.5 * v[j] ** 2, u0, h, mode, line, P, curves, kinks)
+    return i, u0 + h, np.sqrt(max(2.0 * E1, 0.0)), t[j] + dt, j
