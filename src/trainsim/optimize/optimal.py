@@ -150,8 +150,8 @@ class SectionSolver:
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, self.i0, self.i1, P, self.curves, self.bk
         )
         self.n_max = 8 * len(tr.x) + int((s1 - s0) / pk.MIN_SWITCH_STEP_M) + 64
-        #: (holding speed, final coasting point) of the plans built in this solve
-        self._coast_points: list[tuple[float, float]] = []
+        #: (variant, holding speed, final coasting point) of the plans built in this solve
+        self._coast_points: list[tuple[tuple[bool, bool, bool], float, float]] = []
         #: d(running time)/d(log V) [s] over the first variant's bracket in this solve
         self._time_slope: float | None = None
         #: whether holding arcs are left early ahead of steep descents (coasting excursions)
@@ -630,17 +630,24 @@ class SectionSolver:
         )
 
     def _coast_point_guess(self, holding_speed_mps: float) -> float | None:
-        """Where the final coast of holding speed V probably starts: interpolated (or extrapolated)
-        from the two plans of this solve with the closest holding speeds, or the last one's."""
-        if not self._coast_points:
+        """Where the final coast of holding speed V probably starts: from the plans of this solve
+        with the closest holding speeds (this variant's if it has any), interpolated between the
+        two closest or extrapolated no farther than they are apart, else the closest one's."""
+        variant = (self.excursions, self.limit_coasting, self.short_excursions)
+        points = [(v, c) for k, v, c in self._coast_points if k == variant] or [
+            (v, c) for _, v, c in self._coast_points
+        ]
+        if not points:
             return None
-        if len(self._coast_points) == 1:
-            return self._coast_points[0][1]
-        (v0, c0), (v1, c1) = sorted(self._coast_points, key=lambda vc: abs(vc[0] - holding_speed_mps))[:2]
-        if abs(v1 - v0) < 1e-9:
+        points.sort(key=lambda vc: abs(vc[0] - holding_speed_mps))
+        v0, c0 = points[0]
+        if len(points) == 1 or abs(points[1][0] - v0) < 1e-9:
+            return c0
+        v1, c1 = points[1]
+        if abs(holding_speed_mps - v0) > abs(v1 - v0):
             return c0
         guess = c0 + (c1 - c0) * (holding_speed_mps - v0) / (v1 - v0)
-        return float(min(max(guess, self.s0), self.s1))
+        return float(guess) if self.s0 < guess < self.s1 else c0
 
     def plan(self, holding_speed_mps: float) -> SectionPlan:
         """The optimal run for holding speed V: the coasting point found by bisection so that the
@@ -719,7 +726,9 @@ class SectionSolver:
         if -STOP_TOLERANCE_M <= r_lo < 0.0:
             coast_point = lo
             best = lo_points if lo_points is not None else residual(lo)[1]
-        self._coast_points = [*self._coast_points[-7:], (holding_speed_mps, coast_point)]
+        if not self._forced:  # runs with imposed departures are no guide to the next V's
+            variant = (self.excursions, self.limit_coasting, self.short_excursions)
+            self._coast_points = [*self._coast_points[-11:], (variant, holding_speed_mps, coast_point)]
         s, v, t, m = best
         # the stop point closes the section
         s, m = s.copy(), m.copy()
@@ -751,18 +760,23 @@ class SectionSolver:
 
         build(True, True, first=True)
         first = built[0][1]
+
         # whether the last run built (in most cases the one returned) left any arc early: if not,
         # the run without departures is the same run
-        departed = any(p < latest - 1e-9 for p, _, latest in self._decisions.values())
+        def departed() -> bool:
+            return any(p < latest - 1e-9 for p, _, latest in self._decisions.values())
+
+        plain_differs = departed()
         if first.feasible and self._has_long_excursions:
             # the last run built coasts through several descents; it was compared with a run that
             # has none of their own departures, which favours it: also build the runs whose
-            # excursions end before the next descent
+            # excursions end before the next descent (without any, they are the plain runs)
             build(True, True, short=True)
+            plain_differs = departed()
         if (
             first.feasible
             and (self._has_descents or self._has_limit_braking)
-            and (departed or not self._meets(first, running_time_s))
+            and (plain_differs or not self._meets(first, running_time_s))
         ):
             build(False, False)
             if not any(self._meets(p, running_time_s) for _, p in built):
@@ -1000,10 +1014,16 @@ class SectionSolver:
                 self._forced = {}
 
         lo, hi = 0.0, 1.0
+        e_lo = e_hi = None  # the errors at lo and hi once runs there were built
+        side = 0
         best = None
         errors = []
         for _ in range(BRIDGE_ITERATIONS):
             lam = 0.5 * (lo + hi)
+            if e_lo is not None and e_hi is not None:
+                # regula falsi (Illinois) once both sides are known: the time moves smoothly with
+                # lambda between them
+                lam = lo + (hi - lo) * e_lo / (e_lo - e_hi)
             plan = plan_at(lam)
             error = plan.running_time_s - running_time_s
             errors.append(error)
@@ -1014,9 +1034,15 @@ class SectionSolver:
             if len(errors) >= 3 and np.ptp(errors) < 2.0 * TIME_TOLERANCE_S:
                 break  # the time does not move with these departures: no bridge here
             if error > 0.0:
-                lo = lam
+                lo, e_lo = lam, error
+                if side > 0 and e_hi is not None:
+                    e_hi *= 0.5
+                side = 1
             else:
-                hi = lam
+                hi, e_hi = lam, error
+                if side < 0 and e_lo is not None:
+                    e_lo *= 0.5
+                side = -1
         if best is None or abs(best.running_time_s - running_time_s) > max(0.5, 5e-4 * running_time_s):
             return None
         return best
