@@ -76,7 +76,7 @@ def main(path: str) -> None:
     ] or ["* none"]
     out += [
         "",
-        "Why the remaining cases are above the reference: docs/OPTIMIZATION.md, end of the `optimal` section.",
+        "How the optimal strategy is built, and where the reference is not a certificate: docs/OPTIMIZATION.md.",
     ]
     print("\n".join(out))
 

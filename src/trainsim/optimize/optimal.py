@@ -691,8 +691,8 @@ class SectionSolver:
                     break
                 hi, best = lo, points
                 step *= 1.5
-        # bisection: the outcome is discontinuous at the boundary (the train meets the service braking
-        # curve some metres before the stop), so a secant on a residual does not converge faster
+        # the outcome jumps at the boundary (beyond it the train meets the service braking curve
+        # some metres before the stop), so the bracket is kept by bisection
         r_hi = np.inf
         lo_points = None
         previous = None  # the coasting point before lo with its residual (the run stopped short)
@@ -743,10 +743,12 @@ class SectionSolver:
         when that is shorter than the fastest possible.
 
         Runs are built with the departures ahead of steep descents and lower limits, and, where the
-        section has any, also without them; the one that needs less energy among those that keep the
-        schedule is kept. Each departure minimises the cost locally, and on lines where descents,
-        lower limits and the final approach interact the local choices can lose to plain holding.
-        The two mixed variants are tried only when neither keeps the schedule."""
+        section has any, also without them; where the run coasts through several descents, also
+        with excursions that end before the next descent. The one that needs least energy at the
+        scheduled time among those that keep the schedule is kept. Each departure minimises the
+        cost locally, and on lines where descents, lower limits and the final approach interact the
+        local choices can lose to plain holding. The two mixed variants are tried only when none
+        keeps the schedule."""
         self._has_descents = False
         self._has_limit_braking = False
         self._coast_points = []
@@ -807,19 +809,17 @@ class SectionSolver:
         limit_coasting: bool,
         guess_mps: float | None = None,
         short: bool = False,
-        secondary: bool | None = None,
     ) -> SectionPlan:
         """The run with or without departures ahead of descents and lower limits (with ``short``,
         excursions that end before the next descent only), starting from the holding speed
         ``guess_mps`` and the coasting points of the variants built before in this solve, never
-        from an earlier solve (results do not depend on history). A ``secondary`` variant (by
-        default one started from another's holding speed) meets the time to
-        VARIANT_TIME_TOLERANCE_S."""
+        from an earlier solve (results do not depend on history). A variant started from another's
+        holding speed is built to compare with it and meets the time to VARIANT_TIME_TOLERANCE_S."""
         self.excursions, self.limit_coasting, self.short_excursions = excursions, limit_coasting, short
         self._departure_points = {}
         self._last_departure_speed = None
         self._last_holding_speed = guess_mps if guess_mps is not None and np.isfinite(guess_mps) else None
-        self._secondary = self._last_holding_speed is not None if secondary is None else secondary
+        self._secondary = self._last_holding_speed is not None
         try:
             return self._solve_once(running_time_s)
         finally:
