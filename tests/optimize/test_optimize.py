@@ -147,6 +147,18 @@ def test_lesov_method_meets_the_schedule_and_saves_less_than_optimal(metro):
     assert abs(les.run.energy_balance["relative_error"]) < 1e-3
 
 
+def test_lesov_method_on_a_train_braking_at_a_constant_deceleration():
+    # source 001's locomotive brakes at a constant net deceleration (no braking force law): the
+    # mechanical braking below 10 km/h then gives that deceleration
+    loco = trainsim.load_scenario(ROOT / "examples" / "loco_001" / "scenario.yaml")
+    les = optimize(loco.train, loco.route, line_supplement("10%"), strategy="lesov")
+    for dev, T in zip(les.schedule_deviation_s, les.scheduled_running_time_s, strict=True):
+        assert abs(dev) <= tolerance(T)
+    assert les.run.energy_kwh.net < les.fastest.energy_kwh.net
+    opt = optimize(loco.train, loco.route, line_supplement("10%"))
+    assert opt.run.energy_kwh.net <= les.run.energy_kwh.net
+
+
 def test_lesov_equations():
     from trainsim.optimize import lesov
 

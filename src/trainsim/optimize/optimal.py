@@ -151,7 +151,7 @@ class SectionSolver:
         )
         self.n_max = 8 * len(tr.x) + int((s1 - s0) / pk.MIN_SWITCH_STEP_M) + 64
         #: (variant, holding speed, final coasting point) of the plans built in this solve
-        self._coast_points: list[tuple[tuple[bool, bool, bool], float, float]] = []
+        self._coast_points: list[tuple[tuple[bool, ...], float, float]] = []
         #: d(running time)/d(log V) [s] over the first variant's bracket in this solve
         self._time_slope: float | None = None
         #: whether holding arcs are left early ahead of steep descents (coasting excursions)
@@ -160,6 +160,10 @@ class SectionSolver:
         self.limit_coasting = True
         #: whether excursions must be back on the holding arc before the next steep descent
         self.short_excursions = False
+        #: whether a final phase that starts on an arc held by braking starts braking (adjoint
+        #: just below eta_r) rather than coasting (just below 1/eta_t)
+        self.braking_arc_exits = False
+        self._final_phase_on_braking_arc = False
         self._has_long_excursions = False
         #: the last departure point ahead of each lower limit, to search near first
         self._departure_points: dict[tuple[str, int], float] = {}
@@ -600,6 +604,14 @@ class SectionSolver:
         points, status, _ = self._phase_b(phase_a, s_c, 0.0, force_mode=kernel.REGEN)
         return points, status
 
+    def _braking_arc_start(self, phase_a, j: int, s_c: float, v: float, v_hold: float) -> bool:
+        """Whether a final phase from s_c starts on an arc of phase A held above the holding speed
+        by braking, and starts there from the braking side (the variant ``braking_arc_exits``)."""
+        if not self.braking_arc_exits:
+            return False
+        s, _, _, m = phase_a
+        return bool(m[j] == kernel.CRUISE and v > v_hold * (1.0 + 1e-6) and s[min(j + 1, len(s) - 1)] > s_c)
+
     def _phase_b(self, phase_a, s_c: float, mu: float, force_mode: int = -1, v_hold: float = np.inf):
         tr = self.track
         i, u, v, t, j = self._state_at(phase_a, s_c)
@@ -609,10 +621,16 @@ class SectionSolver:
         out_v = np.empty(self.n_max)
         out_t = np.empty(self.n_max)
         out_m = np.empty(self.n_max, dtype=np.int8)
+        phi_start = -1.0
+        if self._braking_arc_start(phase_a, j, s_c, v, v_hold):
+            # on an arc held above V by braking (a steep descent) the adjoint sits at eta_r (a
+            # regenerative holding arc; at 0 without regeneration), not at 1/eta_t: the train
+            # leaves it braking
+            phi_start = self.eta_r * (1.0 - 1e-9) if self.has_regen else -1e-9
         n, status, s_event = pk.final_phase(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, tr.traction_scale, i, u, v, t, self.i1,
             self.P, self.curves, self.tk, self.bk, self.Cr, self.US, mu, self.inv_eta_t, self.eta_r,
-            self.has_regen, ADJOINT_STEP_M, out_s, out_v, out_t, out_m, 0, force_mode, v_hold,
+            self.has_regen, ADJOINT_STEP_M, out_s, out_v, out_t, out_m, 0, force_mode, v_hold, phi_start,
         )  # fmt: skip
         if n >= self.n_max:
             status = pk.STOPPED_SHORT  # the buffers filled up: an unusable attempt
@@ -633,10 +651,12 @@ class SectionSolver:
         """Where the final coast of holding speed V probably starts: from the plans of this solve
         with the closest holding speeds (this variant's if it has any), interpolated between the
         two closest or extrapolated no farther than they are apart, else the closest one's."""
-        variant = (self.excursions, self.limit_coasting, self.short_excursions)
-        points = [(v, c) for k, v, c in self._coast_points if k == variant] or [
-            (v, c) for _, v, c in self._coast_points
-        ]
+        variant = (self.excursions, self.limit_coasting, self.short_excursions, self.braking_arc_exits)
+        points = [(v, c) for k, v, c in self._coast_points if k == variant]
+        if not points and not self.braking_arc_exits:
+            # (that variant searches from the stop: its coast may start on a braking arc that the
+            # others' coasts passed over)
+            points = [(v, c) for _, v, c in self._coast_points]
         if not points:
             return None
         points.sort(key=lambda vc: abs(vc[0] - holding_speed_mps))
@@ -723,11 +743,18 @@ class SectionSolver:
                 previous = (lo, r_lo)
                 lo, r_lo, lo_points = mid, r_mid, points
         coast_point = hi
+        # whether the final phase replaces an arc phase A holds above V by braking
+        s_a, v_a, _, m_a = phase_a
+        self._final_phase_on_braking_arc = bool(
+            np.any(
+                (m_a[:-1] == kernel.CRUISE) & (v_a[:-1] > holding_speed_mps * (1.0 + 1e-6)) & (s_a[:-1] > lo)
+            )
+        )
         if -STOP_TOLERANCE_M <= r_lo < 0.0:
             coast_point = lo
             best = lo_points if lo_points is not None else residual(lo)[1]
         if not self._forced:  # runs with imposed departures are no guide to the next V's
-            variant = (self.excursions, self.limit_coasting, self.short_excursions)
+            variant = (self.excursions, self.limit_coasting, self.short_excursions, self.braking_arc_exits)
             self._coast_points = [*self._coast_points[-11:], (variant, holding_speed_mps, coast_point)]
         s, v, t, m = best
         # the stop point closes the section
@@ -753,15 +780,29 @@ class SectionSolver:
         self._has_limit_braking = False
         self._coast_points = []
         self._time_slope = None
-        built: list[tuple[tuple[bool, bool, bool], SectionPlan]] = []
+        built: list[tuple[tuple[bool, ...], SectionPlan]] = []
 
-        def build(excursions: bool, limit_coasting: bool, short: bool = False, first: bool = False) -> None:
+        def build(
+            excursions: bool,
+            limit_coasting: bool,
+            short: bool = False,
+            first: bool = False,
+            arcs: bool = False,
+        ) -> None:
             guess = None if first else built[0][1].holding_speed_mps
-            plan = self._solve_variant(running_time_s, excursions, limit_coasting, guess, short=short)
-            built.append(((excursions, limit_coasting, short), plan))
+            plan = self._solve_variant(
+                running_time_s, excursions, limit_coasting, guess, short=short, braking_arc_exits=arcs
+            )
+            built.append(((excursions, limit_coasting, short, arcs), plan))
 
         build(True, True, first=True)
         first = built[0][1]
+        if first.feasible and self.has_regen and self._final_phase_on_braking_arc:
+            # the final coast was searched across an arc held by regenerative braking: leaving it
+            # the adjoint starts at eta_r, and from 1/eta_t a heavy train's adjoint may not come
+            # down to eta_r before the stop at all (it then coasts far too fast into the braking
+            # curve); both are built
+            build(True, True, arcs=True)
 
         # whether the last run built (in most cases the one returned) left any arc early: if not,
         # the run without departures is the same run
@@ -799,7 +840,7 @@ class SectionSolver:
         else:
             best = min((p for _, p in built), key=lambda p: abs(p.running_time_s - running_time_s))
         self.excursions = self.limit_coasting = True
-        self.short_excursions = False
+        self.short_excursions = self.braking_arc_exits = False
         return best
 
     def _solve_variant(
@@ -809,6 +850,7 @@ class SectionSolver:
         limit_coasting: bool,
         guess_mps: float | None = None,
         short: bool = False,
+        braking_arc_exits: bool = False,
     ) -> SectionPlan:
         """The run with or without departures ahead of descents and lower limits (with ``short``,
         excursions that end before the next descent only), starting from the holding speed
@@ -816,6 +858,7 @@ class SectionSolver:
         from an earlier solve (results do not depend on history). A variant started from another's
         holding speed is built to compare with it and meets the time to VARIANT_TIME_TOLERANCE_S."""
         self.excursions, self.limit_coasting, self.short_excursions = excursions, limit_coasting, short
+        self.braking_arc_exits = braking_arc_exits
         self._departure_points = {}
         self._last_departure_speed = None
         self._last_holding_speed = guess_mps if guess_mps is not None and np.isfinite(guess_mps) else None

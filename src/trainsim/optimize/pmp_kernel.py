@@ -98,15 +98,17 @@ def ceiling_at(u, w, k, Cr, US, vcap, line, P, curves, bk):
 def final_phase(
     x, a0, a1, b0, b1, vcap, tscale, i_start, u_start, v_start, t_start, i_end,
     P, curves, tk, bk, Cr, US, mu, inv_eta_t, eta_r, has_regen, h_max,
-    out_s, out_v, out_t, out_m, n, force_mode=-1, v_hold=np.inf,
+    out_s, out_v, out_t, out_m, n, force_mode=-1, v_hold=np.inf, phi_start=-1.0,
 ):  # fmt: skip
     """From (x[i_start] + u_start, v_start), leaving the holding arc (phi just below 1/eta_t), drive
     by the adjoint to the stop at x[i_end], holding the speed limit ``vcap`` if the train reaches
     it. Appends points; returns (n, status): HIT_CEILING when the train meets the braking curve
     to the stop (it then follows it and stops exactly at x[i_end]), STOPPED_SHORT when it comes
     to rest before (the last point is where it stopped); and the position of that event.
-    ``force_mode`` >= 0 replaces the adjoint's choice by a fixed regime (source 004's braking)."""
-    phi = inv_eta_t * (1.0 - 1e-9)
+    ``force_mode`` >= 0 replaces the adjoint's choice by a fixed regime (source 004's braking).
+    The adjoint starts at ``phi_start``, by default (< 0) just below 1/eta_t: leaving a holding
+    arc; leaving an arc held by braking on a descent it starts just below eta_r (or 0)."""
+    phi = inv_eta_t * (1.0 - 1e-9) if phi_start < 0.0 else phi_start
     E = 0.5 * v_start * v_start
     t = t_start
     u = u_start
