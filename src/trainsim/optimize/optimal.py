@@ -771,7 +771,9 @@ class SectionSolver:
 
         Runs are built with the departures ahead of steep descents and lower limits, and, where the
         section has any, also without them; where the run coasts through several descents, also
-        with excursions that end before the next descent. The one that needs least energy at the
+        with excursions that end before the next descent; where its final coast replaces an arc
+        held by regenerative braking, also with a final phase that leaves such arcs at eta_r. The
+        one that needs least energy at the
         scheduled time among those that keep the schedule is kept. Each departure minimises the
         cost locally, and on lines where descents, lower limits and the final approach interact the
         local choices can lose to plain holding. The two mixed variants are tried only when none
@@ -797,12 +799,6 @@ class SectionSolver:
 
         build(True, True, first=True)
         first = built[0][1]
-        if first.feasible and self.has_regen and self._final_phase_on_braking_arc:
-            # the final coast was searched across an arc held by regenerative braking: leaving it
-            # the adjoint starts at eta_r, and from 1/eta_t a heavy train's adjoint may not come
-            # down to eta_r before the stop at all (it then coasts far too fast into the braking
-            # curve); both are built
-            build(True, True, arcs=True)
 
         # whether the last run built (in most cases the one returned) left any arc early: if not,
         # the run without departures is the same run
@@ -810,7 +806,13 @@ class SectionSolver:
             return any(p < latest - 1e-9 for p, _, latest in self._decisions.values())
 
         plain_differs = departed()
-        if first.feasible and self._has_long_excursions:
+        long_excursions = self._has_long_excursions
+        if first.feasible and self.has_regen and self._final_phase_on_braking_arc:
+            # the final coast replaces an arc held by regenerative braking: leaving it the adjoint
+            # starts at eta_r, and from 1/eta_t a heavy train's adjoint may not come down to eta_r
+            # before the stop at all (it then coasts far too fast into the braking curve)
+            build(True, True, arcs=True)
+        if first.feasible and long_excursions:
             # the last run built coasts through several descents; it was compared with a run that
             # has none of their own departures, which favours it: also build the runs whose
             # excursions end before the next descent (without any, they are the plain runs)
