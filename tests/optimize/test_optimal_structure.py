@@ -75,6 +75,12 @@ def tolerance(T: float) -> float:
     return max(0.5, 5e-4 * T)
 
 
+def ttobench_solver(train: str, track: str, s0: float, s1: float) -> SectionSolver:
+    tt = read_ttobench_train(TTOBENCH / "trains" / f"{train}.json")
+    route = read_ttobench_track(TTOBENCH / "tracks" / f"{track}.json", tt)
+    return SectionSolver(tt.train, route, s0, s1)
+
+
 def lower_limit_route() -> Route:
     return Route(
         name="lower limit",
@@ -147,9 +153,7 @@ def test_leaves_the_holding_arc_ahead_of_a_steep_descent():
 def test_ttobench_section_with_lower_limits_is_near_the_reference():
     # the 2.6 km section of Beijing's Yizhuang line: 50, 80, 65, 80 and 60 km/h; coasting ahead of
     # the lower limits was worth 15 % here
-    tt = read_ttobench_train(TTOBENCH / "trains" / "CN_Beijing_Subway.json")
-    route = read_ttobench_track(TTOBENCH / "tracks" / "CN_Songjiazhuang_Yizhuang.json", tt)
-    solver = SectionSolver(tt.train, route, 0.0, 2631.0)
+    solver = ttobench_solver("CN_Beijing_Subway", "CN_Songjiazhuang_Yizhuang", 0.0, 2631.0)
     T = solver.fastest_time_s * 1.10
     plan = solver.solve(T)
     assert abs(plan.running_time_s - T) <= tolerance(T)
@@ -160,9 +164,7 @@ def test_ttobench_section_with_lower_limits_is_near_the_reference():
 def test_schedule_kept_where_the_running_time_jumps_with_the_holding_speed():
     # here the final coasting phase starts meeting a lower limit's braking curve as the holding
     # speed grows, and the running time jumps by 6 s at about 119 km/h
-    tt = read_ttobench_train(TTOBENCH / "trains" / "NL_Intercity_VIRM6.json")
-    route = read_ttobench_track(TTOBENCH / "tracks" / "CN_Songjiazhuang_Yizhuang.json", tt)
-    solver = SectionSolver(tt.train, route, 13419.0, 15757.0)
+    solver = ttobench_solver("NL_Intercity_VIRM6", "CN_Songjiazhuang_Yizhuang", 13419.0, 15757.0)
     T = solver.fastest_time_s * 1.05
     plan = solver.solve(T)
     assert plan.feasible
@@ -174,9 +176,7 @@ def test_net_regenerating_descent_ends_on_regenerative_braking():
     # Zurich Stadelhofen - Altstetten, first 1.7 km: downhill all the way, the train returns more
     # than it draws. The final coast must end on the regenerative braking curve to the stop, not on
     # the friction brakes a few metres too late (that cost 7 % of the energy returned)
-    tt = read_ttobench_train(TTOBENCH / "trains" / "NL_Intercity_VIRM6.json")
-    route = read_ttobench_track(TTOBENCH / "tracks" / "CH_Stadelhofen_Altstetten.json", tt)
-    solver = SectionSolver(tt.train, route, 0.0, 1690.0)
+    solver = ttobench_solver("NL_Intercity_VIRM6", "CH_Stadelhofen_Altstetten", 0.0, 1690.0)
     T = solver.fastest_time_s * 1.30
     plan = solver.solve(T)
     assert abs(plan.running_time_s - T) <= tolerance(T)
@@ -227,9 +227,7 @@ def test_line_supplement_on_a_hilly_line_with_lower_limits_is_met():
 def test_excursions_that_swallow_later_descents_are_weighed_against_short_ones(
     track, train, end_m, supplement
 ):
-    tt = read_ttobench_train(TTOBENCH / "trains" / f"{train}.json")
-    route = read_ttobench_track(TTOBENCH / "tracks" / f"{track}.json", tt)
-    solver = SectionSolver(tt.train, route, 0.0, end_m)
+    solver = ttobench_solver(train, track, 0.0, end_m)
     T = solver.fastest_time_s * (1.0 + supplement)
     plan = solver.solve(T)
     assert abs(plan.running_time_s - T) <= tolerance(T)
@@ -242,9 +240,7 @@ def test_running_time_jump_between_departure_choices_is_bridged():
     # Yizhuang line 3906-6272 m, Beijing metro: with its departures the run's time jumps by 8 s
     # between holding speeds 0.03 % apart (the departure ahead of the first descent moves 70 m);
     # the departures are moved together between the two sides until the time is met
-    tt = read_ttobench_train(TTOBENCH / "trains" / "CN_Beijing_Subway.json")
-    route = read_ttobench_track(TTOBENCH / "tracks" / "CN_Songjiazhuang_Yizhuang.json", tt)
-    solver = SectionSolver(tt.train, route, 3906.0, 6272.0)
+    solver = ttobench_solver("CN_Beijing_Subway", "CN_Songjiazhuang_Yizhuang", 3906.0, 6272.0)
     T = solver.fastest_time_s * 1.20
     with_departures = solver._solve_variant(T, True, True)
     assert abs(with_departures.running_time_s - T) <= tolerance(T)

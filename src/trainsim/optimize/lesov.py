@@ -69,11 +69,6 @@ def net_specific_force_n_per_kn(deceleration_mps2: float, train: Train) -> float
     return deceleration_mps2 * 1000.0 * train.rotating_mass_factor / G
 
 
-def _mechanical_specific_force(train: Train, v_kmh: float) -> float:
-    """The service brake's force at v [km/h] as specific force [N/kN]."""
-    return specific_force_n_per_kn(float(train.braking.service_force(v_kmh * KMH)), train)
-
-
 def speed_step_kmh(v_kmh: float, target_kmh: float) -> float:
     """dV: 10 km/h up to V_l, 5 km/h above, 1 km/h within 5 km/h of the target (source 004)."""
     if target_kmh - v_kmh <= 5.0:
@@ -142,8 +137,9 @@ def _phases(train: Train, route: Route, s0: float, s1: float, v_ss: float, zeta:
         dv = min(speed_step_kmh(v, v_top), v_top - v)
         vm = v + 0.5 * dv
         if vm <= MECHANICAL_BRAKING_SPEED_KMH:
-            b = _mechanical_specific_force(train, vm) if train.braking.service_force is not None else None
-            if b is None:
+            if train.braking.service_force is not None:
+                b = specific_force_n_per_kn(float(train.braking.service_force(vm * KMH)), train)
+            else:
                 # a train that brakes at a constant net deceleration (resistance and grade
                 # included): the specific force that gives it, less what resistance and grade add
                 b = net_specific_force_n_per_kn(train.braking.deceleration_mps2, train) - w_m(vm) - w_a(s)
