@@ -25,7 +25,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from trainsim.batch.paths import Path, get_values, parse_path, set_value
-from trainsim.errors import InputError
+from trainsim.errors import InputError, Problem
 
 __all__ = [
     "MULTI_POINT_KEYS",
@@ -650,7 +650,9 @@ class Study:
                 try:
                     _validate_scenario(trial, "trial", self.base_dir)
                 except InputError as exc:
-                    problems = getattr(exc, "problems", None) or [(exc.field, exc.reason)]
+                    problems = [
+                        (p.field, p.reason) if isinstance(p, Problem) else p for p in exc.problems
+                    ]
                     for field, reason in problems:
                         if str(reason).startswith(("unknown field", "no station of that name")):
                             raise fail(
