@@ -6,9 +6,26 @@ the left by the factor to get SI; divide an SI value by it to get the named unit
 
 from __future__ import annotations
 
-#: Acceleration due to gravity [m/s^2]. 9.81 rather than the standard 9.80665 because the
-#: traction-calculation rules trainsim reproduces (TB/T 1407, Wende 2003, TrainRuns.jl) all use it.
-G = 9.81
+#: Standard acceleration due to gravity [m/s^2] (CGPM 1901; ISO 80000-3): the default of
+#: ``Route.gravity_mps2``. Gravity is a setting of the route, never a literal in the physics.
+STANDARD_GRAVITY = 9.80665
+
+#: Gravity conventions of the sources trainsim reads [m/s^2]; each reader sets its source's value
+#: on the routes (and the weight-based resistance laws) it builds.
+#: railtoolkit / TrainRuns.jl (``g = 9.80665`` in its formulary).
+TRAINRUNS_GRAVITY = 9.80665
+#: TTOBench and ms-eetc (``g = 9.81``).
+TTOBENCH_GRAVITY = 9.81
+#: NREL ALTRIOS (``uc::ACC_GRAV = 9.80155``, its value for the continental United States).
+ALTRIOS_GRAVITY = 9.80155
+
+#: Plausible gravity at the Earth's surface [m/s^2]: 9.78 at the equator, 9.83 at the poles;
+#: the allowed range of ``Route.gravity_mps2`` leaves a margin around it.
+GRAVITY_RANGE_MPS2 = (9.7, 9.9)
+
+#: Legacy name: TTOBench / ms-eetc's 9.81 [m/s^2]. Kept only for code outside the simulation core
+#: (plots, web previews) that has no route at hand; the core takes gravity from the route.
+G = TTOBENCH_GRAVITY
 
 #: Density of air at 15 degC, sea level [kg/m^3] (ISA).
 AIR_DENSITY = 1.225

@@ -10,7 +10,7 @@ import pytest
 from trainsim.errors import InputError
 from trainsim.physics import line_resistance as lr
 
-G = 9.81
+G = 9.80665  # the default gravity (constants.STANDARD_GRAVITY)
 
 
 # ---------------------------------------------------------------- gradient
@@ -52,7 +52,9 @@ def test_wang_source_000_is_roeckl_in_kn_per_t() -> None:
     assert lr.curve_ratio(1000.0, "wang") == pytest.approx(6.3 / G / 945)
     # R = 250 m: 4.91 / 9.81 / (250 - 30) = 2.2751e-3; 4.91/9.81 = 500.5, Roeckl's 500
     assert lr.curve_ratio(250.0, "wang") == pytest.approx(4.91 / G / 220)
-    assert lr.curve_ratio(250.0, "wang") == pytest.approx(lr.curve_ratio(250.0, "roeckl"), rel=1.1e-3)
+    assert lr.curve_ratio(250.0, "wang") == pytest.approx(
+        lr.curve_ratio(250.0, "roeckl"), rel=1.5e-3
+    )  # 500.7 vs 500
 
 
 def test_wang_dimension_kn_per_tonne() -> None:

@@ -11,7 +11,7 @@ from trainsim.errors import InputError
 from trainsim.model.laws import Quadratic
 from trainsim.physics import resistance as res
 
-G = 9.81
+G = 9.80665  # the default gravity (constants.STANDARD_GRAVITY)
 KMH = 1 / 3.6
 SPEEDS_MPS = np.array([0.0, 5.0, 12.5, 22.2, 27.7778, 44.0])
 
@@ -27,8 +27,8 @@ def test_davis_kn_kmh_source_002_table_2() -> None:
     law = res.davis_kn_kmh(2.43, 0.02997, 0.00078)
     force = law(80 * KMH)
     assert force == pytest.approx(9819.6, rel=1e-9)
-    # 288.2 t (4 x 49.8 + 2 x 44.5): 9819.6 / (288200 * 9.81) * 1000 = 3.473 N/kN, a usual metro value
-    assert force / (288_200 * G) * 1000 == pytest.approx(3.473, abs=1e-3)
+    # 288.2 t (4 x 49.8 + 2 x 44.5): 9819.6 / (288200 * 9.80665) * 1000 = 3.474 N/kN, a usual metro value
+    assert force / (288_200 * G) * 1000 == pytest.approx(3.4744, abs=1e-3)
 
 
 def test_per_mass_source_000() -> None:
@@ -39,13 +39,16 @@ def test_per_mass_source_000() -> None:
 def test_specific_n_per_kn() -> None:
     # w0 = 0.85 + 0.005*60 + 0.000125*60^2 = 0.85 + 0.3 + 0.45 = 1.6 N/kN
     # force = 1.6 * 5e6 kg * 9.81 / 1000 = 78480 N
-    assert res.specific_n_per_kn(5.0e6, 0.85, 0.005, 0.000125)(60 * KMH) == pytest.approx(78_480.0)
+    law = res.specific_n_per_kn(5.0e6, 0.85, 0.005, 0.000125, gravity_mps2=9.81)
+    assert law(60 * KMH) == pytest.approx(78_480.0)
+    # the default is the standard gravity 9.80665
+    assert res.specific_n_per_kn(5.0e6, 0.85, 0.005, 0.000125)(60 * KMH) == pytest.approx(78_453.2)
 
 
 def test_specific_unit_weight_dimension() -> None:
-    # 1 N/kN on 1000 kg is 1/1000 of 1000 kg * 9.81 m/s^2 = 9.81 N, at any speed
+    # 1 N/kN on 1000 kg is 1/1000 of 1000 kg * 9.80665 m/s^2 = 9.80665 N, at any speed
     law = res.specific_n_per_kn(1000.0, 1.0, 0.0, 0.0)
-    np.testing.assert_allclose(law(SPEEDS_MPS), 9.81)
+    np.testing.assert_allclose(law(SPEEDS_MPS), 9.80665)
 
 
 def test_rav_in_newton_with_kmh() -> None:
@@ -70,32 +73,34 @@ def test_rav_carriage_4axle_source_001() -> None:
 
 def test_strahl() -> None:
     # 1000 t, f0 = 1.5, f2 = 2.5 per mille at v = v00 = 100 km/h: 1e6 * 9.81 * (1.5 + 2.5) / 1000 = 39240 N
-    assert res.strahl(1.0e6, 1.5, 2.5)(100 * KMH) == pytest.approx(39_240.0)
+    assert res.strahl(1.0e6, 1.5, 2.5, gravity_mps2=9.81)(100 * KMH) == pytest.approx(39_240.0)
     # at 50 km/h: 9810 * (1.5 + 2.5 * 0.25) = 9810 * 2.125 = 20846.25 N
-    assert res.strahl(1.0e6, 1.5, 2.5)(50 * KMH) == pytest.approx(20_846.25)
+    assert res.strahl(1.0e6, 1.5, 2.5, gravity_mps2=9.81)(50 * KMH) == pytest.approx(20_846.25)
 
 
 def test_sauthoff() -> None:
     # 400 t, f0=1.0, f1=0.5, f2=1.5 per mille at 85 km/h: (85 + 15)/100 = 1
     # 1.0 + 0.5 * 0.85 + 1.5 * 1 = 2.925 per mille -> 400000 * 9.81 * 2.925e-3 = 11477.7 N
-    assert res.sauthoff(400_000.0, 1.0, 0.5, 1.5)(85 * KMH) == pytest.approx(11_477.7)
+    assert res.sauthoff(400_000.0, 1.0, 0.5, 1.5, gravity_mps2=9.81)(85 * KMH) == pytest.approx(11_477.7)
 
 
 def test_sauthoff_head_wind_allowance_at_standstill() -> None:
     # v = 0: f0 + f2 (15/100)^2 = 1.0 + 1.5 * 0.0225 = 1.03375 per mille -> 3924 * 1.03375 = 4056.435 N
-    assert res.sauthoff(400_000.0, 1.0, 0.5, 1.5)(0.0) == pytest.approx(4056.435)
+    assert res.sauthoff(400_000.0, 1.0, 0.5, 1.5, gravity_mps2=9.81)(0.0) == pytest.approx(4056.435)
 
 
 def test_wende_traction_unit() -> None:
     # 80 t, 60 t on driven axles, f_td0 = 2.5, f_tc0 = 1.5, f_t2 = 0.5 per mille, 85 km/h ((85+15)/100 = 1):
     # 2.5e-3*60000*9.81 + 1.5e-3*20000*9.81 + 0.5e-3*80000*9.81*1 = 1471.5 + 294.3 + 392.4 = 2158.2 N
-    assert res.wende_traction_unit(80_000.0, 60_000.0, 2.5, 1.5, 0.5)(85 * KMH) == pytest.approx(2158.2)
+    assert res.wende_traction_unit(80_000.0, 60_000.0, 2.5, 1.5, 0.5, gravity_mps2=9.81)(
+        85 * KMH
+    ) == pytest.approx(2158.2)
 
 
 def test_altrios() -> None:
     # 100 t, 4 axles, 50 N/axle, rolling 5e-4, davis_b 1e-4 s/m, cd_area 5 m^2 at 20 m/s; W = 981000 N
     # 4*50 + 5e-4*981000 + 1e-4*20*981000 + 1.225*5*20^2 = 200 + 490.5 + 1962 + 2450 = 5102.5 N
-    assert res.altrios(100_000.0, 4, 50.0, 5e-4, 1e-4, 5.0)(20.0) == pytest.approx(5102.5)
+    assert res.altrios(100_000.0, 4, 50.0, 5e-4, 1e-4, 5.0, gravity_mps2=9.81)(20.0) == pytest.approx(5102.5)
 
 
 def test_altrios_drag_area_lumps_the_half() -> None:

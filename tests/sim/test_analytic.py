@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from simcases import make_route, make_train
 
-from trainsim.constants import KMH, G
+from trainsim.constants import KMH
+from trainsim.constants import STANDARD_GRAVITY as G
 from trainsim.model import Quadratic
 from trainsim.model.scenario import RunSettings
 from trainsim.sim.fastest import run_fastest

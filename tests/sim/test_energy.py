@@ -10,7 +10,8 @@ import pytest
 from simcases import make_route, make_train
 
 import trainsim
-from trainsim.constants import KMH, KWH, G
+from trainsim.constants import KMH, KWH
+from trainsim.constants import STANDARD_GRAVITY as G
 from trainsim.model import Braking, Curve, EffortCurve, Electrical, LineResistanceSettings, Tunnel
 from trainsim.sim.kernel import BRAKE
 

@@ -8,7 +8,8 @@ kernel evaluates without knowing where it came from:
 * a table interpolated linearly (source 002, eq. 1-2; TrainRuns.jl): c0 + c1 v per interval;
 * piecewise quadratic laws (source 000, Wang et al.): c0 + c1 v + c2 v^2;
 * hyperbolic constant-power laws (source 000): ch / v;
-* power-limited traction with an adhesion limit (source 001): power_cap = eta P, force_cap = mu m g.
+* power-limited traction with an adhesion limit (source 001): power_cap = eta P, force_cap = mu m g
+  (mu m is kept as ``adhesion_limit_kg`` and multiplied by the route's g when the run starts).
 
 The last interval extends to infinity; forces are never negative.
 """
@@ -20,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from trainsim.constants import STANDARD_GRAVITY
 from trainsim.errors import InputError
 
 
@@ -33,6 +35,9 @@ class EffortCurve:
         force_cap_n: upper bound on the force, e.g. an adhesion limit [N].
         power_cap_w: upper bound on force x speed [W].
         label: what the curve was built from, for reports.
+        adhesion_limit_kg: adhesion coefficient x mass on driven axles, mu m_adh [kg]: the force is
+            also capped at mu m_adh g, with g the route's gravity (``at_gravity``; evaluating the
+            curve directly uses the standard 9.80665). Infinite: no adhesion limit.
     """
 
     interval_start_mps: np.ndarray
@@ -40,6 +45,7 @@ class EffortCurve:
     force_cap_n: float = float("inf")
     power_cap_w: float = float("inf")
     label: str = ""
+    adhesion_limit_kg: float = float("inf")
 
     def __post_init__(self) -> None:
         starts = np.ascontiguousarray(self.interval_start_mps, dtype=float)
@@ -60,13 +66,14 @@ class EffortCurve:
             )
         if not (np.all(np.isfinite(coefs)) and np.isfinite(starts).all()):
             raise InputError("effort curve values must be finite", field="effort")
-        if self.force_cap_n < 0 or self.power_cap_w < 0:
+        if not (self.force_cap_n >= 0 and self.power_cap_w >= 0 and self.adhesion_limit_kg >= 0):
             raise InputError(
                 "effort caps must be >= 0",
                 field="effort",
-                value=(self.force_cap_n, self.power_cap_w),
+                value=(self.force_cap_n, self.power_cap_w, self.adhesion_limit_kg),
+                allowed=">= 0",
             )
-        if coefs[0, 3] != 0.0 and not np.isfinite(self.force_cap_n):
+        if coefs[0, 3] != 0.0 and not np.isfinite(min(self.force_cap_n, self.adhesion_limit_kg)):
             raise InputError(
                 "a hyperbolic (constant-power) law that starts at 0 km/h is infinite at standstill; "
                 "give a force cap (e.g. an adhesion limit) or start the law at a speed above 0",
@@ -167,6 +174,7 @@ class EffortCurve:
             force_cap_n=self.force_cap_n * factor,
             power_cap_w=self.power_cap_w * factor,
             label=label if label is not None else f"{factor:g} x {self.label}",
+            adhesion_limit_kg=self.adhesion_limit_kg * factor,
         )
 
     def capped(self, *, force_cap_n: float | None = None, power_cap_w: float | None = None) -> EffortCurve:
@@ -177,7 +185,26 @@ class EffortCurve:
             force_cap_n=min(self.force_cap_n, force_cap_n if force_cap_n is not None else np.inf),
             power_cap_w=min(self.power_cap_w, power_cap_w if power_cap_w is not None else np.inf),
             label=self.label,
+            adhesion_limit_kg=self.adhesion_limit_kg,
         )
+
+    def at_gravity(self, gravity_mps2: float) -> EffortCurve:
+        """The curve with its adhesion limit mu m_adh g applied for gravity g [m/s^2] (itself when
+        it has none)."""
+        if not np.isfinite(self.adhesion_limit_kg):
+            return self
+        return EffortCurve(
+            self.interval_start_mps,
+            self.coefficients,
+            force_cap_n=min(self.force_cap_n, self.adhesion_limit_kg * gravity_mps2),
+            power_cap_w=self.power_cap_w,
+            label=self.label,
+        )
+
+    @property
+    def _force_cap(self) -> float:
+        """Force cap [N] including an unresolved adhesion limit at standard gravity."""
+        return min(self.force_cap_n, self.adhesion_limit_kg * STANDARD_GRAVITY)
 
     def __call__(self, speed_mps: ArrayLike) -> np.ndarray | float:
         """Force [N] at speed [m/s] (vectorised)."""
@@ -188,9 +215,9 @@ class EffortCurve:
             law = c[..., 0] + c[..., 1] * v + c[..., 2] * v * v
             law = law + np.where(c[..., 3] != 0.0, c[..., 3] / v, 0.0)
             power = np.where(v > 0, self.power_cap_w / v, np.inf)
-        out = np.maximum(np.minimum(np.minimum(law, self.force_cap_n), power), 0.0)
+        out = np.maximum(np.minimum(np.minimum(law, self._force_cap), power), 0.0)
         return float(out) if out.ndim == 0 else out
 
     def as_arrays(self) -> tuple[np.ndarray, np.ndarray, float, float]:
         """``(interval_start_mps, coefficients, force_cap_n, power_cap_w)`` for the compiled kernel."""
-        return self.interval_start_mps, self.coefficients, float(self.force_cap_n), float(self.power_cap_w)
+        return self.interval_start_mps, self.coefficients, float(self._force_cap), float(self.power_cap_w)

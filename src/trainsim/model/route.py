@@ -8,6 +8,7 @@ from typing import Literal
 
 import numpy as np
 
+from trainsim.constants import GRAVITY_RANGE_MPS2, STANDARD_GRAVITY
 from trainsim.errors import InputError
 
 CurveFormula = Literal["roeckl", "wang", "tbt1407", "french800", "none"]
@@ -127,6 +128,10 @@ class Route:
         tunnels: tunnels.
         electrification: electrified sections (empty: electrified everywhere).
         line_resistance: formula choices.
+        gravity_mps2: acceleration due to gravity g [m/s^2] for every weight force on this route
+            (gradient, curve, tunnel, weight-based resistance, adhesion); default the standard
+            9.80665. Readers set their source's convention (``trainsim.constants``:
+            ``TRAINRUNS_GRAVITY`` 9.80665, ``TTOBENCH_GRAVITY`` 9.81, ``ALTRIOS_GRAVITY`` 9.80155).
     """
 
     name: str
@@ -139,8 +144,17 @@ class Route:
     tunnels: tuple[Tunnel, ...] = ()
     electrification: tuple[ElectrificationSection, ...] = ()
     line_resistance: LineResistanceSettings = field(default_factory=LineResistanceSettings)
+    gravity_mps2: float = STANDARD_GRAVITY
 
     def __post_init__(self) -> None:
+        lo, hi = GRAVITY_RANGE_MPS2
+        if not lo <= self.gravity_mps2 <= hi:
+            raise InputError(
+                "gravity must be the acceleration due to gravity at the Earth's surface",
+                field="gravity_mps2",
+                value=self.gravity_mps2,
+                allowed=f"{lo:g} .. {hi:g} m/s^2 (standard 9.80665)",
+            )
         for name in ("stations", "speed_limits", "gradients", "curves", "tunnels", "electrification"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         if not (np.isfinite(self.start_m) and np.isfinite(self.end_m) and self.end_m > self.start_m):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -180,6 +180,26 @@ class Train:
                 raise InputError("invalid train data", field=name, value=value, allowed=allowed)
         object.__setattr__(self, "resistance", tuple(self.resistance))
         object.__setattr__(self, "vehicles", tuple(self.vehicles))
+
+    def at_gravity(self, gravity_mps2: float) -> Train:
+        """The train with every adhesion limit of its effort curves resolved for gravity g [m/s^2]
+        (a run calls this with its route's gravity; itself when nothing depends on g)."""
+        b = self.braking
+        curves = (self.traction, b.service_force, b.regenerative, b.full_force)
+        if all(c is None or not np.isfinite(c.adhesion_limit_kg) for c in curves):
+            return self
+        g = gravity_mps2
+
+        def res(c: EffortCurve | None) -> EffortCurve | None:
+            return c.at_gravity(g) if c is not None else None
+
+        braking = replace(
+            b,
+            service_force=res(b.service_force),
+            regenerative=res(b.regenerative),
+            full_force=res(b.full_force),
+        )
+        return replace(self, traction=self.traction.at_gravity(g), braking=braking)
 
     @property
     def inertial_mass_kg(self) -> float:

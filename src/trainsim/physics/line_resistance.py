@@ -15,7 +15,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
-from trainsim.constants import PERMILLE, G
+from trainsim.constants import PERMILLE, STANDARD_GRAVITY
 from trainsim.errors import InputError
 
 __all__ = [
@@ -108,7 +108,9 @@ def _two_branch_permille(
     return k / (radius - r0)
 
 
-def curve_ratio(radius_m: ArrayLike, formula: str) -> np.ndarray | float:
+def curve_ratio(
+    radius_m: ArrayLike, formula: str, *, gravity_mps2: float = STANDARD_GRAVITY
+) -> np.ndarray | float:
     """Curve resistance as a ratio of the weight m g [-].
 
     Formulas (see ``CURVE_FORMULAS``):
@@ -125,6 +127,8 @@ def curve_ratio(radius_m: ArrayLike, formula: str) -> np.ndarray | float:
     Args:
         radius_m: curve radius R [m]; must exceed the formula's pole (30 m or 0 m).
         formula: one of ``CURVE_FORMULAS``.
+        gravity_mps2: g [m/s^2] dividing ``wang``'s force per mass into a ratio of the weight (the
+            route's gravity); the other formulas are ratios already.
 
     Raises:
         InputError: unknown formula, or a radius at or below the formula's pole (field
@@ -139,7 +143,8 @@ def curve_ratio(radius_m: ArrayLike, formula: str) -> np.ndarray | float:
     if formula == "roeckl":
         permille = _two_branch_permille(radius, (650.0, 55.0), (500.0, 30.0))
     elif formula == "wang":
-        permille = _two_branch_permille(radius, (6.3 / G / PERMILLE, 55.0), (4.91 / G / PERMILLE, 30.0))
+        g = gravity_mps2
+        permille = _two_branch_permille(radius, (6.3 / g / PERMILLE, 55.0), (4.91 / g / PERMILLE, 30.0))
     elif formula == "tbt1407":
         permille = 600.0 / radius
     else:  # french800

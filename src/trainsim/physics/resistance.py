@@ -19,10 +19,10 @@ from trainsim.constants import (
     KMH,
     KN,
     PERMILLE,
+    STANDARD_GRAVITY,
     TONNE,
     WENDE_AIR_SPEED_MARGIN,
     WENDE_REFERENCE_SPEED,
-    G,
 )
 from trainsim.errors import InputError
 from trainsim.model.laws import Quadratic
@@ -101,7 +101,9 @@ def per_mass(mass_kg: float, a1_n_per_kg: float, a2_n_s2_per_kg_m2: float) -> Qu
     return Quadratic(mass_kg * a1_n_per_kg, 0.0, mass_kg * a2_n_s2_per_kg_m2)
 
 
-def specific_n_per_kn(mass_kg: float, a: float, b: float, c: float) -> Quadratic:
+def specific_n_per_kn(
+    mass_kg: float, a: float, b: float, c: float, *, gravity_mps2: float = STANDARD_GRAVITY
+) -> Quadratic:
     """Specific resistance ``w0 = a + b V + c V^2`` [N/kN] with V in km/h, force ``w0 m g / 1000``.
 
     The form of the Chinese traction rules (TB/T 1407, cited by source 002) and of the Russian PTR
@@ -112,12 +114,13 @@ def specific_n_per_kn(mass_kg: float, a: float, b: float, c: float) -> Quadratic
         a: constant term [N/kN].
         b: linear term [N/kN per km/h].
         c: quadratic term [N/kN per (km/h)^2].
+        gravity_mps2: g that turns the mass into a weight [m/s^2] (the source's convention).
 
     Returns:
         The resistance [N] over speed [m/s].
     """
     _require_positive("mass", mass_kg)
-    return _from_kmh(a, b, c, unit_n=mass_kg * G * PERMILLE)
+    return _from_kmh(a, b, c, unit_n=mass_kg * gravity_mps2 * PERMILLE)
 
 
 def rav(a_n: float, b_n_per_kmh: float, c_n_per_kmh2: float) -> Quadratic:
@@ -172,7 +175,9 @@ def rav_carriage_4axle(mass_kg: float) -> Quadratic:
     return rav(12.0 * m_t, 0.09 * m_t, 0.0044 * m_t)
 
 
-def strahl(mass_kg: float, f0_permille: float, f2_permille: float) -> Quadratic:
+def strahl(
+    mass_kg: float, f0_permille: float, f2_permille: float, *, gravity_mps2: float = STANDARD_GRAVITY
+) -> Quadratic:
     """Strahl's law for freight wagons, ``m g (f0 + f2 (v/v00)^2) / 1000`` with v00 = 100 km/h.
 
     Reference: Wende (2003) p. 153; TrainRuns.jl ``calcFreightWagonsResistance``.
@@ -181,12 +186,13 @@ def strahl(mass_kg: float, f0_permille: float, f2_permille: float) -> Quadratic:
         mass_kg: mass of the wagons [kg].
         f0_permille: basic resistance coefficient f0 [per mille of weight].
         f2_permille: air resistance coefficient f2 at v00 [per mille of weight].
+        gravity_mps2: g [m/s^2] (TrainRuns.jl: 9.80665).
 
     Returns:
         The resistance [N] over speed [m/s].
     """
     _require_positive("mass", mass_kg)
-    weight_ratio_n = mass_kg * G * PERMILLE
+    weight_ratio_n = mass_kg * gravity_mps2 * PERMILLE
     return Quadratic(
         weight_ratio_n * f0_permille, 0.0, weight_ratio_n * f2_permille / WENDE_REFERENCE_SPEED**2
     )
@@ -199,7 +205,14 @@ def _air_term(force_at_v00_n: float) -> Quadratic:
     return Quadratic(k * dv * dv, 2.0 * k * dv, k)
 
 
-def sauthoff(mass_kg: float, f0_permille: float, f1_permille: float, f2_permille: float) -> Quadratic:
+def sauthoff(
+    mass_kg: float,
+    f0_permille: float,
+    f1_permille: float,
+    f2_permille: float,
+    *,
+    gravity_mps2: float = STANDARD_GRAVITY,
+) -> Quadratic:
     """Sauthoff's law for passenger coaches (Wende 2003 p. 153; TrainRuns.jl
     ``calcPassengerWagonsResistance``):
 
@@ -210,12 +223,13 @@ def sauthoff(mass_kg: float, f0_permille: float, f1_permille: float, f2_permille
         f0_permille: basic resistance coefficient [per mille of weight].
         f1_permille: rolling (linear) coefficient at v00 [per mille of weight].
         f2_permille: air resistance coefficient at v00 [per mille of weight].
+        gravity_mps2: g [m/s^2] (TrainRuns.jl: 9.80665).
 
     Returns:
         The resistance [N] over speed [m/s].
     """
     _require_positive("mass", mass_kg)
-    weight_ratio_n = mass_kg * G * PERMILLE
+    weight_ratio_n = mass_kg * gravity_mps2 * PERMILLE
     basic = Quadratic(weight_ratio_n * f0_permille, weight_ratio_n * f1_permille / WENDE_REFERENCE_SPEED)
     return basic + _air_term(weight_ratio_n * f2_permille)
 
@@ -226,6 +240,8 @@ def wende_traction_unit(
     f_driven_permille: float,
     f_carrying_permille: float,
     f_air_permille: float,
+    *,
+    gravity_mps2: float = STANDARD_GRAVITY,
 ) -> Quadratic:
     """Traction-unit resistance after Wende (2003) p. 151, as TrainRuns.jl's
     ``calcTractionUnitResistance``:
@@ -241,6 +257,7 @@ def wende_traction_unit(
         f_driven_permille: basic resistance of the driven axles f_td0 [per mille].
         f_carrying_permille: basic resistance of the carrying axles f_tc0 [per mille].
         f_air_permille: air resistance at v00 f_t2 [per mille of m g].
+        gravity_mps2: g [m/s^2] (TrainRuns.jl: 9.80665).
 
     Returns:
         The resistance [N] over speed [m/s].
@@ -254,8 +271,9 @@ def wende_traction_unit(
             allowed=f"0 < m_td <= {mass_kg:g} kg",
         )
     carrying_mass_kg = mass_kg - driven_mass_kg
-    basic_n = G * PERMILLE * (f_driven_permille * driven_mass_kg + f_carrying_permille * carrying_mass_kg)
-    return Quadratic(basic_n) + _air_term(f_air_permille * PERMILLE * mass_kg * G)
+    g = gravity_mps2
+    basic_n = g * PERMILLE * (f_driven_permille * driven_mass_kg + f_carrying_permille * carrying_mass_kg)
+    return Quadratic(basic_n) + _air_term(f_air_permille * PERMILLE * mass_kg * g)
 
 
 def altrios(
@@ -265,6 +283,8 @@ def altrios(
     rolling_ratio: float,
     davis_b_s_per_m: float,
     cd_area_m2: float,
+    *,
+    gravity_mps2: float = STANDARD_GRAVITY,
 ) -> Quadratic:
     """US freight resistance in the style of ALTRIOS (NREL) ``train_res`` "point" model:
 
@@ -282,13 +302,14 @@ def altrios(
         rolling_ratio: rolling resistance as a ratio of the weight [-].
         davis_b_s_per_m: Davis b, linear term per unit weight [s/m].
         cd_area_m2: drag area with the 1/2 lumped in (ALTRIOS ``cd_area``) [m^2].
+        gravity_mps2: g [m/s^2] (ALTRIOS: 9.80155, ``trainsim.constants.ALTRIOS_GRAVITY``).
 
     Returns:
         The resistance [N] over speed [m/s].
     """
     _require_positive("mass", mass_kg)
     _require_positive("axles", axles)
-    weight_n = mass_kg * G
+    weight_n = mass_kg * gravity_mps2
     return Quadratic(
         axles * bearing_force_per_axle_n + rolling_ratio * weight_n,
         davis_b_s_per_m * weight_n,

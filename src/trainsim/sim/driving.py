@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trainsim.constants import G
 from trainsim.errors import InputError
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings, Scenario
@@ -78,7 +77,8 @@ class DrivingSession:
             train, route, settings = scenario.train, scenario.route, scenario.settings
         if train is None or route is None:
             raise InputError("a driving session needs a scenario or a train and a route", field="session")
-        self.train = train
+        self.train = train.at_gravity(route.gravity_mps2)
+        train = self.train
         self.route = route
         self.settings = settings or RunSettings()
         self.stop_window_m = stop_window_m
@@ -127,7 +127,7 @@ class DrivingSession:
         running = float(train.running_resistance_n(v)) if v > 0 else 0.0
         p = self._profile
         ratio = float(p.gradient(s) + p.curve(s) + p.tunnel(s) + p.tunnel_v2(s) * v * v)
-        resistance = running + train.mass_kg * G * ratio
+        resistance = running + train.mass_kg * self.route.gravity_mps2 * ratio
         braking = 0.0
         if command < 0:
             if train.braking.deceleration_mps2 is not None:

@@ -6,7 +6,6 @@ from itertools import pairwise
 
 import numpy as np
 
-from trainsim.constants import G
 from trainsim.errors import InputError
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings, Scenario
@@ -23,7 +22,8 @@ def kernel_parameters(train: Train, settings: RunSettings) -> tuple:
     law = train.resistance_law
     P = np.zeros(kernel.N_PARAMS)
     P[kernel.P_INERTIAL_MASS] = train.inertial_mass_kg
-    P[kernel.P_WEIGHT] = train.mass_kg * G
+    # the compiled track's line resistance is per unit mass (ratio x the route's g) [N/kg]
+    P[kernel.P_MASS] = train.mass_kg
     P[kernel.P_R0], P[kernel.P_R1], P[kernel.P_R2] = law.c0, law.c1, law.c2
     braking = train.braking
     if braking.deceleration_mps2 is not None:
@@ -90,6 +90,7 @@ def run_fastest(train: Train, route: Route, settings: RunSettings | None = None)
     it stopped, and a warning saying where and why.
     """
     settings = settings or RunSettings()
+    train = train.at_gravity(route.gravity_mps2)
     stops = stops_of(route)
     track, profile, ceiling = compile_track(route, train, stops, settings.max_step_m)
     P, (ts, tc, tf, tp), (bs, bc, bf, bp) = kernel_parameters(train, settings)

@@ -24,7 +24,8 @@ REGIME_NAMES = ("traction", "cruising", "coasting", "braking", "dwell", "regener
 
 # Indices into the scalar parameter vector P.
 P_INERTIAL_MASS = 0  # rho m [kg]
-P_WEIGHT = 1  # m g [N]
+P_MASS = 1  # static mass m [kg]; the track's line-resistance laws are per unit mass [N/kg]
+P_WEIGHT = P_MASS  # former name (m g when the track held ratios of the weight)
 P_R0 = 2  # running resistance c0 [N]
 P_R1 = 3  # c1 [N s/m]
 P_R2 = 4  # c2 [N s^2/m^2]
@@ -64,10 +65,11 @@ def effort(v, starts, coefs, fcap, pcap):
 @njit(cache=True)
 def resistance_force(v, u, line, P):
     """Running plus line resistance [N] at speed v and offset u into the interval whose line
-    resistance laws are ``line = (a0, a1, b0, b1)`` (ratio a0 + a1 u, v^2 coefficient b0 + b1 u)."""
+    resistance laws are ``line = (a0, a1, b0, b1)``: specific resistance a0 + a1 u [N/kg] and
+    v^2 coefficient b0 + b1 u [N s^2/(kg m^2)] (ratios of the weight times the route's g)."""
     a0, a1, b0, b1 = line
     running = P[P_R0] + P[P_R1] * v + P[P_R2] * v * v
-    return running + P[P_WEIGHT] * ((a0 + a1 * u) + (b0 + b1 * u) * v * v)
+    return running + P[P_MASS] * ((a0 + a1 * u) + (b0 + b1 * u) * v * v)
 
 
 @njit(cache=True)

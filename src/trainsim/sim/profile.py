@@ -14,7 +14,6 @@ from itertools import pairwise
 
 import numpy as np
 
-from trainsim.constants import G
 from trainsim.errors import InputError
 from trainsim.model.route import Route
 from trainsim.model.train import Train
@@ -116,12 +115,17 @@ def speed_ceiling(route: Route, train: Train) -> PiecewiseLinear:
 @dataclass(frozen=True)
 class LineResistanceProfile:
     """Specific line resistances over head position, each a ratio of the train's weight
-    (force = ratio x m g); ``tunnel_v2`` multiplies v^2 [s^2/m^2]."""
+    (force = ratio x m g, g = ``gravity_mps2``, the route's); ``tunnel_v2`` multiplies v^2 [s^2/m^2]."""
 
     gradient: PiecewiseLinear
     curve: PiecewiseLinear
     tunnel: PiecewiseLinear
     tunnel_v2: PiecewiseLinear
+    gravity_mps2: float
+
+    def weight_n(self, mass_kg: float) -> float:
+        """Weight m g of a mass [kg] with the route's gravity [N]."""
+        return mass_kg * self.gravity_mps2
 
 
 def line_resistance_profile(route: Route, train: Train) -> LineResistanceProfile:
@@ -141,11 +145,14 @@ def line_resistance_profile(route: Route, train: Train) -> LineResistanceProfile
     curve = step_function(
         [c.start_m for c in route.curves],
         [c.end_m for c in route.curves],
-        [lr.curve_ratio(c.radius_m, settings.curve_formula) for c in route.curves],
+        [
+            lr.curve_ratio(c.radius_m, settings.curve_formula, gravity_mps2=route.gravity_mps2)
+            for c in route.curves
+        ],
         lo,
         hi,
     )
-    weight = train.mass_kg * G
+    weight = train.mass_kg * route.gravity_mps2
     # a measured train-specific tunnel drag (TTOBench) adds to the formula's v^2 term
     tunnel_terms = [
         (c, k + t.extra_drag_n_s2_per_m2 / weight)
@@ -168,7 +175,7 @@ def line_resistance_profile(route: Route, train: Train) -> LineResistanceProfile
     )
     if settings.apply_over == "train_length":
         grad, curve, tun0, tun2 = (averaged_over_length(f, train.length_m) for f in (grad, curve, tun0, tun2))
-    return LineResistanceProfile(grad, curve, tun0, tun2)
+    return LineResistanceProfile(grad, curve, tun0, tun2, route.gravity_mps2)
 
 
 def line_voltage(route: Route, train: Train) -> PiecewiseLinear:
@@ -204,10 +211,10 @@ class KernelTrack:
     """The arrays the kernel walks: grid of head positions and per-interval laws."""
 
     x: np.ndarray  # grid [m], N + 1 points
-    a0: np.ndarray  # line resistance ratio at the start of each interval [-]
-    a1: np.ndarray  # its slope [1/m]
-    b0: np.ndarray  # v^2 coefficient at the start of each interval [s^2/m^2]
-    b1: np.ndarray  # its slope [s^2/m^3]
+    a0: np.ndarray  # specific line resistance (ratio x g) at the start of each interval [N/kg]
+    a1: np.ndarray  # its slope [N/(kg m)]
+    b0: np.ndarray  # v^2 coefficient (ratio x g) at the start of each interval [N s^2/(kg m^2)]
+    b1: np.ndarray  # its slope [N s^2/(kg m^3)]
     vlim: np.ndarray  # speed ceiling on each interval [m/s]
     traction_scale: np.ndarray  # share of the tractive effort available on each interval [-]
     stop_index: np.ndarray  # grid index of each stop, increasing
@@ -283,8 +290,10 @@ def compile_track(
     g0, g1 = law(profile.gradient)
     c0, c1 = law(profile.curve)
     t0, t1 = law(profile.tunnel)
-    a0, a1 = g0 + c0 + t0, g1 + c1 + t1
+    g = route.gravity_mps2
+    a0, a1 = g * (g0 + c0 + t0), g * (g1 + c1 + t1)
     b0, b1 = law(profile.tunnel_v2)
+    b0, b1 = g * b0, g * b1
     vlim = ceiling(0.5 * (left + right))
     traction_scale = available(0.5 * (left + right))
     stop_index = np.searchsorted(x, np.array(stops_m) - POSITION_TOLERANCE_M)

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from trainsim.constants import KMH, KWH, G
+from trainsim.constants import KMH, KWH
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
@@ -248,7 +248,7 @@ def _section_ends(regime: np.ndarray) -> list[int]:
 def _line_forces(
     profile: LineResistanceProfile, mass_kg: float, s: np.ndarray, v: np.ndarray
 ) -> tuple[np.ndarray, ...]:
-    weight = mass_kg * G
+    weight = profile.weight_n(mass_kg)
     return (
         weight * profile.gradient(s),
         weight * profile.curve(s),
@@ -278,6 +278,7 @@ def build_result(
 
     """Evaluate forces, powers, currents and energies along a run given as points."""
     warnings = list(warnings or [])
+    train = train.at_gravity(route.gravity_mps2)
     problems = _invariant_violations(s, v, t)
     if problems:
         # never hand out a broken trace as if it were fine
