@@ -1,6 +1,8 @@
-"""``python -m trainsim.batch STUDY.yaml [options]``: the ``trainsim batch`` command on its own."""
+"""``python -m trainsim.batch STUDY.yaml [options]``: the same as ``trainsim batch``."""
 
-from trainsim.cli_batch import main
+import sys
 
-if __name__ == "__main__":
-    main()
+from trainsim.cli.app import main
+
+sys.argv[1:1] = ["batch"]
+main()

@@ -6,8 +6,10 @@ SHA-256 of the run's parameters as canonical JSON (first 24 hex digits): the sam
 always has the same id, whatever the executor, the chunking or the order in which runs finish, which is
 what resuming an interrupted study relies on.
 
-Samples are drawn in the process that expands the study, from NumPy's PCG64 seeded with
-``[seed, k]`` for the k-th sampled field: the values depend only on the study file. Sample ``i`` has the
+Samples are drawn in the process that expands the study, each field from its own NumPy PCG64 stream
+seeded with the study's seed and the field's name, sample ``i`` from the stream's i-th uniform by
+inverse transform: the values depend only on the study file, never on the order of the fields or on
+the other fields. Sample ``i`` has the
 same values at every sweep point and for every explicit run (common random numbers: differences
 between design points are not blurred by different draws).
 """
@@ -25,7 +27,7 @@ import numpy as np
 from trainsim.batch.study import MAX_RUNS, DistributionSpec, ParamColumn, SamplesSpec, Study
 from trainsim.errors import InputError
 
-__all__ = ["Expansion", "RunTask", "draw_samples", "expand", "run_id"]
+__all__ = ["Expansion", "RunTask", "draw_samples", "expand", "field_stream", "run_id"]
 
 #: What a worker needs to compute one run: (run_index, entry index, departure [s] or None,
 #: ((path, value, relative), ...)).
@@ -46,48 +48,97 @@ def run_id(params: dict[str, Any]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
-def _draw(dist: DistributionSpec, rng: np.random.Generator, count: int) -> list[Any]:
+#: Smallest probability mass of a truncated normal between its min and max: below it (about 37
+#: standard deviations into a tail, where Phi underflows) the bounds leave nothing of the distribution
+#: that a double can represent (a study file's mistake, not a sample to draw).
+MIN_TRUNCATED_MASS = 1e-290
+
+
+def field_stream(seed: int, name: str) -> np.random.Generator:
+    """The random stream of the sampled field ``name``: PCG64 seeded with the study's seed and the first
+    128 bits of SHA-256 of the field's name. Fields are independent of one another and of their order
+    in the study; adding or removing a field changes no other field's draws."""
+    digest = hashlib.sha256(name.encode()).digest()
+    words = [int.from_bytes(digest[4 * k : 4 * k + 4], "little") for k in range(4)]
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, *words])))
+
+
+def _uniforms(seed: int, name: str, count: int) -> np.ndarray:
+    """``count`` uniforms in the open interval (0, 1): the i-th is the i-th double of the field's stream
+    (moved to the middle of its 2**-53 cell so that no inverse CDF sees 0 or 1)."""
+    u = field_stream(seed, name).random(count)
+    return (np.floor(u * 2.0**53) + 0.5) / 2.0**53
+
+
+def _truncated_normal_ppf(u: np.ndarray, a: float, b: float) -> np.ndarray:
+    """Inverse CDF of the standard normal truncated to [a, b] (a < b, either may be infinite): the
+    quantile Phi^-1(Phi(a) + u (Phi(b) - Phi(a))), mirrored so that the interval's tail mass is taken
+    from the lower tail, where Phi keeps its relative precision."""
+    from scipy.special import ndtr, ndtri
+
+    if a > 0.0:  # mirror: X = -Y with Y truncated to [-b, -a]
+        return -_truncated_normal_ppf(1.0 - u, -b, -a)
+    pa, pb = float(ndtr(a)), float(ndtr(b))
+    if pb - pa < MIN_TRUNCATED_MASS:
+        raise ValueError("no mass")
+    return np.clip(ndtri(pa + u * (pb - pa)), a, b)
+
+
+def _draw(dist: DistributionSpec, u: np.ndarray, name: str) -> list[Any]:
+    """The values of one field by inverse transform of the uniforms ``u``: value i depends only on
+    ``u[i]``, so sample i keeps its value whatever the sample count."""
     if dist.distribution == "choice":
         values = list(dist.values or [])
-        p = None
-        if dist.weights is not None:
-            w = np.asarray(dist.weights, dtype=float)
-            p = w / w.sum()
-        idx = rng.choice(len(values), size=count, p=p)
+        w = np.ones(len(values)) if dist.weights is None else np.asarray(dist.weights, dtype=float)
+        cum = np.cumsum(w)
+        idx = np.minimum(np.searchsorted(cum, u * cum[-1], side="right"), len(values) - 1)
         return [values[int(i)] for i in idx]
     if dist.distribution == "uniform":
-        x = rng.uniform(dist.low, dist.high, size=count)
+        x = dist.low + (dist.high - dist.low) * u  # type: ignore[operator]
     elif dist.distribution == "triangular":
-        if dist.low == dist.high:
-            x = np.full(count, float(dist.low))  # type: ignore[arg-type]
+        lo, mode, hi = float(dist.low), float(dist.mode), float(dist.high)  # type: ignore[arg-type]
+        if lo == hi:
+            x = np.full(len(u), lo)
         else:
-            x = rng.triangular(dist.low, dist.mode, dist.high, size=count)
+            c = (mode - lo) / (hi - lo)
+            x = np.where(
+                u < c,
+                lo + np.sqrt(u * (hi - lo) * (mode - lo)),
+                hi - np.sqrt((1.0 - u) * (hi - lo) * (hi - mode)),
+            )
     else:
-        x = rng.normal(dist.mean, dist.std, size=count)
-        lo = -np.inf if dist.min is None else dist.min
-        hi = np.inf if dist.max is None else dist.max
-        # truncated normal by redrawing what falls outside [min, max]: still a pure function of the seed
-        for _ in range(10_000):
-            out = (x < lo) | (x > hi)
-            if not out.any():
-                break
-            x[out] = rng.normal(dist.mean, dist.std, size=int(out.sum()))
-        else:
+        mean, std = float(dist.mean), float(dist.std)  # type: ignore[arg-type]
+        lo = -np.inf if dist.min is None else float(dist.min)
+        hi = np.inf if dist.max is None else float(dist.max)
+        try:
+            if std == 0.0:
+                if not lo <= mean <= hi:
+                    raise ValueError("mean outside")
+                x = np.full(len(u), mean)
+            else:
+                x = mean + std * _truncated_normal_ppf(u, (lo - mean) / std, (hi - mean) / std)
+        except ValueError:
             raise InputError(
                 "the normal distribution has almost no probability between min and max",
-                field="samples",
-                value=(dist.mean, dist.std, dist.min, dist.max),
-            )
+                field=f"samples.fields.{name}",
+                value={"mean": mean, "std": std, "min": dist.min, "max": dist.max},
+                allowed=f"min and max enclosing at least {MIN_TRUNCATED_MASS:g} of the probability",
+            ) from None
     return [float(v) for v in x]
 
 
 def draw_samples(samples: SamplesSpec) -> dict[str, list[Any]]:
-    """The sampled values of every field, ``count`` each, from the study's seed."""
-    out = {}
-    for k, (path, dist) in enumerate(samples.fields.items()):
-        rng = np.random.Generator(np.random.PCG64([samples.seed, k]))
-        out[path] = _draw(dist, rng, samples.count)
-    return out
+    """The sampled values of every field, ``count`` each, from the study's seed.
+
+    Each field has its own stream, seeded by the study's seed and the field's name (`field_stream`);
+    sample ``i`` of a field is the inverse CDF of the i-th uniform of that stream. A field's draws
+    therefore depend only on (seed, name, distribution, i): not on the other fields, their order, or
+    the number of samples.
+    """
+    return {
+        path: _draw(dist, _uniforms(samples.seed, path, samples.count), path)
+        for path, dist in samples.fields.items()
+    }
 
 
 @dataclass
