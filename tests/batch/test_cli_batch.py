@@ -6,7 +6,7 @@ import typer
 from batchcases import MIXED, metro_study
 from typer.testing import CliRunner
 
-from trainsim.cli_batch import batch
+from trainsim.cli.batch import batch
 
 app = typer.Typer()
 app.command()(batch)

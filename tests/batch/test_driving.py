@@ -322,7 +322,7 @@ def test_identical_results_on_dask(sweep_serial, dask_cluster, tmp_path):
 def test_report_plots_energy_against_the_supplement(write_study, tmp_path):
     import typer
 
-    from trainsim.cli_batch import batch
+    from trainsim.cli.batch import batch
 
     app = typer.Typer()
     app.command()(batch)

@@ -77,7 +77,7 @@ def test_cli_on_dask_by_address_and_by_dask_configuration(dask_cluster, write_st
     import typer
     from typer.testing import CliRunner
 
-    from trainsim.cli_batch import batch
+    from trainsim.cli.batch import batch
 
     app = typer.Typer()
     app.command()(batch)

@@ -11,7 +11,7 @@ from interchange_cases import DATA, line_of, railml
 from typer.testing import CliRunner
 
 import trainsim
-from trainsim import cli_interchange as ci
+from trainsim.cli import interchange as ci
 
 app = typer.Typer()
 app.command()(ci.convert)

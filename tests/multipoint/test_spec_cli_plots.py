@@ -162,11 +162,11 @@ def test_run_a_scenario_and_follow_a_profile_file(tmp_path):
 
 
 def test_command_line_writes_outputs(tmp_path):
-    from trainsim.cli_multipoint import app
+    from trainsim.cli import app
 
     path = scenario_file(tmp_path, {"couplers": {"slack_m": 0.02}})
     out = tmp_path / "out"
-    result = CliRunner().invoke(app, [str(path), "--out", str(out)])
+    result = CliRunner().invoke(app, ["run", str(path), "--out", str(out)])
     assert result.exit_code == 0, result.output
     assert "max draft" in result.output and "max buff" in result.output
     for name in (
@@ -183,18 +183,18 @@ def test_command_line_writes_outputs(tmp_path):
 
     summary = json.loads((out / "summary.json").read_text())
     assert summary["multi_point"]["vehicles"] == 14
-    json_run = CliRunner().invoke(app, [str(path), "--json"])
+    json_run = CliRunner().invoke(app, ["run", str(path), "--json"])
     assert json_run.exit_code == 0
     assert json.loads(json_run.output)["status"] == "ok"
 
 
 def test_command_line_errors_exit_with_code_2(tmp_path):
-    from trainsim.cli_multipoint import app
+    from trainsim.cli import app
 
-    result = CliRunner().invoke(app, [str(scenario_file(tmp_path, None, "single_point"))])
+    result = CliRunner().invoke(app, ["multipoint", str(scenario_file(tmp_path, None, "single_point"))])
     assert result.exit_code == 2
     assert "model: multi_point" in result.output
-    result = CliRunner().invoke(app, [str(tmp_path / "missing.yaml")])
+    result = CliRunner().invoke(app, ["run", str(tmp_path / "missing.yaml")])
     assert result.exit_code == 2
 
 

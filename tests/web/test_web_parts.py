@@ -115,7 +115,7 @@ def test_error_detail_of_a_several_problem_error_keeps_value_and_allowed() -> No
 def test_serve_prints_the_address_and_runs_uvicorn(monkeypatch, capsys) -> None:
     import uvicorn
 
-    from trainsim.cli_web import serve
+    from trainsim.cli.web import serve
 
     seen = {}
     monkeypatch.setattr(uvicorn, "run", lambda app, **kw: seen.update(kw, app=app))

@@ -1,7 +1,6 @@
 """``trainsim batch STUDY.yaml``: run a study (sweep, Monte Carlo, timetable) locally or on Dask.
 
-Registered in :mod:`trainsim.cli` as ``app.command("batch")(batch)``; also runs on its own as
-``python -m trainsim.batch STUDY.yaml``.
+Listed in :data:`trainsim.cli.app.COMMANDS`.
 """
 
 from __future__ import annotations
@@ -12,13 +11,14 @@ from typing import Annotated
 
 import typer
 
+from trainsim.cli.context import ExitCode
+from trainsim.cli.context import fail as _fail
 from trainsim.errors import TrainsimError
 
-__all__ = ["Executor", "batch", "main"]
+__all__ = ["Executor", "batch"]
 
-#: Exit code of user errors (as the other trainsim commands); 130 after Ctrl-C.
-USER_ERROR = 2
-INTERRUPTED = 130
+USER_ERROR = ExitCode.USER_ERROR
+INTERRUPTED = ExitCode.INTERRUPTED
 
 
 class Executor(StrEnum):
@@ -27,11 +27,6 @@ class Executor(StrEnum):
     serial = "serial"
     processes = "processes"
     dask = "dask"
-
-
-def _fail(message: str) -> typer.Exit:
-    typer.echo(f"error: {message}", err=True)
-    return typer.Exit(code=USER_ERROR)
 
 
 def batch(
@@ -54,7 +49,7 @@ def batch(
         typer.Option("--out", "-o", help="Output directory (default: out/<study file name>)."),
     ] = None,
     report: Annotated[
-        bool, typer.Option("--report", help="Write plots and tables of the study to OUT/report.")
+        bool, typer.Option("--report/--no-report", help="Write plots and tables of the study to OUT/report.")
     ] = False,
     executor: Annotated[
         Executor | None,
@@ -66,10 +61,14 @@ def batch(
         int | None, typer.Option("--chunk-size", min=1, help="Runs per task (default: automatic, 10-200).")
     ] = None,
     restart: Annotated[
-        bool, typer.Option("--restart", help="Discard the results already in OUT and start again.")
+        bool,
+        typer.Option("--restart/--no-restart", help="Discard the results already in OUT and start again."),
     ] = False,
     dry_run: Annotated[
-        bool, typer.Option("--dry-run", help="Check the study and say what would run, without running.")
+        bool,
+        typer.Option(
+            "--dry-run/--no-dry-run", help="Check the study and say what would run, without running."
+        ),
     ] = False,
     progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Show a progress bar.")] = True,
 ) -> None:
@@ -144,10 +143,3 @@ def _dry_run(spec, out_dir: Path, executor: str, workers: int | None) -> None:
     typer.echo(f"{spec.name}: {len(expansion)} runs, {done} already in {out_dir}")
     typer.echo("parameters: " + (", ".join(c.name for c in expansion.columns) or "(none)"))
     typer.echo(f"would run on: {executor}" + (f" with {workers} workers" if workers else ""))
-
-
-def main() -> None:
-    """``python -m trainsim.batch``."""
-    app = typer.Typer(add_completion=False, pretty_exceptions_enable=False)
-    app.command()(batch)
-    app()

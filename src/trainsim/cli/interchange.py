@@ -1,26 +1,23 @@
 """Command functions for data interchange: ``convert``, ``check`` (every format, railML and
 spreadsheets included), ``export-results`` and ``runtimes``.
 
-Registered by ``trainsim.cli`` (``app.command()(convert)`` ...). User errors end with one
-``error: ...`` paragraph on stderr and exit code 2, as the other commands.
+Listed in :data:`trainsim.cli.app.COMMANDS`. User errors end with one ``error: ...`` paragraph on
+stderr and exit code 2, as the other commands.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
-from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
 
-from trainsim.errors import InputError, TrainsimError
+from trainsim.cli.context import user_errors
+from trainsim.errors import InputError
 
 __all__ = ["check", "convert", "export_results", "runtimes"]
-
-USER_ERROR = 2
 
 
 class Kind(StrEnum):
@@ -51,19 +48,6 @@ class GradientFormula(StrEnum):
 class ApplyOver(StrEnum):
     head = "head"
     train_length = "train_length"
-
-
-@contextmanager
-def _user_errors() -> Iterator[None]:
-    try:
-        yield
-    except TrainsimError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=USER_ERROR) from None
-    except OSError as exc:
-        where = f"{exc.filename}: " if exc.filename else ""
-        typer.echo(f"error: {where}{exc.strerror or exc}", err=True)
-        raise typer.Exit(code=USER_ERROR) from None
 
 
 TrainId = Annotated[
@@ -148,7 +132,7 @@ def convert(
     """Convert any readable input to trainsim's YAML (a train, a route, or a scenario with both)."""
     from trainsim.io import convert as conv
 
-    with _user_errors():
+    with user_errors():
         if not inp.exists():
             raise InputError("input not found", file=str(inp))
         options = _options(
@@ -188,7 +172,7 @@ def check(
     from trainsim.io import convert as conv
     from trainsim.io import loader
 
-    with _user_errors():
+    with user_errors():
         if not file.exists():
             raise InputError("file not found", file=str(file))
         options = _options(
@@ -254,7 +238,7 @@ def export_results(
     import trainsim
     from trainsim.io import results_export
 
-    with _user_errors():
+    with user_errors():
         chosen = [f.strip().lower() for f in formats.split(",") if f.strip()]
         for f in chosen:
             if f not in results_export.FORMATS:
@@ -302,7 +286,7 @@ def runtimes(
     from trainsim.io import loader, results_export
     from trainsim.model.scenario import Scenario
 
-    with _user_errors():
+    with user_errors():
         if not railml.exists():
             raise InputError("input not found", file=str(railml))
         options = _options(

@@ -1,11 +1,5 @@
-"""Command line of the multi-point model: ``trainsim multipoint SCENARIO [--out DIR] [--json]``.
-
-Registration in ``trainsim.cli`` (by the lead)::
-
-    from trainsim.cli_multipoint import multipoint
-    app.command("multipoint")(multipoint)
-
-``trainsim run`` can dispatch to :func:`run_and_report` when a scenario says ``model: multi_point``.
+"""Multi-point runs on the command line: ``trainsim run`` dispatches here when a scenario says
+``model: multi_point``; ``trainsim multipoint SCENARIO`` (hidden, kept for scripts) does the same.
 """
 
 from __future__ import annotations
@@ -16,7 +10,8 @@ from typing import Annotated
 
 import typer
 
-from trainsim.errors import InputError, TrainsimError
+from trainsim.cli.context import exit_for_status, require_file, user_errors
+from trainsim.errors import InputError
 
 __all__ = ["multipoint", "run_and_report", "write_multipoint_outputs"]
 
@@ -59,8 +54,8 @@ def write_multipoint_outputs(result, out: Path, *, plots: bool = True) -> list[P
     return written
 
 
-def run_and_report(scenario_path: Path, out: Path | None, as_json: bool, no_plots: bool) -> None:
-    """Run a scenario file with the multi-point model and print the summary (the CLI's body)."""
+def run_and_report(scenario_path: Path, out: Path | None, as_json: bool, no_plots: bool) -> str:
+    """Run a scenario file with the multi-point model and print the summary; returns its status."""
     from trainsim.multipoint.spec import load_multipoint_scenario, run_multipoint_scenario
 
     scenario, spec = load_multipoint_scenario(scenario_path)
@@ -72,9 +67,10 @@ def run_and_report(scenario_path: Path, out: Path | None, as_json: bool, no_plot
         )
     result = run_multipoint_scenario(scenario, spec, base_dir=scenario_path.parent)
     written = write_multipoint_outputs(result, out, plots=not no_plots) if out is not None else []
+    summary = result.summary()
     if as_json:
-        typer.echo(json.dumps(result.summary(), indent=2, allow_nan=False))
-        return
+        typer.echo(json.dumps(summary, indent=2, allow_nan=False))
+        return str(summary["status"])
     from rich.console import Console
 
     from trainsim.io.export import summary_table
@@ -93,8 +89,11 @@ def run_and_report(scenario_path: Path, out: Path | None, as_json: bool, no_plot
         )
     for warning in result.warnings:
         typer.echo(f"warning: {warning}", err=True)
+    if summary["status"] != "ok":
+        typer.echo(f"status: {summary['status']}")
     for path in written:
         typer.echo(f"wrote {path}")
+    return str(summary["status"])
 
 
 def multipoint(
@@ -103,18 +102,13 @@ def multipoint(
         Path | None,
         typer.Option("--out", "-o", help="Directory for trace, summary, coupler forces and plots."),
     ] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print only the summary as JSON.")] = False,
-    no_plots: Annotated[bool, typer.Option("--no-plots", help="Do not write PNG plots with --out.")] = False,
+    as_json: Annotated[
+        bool, typer.Option("--json/--no-json", help="Print only the summary as JSON.")
+    ] = False,
+    plots: Annotated[bool, typer.Option("--plots/--no-plots", help="Write PNG plots with --out.")] = True,
 ) -> None:
-    """Run a scenario with the multi-point model (couplers, in-train forces, distributed power)."""
-    try:
-        if not scenario.is_file():
-            raise InputError("scenario file not found", file=str(scenario))
-        run_and_report(scenario, out, as_json, no_plots)
-    except TrainsimError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
-
-
-app = typer.Typer(add_completion=False, pretty_exceptions_enable=False)
-app.command("multipoint")(multipoint)
+    """Run a scenario with the multi-point model (the same as `trainsim run` on such a scenario)."""
+    with user_errors():
+        require_file(scenario, "scenario file")
+        status = run_and_report(scenario, out, as_json, not plots)
+    exit_for_status(status)

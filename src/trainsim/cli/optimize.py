@@ -8,6 +8,14 @@ from typing import Annotated
 
 import typer
 
+from trainsim.cli.context import (
+    console,
+    echo_warnings,
+    exit_for_status,
+    load_scenario,
+    require_file,
+    user_errors,
+)
 from trainsim.errors import InputError
 
 
@@ -29,16 +37,23 @@ def optimize(
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="Directory for trace, summary and plots.")
     ] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print only the summary JSON on stdout.")] = False,
+    as_json: Annotated[
+        bool, typer.Option("--json/--no-json", help="Print only the summary JSON on stdout.")
+    ] = False,
     curve: Annotated[
-        bool, typer.Option("--curve", help="Also compute the energy-versus-running-time curve (with --out).")
+        bool,
+        typer.Option(
+            "--curve/--no-curve", help="Also compute the energy-versus-running-time curve (with --out)."
+        ),
     ] = False,
 ) -> None:
-    """Drive a scenario to a timetable with least energy: switching points, savings, deviations."""
-    from trainsim.cli import _console, _load_scenario, _require_file, _user_errors
+    """Drive a scenario to a timetable with least energy: switching points, savings, deviations.
 
-    with _user_errors():
-        scn = _load_scenario(scenario, train, route, None)
+    Exit code 3 when the result's status is not ok (e.g. an infeasible schedule: the best feasible run
+    is printed and the summary says by how much the schedule is missed).
+    """
+    with user_errors():
+        scn = load_scenario(scenario, train, route, None)
         from trainsim.optimize.api import STRATEGIES, energy_time_curve
         from trainsim.optimize.api import optimize as run_optimize
         from trainsim.optimize.timetable import line_supplement, read_timetable_yaml
@@ -63,7 +78,7 @@ def optimize(
         elif timetable is None:
             tt = scn.timetable
         else:
-            _require_file(timetable, "timetable file")
+            require_file(timetable, "timetable file")
             from trainsim.io.loader import detect_format
 
             fmt = detect_format(timetable).format
@@ -106,20 +121,23 @@ def optimize(
                 written.append(out / "energy_time_curve.png")
     if as_json:
         typer.echo(json.dumps(summary, indent=2, allow_nan=False))
+        exit_for_status(str(summary["status"]))
         return
     from trainsim.io.export import summary_table
 
-    console = _console()
-    console.print(summary_table(result.run))
-    console.print(
+    out_console = console()
+    out_console.print(summary_table(result.run))
+    out_console.print(
         f"strategy {strategy}: running {result.run.running_time_s:.1f} s (fastest {result.fastest.running_time_s:.1f} s), "
         f"net energy {result.run.energy_kwh.net:.2f} kWh (fastest {result.fastest.energy_kwh.net:.2f} kWh, "
         f"saved {summary['energy_saved_percent'] or 0:.1f} %)",
         markup=False,
     )
     for dev, sched in zip(result.schedule_deviation_s, result.scheduled_running_time_s, strict=True):
-        console.print(f"schedule {sched:.1f} s, deviation {dev:+.2f} s", markup=False)
-    for w in summary["warnings"]:
-        typer.echo(f"warning: {w}", err=True)
+        out_console.print(f"schedule {sched:.1f} s, deviation {dev:+.2f} s", markup=False)
+    if summary["status"] != "ok":
+        out_console.print(f"status: {summary['status']}", markup=False, highlight=False)
+    echo_warnings(list(summary["warnings"]))
     for p in written:
-        console.print(f"wrote {p}", markup=False, highlight=False)
+        out_console.print(f"wrote {p}", markup=False, highlight=False)
+    exit_for_status(str(summary["status"]))

@@ -1,0 +1,5 @@
+"""``python -m trainsim``: the ``trainsim`` command."""
+
+from trainsim.cli.app import main
+
+main()

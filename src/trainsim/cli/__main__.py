@@ -1,0 +1,5 @@
+"""``python -m trainsim.cli``: the ``trainsim`` command."""
+
+from trainsim.cli.app import main
+
+main()

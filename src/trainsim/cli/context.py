@@ -1,0 +1,155 @@
+"""What every ``trainsim`` command shares: exit codes, error reporting, console and scenario loading.
+
+User errors (bad input, missing files, wrong options) end with one ``error: ...`` paragraph on stderr
+(and, when the input error names several problems, one line per problem) and exit code 2, never a
+traceback. A command that ran but whose result is not what was asked (any status other than ``ok``)
+exits with 3 after printing its result.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from enum import IntEnum, StrEnum
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import typer
+
+from trainsim.errors import InputError, TrainsimError
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from trainsim.model.scenario import Scenario
+
+
+class ExitCode(IntEnum):
+    """The exit codes of every ``trainsim`` command (documented in ``trainsim --help`` and the README)."""
+
+    OK = 0
+    #: a bug in trainsim (a traceback is printed: please report it)
+    BUG = 1
+    #: bad input: a file, a field or an option that cannot be used
+    USER_ERROR = 2
+    #: the command ran, but the result is not what was asked (status other than ok: see its message)
+    NOT_AS_ASKED = 3
+    #: the computing infrastructure failed (e.g. every Dask worker lost); the work can be resumed
+    INFRASTRUCTURE = 4
+    #: interrupted by Ctrl-C
+    INTERRUPTED = 130
+
+
+EXIT_CODES_HELP = (
+    "Exit codes: 0 ok; 1 a bug in trainsim; 2 bad input (file, field or option); "
+    "3 ran, but the result is not what was asked (status not ok); 4 the computing infrastructure "
+    "failed (resumable); 130 interrupted."
+)
+
+#: Kept for the commands and tests written before ExitCode.
+USER_ERROR = ExitCode.USER_ERROR
+
+
+def fail(message: str, code: int = ExitCode.USER_ERROR) -> typer.Exit:
+    """Print ``error: message`` on stderr and return the Exit to raise."""
+    # typer.echo, not rich: rich would wrap the message into several lines at the terminal width
+    typer.echo(f"error: {message}", err=True)
+    return typer.Exit(code=int(code))
+
+
+def report_input_error(exc: InputError) -> None:
+    """Print an input error: one paragraph, or a lead line and one line per problem."""
+    problems = getattr(exc, "problems", None) or []
+    if len(problems) <= 1:
+        typer.echo(f"error: {exc}", err=True)
+        return
+    files = {p.file for p in problems if p.file}
+    lead = f" in {next(iter(files))}" if len(files) == 1 else ""
+    typer.echo(f"error: {len(problems)} problems{lead}:", err=True)
+    for p in problems:
+        text = p.text()
+        if lead and text.startswith(f"{p.file}"):
+            text = text[len(p.file) :].lstrip(", :")
+        typer.echo(f"  - {text}", err=True)
+
+
+@contextmanager
+def user_errors() -> Iterator[None]:
+    """Turn trainsim's errors and file-system errors into ``error: ...`` and exit code 2."""
+    try:
+        yield
+    except InputError as exc:
+        report_input_error(exc)
+        raise typer.Exit(code=int(ExitCode.USER_ERROR)) from None
+    except TrainsimError as exc:
+        raise fail(str(exc)) from None
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        raise fail(f"{where}{exc.strerror or exc}") from None
+
+
+def exit_for_status(status: str) -> None:
+    """Raise the exit of a result whose status is not ``ok`` (after its result was printed)."""
+    if status != "ok":
+        raise typer.Exit(code=int(ExitCode.NOT_AS_ASKED))
+
+
+def require_file(path: Path, what: str) -> None:
+    """An InputError unless ``path`` is an existing file."""
+    if not path.exists():
+        raise InputError(f"{what} not found", file=str(path))
+    if not path.is_file():
+        raise InputError(f"{what} is not a file", file=str(path))
+
+
+def console() -> Console:
+    """A rich console; 160 columns when the output is not a terminal (the section tables are wide)."""
+    from rich.console import Console
+
+    out = Console()
+    if not out.is_terminal:
+        # piped or captured output: the default 80 columns would fold the section table
+        out = Console(width=160)
+    return out
+
+
+def echo_warnings(warnings: list[str]) -> None:
+    """Each warning as ``warning: ...`` on stderr."""
+    for warning in warnings:
+        typer.echo(f"warning: {warning}", err=True)
+
+
+class MassModel(StrEnum):
+    """How line resistance applies over the train (railtoolkit / TrainRuns.jl ``massModel``)."""
+
+    mass_point = "mass_point"
+    homogeneous_strip = "homogeneous_strip"
+
+
+def load_scenario(
+    scenario: Path | None, train: Path | None, route: Path | None, mass_model: MassModel | None
+) -> Scenario:
+    """The scenario of a command: a scenario file, or a train file and a route file."""
+    from trainsim.io import loader
+
+    if scenario is not None:
+        if train is not None or route is not None:
+            raise InputError("give a scenario file or --train and --route, not both")
+        if mass_model is not None:
+            raise InputError(
+                "--mass-model applies to a route given with --route; "
+                "a scenario file says itself how its route is read"
+            )
+        require_file(scenario, "scenario file")
+        return loader.load_scenario(scenario)
+    if train is None or route is None:
+        raise InputError("give a scenario file, or both --train and --route")
+    require_file(train, "train file")
+    require_file(route, "route file")
+    if mass_model is None:
+        return loader.scenario_from_files(train, route)
+    from trainsim.model.scenario import Scenario
+
+    t = loader.load_train(train)
+    r = loader.load_route(route, mass_model=mass_model.value)
+    return Scenario(name=f"{t.name} on {r.name}", train=t, route=r)
