@@ -17,29 +17,32 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from trainsim.errors import InfeasibleError, InputError, TrainsimError
-from trainsim.model import (
-    Braking,
-    Curve,
-    EffortCurve,
-    Electrical,
-    ElectrificationSection,
-    GradientSection,
-    LineResistanceSettings,
-    Quadratic,
-    ResistanceTerm,
-    Route,
-    SpeedLimit,
-    Station,
-    Train,
-    Tunnel,
-    Vehicle,
-)
-from trainsim.model.scenario import RunSettings, Scenario
-from trainsim.sim.fastest import run_fastest, run_scenario
-from trainsim.sim.result import EnergyFigures, RunResult, SectionSummary, Trace
 
 if TYPE_CHECKING:
+    from trainsim.model import *  # noqa: F403  (the domain objects, re-exported)
+    from trainsim.model.scenario import RunSettings, Scenario
     from trainsim.multipoint.result import MultiPointResult
+    from trainsim.sim.fastest import run_fastest, run_scenario
+    from trainsim.sim.result import EnergyFigures, RunResult, SectionSummary, Trace
+
+# Everything but the errors is imported on first use: `import trainsim` (and `trainsim --help`) must
+# not pay for numba, scipy, pandas or pydantic (issue 14's start-up budget).
+_LAZY: dict[str, str] = {
+    "RunSettings": "trainsim.model.scenario",
+    "Scenario": "trainsim.model.scenario",
+    "run_fastest": "trainsim.sim.fastest",
+    "run_scenario": "trainsim.sim.fastest",
+    "EnergyFigures": "trainsim.sim.result",
+    "RunResult": "trainsim.sim.result",
+    "SectionSummary": "trainsim.sim.result",
+    "Trace": "trainsim.sim.result",
+    **dict.fromkeys(
+        ("load_train", "load_route", "load_scenario", "scenario_from_files", "check_file"),
+        "trainsim.io.loader",
+    ),
+    "DrivingSession": "trainsim.sim.driving",
+    "DrivingState": "trainsim.sim.driving",
+}
 
 __version__ = "0.1.0"
 
@@ -61,20 +64,27 @@ def run(scenario: Scenario) -> RunResult | MultiPointResult:
         return optimize(
             scenario.train, scenario.route, scenario.timetable, scenario.strategy, scenario.settings
         ).run
+    from trainsim.sim.fastest import run_scenario
+
     return run_scenario(scenario)
 
 
 def __getattr__(name: str):
-    # file readers and the driving session import more; load them on first use
-    if name in {"load_train", "load_route", "load_scenario", "scenario_from_files", "check_file"}:
-        from trainsim.io import loader
+    import importlib
 
-        return getattr(loader, name)
-    if name in {"DrivingSession", "DrivingState"}:
-        from trainsim.sim import driving
+    module = _LAZY.get(name)
+    if module is None:
+        model = importlib.import_module("trainsim.model")  # the domain objects: Train, Route ...
+        if name not in model.__all__:
+            raise AttributeError(f"module 'trainsim' has no attribute {name!r}")
+        module = "trainsim.model"
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
 
-        return getattr(driving, name)
-    raise AttributeError(f"module 'trainsim' has no attribute {name!r}")
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})
 
 
 __all__ = [

@@ -77,7 +77,10 @@ def batch(
     Results go to OUT/results (a Parquet dataset: parameters and figures per run, failed runs with their
     error). A study that was interrupted resumes where it stopped when run again with the same OUT.
     """
-    from trainsim.batch import executors, load_study, run_study
+    from trainsim.cli.context import user_errors
+
+    with user_errors():  # a light install without the [batch] extra is told what to install
+        from trainsim.batch import executors, load_study, run_study
 
     out_dir = out if out is not None else Path("out") / study.stem
     chosen = executor.value if executor is not None else None

@@ -86,6 +86,13 @@ def user_errors() -> Iterator[None]:
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
         raise fail(f"{where}{exc.strerror or exc}") from None
+    except ImportError as exc:
+        from trainsim.extras import missing_extra_message
+
+        message = missing_extra_message(exc)
+        if message is None:
+            raise
+        raise fail(message) from None
 
 
 def exit_for_status(status: str) -> None:

@@ -14,11 +14,14 @@ def serve(
     port: Annotated[int, typer.Option(help="TCP port")] = 8000,
 ) -> None:
     """Start the web application: train and track tables, runs and plots, live driving."""
-    import uvicorn
+    from trainsim.cli.context import user_errors
 
-    from trainsim.web import create_app
+    with user_errors():  # a light install without the [web] extra is told what to install
+        import uvicorn
 
-    app = create_app()
+        from trainsim.web import create_app
+
+        app = create_app()
     shown = f"[{host}]" if ":" in host else host
     typer.echo(f"trainsim web application at http://{shown}:{port}/  (API docs at /docs; Ctrl+C to stop)")
     if host not in ("127.0.0.1", "localhost", "::1"):
