@@ -1,0 +1,30 @@
+"""A line in operation: signals, blocking times, headways, conflicts and delays for many trains.
+
+Built on the public single-train API (``trainsim.run_fastest``); the core knows nothing of it.
+See docs/OPERATIONS.md.
+"""
+
+from trainsim.operations.blocking import (
+    BlockingTime,
+    CapacityConsumption,
+    Headway,
+    Trajectory,
+    blocking_times,
+    compression,
+    minimum_headway,
+)
+from trainsim.operations.line import Line, Signalling, StationLayout, build_line
+
+__all__ = [
+    "BlockingTime",
+    "CapacityConsumption",
+    "Headway",
+    "Line",
+    "Signalling",
+    "StationLayout",
+    "Trajectory",
+    "blocking_times",
+    "build_line",
+    "compression",
+    "minimum_headway",
+]

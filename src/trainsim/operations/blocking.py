@@ -1,0 +1,383 @@
+"""Blocking times, minimum headways and capacity consumption (UIC 406 compression).
+
+The blocking time of a route for one train (Pachl, *Railway Operation and Control*, 4th ed. 2018,
+section 4.2; UIC Code 406, 2nd ed. 2013, section 4) is the time the route is reserved for it:
+
+    setup + sight and reaction + approach + occupation + clearing + release
+
+* the route is set ``setup_s`` before the driver must see a proceed aspect, and the driver needs
+  ``reaction_s`` besides the sighting distance; the **approach** starts where the train's head must see
+  the first aspect that would make it brake for the route's signal: the distant signal (2 aspects),
+  the previous (3 aspects) or second previous (4 aspects) main signal, each minus the sighting
+  distance; with ETCS Level 2 the indication point of a movement authority ending at the route's
+  entry; with moving block the service braking distance plus the safety margin before the route's
+  entry. A train that stands (stops) between that point and the signal sees the signal when it
+  departs, so its approach starts at its departure;
+* the **occupation** lasts until the head reaches the end of the route (next signal plus overlap),
+  the **clearing** until the rear has passed it (train length), and the resource is released
+  ``release_s`` later (sectional release: each resource when the rear has passed its own end;
+  whole-route release: all when the rear has passed the route's end).
+
+The minimum headway between two trains is the smallest time between them at which no resource is
+claimed by both at once (the blocking-time stairs touch at the *critical* resource). UIC 406's
+compression pushes the trains of a timetable pattern together to their minimum headways; the
+compressed span over the pattern period is its capacity consumption.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from trainsim.operations.line import DirectionPath, Route, Signalling
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Where a train's head is over time, in the running coordinate of its direction.
+
+    Attributes:
+        time_s: time, non-decreasing [s].
+        position_m: head position, non-decreasing [m] (repeated positions are stops).
+        speed_mps: speed [m/s].
+        length_m: train length [m].
+    """
+
+    time_s: np.ndarray
+    position_m: np.ndarray
+    speed_mps: np.ndarray
+    length_m: float
+
+    def first_time_at(self, x_m: float | np.ndarray) -> np.ndarray:
+        """The first time the head reaches ``x_m`` [s]; before the start: the start time; beyond the
+        end: ``inf``.
+
+        Between two trace points the acceleration is taken as constant (exact for the constant-speed
+        and constant-acceleration pieces of a run): ``t = t0 + 2 dx / (v0 + v(x))`` with
+        ``v(x)^2 = v0^2 + (v1^2 - v0^2) dx / ds``.
+        """
+        s, t, v = self.position_m, self.time_s, self.speed_mps
+        x = np.atleast_1d(np.asarray(x_m, dtype=float))
+        i = np.searchsorted(s, x, side="left")
+        out = np.empty_like(x)
+        before = i == 0
+        beyond = i >= len(s)
+        out[before] = t[0]
+        out[beyond] = np.inf
+        mid = ~(before | beyond)
+        k = i[mid]
+        s0, s1, t0, t1, v0, v1 = s[k - 1], s[k], t[k - 1], t[k], v[k - 1], v[k]
+        ds = s1 - s0
+        dx = x[mid] - s0
+        frac = np.where(ds > 0, dx / np.where(ds > 0, ds, 1.0), 1.0)
+        vx = np.sqrt(np.maximum(v0 * v0 + (v1 * v1 - v0 * v0) * frac, 0.0))
+        vsum = v0 + vx
+        kin = t0 + np.where(vsum > 1e-9, 2.0 * dx / np.where(vsum > 1e-9, vsum, 1.0), 0.0)
+        lin = t0 + frac * (t1 - t0)
+        # the kinematic form is only trusted where it stays inside the step
+        ok = (vsum > 1e-9) & (kin >= t0 - 1e-9) & (kin <= t1 + 1e-9)
+        out[mid] = np.where(ok, kin, lin)
+        return out
+
+    def last_time_at(self, x_m: float) -> float:
+        """The last time the head is at ``x_m`` (the departure if the train stops there) [s]."""
+        s, t = self.position_m, self.time_s
+        j = int(np.searchsorted(s, x_m, side="right")) - 1
+        if j >= 0 and abs(s[j] - x_m) < 1e-9:
+            return float(t[j])
+        return float(self.first_time_at(x_m)[0])
+
+    def speed_at(self, x_m: float) -> float:
+        """Speed where the head first reaches ``x_m`` (linear in position) [m/s]."""
+        return float(np.interp(x_m, self.position_m, self.speed_mps))
+
+    def max_speed_between(self, a_m: float, b_m: float) -> float:
+        """Highest speed of the head between ``a_m`` and ``b_m`` [m/s]."""
+        m = (self.position_m >= a_m) & (self.position_m <= b_m)
+        inner = self.speed_mps[m]
+        ends = [self.speed_at(a_m), self.speed_at(b_m)]
+        return float(max(ends + ([float(inner.max())] if inner.size else [])))
+
+    def shifted(self, dt_s: float) -> Trajectory:
+        """The same trajectory ``dt_s`` later [s]."""
+        return Trajectory(self.time_s + dt_s, self.position_m, self.speed_mps, self.length_m)
+
+
+@dataclass(frozen=True)
+class BlockingTime:
+    """The blocking time of one resource of one route for one train (times in s, positions on the line
+    in m).
+
+    ``start_s`` = ``approach_s - reaction - setup``; ``approach_s`` when the head passes the approach
+    start (or departs from a stop within the approach); ``entry_s`` when it passes the route's signal;
+    ``clear_s`` when the rear has passed the resource's release point; ``end_s`` = ``clear_s + release``.
+    """
+
+    train: str
+    route: str
+    resource: str
+    step: int
+    start_s: float
+    approach_s: float
+    entry_s: float
+    clear_s: float
+    end_s: float
+    from_m: float
+    to_m: float
+
+
+@dataclass(frozen=True)
+class Headway:
+    """Minimum headway between a leading and a following train.
+
+    ``min_headway_s`` is the smallest time between their reference times (departures from their
+    origins) at which the follower's blocking times nowhere overlap the leader's; ``critical_route`` and
+    ``critical_resource`` are where the stairs touch; ``planned_headway_s`` is their actual difference and
+    ``buffer_s`` = planned - minimum (negative: a conflict).
+    """
+
+    leader: str
+    follower: str
+    min_headway_s: float
+    critical_route: str
+    critical_resource: str
+    planned_headway_s: float
+    buffer_s: float
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "leader": self.leader,
+            "follower": self.follower,
+            "min_headway_s": round(self.min_headway_s, 3),
+            "critical_block": self.critical_route,
+            "critical_resource": self.critical_resource,
+            "planned_headway_s": round(self.planned_headway_s, 3),
+            "buffer_s": round(self.buffer_s, 3),
+        }
+
+
+def braking_distance_table(
+    deceleration_mps2: Callable[[np.ndarray], np.ndarray], v_max_mps: float
+) -> Callable[[float], float]:
+    """Service braking distance from speed ``v`` to rest, ``D(v) = integral_0^v u / a(u) du`` [m], for a
+    deceleration law ``a(u)`` [m/s^2] (kinematics; Pachl section 2.3), tabulated up to ``v_max_mps``."""
+    v = np.linspace(0.0, max(v_max_mps, 1.0) * 1.05, 400)
+    a = np.maximum(np.asarray(deceleration_mps2(v), dtype=float), 1e-6)
+    integrand = v / a
+    d = np.concatenate([[0.0], np.cumsum(0.5 * (integrand[1:] + integrand[:-1]) * np.diff(v))])
+
+    v2 = v * v
+
+    def distance(speed_mps: float) -> float:
+        # linear in v^2 between the table's points: exact for a constant deceleration
+        return float(np.interp(speed_mps * speed_mps, v2, d))
+
+    return distance
+
+
+def approach_start_m(
+    path: DirectionPath,
+    step: int,
+    signalling: Signalling,
+    trajectory: Trajectory | None = None,
+    approach_distance_m: Callable[[float], float] | None = None,
+) -> float:
+    """Where the approach to route step ``step`` of ``path`` starts (running coordinate) [m].
+
+    Fixed block: the distant signal (``distant_distance_m`` before the main signal) for 2 aspects, the
+    previous main signal for 3, the second previous for 4, minus the sighting distance. ETCS L2 and
+    moving block: the signal (block marker, or the start of the virtual section) minus
+    ``approach_distance_m(v)`` at the train's speed there, found by fixed-point iteration on the
+    highest speed of the trajectory over the approach (moving block adds the safety margin).
+    """
+    sig = signalling
+    x = path.steps[step].start_m
+    if sig.system == "fixed_block":
+        if sig.aspects == 2:
+            return x - sig.distant_distance_m - sig.sighting_distance_m
+        back = sig.aspects - 2
+        if step - back >= 0:
+            return path.steps[step - back].start_m - sig.sighting_distance_m
+        # before the first signal of the direction: the warning is given by a distant signal
+        return x - back * sig.distant_distance_m - sig.sighting_distance_m
+    if trajectory is None or approach_distance_m is None:
+        raise ValueError("ETCS and moving block need the train's trajectory and approach distance")
+    margin = sig.safety_margin_m if sig.system == "moving_block" else 0.0
+    p = x - margin - approach_distance_m(trajectory.speed_at(x))
+    for _ in range(4):
+        q = x - margin - approach_distance_m(trajectory.max_speed_between(p, x))
+        if abs(q - p) < 1e-6:
+            break
+        p = min(p, q)
+    return p
+
+
+def route_release_points(route: Route, release: str) -> list[float]:
+    """Release point of each resource of ``route`` (running coordinate) [m]: its end, or the route's
+    end plus overlap for the resource that reaches the route's end; with whole-route release, the
+    farthest of them for all."""
+    route_end = route.end_m + route.overlap_m
+    points = [max(r.end_m, route_end) if r.end_m >= route.end_m - 1e-9 else r.end_m for r in route.resources]
+    if release == "whole_route":
+        far = max(points)
+        points = [far] * len(points)
+    return points
+
+
+def blocking_times(
+    train_id: str,
+    trajectory: Trajectory,
+    path: DirectionPath,
+    steps: Sequence[tuple[int, Route]],
+    stops_m: Sequence[float],
+    signalling: Signalling,
+    line_position: Callable[[float], float] = float,
+    approach_distance_m: Callable[[float], float] | None = None,
+) -> list[BlockingTime]:
+    """The blocking times of every resource of every route a train takes.
+
+    Args:
+        train_id: the train's id.
+        trajectory: its head over time (running coordinate).
+        path: its direction's path (for the signals that give the warning).
+        steps: the routes it takes, each with its step index in ``path``.
+        stops_m: where it stands (origin, stops, signal stops) [m]; a stop inside an approach moves the
+            approach start to the departure from that stop.
+        signalling: the times and distances of the model.
+        line_position: maps a running coordinate to the line position (for ``from_m``/``to_m``).
+        approach_distance_m: ETCS / moving block: approach distance over speed [m].
+    """
+    sig = signalling
+    out: list[BlockingTime] = []
+    stops = np.sort(np.asarray(stops_m, dtype=float))
+    length = trajectory.length_m
+    for j, route in steps:
+        a = approach_start_m(path, j, sig, trajectory, approach_distance_m)
+        inside = stops[(stops >= a - 1e-9) & (stops < route.start_m)]
+        if inside.size:
+            t_see = trajectory.last_time_at(float(inside.max()))
+        else:
+            t_see = float(trajectory.first_time_at(a)[0])
+        start = t_see - sig.reaction_s - sig.setup_s
+        entry = float(trajectory.first_time_at(route.start_m)[0])
+        points = route_release_points(route, sig.release)
+        clears = trajectory.first_time_at(np.asarray(points) + length)
+        lo = route.start_m
+        for res, point, clear in zip(route.resources, points, clears, strict=True):
+            out.append(
+                BlockingTime(
+                    train_id,
+                    route.name,
+                    res.name,
+                    j,
+                    start,
+                    t_see,
+                    entry,
+                    float(clear),
+                    float(clear) + sig.release_s,
+                    float(line_position(lo)),
+                    float(line_position(point)),
+                )
+            )
+    return out
+
+
+def _by_resource(times: Sequence[BlockingTime]) -> dict[str, tuple[float, float, str]]:
+    d: dict[str, tuple[float, float, str]] = {}
+    for b in times:
+        if b.resource in d:
+            s0, e0, r0 = d[b.resource]
+            d[b.resource] = (min(s0, b.start_s), max(e0, b.end_s), r0)
+        else:
+            d[b.resource] = (b.start_s, b.end_s, b.route)
+    return d
+
+
+def required_shift(
+    leader: Sequence[BlockingTime], follower: Sequence[BlockingTime]
+) -> tuple[float, str, str]:
+    """The smallest shift of the follower's times after which none of its blocking times overlaps the
+    leader's: ``max over shared resources of (end_leader - start_follower)`` [s], with the critical route
+    (the follower's) and resource; ``-inf`` and empty names when they share no resource."""
+    lead = _by_resource(leader)
+    best, route, resource = -np.inf, "", ""
+    for name, (start, _end, r) in _by_resource(follower).items():
+        if name in lead:
+            need = lead[name][1] - start
+            if need > best:
+                best, route, resource = need, r, name
+    return float(best), route, resource
+
+
+def minimum_headway(
+    leader_id: str,
+    leader: Sequence[BlockingTime],
+    leader_ref_s: float,
+    follower_id: str,
+    follower: Sequence[BlockingTime],
+    follower_ref_s: float,
+) -> Headway | None:
+    """Minimum headway between two trains from their blocking times (Pachl section 4.2.3).
+
+    The reference times (e.g. departures from their origins) define the headway: the follower's
+    blocking times may move by ``required_shift``, so the minimum headway is
+    ``(follower_ref - leader_ref) + shift``. None when the trains share no resource.
+    """
+    shift, route, resource = required_shift(leader, follower)
+    if not np.isfinite(shift):
+        return None
+    planned = follower_ref_s - leader_ref_s
+    return Headway(leader_id, follower_id, planned + shift, route, resource, planned, -shift)
+
+
+@dataclass(frozen=True)
+class CapacityConsumption:
+    """UIC 406 compression of a timetable pattern.
+
+    Attributes:
+        occupation_s: compressed occupation time: from the first train's compressed position to the
+            first train of the next pattern at its minimum headway [s].
+        period_s: the pattern's period [s].
+        consumption: occupation / period [-].
+        offsets_s: compressed time of each train relative to the first [s].
+    """
+
+    occupation_s: float
+    period_s: float
+    consumption: float
+    offsets_s: tuple[float, ...]
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "occupation_s": round(self.occupation_s, 3),
+            "period_s": self.period_s,
+            "consumption_percent": round(100 * self.consumption, 2),
+            "offsets_s": [round(x, 3) for x in self.offsets_s],
+        }
+
+
+def compression(
+    pattern: Sequence[Sequence[BlockingTime]], period_s: float, resources: set[str] | None = None
+) -> CapacityConsumption:
+    """UIC 406 (2013) compression of a timetable pattern that repeats every ``period_s`` [s].
+
+    The trains keep their order; each is moved as close as its blocking times allow to *every* earlier
+    train (not only the one before it), ``c_k = max_{j<k} (c_j + shift_jk)`` with ``c_0 = 0``; the
+    occupation time closes the cycle with the first train of the next pattern,
+    ``max_j (c_j + shift_j0)``. ``resources`` restricts the compression to a line section.
+    """
+    if not pattern:
+        raise ValueError("an empty pattern")
+    trains = [[b for b in t if resources is None or b.resource in resources] for t in pattern]
+    n = len(trains)
+    shifts = np.array([[required_shift(trains[j], trains[k])[0] for k in range(n)] for j in range(n)])
+    c = [0.0]
+    for k in range(1, n):
+        c.append(max([c[j] + shifts[j, k] for j in range(k) if np.isfinite(shifts[j, k])], default=c[-1]))
+    closing = [c[j] + shifts[j, 0] for j in range(n) if np.isfinite(shifts[j, 0])]
+    if not closing:
+        raise ValueError("the pattern's first train claims no resource of the section")
+    occupation = max(closing)
+    return CapacityConsumption(float(occupation), float(period_s), float(occupation / period_s), tuple(c))
