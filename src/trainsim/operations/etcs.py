@@ -919,17 +919,21 @@ class _Target:
         lo, hi = speeds[i - 1], speeds[i]
         f_lo, f_hi = locations[i - 1] - x, locations[i] - x  # >= 0 and < 0
         v = hi.copy()
+        last = np.zeros(x.shape, dtype=int)  # which end moved last: -1 lo, +1 hi, 0 none
         for _ in range(REGULA_FALSI_STEPS):
             denom = f_hi - f_lo
             v = np.where(denom != 0, hi - f_hi * (hi - lo) / np.where(denom != 0, denom, 1.0), lo)
             v = np.clip(v, lo, hi)
             f = self.d_limit(kind, v) - x
-            right = f < 0  # the root lies between lo and v
-            # Illinois: halve the stale end's value so that both ends move
-            f_lo = np.where(right, f_lo / 2, f)
+            right = f < 0  # the root lies between lo and v: v replaces hi
+            # Illinois: when the same end moves twice in a row, halve the stale end's value
+            f_lo = np.where(right & (last == 1), f_lo / 2, f_lo)
+            f_hi = np.where(~right & (last == -1), f_hi / 2, f_hi)
+            f_lo = np.where(right, f_lo, f)
             lo = np.where(right, lo, v)
-            f_hi = np.where(right, f, f_hi / 2)
+            f_hi = np.where(right, f, f_hi)
             hi = np.where(right, v, hi)
+            last = np.where(right, 1, -1)
         done = np.abs(self.d_limit(kind, v) - x) <= ROOT_TOLERANCE_M
         if not np.all(done):
             b_lo, b_hi = lo[~done], hi[~done]
@@ -941,6 +945,15 @@ class _Target:
                 b_hi = np.where(ok, b_hi, mid)
             v[~done] = b_lo
         out[inside] = v
+        if self.kind == "mrsp":  # passed by the front end: the ceiling limits take over (3.13.8.2.3)
+            out = np.where(s >= self.position_m, np.inf, out)
+        return out
+
+    def curve_speed(self, curve: BrakingCurve, s: NDArray[np.float64]) -> NDArray[np.float64]:
+        """A braking curve of this target: inf beyond the foot of a speed-decrease target's curve."""
+        out = curve.speed_mps(s)
+        if self.kind == "mrsp":
+            out = np.where(s > curve.positions_m[-1], np.inf, out)
         return out
 
 
@@ -981,15 +994,15 @@ class SupervisionCurves:
     # --- braking curves ---
     def ebd(self, s: ArrayLike) -> NDArray[np.float64] | float:
         """Emergency brake deceleration curve EBD [m/s] (3.13.8.3): the lowest over the EBD targets."""
-        return self._curve_min(s, lambda t: t.ebd_based, lambda t, x: t.curve.speed_mps(x))
+        return self._curve_min(s, lambda t: t.ebd_based, lambda t, x: t.curve_speed(t.curve, x))
 
     def sbd(self, s: ArrayLike) -> NDArray[np.float64] | float:
         """Service brake deceleration curve SBD toward the EoA [m/s] (3.13.8.4); inf without an EoA."""
-        return self._curve_min(s, lambda t: not t.ebd_based, lambda t, x: t.curve.speed_mps(x))
+        return self._curve_min(s, lambda t: not t.ebd_based, lambda t, x: t.curve_speed(t.curve, x))
 
     def guidance(self, s: ArrayLike) -> NDArray[np.float64] | float:
         """Guidance curve GUI [m/s] (3.13.8.5): the lowest over the targets."""
-        return self._curve_min(s, lambda t: t.gui is not None, lambda t, x: t.gui.speed_mps(x))  # type: ignore[union-attr]
+        return self._curve_min(s, lambda t: t.gui is not None, lambda t, x: t.curve_speed(t.gui, x))  # type: ignore[union-attr]
 
     # --- supervision limits ---
     def ebi(self, s: ArrayLike) -> NDArray[np.float64] | float:
@@ -1088,8 +1101,14 @@ def _mrsp_piecewise(mrsp: Any, v_max: float) -> _Piecewise:
         return _Piecewise(np.zeros(0), np.asarray([v_max]))
     if isinstance(mrsp, Route):
         limits = sorted(mrsp.speed_limits, key=lambda lim: lim.start_m)
-        breaks = [lim.start_m for lim in limits] + [limits[-1].end_m] if limits else []
-        values = [v_max] + [lim.limit_mps for lim in limits] + [v_max]
+        if not limits:
+            return _Piecewise(np.zeros(0), np.asarray([v_max]))
+        breaks = [lim.start_m for lim in limits] + [limits[-1].end_m]
+        values = (
+            [lim.limit_mps for lim in limits[:1]]
+            + [lim.limit_mps for lim in limits]
+            + [lim.limit_mps for lim in limits[-1:]]
+        )
         pos, speeds = np.asarray(breaks, float), np.asarray(values, float)
     else:
         try:
@@ -1109,7 +1128,7 @@ def _mrsp_piecewise(mrsp: Any, v_max: float) -> _Piecewise:
             )
         if not (np.all(np.isfinite(pos)) and np.all(np.diff(pos) > 0)):
             raise _bad("MRSP positions must be finite and increasing", "mrsp.positions_m", pos, "increasing")
-        speeds = np.concatenate([[v_max], spd])
+        speeds = np.concatenate([spd[:1], spd])
     if not np.all((speeds > 0) | np.isinf(speeds)):
         raise _bad("MRSP speeds must be above 0", "mrsp.speeds_mps", speeds, "speeds > 0 m/s")
     return _Piecewise(pos, np.minimum(speeds, v_max))
@@ -1152,8 +1171,8 @@ def supervision_curves(
             default the EoA itself. Only for target speed 0.
         target_speed_mps: 0 for an EoA/SvL, or the target speed of a speed decrease [m/s].
         mrsp: the most restrictive speed profile: a ``Route`` (its speed limits), a pair
-            ``(positions_m, speeds_mps)`` (speed k from position k on; the train maximum speed before
-            the first position) or ``None`` (train maximum speed only). Its decreases are supervised
+            ``(positions_m, speeds_mps)`` (speed k from position k on; the first speed also before
+            the first position) or ``None``; the train maximum speed caps it (3.13.7.2). Its decreases are supervised
             as targets and its ceiling limits cap every supervision limit.
         release_speed: ``"calculated"`` (3.13.9.4.8), ``"national"`` (V_NVREL) or a value [m/s]
             given by trackside (3.13.9.4.3); ignored for a speed-decrease target.
