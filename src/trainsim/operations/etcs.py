@@ -617,16 +617,15 @@ def _gradient_piecewise(profile: GradientProfile) -> _Piecewise:
         breaks: list[float] = []
         values: list[float] = [0.0]
         for section in sorted(profile.gradients, key=lambda g: g.start_m):
-            if breaks and section.start_m > breaks[-1]:
-                values.append(0.0)  # a gap: level
+            if not breaks or section.start_m > breaks[-1] + 1e-6:  # first section, or after a level gap
                 breaks.append(section.start_m)
-            elif breaks and section.start_m < breaks[-1]:
+                values.append(section.gradient_permille)
+            elif section.start_m < breaks[-1] - 1e-6:
                 raise _bad(
                     "gradient sections overlap", "gradients", section.start_m, "non-overlapping sections"
                 )
-            if not breaks:
-                breaks.append(section.start_m)
-            values[-1] = section.gradient_permille
+            else:  # adjacent to the previous section
+                values[-1] = section.gradient_permille
             breaks.append(section.end_m)
             values.append(0.0)
         return _Piecewise(np.asarray(breaks, float), np.asarray(values, float))
@@ -911,6 +910,8 @@ class _Target:
         """
         speeds, locations = self._table(kind, v_high)
         out = np.where(s >= locations[0], self.v_target_mps, np.inf)
+        if self.kind == "mrsp":  # passed by the front end: the ceiling limits take over (3.13.8.2.3)
+            out = np.where(s >= self.position_m, np.inf, out)
         inside = (s < locations[0]) & (s >= locations[-1])
         if not np.any(inside):
             return out
@@ -945,8 +946,6 @@ class _Target:
                 b_hi = np.where(ok, b_hi, mid)
             v[~done] = b_lo
         out[inside] = v
-        if self.kind == "mrsp":  # passed by the front end: the ceiling limits take over (3.13.8.2.3)
-            out = np.where(s >= self.position_m, np.inf, out)
         return out
 
     def curve_speed(self, curve: BrakingCurve, s: NDArray[np.float64]) -> NDArray[np.float64]:
