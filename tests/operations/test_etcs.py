@@ -401,3 +401,14 @@ def test_bad_step_functions_and_calls_are_input_errors():
         moving_block_ceiling(train(), NV, None, 1000.0, -5.0)
     with pytest.raises(InputError, match="unknown supervision limit"):
         supervision_curves(train(), NV, None, 5000.0).limit_position_m("fast", 10.0)
+
+
+def test_calculated_release_speed_honours_a_speed_decrease_before_the_svl():
+    # 3.13.9.4.8: the EBI of a 20 km/h decrease at 5100 m (between the EoA and the SvL) also bounds it;
+    # its EBD passes V_t + dV_ebi(V_t) = 27.5 km/h at 5100 m: V^2 = v1^2 + 2 (100 - 3 V)
+    c = supervision_curves(train(), NV, None, 5000.0, 5200.0, mrsp=([0.0, 5100.0], [100 * KMH, 20 * KMH]))
+    v1 = 27.5 * KMH
+    expected = -3.0 + math.sqrt(9.0 + v1**2 + 200.0)
+    assert c.release_speed_mps == pytest.approx(expected, abs=1e-9)
+    alone = supervision_curves(train(), NV, None, 5000.0, 5200.0)
+    assert alone.release_speed_mps == pytest.approx(-3.0 + math.sqrt(409.0), abs=1e-9)

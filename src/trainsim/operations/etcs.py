@@ -1026,7 +1026,11 @@ class SupervisionCurves:
 
     def limit_position_m(self, kind: LimitKind, v_mps: ArrayLike) -> NDArray[np.float64] | float:
         """Where the supervision limit ``kind`` is reached by a train at speed ``v_mps`` [m]: the first
-        location over the targets whose target speed is below ``v_mps`` (np.inf if there is none)."""
+        location over the targets that supervise that speed (np.inf if there is none).
+
+        A speed-decrease target supervises speeds above V_target + dV(V_target) (dV_ebi, dV_sbi,
+        dV_warning; 0 for P and I), the EoA and SvL speeds above the release speed (Tables 8 and 9,
+        3.13.10.4.10.1)."""
         if kind not in LIMIT_KINDS:
             raise _bad("unknown supervision limit", "kind", kind, ", ".join(LIMIT_KINDS))
         v = np.asarray(v_mps, dtype=float)
@@ -1035,8 +1039,16 @@ class SupervisionCurves:
             if kind == "ebi" and not target.ebd_based:
                 continue
             d = target.d_limit(kind, np.atleast_1d(v).astype(float)).reshape(v.shape)
-            out = np.where(v > target.v_target_mps, np.minimum(out, d), out)
+            out = np.where(v > self._floor(kind, target), np.minimum(out, d), out)
         return float(out) if out.ndim == 0 else out
+
+    def _floor(self, kind: str, target: _Target) -> float:
+        """The speed up to which a target never triggers the limit ``kind`` (Tables 8, 9)."""
+        if target.kind == "mrsp":
+            if kind in ("ebi", "sbi", "warning"):
+                return target.v_target_mps + float(_dv(kind, target.v_target_mps, self._national))
+            return target.v_target_mps
+        return self.release_speed_mps
 
     def indication_point_m(self, v_mps: ArrayLike) -> NDArray[np.float64] | float:
         """Where a train at speed ``v_mps`` reaches the indication limit, i.e. must start braking to stay
@@ -1078,10 +1090,14 @@ class SupervisionCurves:
         for target in self._targets:
             if kind == "ebi" and not target.ebd_based:
                 continue
-            out = np.minimum(out, target.speed_limit(kind, flat, self._v_high))
-        if self.release_start_m is not None and self.release_speed_mps > 0:
-            end = self.trip_position_m if kind == "ebi" else self.eoa_position_m
-            in_rsm = (flat >= self.release_start_m) & (flat < end)
+            limit = target.speed_limit(kind, flat, self._v_high)
+            floor = self._floor(kind, target)
+            if target.kind != "mrsp":  # the EoA and SvL limits hold up to the EoA (or its trip location)
+                floor = np.where(flat < self.eoa_position_m, floor, 0.0)
+            out = np.minimum(out, np.maximum(limit, floor))
+        if kind == "ebi" and self.release_start_m is not None and self.trip_position_m is not None:
+            # release speed monitoring: the EBI is the release speed up to the trip location (3.13.9.4.1)
+            in_rsm = (flat >= self.release_start_m) & (flat < self.trip_position_m)
             out = np.where(in_rsm, np.minimum(self.release_speed_mps, v_mrsp + offsets[kind]), out)
         if kind == "ebi" and self.trip_position_m is not None:
             out = np.where(flat >= self.trip_position_m, 0.0, out)  # train trip beyond the EoA (3.13.10.2.6)
@@ -1362,14 +1378,22 @@ def supervision_curves(
         eoa_target.gui = gui_curve(eoa_position_m, 0.0)
         targets += [svl_target, eoa_target]
         trip = eoa_position_m + eoa_trip_margin_m
+        # EBD targets for the release speed: the SvL and, when calculated, those between the trip
+        # location and the SvL (3.13.9.4.6, 3.13.9.4.8)
+        release_targets = [svl_target]
         if release_speed == "calculated":
-            release_v = _calculated_release_speed(svl_target, train, n, trip, v_high, v_delta0)
+            release_targets += [
+                t for t in targets if t.kind == "mrsp" and trip < t.position_m <= svl_position_m
+            ]
+            release_v = min(
+                _calculated_release_speed(t, train, n, trip, v_high, v_delta0) for t in release_targets
+            )
         elif release_speed == "national":
             release_v = n.v_nvrel_mps
         else:
             release_v = float(release_speed)
         if release_v > 0:
-            release_start = _release_start(eoa_target, svl_target, release_v, v_delta0)
+            release_start = _release_start(eoa_target, release_targets, release_v, v_delta0)
             # 3.13.9.4.9: not above the MRSP between the start of release speed monitoring and the trip
             lo, hi = min(release_start, trip), trip
             inside = (mrsp_fn.breaks > lo) & (mrsp_fn.breaks < hi)
@@ -1377,7 +1401,7 @@ def supervision_curves(
             v_cap = float(np.min(speeds))
             if release_v > v_cap:
                 release_v = v_cap
-                release_start = _release_start(eoa_target, svl_target, release_v, v_delta0)
+                release_start = _release_start(eoa_target, release_targets, release_v, v_delta0)
     else:
         svl_position_m = eoa_position_m
 
@@ -1416,33 +1440,34 @@ def _limits_of(*fns: StepFunction) -> NDArray[np.float64]:
 
 
 def _calculated_release_speed(
-    svl: _Target,
+    target: _Target,
     train: EtcsTrainData,
     national: EtcsNationalValues,
     d_trip_m: float,
     v_high: float,
     v_delta0: Callable[[ArrayLike], NDArray[np.float64]],
 ) -> float:
-    """Release speed calculated on-board (3.13.9.4.8.2), level 2 (alpha = 0), SvL as the only target.
+    """Release speed calculated on-board for one EBD-based target (3.13.9.4.8.2), level 2 (alpha = 0).
 
     The V_release solving V_release = V_EBD(d_tripEOA + D_bec) - V_delta0rsob with
     D_bec = (V_release + V_delta0rsob) (T_traction + T_berem), T_traction as if the traction cut-off
-    were not implemented, and d_tripEOA + D_bec <= d_EBD(0) = SvL; 0 if no speed above 0 fulfils it.
-    Solved exactly (bisection) rather than to the 1 km/h tolerance the clause allows.
+    were not implemented, and d_tripEOA + D_bec <= d_EBD(V_target); V_target if no higher speed
+    fulfils it. Solved exactly (bisection) rather than to the 1 km/h tolerance the clause allows.
     """
     t_tr = t_traction_s(train.t_traction_cut_off_s, national.t_warning_s, 0.0, cut_off_implemented=False)
-    t_rem = t_berem_s(svl.times.t_be, t_tr)
+    t_rem = t_berem_s(target.times.t_be, t_tr)
+    foot = float(target.curve.position_m(target.v_target_mps))
 
     def excess(v: float) -> float:
         dv0 = float(v_delta0(v))
         d = d_trip_m + (v + dv0) * (t_tr + t_rem)
-        if d > svl.position_m:
+        if d > foot:
             return -1.0
-        return float(svl.curve.speed_mps(d)) - dv0 - v
+        return float(target.curve.speed_mps(d)) - dv0 - v
 
-    if excess(0.0) <= 0:
-        return 0.0
-    lo, hi = 0.0, v_high
+    lo, hi = target.v_target_mps, v_high
+    if excess(lo) <= 0:
+        return lo
     if excess(hi) > 0:
         return hi
     for _ in range(BISECTION_STEPS):
@@ -1455,16 +1480,22 @@ def _calculated_release_speed(
 
 
 def _release_start(
-    eoa: _Target, svl: _Target, v_release: float, v_delta0: Callable[[ArrayLike], NDArray[np.float64]]
+    eoa: _Target,
+    ebd_targets: Sequence[_Target],
+    v_release: float,
+    v_delta0: Callable[[ArrayLike], NDArray[np.float64]],
 ) -> float:
-    """Start location of release speed monitoring (3.13.9.4.6-7): the more restrictive of
-    SBI1(V_release) of the EoA and SBI2(V_release) of the SvL, with A_est = 0 and V_delta0rs = f41."""
-    t = svl.times
+    """Start location of release speed monitoring (3.13.9.4.6-7): the most restrictive of SBI1(V_release)
+    of the EoA and SBI2(V_release) of the SvL (and of the other EBD targets between the EoA trip location
+    and the SvL), with A_est = 0 and V_delta0rs = f41(V_release)."""
     dv0 = float(v_delta0(v_release))
-    d_ebi = float(svl.curve.position_m(v_release + dv0)) - (v_release + dv0) * (t.t_berem + t.t_traction)
-    d_sbi2 = d_ebi - v_release * t.t_bs2
-    d_sbi1 = float(eoa.curve.position_m(v_release)) - v_release * eoa.times.t_bs1
-    return min(d_sbi1, d_sbi2)
+    start = float(eoa.curve.position_m(v_release)) - v_release * eoa.times.t_bs1
+    for target in ebd_targets:
+        t = target.times
+        v_bec = max(v_release + dv0, target.v_target_mps)
+        d_ebi = float(target.curve.position_m(v_bec)) - (v_release + dv0) * (t.t_berem + t.t_traction)
+        start = min(start, d_ebi - v_release * t.t_bs2)
+    return start
 
 
 def moving_block_ceiling(
