@@ -137,7 +137,7 @@ def test_rolling_stock_variants(tmp_path, yaml_train):
     assert train.braking.full_force(120 * KMH) == pytest.approx(0.7 * train.inertial_mass_kg)
     # Strahl: w = 2.5 + k (V/10)^2 per mille of the weight
     v = 100 * KMH
-    assert train.running_resistance_n(v) == pytest.approx((2.5 + 0.03 * 100) / 1000 * train.mass_kg * 9.81)
+    assert train.running_resistance_n(v) == pytest.approx((2.5 + 0.03 * 100) / 1000 * train.mass_kg * 9.80665)
     assert any("tunnelFactor not used" in n for n in content.notes)
 
 
@@ -188,7 +188,7 @@ def test_railml3_other_itinerary_and_formation():
     assert content.train["rotating_mass_factor"] == 1.1
     train = rc.build_train(content)
     # resistance given in N/kN of the train's weight at 0, 40, 80 km/h: 2 + 0.00025 V^2 (fitted exactly)
-    expected = (2 + 0.00025 * 72**2) / 1000 * 80_000 * 9.81
+    expected = (2 + 0.00025 * 72**2) / 1000 * 80_000 * 9.80665
     assert train.running_resistance_n(20.0) == pytest.approx(expected, rel=1e-9)
 
 

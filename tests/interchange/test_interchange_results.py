@@ -9,6 +9,7 @@ import pandas as pd
 import pytest
 from interchange_cases import DATA, FORMULAS, run
 
+from trainsim.errors import InputError
 from trainsim.io import convert, railml2, railml3, results_export
 from trainsim.io import railml_common as rc
 
@@ -123,3 +124,24 @@ def test_mismatched_run(result, tmp_path):
         results_export.write_running_times_railml(
             result, DATA / "testline_railml2.xml", tmp_path / "x.xml", train_id="S 9"
         )
+
+
+def test_running_times_never_copy_a_doctype(result, tmp_path):
+    text = (DATA / "testline_railml2.xml").read_text(encoding="utf-8")
+    head, rest = text.split("?>", 1)
+    hostile = tmp_path / "hostile.xml"
+    hostile.write_text(head + '?>\n<!DOCTYPE railml SYSTEM "file:///etc/passwd">' + rest, encoding="utf-8")
+    out = results_export.write_running_times_railml(result, hostile, tmp_path / "rt.xml")
+    written = out.read_text(encoding="utf-8")
+    assert "DOCTYPE" not in written and "passwd" not in written and "runTimes" in written
+    # an entity declared and used is refused, with a message about the file (not libxml2's)
+    hostile.write_text(
+        head
+        + '?>\n<!DOCTYPE railml [<!ENTITY x SYSTEM "file:///etc/passwd">]>'
+        + rest.replace("Aford", "&x;", 1),
+        encoding="utf-8",
+    )
+    with pytest.raises(InputError, match="entit") as err:
+        results_export.write_running_times_railml(result, hostile, tmp_path / "rt2.xml")
+    assert err.value.file == str(hostile) and "xmlCtxt" not in str(err.value)
+    assert not (tmp_path / "rt2.xml").exists()

@@ -20,7 +20,7 @@ from trainsim.io.railtoolkit import (
     read_railtoolkit_train,
 )
 
-G = 9.81
+G = 9.80665  # TrainRuns.jl's g (trainsim.constants.TRAINRUNS_GRAVITY)
 KMH = 1 / 3.6
 V00 = 100 * KMH
 DV_AIR = 15 * KMH

@@ -25,7 +25,7 @@ from trainsim.io.trainsim_yaml import (
     train_spec_from_dict,
 )
 
-G = 9.81
+G = 9.80665  # standard gravity, the default of trainsim files (trainsim.constants.STANDARD_GRAVITY)
 KMH = 1 / 3.6
 
 

@@ -65,19 +65,15 @@ def detect_interchange(path: str | Path) -> Format | None:
     text = head.lstrip(b"\xef\xbb\xbf").lstrip()
     if not text.startswith(b"<"):
         return None
-    from lxml import etree
+    from trainsim.io.documents import read_xml
 
-    try:
-        for _, el in etree.iterparse(str(p), events=("start",), resolve_entities=False, no_network=True):
-            tag = rc.local(el)
-            version = el.get("version") or ""
-            if tag == "railml":
-                return "railml2"
-            if tag == "railML":
-                return "railml3" if not version.startswith("2") else "railml2"
-            return None
-    except etree.XMLSyntaxError:
-        return None
+    root = read_xml(p).getroot()  # an XML file that is malformed or hostile: its error, not YAML's
+    tag = rc.local(root)
+    version = root.get("version") or ""
+    if tag == "railml":
+        return "railml2"
+    if tag == "railML":
+        return "railml3" if not version.startswith("2") else "railml2"
     return None
 
 

@@ -22,6 +22,7 @@ from typing import Any, Literal
 from trainsim.constants import KMH, KN, TONNE
 from trainsim.errors import InputError
 from trainsim.io import convert as interchange
+from trainsim.io import documents
 from trainsim.io import railtoolkit as rtk
 from trainsim.io import trainsim_yaml as tsy
 from trainsim.model import Route, Train
@@ -144,6 +145,7 @@ def _expect(detected: Detected, kind: Kind, file: str) -> None:
         )
 
 
+@documents.gc_paused
 def load_train(path: str | Path, train_id: str | None = None) -> Train:
     """A train from a ``trainsim/train`` or railtoolkit rolling-stock file.
 
@@ -155,21 +157,23 @@ def load_train(path: str | Path, train_id: str | None = None) -> Train:
     file = str(path)
     if (train := interchange.detect_and_load(path, "train")) is not None:
         return train
-    detected = detect_format(path)
+    data = tsy.read_yaml(path)  # read once, handed to the reader
+    detected = _detect(data, file)
     _expect(detected, "train", file)
     if detected.format == "trainsim/train":
         if train_id is not None:
             raise InputError(
                 "a trainsim train file holds one train; 'train_id' is for railtoolkit files", file=file
             )
-        return tsy.load_train_yaml(path)
+        return tsy.train_spec_from_dict(data, file, path=path).to_train(file)
     if detected.format == "ttobench/train":
         from trainsim.io.ttobench import read_ttobench_train
 
         return read_ttobench_train(path).train
-    return rtk.load_railtoolkit_train(path, train_id)
+    return rtk.load_railtoolkit_train(path, train_id, data=data)
 
 
+@documents.gc_paused
 def load_route(path: str | Path, mass_model: str | None = None, path_id: str | None = None) -> Route:
     """A route from a ``trainsim/route`` or railtoolkit running-path file.
 
@@ -183,10 +187,11 @@ def load_route(path: str | Path, mass_model: str | None = None, path_id: str | N
     file = str(path)
     if (route := interchange.detect_and_load(path, "route", mass_model=mass_model)) is not None:
         return route
-    detected = detect_format(path)
+    data = tsy.read_yaml(path)  # read once, handed to the reader
+    detected = _detect(data, file)
     _expect(detected, "route", file)
     if detected.format == "trainsim/route":
-        route = tsy.load_route_yaml(path)
+        route = tsy.route_spec_from_dict(data, file, path=path).to_route(file)
         if mass_model is not None and rtk.MASS_MODELS.get(mass_model) != route.line_resistance.apply_over:
             raise InputError(
                 "the mass model contradicts the route's line_resistance.apply_over",
@@ -200,9 +205,10 @@ def load_route(path: str | Path, mass_model: str | None = None, path_id: str | N
         from trainsim.io.ttobench import read_ttobench_track
 
         return read_ttobench_track(path)
-    return rtk.load_railtoolkit_path(path, path_id, mass_model or "mass_point")
+    return rtk.load_railtoolkit_path(path, path_id, mass_model or "mass_point", data=data)
 
 
+@documents.gc_paused
 def load_scenario(path: str | Path) -> Scenario:
     """A scenario from a ``trainsim/scenario`` file (train and route files relative to it)."""
     if (scenario := interchange.detect_and_load(path, "scenario")) is not None:
@@ -369,6 +375,7 @@ def _ignored_rtk_fields(data: dict[str, Any]) -> list[str]:
     return sorted(ignored)
 
 
+@documents.gc_paused
 def check_file(path: str | Path) -> CheckReport:
     """Read and check a file of any known format; InputError if it is not valid.
 

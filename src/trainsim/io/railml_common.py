@@ -79,21 +79,14 @@ POSITION_TOLERANCE_M = 1e-6
 
 # ====================================================================== XML access
 def parse_xml(path: str | Path) -> etree._ElementTree:
-    """The XML tree of a file; InputError (with the line) for a missing or malformed file."""
-    file = str(path)
-    p = Path(path)
-    if not p.exists():
-        raise InputError("file not found", file=file)
-    if p.is_dir():
-        raise InputError("this is a directory, not a file", file=file)
-    # no network, no entity expansion: a railML file is data, not a document with includes
-    parser = etree.XMLParser(resolve_entities=False, no_network=True, remove_comments=True, huge_tree=False)
-    try:
-        return etree.parse(str(p), parser)
-    except etree.XMLSyntaxError as exc:
-        raise InputError(f"malformed XML: {exc.msg}", file=file, line=exc.lineno) from exc
-    except OSError as exc:
-        raise InputError(f"cannot read the file ({exc})", file=file) from exc
+    """The XML tree of a file; InputError (with the line) for a missing, malformed or hostile file.
+
+    Read by :func:`trainsim.io.documents.read_xml`: no network, no entity expansion, no DTD,
+    bounded size and depth.
+    """
+    from trainsim.io.documents import read_xml
+
+    return read_xml(path)
 
 
 def local(el: etree._Element) -> str:
@@ -1425,7 +1418,7 @@ def _braking(
 def _resistance(
     src: FormationSource, mass_kg: float, content: Content, problems: Problems
 ) -> list[dict[str, Any]]:
-    from trainsim.constants import G
+    from trainsim.constants import STANDARD_GRAVITY as G  # railML states no g: the standard one
 
     if src.davis is not None:
         a, b, c, per_tonne, el = src.davis

@@ -64,7 +64,7 @@ from typing import Any, Literal
 
 import jsonschema
 
-from trainsim.constants import KMH, TONNE
+from trainsim.constants import KMH, TONNE, TRAINRUNS_GRAVITY
 from trainsim.errors import InputError
 from trainsim.io.trainsim_yaml import read_yaml
 from trainsim.model import (
@@ -340,15 +340,18 @@ class _Group:
         return self.data["vehicle_type"] in ("traction unit", "multiple unit")
 
 
-def read_railtoolkit_train(path: str | Path, train_id: str | None = None) -> RailtoolkitTrain:
+def read_railtoolkit_train(
+    path: str | Path, train_id: str | None = None, *, data: Any = None
+) -> RailtoolkitTrain:
     """A train from a railtoolkit rolling-stock file, with the notes of what was assumed.
 
     Args:
         path: the YAML file.
         train_id: ``id`` of the train to read; None for the first one (as TrainRuns.jl).
+        data: the file's content when the caller has read it already (the file is read once).
     """
     file = str(path)
-    data = read_yaml(path)
+    data = read_yaml(path) if data is None else data
     version = _check(data, file, ROLLING_STOCK_SCHEMA_URL, "rolling stock")
     notes: list[str] = []
     trains = data.get("trains")
@@ -452,6 +455,7 @@ def read_railtoolkit_train(path: str | Path, train_id: str | None = None) -> Rai
             loco.data.get("base_resistance", 0.0),
             loco.data.get("rolling_resistance", 0.0),
             loco.data.get("air_resistance", 0.0),
+            gravity_mps2=TRAINRUNS_GRAVITY,
         )
     except InputError as exc:
         raise InputError(exc.reason, file=file, field=where, value=exc.value, allowed=exc.allowed) from exc
@@ -494,9 +498,15 @@ def read_railtoolkit_train(path: str | Path, train_id: str | None = None) -> Rai
                 coefficients["base_resistance"],
                 coefficients["rolling_resistance"],
                 coefficients["air_resistance"],
+                gravity_mps2=TRAINRUNS_GRAVITY,
             )
         else:
-            law = res.strahl(m_cars_full, coefficients["base_resistance"], coefficients["air_resistance"])
+            law = res.strahl(
+                m_cars_full,
+                coefficients["base_resistance"],
+                coefficients["air_resistance"],
+                gravity_mps2=TRAINRUNS_GRAVITY,
+            )
         shown = ", ".join(f"{k} {v:g}" for k, v in coefficients.items())
         terms.append(ResistanceTerm(f"{family}: {n_cars} cars, full mass ({shown} per mille)", law))
 
@@ -557,13 +567,13 @@ def read_railtoolkit_train(path: str | Path, train_id: str | None = None) -> Rai
     return RailtoolkitTrain(result, ids[t_index], version, tuple(notes))
 
 
-def load_railtoolkit_train(path: str | Path, train_id: str | None = None) -> Train:
+def load_railtoolkit_train(path: str | Path, train_id: str | None = None, *, data: Any = None) -> Train:
     """A :class:`~trainsim.model.Train` from a railtoolkit rolling-stock file (TrainRuns.jl conventions).
 
     Defaults applied for missing data (braking deceleration, resistance coefficients, ...) are
     reported as :class:`RailtoolkitDefaultWarning`; :func:`read_railtoolkit_train` returns them as notes.
     """
-    loaded = read_railtoolkit_train(path, train_id)
+    loaded = read_railtoolkit_train(path, train_id, data=data)
     for note in loaded.notes:
         if "default" in note:
             warnings.warn(f"{path}: {note}", RailtoolkitDefaultWarning, stacklevel=2)
@@ -600,7 +610,7 @@ def _rows_2024(
 
 
 def read_railtoolkit_path(
-    path: str | Path, path_id: str | None = None, mass_model: str = "mass_point"
+    path: str | Path, path_id: str | None = None, mass_model: str = "mass_point", *, data: Any = None
 ) -> RailtoolkitPath:
     """A route from a railtoolkit running-path file, with its points of interest and notes.
 
@@ -609,13 +619,14 @@ def read_railtoolkit_path(
         path_id: ``id`` of the path to read; None for the first (as TrainRuns.jl).
         mass_model: ``mass_point`` (line resistance at the head) or ``homogeneous_strip`` (averaged
             over the train length), TrainRuns.jl's ``massModel`` setting.
+        data: the file's content when the caller has read it already (the file is read once).
     """
     file = str(path)
     if mass_model not in MASS_MODELS:
         raise InputError(
             "unknown mass model", field="mass_model", value=mass_model, allowed=", ".join(MASS_MODELS)
         )
-    data = read_yaml(path)
+    data = read_yaml(path) if data is None else data
     version = _check(data, file, PATH_SCHEMA_URL, "running path")
     notes: list[str] = []
     paths = data["paths"]
@@ -686,6 +697,7 @@ def read_railtoolkit_path(
                 gradient_formula="small_angle",
                 apply_over=MASS_MODELS[mass_model],
             ),
+            gravity_mps2=TRAINRUNS_GRAVITY,  # TrainRuns.jl's g (its formulary: 9.80665 m/s^2)
         )
     except InputError as exc:
         raise InputError(
@@ -699,10 +711,10 @@ def read_railtoolkit_path(
 
 
 def load_railtoolkit_path(
-    path: str | Path, path_id: str | None = None, mass_model: str = "mass_point"
+    path: str | Path, path_id: str | None = None, mass_model: str = "mass_point", *, data: Any = None
 ) -> Route:
     """A :class:`~trainsim.model.Route` from a railtoolkit running-path file (see the module docstring)."""
-    return read_railtoolkit_path(path, path_id, mass_model).route
+    return read_railtoolkit_path(path, path_id, mass_model, data=data).route
 
 
 # ====================================================================== settings

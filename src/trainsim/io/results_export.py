@@ -280,7 +280,8 @@ def write_running_times_railml(
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     etree.indent(tree, space="  ")  # the inserted elements have no layout of their own
-    tree.write(str(out), xml_declaration=True, encoding="UTF-8", pretty_print=True)
+    # the root element only: no document type declaration of the input is ever copied
+    out.write_bytes(etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True))
     return out
 
 

@@ -36,8 +36,9 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
 
-from trainsim.constants import KMH, KN, KW, TONNE, G
+from trainsim.constants import GRAVITY_RANGE_MPS2, KMH, KN, KW, TONNE
 from trainsim.errors import InputError
+from trainsim.io import documents
 from trainsim.io.units import split_suffix, to_unit
 from trainsim.model import (
     Braking,
@@ -97,76 +98,22 @@ SCHEMAS: dict[str, tuple[int, ...]] = {
 
 
 # ====================================================================== YAML reading
-class _StrictLoader(yaml.SafeLoader):
-    """SafeLoader that rejects duplicate keys (PyYAML silently keeps the last one)."""
-
-
-def _construct_mapping(loader: _StrictLoader, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
-    loader.flatten_mapping(node)
-    seen: dict[Any, int] = {}
-    for key_node, _ in node.value:
-        key = loader.construct_object(key_node, deep=deep)
-        if isinstance(key, list | dict):
-            continue  # unhashable keys: let PyYAML report them
-        if key in seen:
-            raise yaml.constructor.ConstructorError(
-                None,
-                None,
-                f"duplicate key '{key}' (first at line {seen[key] + 1})",
-                key_node.start_mark,
-            )
-        seen[key] = key_node.start_mark.line
-    return loader.construct_mapping(node, deep=deep)
-
-
-_StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
-
-
 def read_yaml(path: str | Path) -> Any:
-    """The content of a YAML file; InputError for a missing, unreadable or malformed file.
+    """The content of a YAML (or ``.json``) file; InputError for a missing, unreadable or malformed file.
 
-    Duplicate keys are errors. The error of a malformed file names its line.
+    Read once, within the bounds of :mod:`trainsim.io.documents` (size, nesting depth, alias
+    expansion); duplicate keys are errors; the error of a malformed file names its line.
     """
-    file = str(path)
-    p = Path(path)
-    if not p.exists():
-        raise InputError("file not found", file=file)
-    if p.is_dir():
-        raise InputError("this is a directory, not a file", file=file)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read the file ({exc})", file=file) from exc
-    try:
-        return yaml.load(text, Loader=_StrictLoader)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        reason = " ".join(str(x) for x in (exc.context, exc.problem) if x)
-        raise InputError(f"invalid YAML: {reason}", file=file, line=mark.line + 1 if mark else None) from exc
-    except yaml.YAMLError as exc:
-        raise InputError(f"invalid YAML: {exc}", file=file) from exc
+    return documents.read_document(path)
 
 
 def _yaml_line(path: str | Path, loc: Sequence[str | int]) -> int | None:
     """Line (1-based) of the YAML node at ``loc`` in the file, or of its deepest existing parent."""
     try:
-        node = yaml.compose(Path(path).read_text(encoding="utf-8"), Loader=yaml.SafeLoader)
-    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        text = documents.read_text(path)
+    except InputError:
         return None
-    line = None
-    for part in loc:
-        if isinstance(node, yaml.MappingNode) and isinstance(part, str):
-            match = [(k, v) for k, v in node.value if getattr(k, "value", None) == part]
-            if not match:
-                break
-            line = match[0][0].start_mark.line + 1
-            node = match[0][1]
-        elif isinstance(node, yaml.SequenceNode) and isinstance(part, int) and 0 <= part < len(node.value):
-            node = node.value[part]
-            line = node.start_mark.line + 1
-        else:
-            break
-    return line
+    return documents.yaml_line(text, loc)
 
 
 # ====================================================================== validation errors
@@ -391,26 +338,42 @@ class _Spec(BaseModel):
 
     model_config = ConfigDict(extra="forbid", populate_by_name=True, allow_inf_nan=False)
 
+    @classmethod
+    def _field_names(
+        cls,
+    ) -> tuple[dict[str, str], dict[str, tuple[str, str]], dict[str, tuple[str, str]]]:
+        """(names by key, generic name -> (field, unit), field -> its (name, unit) split), per class."""
+        cached = cls.__dict__.get("_names_cache")
+        if cached is not None:
+            return cached
+        names: dict[str, str] = {}
+        for name, info in cls.model_fields.items():
+            names[info.alias or name] = name
+        generic: dict[str, tuple[str, str]] = {}
+        suffixed: dict[str, tuple[str, str]] = {}
+        for key in names:
+            split = split_suffix(key)
+            if split:
+                suffixed[key] = split
+                if split[0] not in names:
+                    generic.setdefault(split[0], (key, split[1]))
+        cached = (names, generic, suffixed)
+        type.__setattr__(cls, "_names_cache", cached)
+        return cached
+
     @model_validator(mode="before")
     @classmethod
     def _fields_and_units(cls, data: Any) -> Any:
         if not isinstance(data, dict):
             return data
-        names: dict[str, str] = {}
-        for name, info in cls.model_fields.items():
-            names[info.alias or name] = name
-        generic: dict[str, tuple[str, str]] = {}
-        for key in names:
-            split = split_suffix(key)
-            if split and split[0] not in names:
-                generic.setdefault(split[0], (key, split[1]))
+        names, generic, suffixed = cls._field_names()
         out: dict[str, Any] = {}
         unknown: list[str] = []
         for key, value in data.items():
             if not isinstance(key, str):
                 _fail("field names must be text", value=key)
             if key in names:
-                split = split_suffix(key)
+                split = suffixed.get(key)
                 if split and isinstance(value, str):
                     _fail(
                         f"'{key}' takes a plain number in {split[1]}; to give a unit, write "
@@ -645,6 +608,7 @@ class PowerLimitedTraction(_Spec):
         cap = math.inf
         if self.max_force_kn is not None:
             cap = self.max_force_kn * KN
+        adhesion_kg = math.inf
         if self.adhesion_coefficient is not None:
             mass_kg = (
                 self.adhesion_mass_t * TONNE if self.adhesion_mass_t is not None else train.adhesion_mass_kg()
@@ -655,10 +619,14 @@ class PowerLimitedTraction(_Spec):
                     "driving vehicles 'powered: true', or give the train's 'adhesion_mass_t'",
                     field="traction.adhesion_mass_t",
                 )
-            cap = min(cap, self.adhesion_coefficient * mass_kg * G)
-        return EffortCurve.power_limited(
-            self.power_kw * KW, cap, self.efficiency, label=f"{self.power_kw:g} kW power-limited"
+            adhesion_kg = self.adhesion_coefficient * mass_kg
+        # the law's constant bounds the force at the largest g a route may have; the adhesion limit
+        # mu m_adh g itself is applied with the route's gravity when the run starts
+        law_cap = min(cap, adhesion_kg * GRAVITY_RANGE_MPS2[1])
+        curve = EffortCurve.power_limited(
+            self.power_kw * KW, law_cap, self.efficiency, label=f"{self.power_kw:g} kW power-limited"
         )
+        return dataclasses.replace(curve, force_cap_n=cap, adhesion_limit_kg=adhesion_kg)
 
 
 TractionSpec = Annotated[
@@ -1312,14 +1280,14 @@ class _Section(_Spec):
 
     def end(self) -> float | None:
         """End [m] from ``to_m`` or ``from_m + length_m``; None if neither is given."""
-        length = getattr(self, "length_m", None)
+        length = self.__dict__.get("length_m")
         if self.to_m is not None:
             return self.to_m
         return self.from_m + length if length is not None else None
 
     @model_validator(mode="after")
     def _check_extent(self) -> _Section:
-        length = getattr(self, "length_m", None)
+        length = self.__dict__.get("length_m")
         if self.to_m is not None and length is not None:
             _fail("give 'to_m' or 'length_m', not both", field="length_m")
         end = self.end()
