@@ -172,7 +172,7 @@ def test_a_new_drive_in_the_same_session_replaces_the_old_one(metro: TestClient)
         with metro.websocket_connect("/api/drive", headers={HEADER_NAME: sid}) as second:
             _start(second, clock="manual")
             assert "replaced" in _until(first, "ended")["reason"]
-            assert metro.get("/api/health").json()["drives"] == 1
+            assert metro.app.state.store.active_drives == 1
 
 
 def test_live_drives_are_bounded() -> None:

@@ -7,6 +7,7 @@ JSON ``{"message", "detail": [{"field", "loc", "msg"}...]}`` (see :mod:`trainsim
 
 from __future__ import annotations
 
+import json
 import re
 import time
 from typing import Annotated, Any
@@ -22,17 +23,20 @@ from trainsim.io import trainsim_yaml as tsy
 from trainsim.model.scenario import RunSettings
 from trainsim.web import strategies
 from trainsim.web.config import WebSettings
-from trainsim.web.convert import (
-    load_route_upload,
-    load_train_upload,
-    loaded_route,
-    loaded_train,
-    spec_dict,
-)
+from trainsim.web.convert import spec_dict
 from trainsim.web.errors import ApiError, format_loc, input_error
 from trainsim.web.examples import examples, route_spec, train_spec
 from trainsim.web.payloads import route_payload, run_brief, run_payload, train_payload
 from trainsim.web.sessions import Loaded, SessionStore, StoredRun, WebSession
+from trainsim.web.workers import (
+    ClientGoneError,
+    JobFailedError,
+    JobLimitError,
+    PoolBusyError,
+    WorkerPool,
+    run_job,
+    unwrap,
+)
 
 router = APIRouter(prefix="/api")
 
@@ -55,32 +59,51 @@ def session_of(request: Request) -> WebSession:
     return request.app.state.session_for(request)
 
 
-def _check_lists(data: Any, limit: int, path: list[str | int] | None = None) -> None:
-    """422 if any list in a mapping is longer than ``limit`` (bounds the size of a spec)."""
-    path = path or []
-    if isinstance(data, dict):
-        for key, value in data.items():
-            _check_lists(value, limit, [*path, str(key)])
-    elif isinstance(data, list):
-        if len(data) > limit:
-            field = format_loc(path)
+async def work(request: Request, session: WebSession, name: str, *args: Any, local: bool = False) -> Any:
+    """Run ``trainsim.web.jobs.<name>(*args)`` in a worker process, within the limits of the
+    application; every failure becomes a 4xx or 503 answer (never a 500). ``local``: in a thread of
+    the server process instead (strategies registered after start-up, which workers do not know)."""
+    limits = settings_of(request)
+    with session.lock:
+        if session.jobs >= limits.max_jobs_per_session:
             raise ApiError(
-                422,
-                f"field '{field}': too many entries ({len(data)}); allowed: at most {limit}",
-                [{"field": field, "loc": path, "msg": f"too many entries ({len(data)}); at most {limit}"}],
+                429,
+                f"this session already has {session.jobs} requests in progress; "
+                f"allowed: at most {limits.max_jobs_per_session} at once",
             )
-        for i, value in enumerate(data):
-            _check_lists(value, limit, [*path, i])
+        session.jobs += 1
+    try:
+        pool: WorkerPool | None = request.app.state.pool
+        if pool is None or local:
+            return unwrap(await run_in_threadpool(run_job, name, args))
+        return await pool.call(name, *args, gone=request.is_disconnected)
+    except InputError as exc:
+        raise input_error(exc) from exc
+    except TrainsimError as exc:
+        raise ApiError(422, str(exc)) from exc
+    except JobLimitError as exc:
+        raise ApiError(422, exc.message, [{"field": None, "loc": [], "msg": exc.message}]) from exc
+    except PoolBusyError as exc:
+        raise ApiError(
+            503,
+            "the server is busy: every worker is in use and the queue is full; try again in a few seconds",
+        ) from exc
+    except ClientGoneError as exc:
+        raise ApiError(499, "the client closed the request; its work was stopped") from exc
+    except JobFailedError as exc:
+        raise ApiError(
+            422, f"trainsim could not compute this input (internal error: {exc}); please report it"
+        ) from exc
+    finally:
+        with session.lock:
+            session.jobs -= 1
 
 
-def _check_route_length(loaded: Loaded, limits: WebSettings) -> None:
-    length = loaded.model.length_m
-    if length > limits.max_route_length_m:
-        msg = (
-            f"route too long for the web application ({length:g} m); "
-            f"allowed: <= {limits.max_route_length_m:g} m"
-        )
-        raise ApiError(422, msg, [{"field": "length_m", "loc": ["length_m"], "msg": msg}])
+def _cached(loaded: Loaded, build: Any) -> bytes:
+    """The answer body of a loaded train or route (computed once)."""
+    if loaded.payload is None:
+        loaded.payload = json.dumps(build(spec_dict(loaded.spec), loaded), separators=(",", ":")).encode()
+    return loaded.payload
 
 
 def _json(payload: Any, status: int = 200) -> JSONResponse:
@@ -96,16 +119,34 @@ def _settings_dict(s: RunSettings) -> dict[str, Any]:
     return {"max_step_m": s.max_step_m, "braking_fraction": s.braking_fraction}
 
 
+def _raw(body: bytes, status: int = 200) -> Response:
+    return Response(body, status_code=status, media_type="application/json")
+
+
 def _train_out(session: WebSession) -> Any:
     if session.train is None:
         raise ApiError(404, "no train loaded: load an example, open a file or PUT a train")
-    return _json(train_payload(spec_dict(session.train.spec), session.train))
+    return _raw(_cached(session.train, train_payload))
 
 
 def _route_out(session: WebSession) -> Any:
     if session.route is None:
         raise ApiError(404, "no route loaded: load an example, open a file or PUT a route")
-    return _json(route_payload(spec_dict(session.route.spec), session.route))
+    return _raw(_cached(session.route, route_payload))
+
+
+def _example_train(name: str) -> Loaded:
+    spec = train_spec(name)
+    loaded = Loaded(spec, spec.to_train(name), f"example {name}", spec.notes(), spec.warnings())
+    _cached(loaded, train_payload)
+    return loaded
+
+
+def _example_route(name: str) -> Loaded:
+    spec = route_spec(name)
+    loaded = Loaded(spec, spec.to_route(name), f"example {name}", spec.notes())
+    _cached(loaded, route_payload)
+    return loaded
 
 
 def _example(name: str):
@@ -123,7 +164,8 @@ async def _read_upload(file: UploadFile, limits: WebSettings) -> tuple[bytes, st
     content = await file.read(limits.max_body_bytes + 1)
     if len(content) > limits.max_body_bytes:
         raise ApiError(413, f"file too large; allowed: at most {limits.max_body_bytes} bytes")
-    return content, file.filename or "upload.yaml"
+    name = (file.filename or "upload.yaml")[:200]
+    return content, name
 
 
 # ====================================================================== models (for the docs)
@@ -206,13 +248,7 @@ _ROUTE_BODY = Body(
 # ====================================================================== session, examples, schemas
 @router.get("/health", tags=["session"], summary="Server status")
 def health(request: Request) -> dict[str, Any]:
-    store = store_of(request)
-    return {
-        "status": "ok",
-        "version": trainsim.__version__,
-        "sessions": len(store),
-        "drives": store.active_drives,
-    }
+    return {"status": "ok", "version": trainsim.__version__}
 
 
 @router.get("/session", tags=["session"], response_model=SessionInfo, summary="The caller's session")
@@ -242,18 +278,14 @@ def list_examples() -> list[dict[str, Any]]:
 def load_example(name: str, request: Request) -> Any:
     ex = _example(name)
     session = session_of(request)
-    t_spec, r_spec = train_spec(ex.name), route_spec(ex.name)
-    train = Loaded(t_spec, t_spec.to_train(ex.name), f"example {ex.name}", t_spec.notes(), t_spec.warnings())
-    route = Loaded(r_spec, r_spec.to_route(ex.name), f"example {ex.name}", r_spec.notes())
+    train, route = _example_train(ex.name), _example_route(ex.name)
+    assert train.payload is not None and route.payload is not None
     with session.lock:
         session.train, session.route, session.settings = train, route, ex.settings
-        return _json(
-            {
-                "train": train_payload(spec_dict(session.train.spec), session.train),
-                "route": route_payload(spec_dict(session.route.spec), session.route),
-                "settings": _settings_dict(session.settings),
-            }
-        )
+    settings = json.dumps(_settings_dict(ex.settings)).encode()
+    return _raw(
+        b'{"train":' + train.payload + b',"route":' + route.payload + b',"settings":' + settings + b"}"
+    )
 
 
 @router.get(
@@ -280,17 +312,16 @@ def get_train(request: Request) -> Any:
 
 
 @router.put("/train", tags=["train"], responses=_ERRORS, summary="Replace the session's train (validated)")
-def put_train(request: Request, spec: Annotated[dict[str, Any], _TRAIN_BODY]) -> Any:
-    limits = settings_of(request)
-    _check_lists(spec, limits.max_list_items)
+async def put_train(request: Request, spec: Annotated[dict[str, Any], _TRAIN_BODY]) -> Any:
     session = session_of(request)
-    try:
-        loaded = loaded_train(spec, "edited train")
-    except InputError as exc:
-        raise input_error(exc) from exc
     with session.lock:
         source = session.train.source if session.train else "edited"
-        loaded.source = source if source.endswith("(edited)") else f"{source} (edited)"
+    shown = source if source.endswith("(edited)") else f"{source} (edited)"
+    loaded, payload = await work(
+        request, session, "train_from_mapping", spec, "edited train", settings_of(request), shown
+    )
+    loaded.payload = payload
+    with session.lock:
         session.train = loaded
         return _train_out(session)
 
@@ -303,8 +334,7 @@ def put_train(request: Request, spec: Annotated[dict[str, Any], _TRAIN_BODY]) ->
 )
 def train_example(name: str, request: Request) -> Any:
     ex = _example(name)
-    spec = train_spec(ex.name)
-    loaded = Loaded(spec, spec.to_train(ex.name), f"example {ex.name}", spec.notes(), spec.warnings())
+    loaded = _example_train(ex.name)
     session = session_of(request)
     with session.lock:
         session.train = loaded
@@ -317,13 +347,18 @@ def train_example(name: str, request: Request) -> Any:
     responses={**_ERRORS, 413: {"description": "file too large"}},
     summary="Open a train file of any format trainsim reads",
 )
-async def train_upload(request: Request, file: Annotated[UploadFile, File(description="YAML file")]) -> Any:
-    content, name = await _read_upload(file, settings_of(request))
-    try:
-        _, loaded = await run_in_threadpool(load_train_upload, content, name)
-    except InputError as exc:
-        raise input_error(exc, file=name) from exc
+async def train_upload(
+    request: Request,
+    file: Annotated[
+        UploadFile,
+        File(description="a train/route file: YAML, TTOBench JSON, railML, Excel, zipped CSV tables"),
+    ],
+) -> Any:
+    limits = settings_of(request)
+    content, name = await _read_upload(file, limits)
     session = session_of(request)
+    loaded, payload = await work(request, session, "upload", "train", content, name, limits)
+    loaded.payload = payload
     with session.lock:
         session.train = loaded
         return _train_out(session)
@@ -367,18 +402,16 @@ def get_route(request: Request) -> Any:
 
 
 @router.put("/route", tags=["route"], responses=_ERRORS, summary="Replace the session's route (validated)")
-def put_route(request: Request, spec: Annotated[dict[str, Any], _ROUTE_BODY]) -> Any:
-    limits = settings_of(request)
-    _check_lists(spec, limits.max_list_items)
-    try:
-        loaded = loaded_route(spec, "edited route")
-    except InputError as exc:
-        raise input_error(exc) from exc
-    _check_route_length(loaded, limits)
+async def put_route(request: Request, spec: Annotated[dict[str, Any], _ROUTE_BODY]) -> Any:
     session = session_of(request)
     with session.lock:
         source = session.route.source if session.route else "edited"
-        loaded.source = source if source.endswith("(edited)") else f"{source} (edited)"
+    shown = source if source.endswith("(edited)") else f"{source} (edited)"
+    loaded, payload = await work(
+        request, session, "route_from_mapping", spec, "edited route", settings_of(request), shown
+    )
+    loaded.payload = payload
+    with session.lock:
         session.route = loaded
         return _route_out(session)
 
@@ -391,8 +424,7 @@ def put_route(request: Request, spec: Annotated[dict[str, Any], _ROUTE_BODY]) ->
 )
 def route_example(name: str, request: Request) -> Any:
     ex = _example(name)
-    spec = route_spec(ex.name)
-    loaded = Loaded(spec, spec.to_route(ex.name), f"example {ex.name}", spec.notes())
+    loaded = _example_route(ex.name)
     session = session_of(request)
     with session.lock:
         session.route, session.settings = loaded, ex.settings
@@ -405,15 +437,18 @@ def route_example(name: str, request: Request) -> Any:
     responses={**_ERRORS, 413: {"description": "file too large"}},
     summary="Open a route file of any format trainsim reads",
 )
-async def route_upload(request: Request, file: Annotated[UploadFile, File(description="YAML file")]) -> Any:
+async def route_upload(
+    request: Request,
+    file: Annotated[
+        UploadFile,
+        File(description="a train/route file: YAML, TTOBench JSON, railML, Excel, zipped CSV tables"),
+    ],
+) -> Any:
     limits = settings_of(request)
     content, name = await _read_upload(file, limits)
-    try:
-        _, loaded = await run_in_threadpool(load_route_upload, content, name)
-    except InputError as exc:
-        raise input_error(exc, file=name) from exc
-    _check_route_length(loaded, limits)
     session = session_of(request)
+    loaded, payload = await work(request, session, "upload", "route", content, name, limits)
+    loaded.payload = payload
     with session.lock:
         session.route = loaded
         return _route_out(session)
@@ -469,7 +504,7 @@ def run_settings_for(session: WebSession, given: dict[str, Any] | None, limits: 
     responses={**_ERRORS, 409: {"description": "no train or route"}},
     summary="Run the session's train over its route with a strategy",
 )
-def create_run(request: Request, body: RunRequest) -> Response:
+async def create_run(request: Request, body: RunRequest) -> Response:
     limits = settings_of(request)
     session = session_of(request)
     strategy = strategies.get(body.strategy)
@@ -483,7 +518,7 @@ def create_run(request: Request, body: RunRequest) -> Response:
                     "field": "strategy",
                     "loc": ["strategy"],
                     "msg": f"unknown strategy; allowed: {names}",
-                    "value": body.strategy,
+                    "value": body.strategy[:80],
                 }
             ],
         )
@@ -493,7 +528,7 @@ def create_run(request: Request, body: RunRequest) -> Response:
         detail = [
             {"field": format_loc(["params", *e["loc"]]), "loc": ["params", *e["loc"]], "msg": e["msg"]}
             for e in exc.errors(include_url=False)
-        ]
+        ][:20]
         raise ApiError(
             422,
             "invalid strategy parameters: " + "; ".join(f"{d['field']}: {d['msg']}" for d in detail),
@@ -504,12 +539,20 @@ def create_run(request: Request, body: RunRequest) -> Response:
             raise ApiError(409, "load a train and a route before running")
         settings = run_settings_for(session, body.settings, limits)
         train, route = session.train.model, session.route.model
-        try:
-            result = strategy.run(train, route, settings, params)
-        except InputError as exc:
-            raise input_error(exc) from exc
-        except TrainsimError as exc:
-            raise ApiError(422, str(exc)) from exc
+    built_in = strategy.name in strategies.BUILT_IN and strategies.get(strategy.name) is strategy
+    result, body_json = await work(
+        request,
+        session,
+        "run",
+        strategy.name if built_in else strategy,
+        params.model_dump(),
+        train,
+        route,
+        settings,
+        limits.max_plot_points,
+        local=not built_in,
+    )
+    with session.lock:
         run_id = session.next_run_id()
         run = StoredRun(
             id=run_id,
@@ -522,7 +565,8 @@ def create_run(request: Request, body: RunRequest) -> Response:
             params={"strategy": params.model_dump(), "settings": _settings_dict(settings)},
         )
         store_of(request).add_run(session, run)
-        return _json(run_payload(run, limits.max_plot_points), 201)
+    head = json.dumps({**run_brief(run), "params": run.params}, separators=(",", ":")).encode()
+    return _raw(head[:-1] + b"," + body_json[1:], 201)
 
 
 @router.get("/runs", tags=["runs"], summary="The session's runs and recorded drives")

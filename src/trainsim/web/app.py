@@ -8,6 +8,8 @@ offline.
 from __future__ import annotations
 
 import json
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -22,6 +24,7 @@ import trainsim
 from trainsim.web import api, drive, errors
 from trainsim.web.config import WebSettings
 from trainsim.web.sessions import COOKIE_NAME, HEADER_NAME, SessionStore, WebSession
+from trainsim.web.workers import WorkerPool
 
 STATIC_DIR = Path(__file__).parent / "static"
 _SCOPE_KEY = "trainsim.session"
@@ -37,8 +40,89 @@ def docs_assets_dir() -> Path:
     return Path(str(resources.files("fastapi_offline") / "static"))
 
 
-class _BodyTooLargeError(Exception):
-    pass
+#: the page's Content-Security-Policy: everything from this server, nothing inline but styles (Plotly)
+CSP = (
+    "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data: blob:; "
+    "connect-src 'self'; font-src 'self'; object-src 'none'; base-uri 'none'; form-action 'self'; "
+    "frame-ancestors 'none'"
+)
+#: Swagger UI and ReDoc start from an inline script and ReDoc uses a blob worker
+CSP_DOCS = (
+    "default-src 'self'; script-src 'self' 'unsafe-inline'; style-src 'self' 'unsafe-inline'; "
+    "img-src 'self' data: blob:; worker-src 'self' blob:; connect-src 'self'; object-src 'none'; "
+    "base-uri 'none'; frame-ancestors 'none'"
+)
+
+
+def host_allowed(host_header: str | None, allowed: tuple[str, ...]) -> bool:
+    """Whether a ``Host`` header names this server (``allowed`` host names, ``*`` for any)."""
+    if "*" in allowed:
+        return True
+    if not host_header:
+        return False
+    host = host_header.strip().lower()
+    if host.startswith("["):  # [::1]:8000
+        name = host[1 : host.find("]")] if "]" in host else host
+    else:
+        name = host.rsplit(":", 1)[0] if host.count(":") == 1 else host
+    return name in allowed
+
+
+class HostAndHeaders:
+    """ASGI middleware: refuses requests whose ``Host`` is not this server's (DNS rebinding) with
+    400 and adds the security headers (CSP, X-Frame-Options, nosniff, no referrer) to every answer."""
+
+    def __init__(self, app: ASGIApp, allowed_hosts: tuple[str, ...]) -> None:
+        self.app = app
+        self.allowed_hosts = tuple(h.lower() for h in allowed_hosts)
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] not in ("http", "websocket"):
+            await self.app(scope, receive, send)
+            return
+        host = dict(scope.get("headers") or []).get(b"host", b"").decode("latin-1")
+        if not host_allowed(host, self.allowed_hosts):
+            if scope["type"] == "websocket":
+                await send({"type": "websocket.close", "code": 1008})
+                return
+            body = json.dumps(
+                {
+                    "message": f"unknown host {host[:80]!r}; allowed: {', '.join(self.allowed_hosts)} "
+                    "(start the server with --allowed-host to add one)",
+                    "detail": [],
+                }
+            ).encode()
+            await send(
+                {
+                    "type": "http.response.start",
+                    "status": 400,
+                    "headers": [
+                        (b"content-type", b"application/json"),
+                        (b"content-length", str(len(body)).encode()),
+                    ],
+                }
+            )
+            await send({"type": "http.response.body", "body": body})
+            return
+        if scope["type"] == "websocket":
+            await self.app(scope, receive, send)
+            return
+        path = scope.get("path", "")
+        csp = CSP_DOCS if path in ("/docs", "/redoc") else CSP
+
+        async def with_headers(message: Message) -> None:
+            if message["type"] == "http.response.start":
+                headers = list(message.get("headers") or [])
+                headers += [
+                    (b"content-security-policy", csp.encode()),
+                    (b"x-frame-options", b"DENY"),
+                    (b"x-content-type-options", b"nosniff"),
+                    (b"referrer-policy", b"no-referrer"),
+                ]
+                message = {**message, "headers": headers}
+            await send(message)
+
+        await self.app(scope, receive, with_headers)
 
 
 class BoundedBodyAndSession:
@@ -59,17 +143,31 @@ class BoundedBodyAndSession:
         if length is not None and (not length.isdigit() or int(length) > self.max_bytes):
             await self._too_large(send)
             return
-        received = 0
         started = False
+        # read the whole body first (bounded), so that an oversized chunked body is a 413 whatever
+        # the endpoint does with it
+        chunks: list[bytes] = []
+        received = 0
+        while True:
+            message = await receive()
+            if message["type"] != "http.request":
+                return  # the client went away while sending
+            body = message.get("body", b"")
+            received += len(body)
+            if received > self.max_bytes:
+                await self._too_large(send)
+                return
+            chunks.append(body)
+            if not message.get("more_body", False):
+                break
+        replayed = False
 
         async def limited_receive() -> Message:
-            nonlocal received
-            message = await receive()
-            if message["type"] == "http.request":
-                received += len(message.get("body", b""))
-                if received > self.max_bytes:
-                    raise _BodyTooLargeError
-            return message
+            nonlocal replayed
+            if not replayed:
+                replayed = True
+                return {"type": "http.request", "body": b"".join(chunks), "more_body": False}
+            return await receive()
 
         async def session_send(message: Message) -> None:
             nonlocal started
@@ -88,11 +186,7 @@ class BoundedBodyAndSession:
                     message = {**message, "headers": out}
             await send(message)
 
-        try:
-            await self.app(scope, limited_receive, session_send)
-        except _BodyTooLargeError:
-            if not started:
-                await self._too_large(send)
+        await self.app(scope, limited_receive, session_send)
 
     async def _too_large(self, send: Send) -> None:
         body = json.dumps(
@@ -114,7 +208,29 @@ class BoundedBodyAndSession:
 def create_app(settings: WebSettings | None = None) -> FastAPI:
     """The trainsim web application (page at ``/``, JSON API under ``/api``, docs at ``/docs``)."""
     settings = settings or WebSettings()
+    pool = (
+        WorkerPool(
+            settings.workers,
+            settings.job_time_limit_s,
+            settings.job_memory_limit_bytes,
+            settings.max_queued_jobs,
+        )
+        if settings.workers > 0
+        else None
+    )
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        if pool is not None:
+            await pool.start()
+        try:
+            yield
+        finally:
+            if pool is not None:
+                pool.close()
+
     app = FastAPI(
+        lifespan=lifespan,
         title="trainsim",
         version=trainsim.__version__,
         description=(
@@ -130,6 +246,7 @@ def create_app(settings: WebSettings | None = None) -> FastAPI:
     )
     store = SessionStore(settings)
     app.state.store = store
+    app.state.pool = pool
     app.state.web_settings = settings
 
     def session_for(request: Request) -> WebSession:
@@ -150,6 +267,7 @@ def create_app(settings: WebSettings | None = None) -> FastAPI:
     app.add_middleware(
         BoundedBodyAndSession, max_bytes=settings.max_body_bytes, cookie_max_age_s=int(settings.session_ttl_s)
     )
+    app.add_middleware(HostAndHeaders, allowed_hosts=settings.allowed_hosts)
 
     app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
     app.mount("/vendor/docs", StaticFiles(directory=docs_assets_dir()), name="docs-assets")

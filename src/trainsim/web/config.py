@@ -25,6 +25,21 @@ class WebSettings:
         max_drives: live drives over all sessions at once.
         max_drive_wall_s: a live drive ends after this much wall-clock time [s].
         drive_tick_s: wall-clock period of the live drive's steps and state messages [s].
+        max_depth: deepest nesting of mappings and lists in a document (JSON body or file).
+        max_document_nodes: values in one document.
+        max_string_chars: longest text value [characters].
+        max_number_magnitude: largest absolute value of any number in a document.
+        max_vehicles: vehicles in a train (formation counts summed).
+        workers: worker processes that validate, read uploads and run (0: in the server process,
+            without time or memory limits; for tests and debugging only).
+        job_time_limit_s: wall-clock limit of one request's work in a worker [s]; past it the
+            worker is stopped and the request gets 422.
+        job_memory_limit_bytes: memory a worker may take on top of what it holds when it starts
+            [bytes]; past it the request gets 422.
+        max_queued_jobs: requests waiting for a worker; past that the answer is 503.
+        max_jobs_per_session: requests of one session in the workers at once; past that 429.
+        allowed_hosts: values the ``Host`` header may have (without the port); other hosts get 400
+            (protects against DNS rebinding). ``*`` allows any.
     """
 
     max_sessions: int = 200
@@ -39,3 +54,14 @@ class WebSettings:
     max_drives: int = 32
     max_drive_wall_s: float = 4 * 3600.0
     drive_tick_s: float = 0.1
+    max_depth: int = 24
+    max_document_nodes: int = 200_000
+    max_string_chars: int = 10_000
+    max_number_magnitude: float = 1e9
+    max_vehicles: int = 1000
+    workers: int = 2
+    job_time_limit_s: float = 30.0
+    job_memory_limit_bytes: int = 1024 * 1024 * 1024
+    max_queued_jobs: int = 64
+    max_jobs_per_session: int = 2
+    allowed_hosts: tuple[str, ...] = ("127.0.0.1", "localhost", "::1", "testserver")

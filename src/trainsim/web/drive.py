@@ -7,8 +7,10 @@ time times the time scale (1x, 5x, 20x) with the driver's current command, and s
 
 Client -> server:
 
-* ``{"type": "start", "time_scale": 1, "clock": "realtime"}`` starts a drive from the first stop
-  (again: a new drive). ``clock: "manual"`` makes the server step only on ``step`` messages.
+* ``{"type": "start", "time_scale": 1, "clock": "realtime", "atp": true}`` starts a drive from the
+  first stop (again: a new drive). ``clock: "manual"`` makes the server step only on ``step``
+  messages. ``atp`` (default true): on overspeed the train protection applies full service braking
+  until the speed is back at the limit, then leaves the lever at neutral.
 * ``{"type": "command", "value": c}``: the driver's command in [-1, 1] (positive: that share of
   the maximum tractive effort; negative: that share of service braking; 0: coasting).
 * ``{"type": "time_scale", "value": 1 | 5 | 20}``, ``{"type": "pause"}``, ``{"type": "resume"}``.
@@ -64,9 +66,36 @@ def _clean(value: Any) -> Any:
     return value
 
 
+def _gradient_permille(route: Any, position_m: float) -> float:
+    for g in route.gradients:
+        if g.start_m <= position_m < g.end_m:
+            return float(g.gradient_permille)
+    return 0.0
+
+
+def _location(drive: _Drive, position_m: float, speed_mps: float) -> tuple[str, float | None]:
+    """Where the train is in words, and its distance from the nearest station's stop mark [m]
+    when it stands within 50 m of one (stopping accuracy; + past the mark)."""
+    stations = drive.core.route.stations
+    nearest = min(stations, key=lambda s: abs(s.position_m - position_m), default=None)
+    if nearest is not None and abs(nearest.position_m - position_m) <= 50.0 and speed_mps < 0.01:
+        return f"at {nearest.name}", position_m - nearest.position_m
+    before = [s for s in stations if s.position_m <= position_m]
+    after = [s for s in stations if s.position_m > position_m]
+    if before and after:
+        return f"between {before[-1].name} and {after[0].name}", None
+    if after:
+        return f"before {after[0].name}", None
+    return (f"past {before[-1].name}" if before else "on the line"), None
+
+
 def state_message(state: DrivingState, drive: _Drive) -> dict[str, Any]:
     """A driving state in the units the page shows."""
     d = asdict(state)
+    if drive.departure_s is None and d["speed_mps"] > 0:
+        drive.departure_s = d["time_s"]
+    location, stop_error = _location(drive, d["position_m"], d["speed_mps"])
+    limit = d["speed_limit_mps"]
     out = {
         "type": "state",
         "time_s": d["time_s"],
@@ -80,6 +109,17 @@ def state_message(state: DrivingState, drive: _Drive) -> dict[str, Any]:
         "speed_limit_kmh": d["speed_limit_mps"] / KMH,
         "next_limit_position_m": d["next_limit_position_m"],
         "next_limit_kmh": d["next_limit_mps"] / KMH if d["next_limit_mps"] is not None else None,
+        "next_limit_distance_m": (
+            d["next_limit_position_m"] - d["position_m"] if d["next_limit_position_m"] is not None else None
+        ),
+        "gradient_permille": _gradient_permille(drive.core.route, d["position_m"]),
+        "clock_s": d["time_s"] - drive.departure_s if drive.departure_s is not None else 0.0,
+        "location": location,
+        "stop_error_m": stop_error,
+        "atp": drive.atp,
+        "atp_braking": drive.atp_braking,
+        "max_speed_kmh": drive.core.train.max_speed_mps / KMH,
+        "overspeed_by_kmh": max(0.0, (d["speed_mps"] - limit) / KMH) if limit else 0.0,
         "next_stop_name": d["next_stop_name"],
         "next_stop_distance_m": d["next_stop_distance_m"],
         "dwell_remaining_s": d["dwell_remaining_s"],
@@ -108,17 +148,39 @@ class _Drive:
     command: float = 0.0
     paused: bool = False
     recorded: bool = False
+    #: automatic train protection: full service braking on overspeed
+    atp: bool = True
+    atp_braking: bool = False
+    #: simulated time when the train first moved [s] (the clock starts there)
+    departure_s: float | None = None
     ticker: asyncio.Task | None = field(default=None, repr=False)
     #: the core session is used from worker threads: one at a time (a cancelled await does not
     #: stop its thread, so a step may still run when the drive is recorded)
     core_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
-    async def call(self, fn: Any, *args: Any) -> Any:
-        def locked() -> Any:
-            with self.core_lock:
-                return fn(*args)
+    def call(self, fn: Any, *args: Any) -> Any:
+        # a step takes a few ms: run in the event loop (a thread per step costs more than the step)
+        with self.core_lock:
+            return fn(*args)
 
-        return await asyncio.to_thread(locked)
+    def effective_command(self) -> float:
+        """The command the train gets: the driver's, overridden by ATP on overspeed and with
+        traction cut at the train's design speed (no train is driven past it)."""
+        core = self.core
+        state = core.state(self.command)
+        v, limit = state.speed_mps, state.speed_limit_mps
+        if self.atp:
+            if v > limit + 1.0 * KMH:
+                if not self.atp_braking:
+                    self.atp_braking = True
+                    self.command = 0.0  # the driver must take the lever again afterwards
+            elif self.atp_braking and v <= limit:
+                self.atp_braking = False
+            if self.atp_braking:
+                return -1.0
+        if self.command > 0 and v >= core.train.max_speed_mps:
+            return 0.0
+        return self.command
 
     def state(self) -> DrivingState:
         with self.core_lock:
@@ -169,8 +231,13 @@ class DriveConnection:
     async def serve(self) -> None:
         try:
             while True:
-                text = await self.ws.receive_text()
+                frame = await self.ws.receive()
+                if frame["type"] == "websocket.disconnect":
+                    break
+                text = frame.get("text")
                 try:
+                    if text is None:
+                        raise _BadMessageError("binary frames are not understood; send JSON text messages")
                     if len(text) > MAX_MESSAGE_CHARS:
                         raise _BadMessageError(
                             f"message too long; allowed: at most {MAX_MESSAGE_CHARS} characters"
@@ -186,8 +253,8 @@ class DriveConnection:
                     await self.error(exc.message, exc.field)
                 except InputError as exc:
                     await self.error(str(exc), detail=input_error_detail(exc))
-        except WebSocketDisconnect:
-            pass
+        except (WebSocketDisconnect, RuntimeError):
+            pass  # (RuntimeError: the socket closed while a message was being sent)
         finally:
             await self.stop(record=True, notify=False)
 
@@ -243,27 +310,34 @@ class DriveConnection:
         scale = msg.get("time_scale", 1)
         if scale not in TIME_SCALES or isinstance(scale, bool):
             raise _BadMessageError(f"time scale must be one of 1, 5, 20 (got {scale!r})", "time_scale")
+        atp = msg.get("atp", True)
+        if not isinstance(atp, bool):
+            raise _BadMessageError(f"'atp' must be true or false (got {atp!r})", "atp")
         await self.stop(record=True, notify=False)
         session = self.session
         with session.lock:
             if session.train is None or session.route is None:
                 raise _BadMessageError("load a train and a route before driving", "type")
             train, route, settings = session.train.model, session.route.model, session.settings
-        if self.store.active_drives >= self.limits.max_drives:
+        # the slot is taken before the first await: concurrent starts cannot pass the bound together
+        if not self.store.reserve_drive():
             await self.send(
                 {"type": "ended", "reason": "too many live drives on this server; try again later"}
             )
             await self.ws.close(code=1013)
             raise WebSocketDisconnect(1013)
-        core = await asyncio.to_thread(DrivingSession, train=train, route=route, settings=settings)
-        reference = await asyncio.to_thread(self._reference, train, route, settings)
+        try:
+            core = await asyncio.to_thread(DrivingSession, train=train, route=route, settings=settings)
+            reference = await asyncio.to_thread(self._reference, train, route, settings)
+        except BaseException:
+            self.store.release_drive()
+            raise
         token = object()
         with session.lock:
             session.drive_counter += 1
             number = session.drive_counter
             session.drive_token = token
-        self.store.active_drives += 1
-        drive = _Drive(number, core, token, clock, int(scale), time.monotonic())
+        drive = _Drive(number, core, token, clock, int(scale), time.monotonic(), atp=atp)
         self.drive = drive
         await self.send(
             {
@@ -298,7 +372,16 @@ class DriveConnection:
         }
 
     async def advance(self, drive: _Drive, dt_s: float) -> None:
-        state = await drive.call(drive.core.step, drive.command, dt_s)
+        # long steps are cut so that ATP and the design-speed cut act at least every 0.5 s
+        state = None
+        left = dt_s
+        while left > 1e-9:
+            h = min(left, 0.5)
+            state = drive.call(drive.core.step, drive.effective_command(), h)
+            left -= h
+            if state.finished:
+                break
+        assert state is not None
         if drive is not self.drive:
             return
         await self.send(state_message(state, drive))
@@ -331,7 +414,7 @@ class DriveConnection:
             return
         if drive.ticker is not None and drive.ticker is not asyncio.current_task():
             drive.ticker.cancel()
-        self.store.active_drives -= 1
+        self.store.release_drive()
         with self.session.lock:
             if self.session.drive_token is drive.token:
                 self.session.drive_token = None

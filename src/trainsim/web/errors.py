@@ -22,7 +22,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from trainsim.errors import InputError, TrainsimError
+from trainsim.errors import InputError, Problem, TrainsimError, shown_value
 
 
 class ApiError(Exception):
@@ -57,17 +57,28 @@ def format_loc(loc: list[str | int] | tuple[str | int, ...]) -> str:
 
 
 def _jsonable(value: Any) -> Any:
-    if value is None or isinstance(value, bool | int | str):
+    if value is None or isinstance(value, bool):
         return value
     if isinstance(value, float):
         return value if math.isfinite(value) else str(value)
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value][:50]
-    return str(value)
+    if isinstance(value, int):
+        return value if abs(value) < 2**53 else shown_value(value)
+    if isinstance(value, str):
+        return value if len(value) <= 80 else shown_value(value)
+    return shown_value(value)
+
+
+def _problem_msg(reason: str, value: Any, allowed: str | None) -> str:
+    msg = reason
+    if value is not None:
+        msg += f" (got {shown_value(value)})"
+    if allowed:
+        msg += f"; allowed: {allowed}"
+    return msg
 
 
 def _part_texts(message: str, count: int) -> list[str | None]:
-    """The text of each numbered problem of a several-problem message ``N problems: (1) ...; (2) ...``."""
+    """The text of each numbered problem of a message ``N problems: (1) ...; (2) ...``."""
     out: list[str | None] = []
     for i in range(1, count + 1):
         nxt = rf"; \({i + 1}\) " if i < count else r"\.?$"
@@ -76,36 +87,57 @@ def _part_texts(message: str, count: int) -> list[str | None]:
     return out
 
 
+def problems_of(exc: InputError) -> list[Problem]:
+    """The error's problems as :class:`Problem` objects (older readers gave ``(field, reason)``
+    pairs; a one-problem error without a list gives its own fields)."""
+    out: list[Problem] = []
+    given = getattr(exc, "problems", None) or []
+    if len(given) == 1 and isinstance(given[0], tuple):
+        given = []  # the error's own fields say more
+    texts = _part_texts(exc.reason, len(given)) if given and isinstance(given[0], tuple) else []
+    for i, p in enumerate(given):
+        if isinstance(p, Problem):
+            out.append(p)
+        elif isinstance(p, tuple) and len(p) == 2:
+            # older readers: the full text of each problem is in the message, "(i) path: text"
+            reason, text = str(p[1]), texts[i] if i < len(texts) else None
+            if text and p[0] and text.startswith(f"{p[0]}: "):
+                reason = text[len(p[0]) + 2 :]
+            out.append(Problem(reason, file=exc.file, line=exc.line, field=p[0] or None))
+    if not out:
+        out.append(
+            Problem(
+                exc.reason,
+                file=exc.file,
+                line=exc.line,
+                field=exc.field,
+                value=exc.value,
+                allowed=exc.allowed,
+            )
+        )
+    return out
+
+
 def input_error_detail(exc: InputError, prefix: list[str | int] | None = None) -> list[dict[str, Any]]:
-    """Field-level problems of a core InputError (one per problem for several-problem errors)."""
+    """Field-level problems of a core InputError, one entry per :class:`trainsim.errors.Problem`
+    (at most 50): ``field`` (path), ``loc``, ``msg`` (reason, value and what is allowed), ``value``,
+    ``allowed``, ``line`` and ``file``."""
     prefix = list(prefix or [])
-    problems = getattr(exc, "problems", None)
-    if problems and len(problems) > 1:
-        texts = _part_texts(exc.reason, len(problems))
-        detail = []
-        for (path, reason), text in zip(problems, texts, strict=True):
-            msg = reason
-            if text and path and text.startswith(f"{path}: "):
-                msg = text[len(path) + 2 :]
-            loc = [*prefix, *parse_field(path)]
-            detail.append({"field": format_loc(loc) or None, "loc": loc, "msg": msg})
-        return detail
-    msg = exc.reason
-    if exc.value is not None:
-        shown = repr(exc.value)
-        msg += f" (got {shown if len(shown) <= 80 else shown[:77] + '...'})"
-    if exc.allowed:
-        msg += f"; allowed: {exc.allowed}"
-    loc = [*prefix, *parse_field(exc.field)]
-    return [
-        {
-            "field": format_loc(loc) or None,
-            "loc": loc,
-            "msg": msg,
-            "value": _jsonable(exc.value),
-            "allowed": exc.allowed,
-        }
-    ]
+    detail = []
+    for p in problems_of(exc)[:50]:
+        loc = [*prefix, *parse_field(p.field)]
+        detail.append(
+            {
+                "field": format_loc(loc) or None,
+                "loc": loc,
+                "msg": _problem_msg(p.reason, p.value, p.allowed),
+                "value": _jsonable(p.value),
+                "allowed": p.allowed,
+                "line": p.line,
+                "file": p.file,
+            }
+        )
+    return detail
 
 
 def input_error(exc: InputError, prefix: list[str | int] | None = None, file: str | None = None) -> ApiError:
@@ -147,8 +179,13 @@ async def _http_error(request: Request, exc: Exception) -> JSONResponse:
     return error_response(exc.status_code, str(exc.detail))
 
 
+async def _recursion(request: Request, exc: Exception) -> JSONResponse:
+    return error_response(422, "document nested too deeply; allowed: a plainer document")
+
+
 def install(app: Any) -> None:
     """Register the JSON error handlers on a FastAPI app."""
+    app.add_exception_handler(RecursionError, _recursion)
     app.add_exception_handler(ApiError, _api_error)
     app.add_exception_handler(TrainsimError, _trainsim_error)
     app.add_exception_handler(RequestValidationError, _request_validation)

@@ -197,12 +197,15 @@ def run_brief(run: StoredRun) -> dict[str, Any]:
     }
 
 
+def run_body(result: RunResult, route: Route, max_points: int) -> dict[str, Any]:
+    """The heavy part of a run's answer: summary, plot data and line profile."""
+    return {
+        "summary": result.summary(),
+        "plot": run_plot(result, max_points),
+        "profile": route_profile(route),
+    }
+
+
 def run_payload(run: StoredRun, max_points: int) -> dict[str, Any]:
     """A run with its summary and plot data."""
-    return {
-        **run_brief(run),
-        "params": run.params,
-        "summary": run.result.summary(),
-        "plot": run_plot(run.result, max_points),
-        "profile": route_profile(run.route),
-    }
+    return {**run_brief(run), "params": run.params, **run_body(run.result, run.route, max_points)}

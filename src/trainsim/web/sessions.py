@@ -72,6 +72,8 @@ class Loaded:
     source: str
     notes: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    #: the JSON body of GET /api/train or /api/route, computed when it was validated
+    payload: bytes | None = None
 
 
 @dataclass
@@ -90,6 +92,8 @@ class WebSession:
     drive_counter: int = 0
     #: token of the live drive of this session (a new drive replaces it), or None
     drive_token: object | None = None
+    #: requests of this session in the worker processes now
+    jobs: int = 0
 
     def next_run_id(self) -> str:
         self.run_counter += 1
@@ -151,6 +155,20 @@ class SessionStore:
         if session is not None:
             return session, False
         return self.create(), True
+
+    # ------------------------------------------------------------------ drives
+    def reserve_drive(self) -> bool:
+        """Take a live-drive slot if one is free (atomically; no await between check and count)."""
+        with self._lock:
+            if self.active_drives >= self.settings.max_drives:
+                return False
+            self.active_drives += 1
+            return True
+
+    def release_drive(self) -> None:
+        """Give a live-drive slot back."""
+        with self._lock:
+            self.active_drives = max(0, self.active_drives - 1)
 
     # ------------------------------------------------------------------ runs
     def add_run(self, session: WebSession, run: StoredRun) -> None:

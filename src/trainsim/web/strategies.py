@@ -77,6 +77,8 @@ class Strategy:
 
 
 _REGISTRY: dict[str, Strategy] = {}
+#: strategies registered when this module is imported: the worker processes know them
+BUILT_IN: set[str] = set()
 
 
 def register(strategy: Strategy) -> None:
@@ -175,3 +177,4 @@ def _register_optimizer() -> None:
 
 
 _register_optimizer()
+BUILT_IN.update(_REGISTRY)

@@ -1,0 +1,279 @@
+"""The web application's heavy work, as plain functions a worker process runs (:mod:`trainsim.web.workers`).
+
+Every function takes and returns picklable values, validates everything it accepts and computes
+the answer's JSON body before returning, so that the server process only stores results that are
+known to be valid and serializable (nothing invalid is ever stored).
+
+* :func:`train_from_mapping`, :func:`route_from_mapping`: an edited train or route;
+* :func:`upload`: an uploaded file of any format trainsim reads (parsed once);
+* :func:`run`: a run with a registered strategy, with its answer body.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import zipfile
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+from trainsim.errors import InputError
+from trainsim.io import trainsim_yaml as tsy
+from trainsim.model.route import Route
+from trainsim.model.scenario import RunSettings
+from trainsim.model.train import Train
+from trainsim.sim.result import RunResult
+from trainsim.web import guard, strategies
+from trainsim.web.config import WebSettings
+from trainsim.web.convert import loaded_route, loaded_train, route_to_dict, spec_dict, train_to_dict
+from trainsim.web.payloads import route_payload, run_body, train_payload
+from trainsim.web.sessions import Loaded
+
+__all__ = ["UPLOAD_SUFFIXES", "route_from_mapping", "run", "train_from_mapping", "upload", "warm"]
+
+#: file name endings an upload may have, and what reads them
+UPLOAD_SUFFIXES: dict[str, str] = {
+    ".yaml": "trainsim / railtoolkit YAML",
+    ".yml": "trainsim / railtoolkit YAML",
+    ".json": "TTOBench JSON",
+    ".xml": "railML 2 or 3",
+    ".railml": "railML 2 or 3",
+    ".xlsx": "spreadsheet (Excel)",
+    ".xlsm": "spreadsheet (Excel)",
+    ".zip": "spreadsheet as a folder of CSV tables, zipped",
+}
+
+
+def _dumps(payload: Any, what: str) -> bytes:
+    try:
+        return json.dumps(payload, allow_nan=False, separators=(",", ":")).encode()
+    except ValueError as exc:
+        raise InputError(
+            f"the {what} gives figures that are not finite numbers",
+            allowed="values within the physical bounds of the format (docs/FORMAT.md)",
+        ) from exc
+
+
+def _check_route(loaded: Loaded, limits: WebSettings, file: str | None = None) -> None:
+    length = loaded.model.length_m
+    if length > limits.max_route_length_m:
+        raise InputError(
+            "route too long for the web application",
+            file=file,
+            field="length_m",
+            value=length,
+            allowed=f"<= {limits.max_route_length_m:g} m",
+        )
+
+
+def train_from_mapping(
+    data: Any, source: str, limits: WebSettings, shown_source: str | None = None
+) -> tuple[Loaded, bytes]:
+    """An edited ``trainsim/train`` mapping: bounded, validated, built; with the answer body.
+    ``source`` names it in messages, ``shown_source`` (default: the same) in the page."""
+    guard.check_document(data, limits)
+    loaded = loaded_train(data, source)
+    loaded.source = shown_source or source
+    return loaded, _dumps(train_payload(spec_dict(loaded.spec), loaded), "train")
+
+
+def route_from_mapping(
+    data: Any, source: str, limits: WebSettings, shown_source: str | None = None
+) -> tuple[Loaded, bytes]:
+    """An edited ``trainsim/route`` mapping: bounded, validated, built; with the answer body.
+    ``source`` names it in messages, ``shown_source`` (default: the same) in the page."""
+    guard.check_document(data, limits)
+    loaded = loaded_route(data, source)
+    loaded.source = shown_source or source
+    _check_route(loaded, limits)
+    return loaded, _dumps(route_payload(spec_dict(loaded.spec), loaded), "route")
+
+
+# ====================================================================== uploads
+def _safe_name(name: str) -> str:
+    """The file's base name, with only plain characters (never ``.`` or ``..``)."""
+    base = PurePosixPath(name.replace("\\", "/")).name
+    safe = "".join(c if c.isalnum() or c in "._-" else "_" for c in base)[:100].lstrip(".")
+    return safe or "upload"
+
+
+def _unzip_tables(archive: Path, folder: Path, limits: WebSettings, name: str) -> None:
+    """Extract the CSV tables of a zipped folder (flat names only, bounded in count and size)."""
+    try:
+        zf = zipfile.ZipFile(archive)
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise InputError("not a readable zip file", file=name, allowed="a zip of CSV tables") from exc
+    with zf:
+        entries = [i for i in zf.infolist() if not i.is_dir()]
+        if len(entries) > 32:
+            raise InputError(
+                "too many files in the zip", file=name, value=len(entries), allowed="at most 32 CSV tables"
+            )
+        total = 0
+        for info in entries:
+            base = PurePosixPath(info.filename).name
+            if not base.lower().endswith(".csv") or base.startswith("."):
+                continue
+            total += info.file_size
+            if total > 4 * limits.max_body_bytes:
+                raise InputError(
+                    "the zip's tables are too large",
+                    file=name,
+                    allowed=f"at most {4 * limits.max_body_bytes} bytes unpacked",
+                )
+            with zf.open(info) as src:
+                data = src.read(info.file_size + 1)
+            if len(data) > info.file_size:
+                raise InputError("a table in the zip is larger than it says", file=name, field=base)
+            (folder / _safe_name(base)).write_bytes(data)
+
+
+def _yaml_document(data: Any, kind: str, name: str, path: Path) -> tuple[dict[str, Any], list[str]]:
+    """The editable mapping of a YAML/JSON upload read once as ``data``."""
+    from trainsim.io import loader
+
+    schema = data.get("schema") if isinstance(data, dict) else None
+    if schema == f"trainsim/{kind}":
+        return data, []
+    if schema == "trainsim/scenario":
+        inline = data.get(kind)
+        if not isinstance(inline, dict):
+            raise InputError(
+                f"this scenario names its {kind} file; open the {kind} file itself",
+                file=name,
+                field=kind,
+                value=inline,
+            )
+        return {"schema": f"trainsim/{kind}", "version": 1, **inline}, []
+    detected = loader.detect_format(path)
+    if detected.kind != kind:
+        raise InputError(
+            f"this is a {detected.kind} file ({detected.format}), expected a {kind} file",
+            file=name,
+            field="schema",
+            allowed=f"a {kind} file: trainsim/{kind}, trainsim/scenario with an inline {kind}, "
+            + (
+                "railtoolkit/rolling-stock, ttobench/train"
+                if kind == "train"
+                else "railtoolkit/running-path, ttobench/track"
+            ),
+        )
+    if kind == "train":
+        train = loader.load_train(path)
+        mapping, notes = train_to_dict(train)
+        return mapping, [f"read as {detected.format}", *notes]
+    route = loader.load_route(path)
+    return route_to_dict(route), [f"read as {detected.format}"]
+
+
+def _read_upload(
+    kind: str, content: bytes, name: str, limits: WebSettings, folder: Path
+) -> tuple[Any, list[str]]:
+    suffix = PurePosixPath(_safe_name(name)).suffix.lower()
+    if suffix not in UPLOAD_SUFFIXES and suffix != ".csv":
+        raise InputError(
+            "unknown kind of file",
+            file=name,
+            value=suffix or "(no ending)",
+            allowed=", ".join(f"{k} ({v})" for k, v in UPLOAD_SUFFIXES.items()),
+        )
+    if suffix == ".csv":
+        raise InputError(
+            "a CSV file holds one table",
+            file=name,
+            allowed="a zip of the folder holding the tables (train.csv, vehicles.csv, traction.csv, braking.csv; "
+            "route.csv, stations.csv, sections.csv)",
+        )
+    path = folder / f"upload{suffix}"
+    path.write_bytes(content)
+    if suffix in (".yaml", ".yml", ".json"):
+        try:
+            content.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise InputError("not a text file in UTF-8", file=name) from exc
+        data = tsy.read_yaml(path)
+        guard.check_document(data, limits, file=name)
+        return _yaml_document(data, kind, name, path)
+    from trainsim.io import convert as interchange
+
+    source: Path = path
+    if suffix == ".zip":
+        source = folder / "tables"
+        source.mkdir()
+        _unzip_tables(path, source, limits, name)
+    docs, notes, fmt = interchange.read_documents(source, kind)  # type: ignore[arg-type]
+    if kind not in docs:
+        raise InputError(f"no {kind} in this file", file=name, value=fmt, allowed=f"a file with a {kind}")
+    return docs[kind], [f"read as {fmt}", *notes]
+
+
+def _renamed(exc: InputError, folder: Path, name: str) -> InputError:
+    """The error with the temporary file's path replaced by the uploaded file's name."""
+    from trainsim.errors import Problem
+    from trainsim.web.errors import problems_of
+
+    prefix = str(folder)
+    problems = []
+    for p in problems_of(exc):
+        file = p.file
+        if file and file.startswith(prefix):
+            file = name
+        problems.append(
+            Problem(p.reason, file=file or name, line=p.line, field=p.field, value=p.value, allowed=p.allowed)
+        )
+    return InputError.from_problems(problems)
+
+
+def upload(kind: str, content: bytes, name: str, limits: WebSettings) -> tuple[Loaded, bytes]:
+    """An uploaded train or route file (``kind``) of any format trainsim reads, read once, with
+    the answer body. Messages name the file as uploaded."""
+    with tempfile.TemporaryDirectory(prefix="trainsim-web-") as tmp:
+        folder = Path(tmp)
+        try:
+            mapping, notes = _read_upload(kind, content, name, limits, folder)
+            guard.check_document(mapping, limits, file=name)
+            if kind == "train":
+                loaded = loaded_train(mapping, name, notes)
+                return loaded, _dumps(train_payload(spec_dict(loaded.spec), loaded), "train")
+            loaded = loaded_route(mapping, name, notes)
+            _check_route(loaded, limits, name)
+            return loaded, _dumps(route_payload(spec_dict(loaded.spec), loaded), "route")
+        except InputError as exc:
+            raise _renamed(exc, folder, name) from exc
+
+
+# ====================================================================== runs
+def run(
+    strategy_name: str | strategies.Strategy,
+    params: dict[str, Any],
+    train: Train,
+    route: Route,
+    settings: RunSettings,
+    max_plot_points: int,
+) -> tuple[RunResult, bytes]:
+    """A run, and its answer body without the run's id and label (:func:`payloads.run_body`).
+
+    ``strategy_name`` is a name registered when trainsim is imported (the worker processes know
+    those), or the :class:`~trainsim.web.strategies.Strategy` itself (strategies registered later
+    run in the server process)."""
+    if isinstance(strategy_name, strategies.Strategy):
+        strategy: strategies.Strategy | None = strategy_name
+    else:
+        strategy = strategies.get(strategy_name)
+    if strategy is None:
+        raise InputError("unknown strategy", field="strategy", value=strategy_name)
+    result = strategy.run(train, route, settings, strategy.params.model_validate(params))
+    return result, _dumps(run_body(result, route, max_plot_points), "run")
+
+
+def warm() -> None:
+    """Compile the kernels once (the fork server does it, so every worker starts warm)."""
+    from trainsim.sim.fastest import run_fastest
+    from trainsim.web.examples import route_spec, train_spec
+
+    try:
+        train = train_spec("metro_b").to_train("warm-up")
+        route = route_spec("metro_b").to_route("warm-up")
+        run_fastest(train, route, RunSettings(max_step_m=50.0))
+    except Exception:  # warming up is an optimisation only
+        pass
