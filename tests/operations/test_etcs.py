@@ -412,3 +412,14 @@ def test_calculated_release_speed_honours_a_speed_decrease_before_the_svl():
     assert c.release_speed_mps == pytest.approx(expected, abs=1e-9)
     alone = supervision_curves(train(), NV, None, 5000.0, 5200.0)
     assert alone.release_speed_mps == pytest.approx(-3.0 + math.sqrt(409.0), abs=1e-9)
+
+
+def test_docs_example_runs_and_prints_what_the_docs_show(capsys):
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "ETCS.md").read_text(encoding="utf-8")
+    blocks = text.split("```")
+    code = next(b for b in blocks if b.startswith("python\n"))[len("python\n") :]
+    shown = blocks[blocks.index(next(b for b in blocks if b.startswith("python\n"))) + 2].strip("\n")
+    exec(compile(code, "docs/ETCS.md", "exec"), {})
+    assert capsys.readouterr().out.strip("\n") == shown
