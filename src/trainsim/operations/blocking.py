@@ -264,6 +264,8 @@ def blocking_times(
         entry = float(trajectory.first_time_at(route.start_m)[0])
         points = route_release_points(route, sig.release)
         clears = trajectory.first_time_at(np.asarray(points) + length)
+        # a train leaves the line at the end of its trajectory (its destination, after the dwell there)
+        clears = np.where(np.isfinite(clears), clears, trajectory.time_s[-1])
         lo = route.start_m
         for res, point, clear in zip(route.resources, points, clears, strict=True):
             out.append(

@@ -1,0 +1,179 @@
+"""Single-train runs for the operations layer: the line's geometry per direction, a train's route
+through it, and its fastest run with a given set of stops, cached.
+
+Everything here goes through the public single-train API (``trainsim.run_fastest``). A run between
+stops does not depend on how long the train stands at them, so a run is computed once with every dwell
+set to zero and the standing times are put in afterwards (``Movement.trajectory``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from trainsim.constants import KWH
+from trainsim.model import Route, Station, Train
+from trainsim.model.scenario import RunSettings
+from trainsim.operations.blocking import Trajectory
+from trainsim.sim.fastest import run_fastest
+from trainsim.sim.result import RunResult
+
+#: Two stops of one run closer than this are merged (the core needs them >= 1 m apart) [m].
+MIN_STOP_SPACING_M = 2.0
+
+
+def _mirror_spans(items: tuple, length_m: float, **fields) -> tuple:
+    out = []
+    for x in items:
+        values = {k: f(x) for k, f in fields.items()}
+        out.append(replace(x, start_m=length_m - x.end_m, end_m=length_m - x.start_m, **values))
+    return tuple(sorted(out, key=lambda y: y.start_m))
+
+
+def direction_route(geometry: Route, length_m: float, direction: str) -> Route:
+    """The line's geometry (a ``Route`` in up-direction positions over ``0 .. length_m``) as seen by a
+    train in ``direction``: for ``down`` every position ``x`` becomes ``length_m - x`` and gradients
+    change sign."""
+    if direction == "up":
+        return geometry
+    return replace(
+        geometry,
+        name=f"{geometry.name} (down)",
+        start_m=length_m - geometry.end_m,
+        end_m=length_m - geometry.start_m,
+        stations=tuple(
+            Station(s.name, length_m - s.position_m, s.dwell_s, s.stop) for s in reversed(geometry.stations)
+        ),
+        speed_limits=_mirror_spans(geometry.speed_limits, length_m),
+        gradients=_mirror_spans(
+            geometry.gradients, length_m, gradient_permille=lambda g: -g.gradient_permille
+        ),
+        curves=_mirror_spans(geometry.curves, length_m),
+        tunnels=_mirror_spans(geometry.tunnels, length_m),
+        electrification=_mirror_spans(geometry.electrification, length_m),
+    )
+
+
+def _clip(items: tuple, a: float, b: float) -> tuple:
+    out = []
+    for x in items:
+        lo, hi = max(x.start_m, a), min(x.end_m, b)
+        if hi > lo + 1e-9:
+            out.append(replace(x, start_m=lo, end_m=hi))
+    return tuple(out)
+
+
+def service_route(directed: Route, stops: list[tuple[str, float]]) -> Route:
+    """The route of one run: ``directed`` cut from its first to its last stop, stopping (dwell 0) at
+    every ``(name, running position)`` of ``stops``."""
+    a, b = stops[0][1], stops[-1][1]
+    return Route(
+        name=directed.name,
+        start_m=a,
+        end_m=b,
+        stations=tuple(Station(n, p, 0.0, True) for n, p in stops),
+        speed_limits=_clip(directed.speed_limits, a, b),
+        gradients=_clip(directed.gradients, a, b),
+        curves=_clip(directed.curves, a, b),
+        tunnels=_clip(directed.tunnels, a, b),
+        electrification=_clip(directed.electrification, a, b),
+        line_resistance=directed.line_resistance,
+        gravity_mps2=directed.gravity_mps2,
+    )
+
+
+@dataclass(frozen=True)
+class Movement:
+    """A train's fastest run through its stops with zero dwell times.
+
+    Attributes:
+        stops_m: the stop positions (running coordinate, first and last included) [m].
+        position_m, speed_mps, time_s: the run's trace [m, m/s, s].
+        arrival_index, departure_index: trace index of arriving at / leaving each stop.
+        result: the core's run.
+    """
+
+    stops_m: tuple[float, ...]
+    position_m: np.ndarray
+    speed_mps: np.ndarray
+    time_s: np.ndarray
+    arrival_index: np.ndarray
+    departure_index: np.ndarray
+    result: RunResult
+
+    def running_times_s(self) -> np.ndarray:
+        """Running time from each stop to the next [s]."""
+        return self.time_s[self.arrival_index[1:]] - self.time_s[self.departure_index[:-1]]
+
+    def trajectory(
+        self, departures_s: list[float], length_m: float, final_dwell_s: float = 0.0
+    ) -> Trajectory:
+        """The trajectory when the train leaves stop ``k`` at ``departures_s[k]`` (one per stop but the
+        last) [s]; the last stop is held for ``final_dwell_s`` [s]."""
+        t, s, v = self.time_s, self.position_m, self.speed_mps
+        ts, ss, vs = [], [], []
+        for k, dep in enumerate(departures_s):
+            i0, i1 = int(self.departure_index[k]), int(self.arrival_index[k + 1])
+            ts.append(t[i0 : i1 + 1] - t[i0] + dep)
+            ss.append(s[i0 : i1 + 1])
+            vs.append(v[i0 : i1 + 1])
+        end_t = ts[-1][-1]
+        ts.append(np.array([end_t + final_dwell_s]))
+        ss.append(np.array([ss[-1][-1]]))
+        vs.append(np.array([0.0]))
+        return Trajectory(np.concatenate(ts), np.concatenate(ss), np.concatenate(vs), length_m)
+
+    def energy_kwh(self, standing_s: float, auxiliary_power_w: float) -> float:
+        """Net energy from the line of the run plus the auxiliaries while standing ``standing_s`` [kWh]."""
+        return float(self.result.energy_kwh.net + auxiliary_power_w * standing_s / KWH)
+
+
+class RunCache:
+    """Fastest runs by train, direction and stops, so identical runs are simulated once."""
+
+    def __init__(self, settings: RunSettings) -> None:
+        self.settings = settings
+        self._runs: dict[tuple, Movement] = {}
+        self._keep: list[object] = []
+        self.computed = 0
+        self.hits = 0
+
+    def movement(self, train: Train, directed: Route, stops: list[tuple[str, float]]) -> Movement:
+        """The fastest run of ``train`` on ``directed`` through ``stops`` (names and running positions)."""
+        key = (id(train), id(directed), tuple(round(p, 6) for _, p in stops))
+        found = self._runs.get(key)
+        if found is not None:
+            self.hits += 1
+            return found
+        self._keep.extend((train, directed))  # ids stay valid while the cache lives
+        route = service_route(directed, stops)
+        result = run_fastest(train, route, self.settings)
+        tr = result.trace
+        s, v, t = tr.position_m, tr.speed_mps, tr.time_s
+        pos = np.array([p for _, p in stops])
+        arr = np.searchsorted(s, pos - 1e-6, side="left")
+        dep = np.searchsorted(s, pos + 1e-6, side="right") - 1
+        arr[0] = 0
+        if result.status != "ok":
+            # a stalled run ends early: the stops it did not reach point at its end
+            arr = np.minimum(arr, len(s) - 1)
+            dep = np.minimum(dep, len(s) - 1)
+        movement = Movement(tuple(float(p) for p in pos), s, v, t, arr, dep, result)
+        self._runs[key] = movement
+        self.computed += 1
+        return movement
+
+
+def auxiliary_power_w(train: Train) -> float:
+    """The train's auxiliary power, 0 without electrical data [W]."""
+    return float(train.electrical.auxiliary_power_w) if train.electrical is not None else 0.0
+
+
+__all__ = [
+    "Movement",
+    "RunCache",
+    "auxiliary_power_w",
+    "direction_route",
+    "service_route",
+]

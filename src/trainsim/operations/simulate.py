@@ -1,0 +1,1005 @@
+"""Many trains on a signalled line, simulated together in time.
+
+Each train runs its own fastest run (``trainsim.run_fastest``) through its stops. Trains claim routes
+from a dispatcher; a discrete-event simulation processes route requests and releases in time order:
+
+* A train **requests** a route when it must see a proceed aspect for it: when its head passes the
+  route's approach start, minus the sight/reaction and setup times (``blocking.approach_start_m``), or,
+  if it stands at a stop inside the approach, that long before its departure.
+* The route is **given** when every resource of one of its alternatives (platform tracks) is free; on
+  single track a section is only given together with a platform track at the next station.
+* A train whose route is not given stays at the stop it stands at, or, running, **brakes to a stand**
+  ``standing_distance_m`` before the signal (its fastest run with one more stop) and waits. When the
+  route is given it leaves ``setup_s + reaction_s`` later (route set, signal clears, driver reacts).
+  Driver model: a train that has seen a restrictive aspect comes to a stand (it does not pick up speed
+  again if the signal clears while it brakes); see docs/OPERATIONS.md.
+* A resource is **released** ``release_s`` after the train's rear has passed its release point
+  (sectional or whole-route release). A train leaves the line at its destination: what it still holds
+  is released ``release_s`` after its dwell there.
+* **Dispatching rules** when a resource is freed and several trains wait for it: ``fcfs`` gives it to
+  the train that asked first, ``priority`` to the train of highest priority (then the one that asked
+  first). A request made while its resources are free is always given.
+* A **deadlock** (trains waiting for each other's resources; no event left) is detected and reported
+  with the trains and resources involved: the simulation never hangs. Every train's number of events
+  is bounded (one request per route, at most one stop per signal, one release per resource).
+
+Runs are cached by train, direction and stops: identical unhindered trains are simulated once, and only
+a hindered train (one more stop) needs a new run.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from itertools import pairwise
+from typing import Literal
+
+import numpy as np
+
+from trainsim.errors import InputError
+from trainsim.model import Route as GeometryRoute
+from trainsim.model import Train
+from trainsim.model.scenario import RunSettings
+from trainsim.operations.blocking import (
+    BlockingTime,
+    Headway,
+    Trajectory,
+    approach_start_m,
+    blocking_times,
+    braking_distance_table,
+    minimum_headway,
+    route_release_points,
+)
+from trainsim.operations.line import Direction, Line, Route, RouteStep
+from trainsim.operations.runs import Movement, RunCache, auxiliary_power_w, direction_route
+
+Rule = Literal["fcfs", "priority"]
+#: Times closer than this are the same instant (a follower at exactly the minimum headway) [s].
+TIME_TOLERANCE_S = 1e-6
+#: Operated blocking times may touch within this much (trace interpolation between run points) [s].
+INVARIANT_TOLERANCE_S = 1e-3
+
+
+@dataclass(frozen=True)
+class ScheduledStop:
+    """A stop of a train at a station.
+
+    Attributes:
+        station: station name.
+        dwell_s: minimum dwell [s].
+        arrival_s: scheduled arrival [s], or None (the planned run's arrival).
+        departure_s: scheduled departure [s], or None (arrival + dwell).
+        track: platform track to use, or None (the dispatcher's choice).
+    """
+
+    station: str
+    dwell_s: float = 0.0
+    arrival_s: float | None = None
+    departure_s: float | None = None
+    track: int | None = None
+
+
+@dataclass(frozen=True)
+class TrainService:
+    """One train of the timetable.
+
+    Attributes:
+        id: unique id.
+        train: the train.
+        direction: ``up`` (increasing line position) or ``down``.
+        origin, destination: station names.
+        departure_s: scheduled departure from the origin [s].
+        stops: intermediate stops in running order; a stop at the destination gives its scheduled
+            arrival and dwell (the time before the train leaves the line).
+        priority: higher runs first under the ``priority`` rule.
+        entry_delay_s: delay at the origin [s] (given or sampled).
+        origin_track: platform track at the origin, or None.
+    """
+
+    id: str
+    train: Train
+    direction: Direction
+    origin: str
+    destination: str
+    departure_s: float
+    stops: tuple[ScheduledStop, ...] = ()
+    priority: int = 0
+    entry_delay_s: float = 0.0
+    origin_track: int | None = None
+
+
+@dataclass(frozen=True)
+class StopTimes:
+    """Scheduled (or planned) and simulated times at one station of a train [s]."""
+
+    station: str
+    kind: str  # origin, stop, pass, destination
+    scheduled_arrival_s: float | None
+    scheduled_departure_s: float | None
+    arrival_s: float | None
+    departure_s: float | None
+    delay_s: float | None
+    track: int | None
+
+    def to_dict(self) -> dict[str, object]:
+        def r(x: float | None) -> float | None:
+            return None if x is None or not np.isfinite(x) else round(float(x), 3)
+
+        return {
+            "station": self.station,
+            "kind": self.kind,
+            "scheduled_arrival_s": r(self.scheduled_arrival_s),
+            "scheduled_departure_s": r(self.scheduled_departure_s),
+            "arrival_s": r(self.arrival_s),
+            "departure_s": r(self.departure_s),
+            "delay_s": r(self.delay_s),
+            "track": self.track,
+        }
+
+
+@dataclass(frozen=True)
+class Hindrance:
+    """A wait: at a signal (``signal``) or held at a stop (``stop``), ``wait_s`` long from ``time_s``."""
+
+    kind: str
+    where: str
+    position_m: float
+    time_s: float
+    wait_s: float
+    route: str
+
+
+@dataclass
+class TrainOutcome:
+    """What happened to one train."""
+
+    id: str
+    direction: Direction
+    status: str  # ok, stalled, deadlocked
+    stops: list[StopTimes]
+    delay_s: float
+    energy_kwh: float
+    planned_energy_kwh: float
+    hindrances: list[Hindrance]
+    trajectory: Trajectory | None
+    planned_trajectory: Trajectory
+    routes: list[tuple[int, Route]]
+    warnings: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "id": self.id,
+            "direction": self.direction,
+            "status": self.status,
+            "delay_s": round(self.delay_s, 3) if np.isfinite(self.delay_s) else None,
+            "energy_kwh": round(self.energy_kwh, 4),
+            "planned_energy_kwh": round(self.planned_energy_kwh, 4),
+            "stops": [s.to_dict() for s in self.stops],
+            "hindrances": [
+                {"kind": h.kind, "where": h.where, "time_s": round(h.time_s, 3), "wait_s": round(h.wait_s, 3)}
+                for h in self.hindrances
+            ],
+            "warnings": self.warnings,
+        }
+
+
+@dataclass(frozen=True)
+class Conflict:
+    """Two trains' planned blocking times overlapping on one resource."""
+
+    first: str
+    second: str
+    route: str
+    resource: str
+    time_s: float
+    overlap_s: float
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "trains": [self.first, self.second],
+            "block": self.route,
+            "resource": self.resource,
+            "time_s": round(self.time_s, 3),
+            "overlap_s": round(self.overlap_s, 3),
+        }
+
+
+@dataclass
+class OperationResult:
+    """The result of simulating a timetable on a line.
+
+    ``status``: ``ok``; ``conflicts`` (the planned timetable has conflicting blocking times: trains ran
+    later than planned); ``deadlock`` (some trains could not finish); ``stalled`` (a train's run
+    stalled).
+    """
+
+    status: str
+    warnings: list[str]
+    trains: list[TrainOutcome]
+    conflicts: list[Conflict]
+    headways: list[Headway]
+    blocking: list[BlockingTime]
+    planned_blocking: list[BlockingTime]
+    runs_computed: int
+    runs_reused: int
+    deadlock: list[str] = field(default_factory=list)
+
+    def summary(self) -> dict[str, object]:
+        """JSON-ready summary."""
+        return {
+            "status": self.status,
+            "warnings": self.warnings,
+            "deadlock": self.deadlock,
+            "trains": [t.to_dict() for t in self.trains],
+            "conflicts": [c.to_dict() for c in self.conflicts],
+            "headways": [h.to_dict() for h in self.headways],
+            "runs": {"computed": self.runs_computed, "reused": self.runs_reused},
+            "total_delay_s": round(sum(t.delay_s for t in self.trains if np.isfinite(t.delay_s)), 3),
+            "energy_kwh": {
+                "operated": round(sum(t.energy_kwh for t in self.trains), 4),
+                "planned": round(sum(t.planned_energy_kwh for t in self.trains), 4),
+            },
+        }
+
+
+# --------------------------------------------------------------------------- per-train state
+
+
+@dataclass
+class _Stop:
+    name: str
+    position_m: float
+    kind: str  # origin, stop, signal, destination
+    dwell_s: float
+    scheduled_departure_s: float | None
+    track: int | None = None
+
+
+class _TrainState:
+    def __init__(
+        self, index: int, svc: TrainService, line: Line, directed: GeometryRoute, cache: RunCache
+    ) -> None:
+        self.index = index
+        self.svc = svc
+        self.line = line
+        self.directed = directed
+        self.cache = cache
+        self.path = line.paths[svc.direction]
+        self.length_m = svc.train.length_m
+        path = self.path
+        p0 = path.stop_m[svc.origin]
+        p1 = path.stop_m[svc.destination]
+        first = next(j for j, st in enumerate(path.steps) if st.kind == "entry" and st.station == svc.origin)
+        last = next(
+            j for j, st in enumerate(path.steps) if st.kind == "entry" and st.station == svc.destination
+        )
+        self.steps = list(range(first, last + 1))
+        self.stops: list[_Stop] = [
+            _Stop(svc.origin, p0, "origin", 0.0, svc.departure_s + svc.entry_delay_s, svc.origin_track)
+        ]
+        dest_dwell = 0.0
+        for s in svc.stops:
+            if s.station == svc.destination:
+                dest_dwell = s.dwell_s
+                continue
+            self.stops.append(
+                _Stop(s.station, path.stop_m[s.station], "stop", s.dwell_s, s.departure_s, s.track)
+            )
+        self.stops.append(_Stop(svc.destination, p1, "destination", dest_dwell, None))
+        self.dest_dwell_s = dest_dwell
+        self.override: dict[float, float] = {}  # stop position -> decided departure
+        self.next = 0  # index into self.steps of the next route to request
+        self.granted: list[tuple[int, Route]] = []
+        self.held: list[list] = []  # [resource, release point, route name, release time or None]
+        self.waiting_since: float | None = None
+        self.waiting_stop: float | None = None
+        self.hindrances: list[Hindrance] = []
+        self.warnings: list[str] = []
+        self.version = 0
+        self.done = False
+        self.movement: Movement | None = None
+        self.trajectory: Trajectory | None = None
+        self.refresh_movement()
+
+    # -- runs and trajectories
+    def refresh_movement(self) -> None:
+        self.movement = self.cache.movement(
+            self.svc.train, self.directed, [(s.name, s.position_m) for s in self.stops]
+        )
+        self.refresh_trajectory()
+
+    def departures(self) -> list[float]:
+        m = self.movement
+        rt = m.running_times_s()
+        deps: list[float] = []
+        for k, s in enumerate(self.stops[:-1]):
+            arrival = s.scheduled_departure_s if k == 0 else deps[-1] + rt[k - 1]
+            dep = arrival + s.dwell_s
+            if s.scheduled_departure_s is not None:
+                dep = max(dep, s.scheduled_departure_s)
+            dep = max(dep, self.override.get(s.position_m, -np.inf))
+            deps.append(dep)
+        return deps
+
+    def refresh_trajectory(self) -> None:
+        self.trajectory = self.movement.trajectory(self.departures(), self.length_m, self.dest_dwell_s)
+
+    def stop_positions(self) -> np.ndarray:
+        return np.array([s.position_m for s in self.stops])
+
+    # -- requests
+    def pending_step(self) -> tuple[int, RouteStep] | None:
+        if self.next >= len(self.steps):
+            return None
+        j = self.steps[self.next]
+        return j, self.path.steps[j]
+
+    def request_point(self, approach_fn) -> tuple[float, float | None, float]:
+        """(request time, stop standing inside the approach or None, approach start)."""
+        j, step = self.pending_step()
+        sig = self.line.signalling
+        a = approach_start_m(self.path, j, sig, self.trajectory, approach_fn)
+        pos = self.stop_positions()
+        inside = pos[(pos >= a - 1e-9) & (pos < step.start_m)]
+        if step.start_m <= pos[0] + 1e-9:
+            # the route into the origin's platform: the train stands in it until it leaves
+            inside = pos[:1]
+        if inside.size:
+            q = float(inside.max())
+            t_see = self.trajectory.last_time_at(q)
+            return t_see - sig.reaction_s - sig.setup_s, q, a
+        t_see = float(self.trajectory.first_time_at(a)[0])
+        return t_see - sig.reaction_s - sig.setup_s, None, a
+
+    def horizon_m(self, approach_fn) -> float:
+        if self.pending_step() is None or self.waiting_since is not None:
+            if self.waiting_since is not None:
+                return self.waiting_stop
+            return np.inf
+        _t, q, a = self.request_point(approach_fn)
+        return q if q is not None else a
+
+    def release_time(self, point_m: float) -> float:
+        sig = self.line.signalling
+        head = point_m + self.length_m
+        if head > self.stops[-1].position_m + 1e-9:
+            # the train leaves the line at its destination after its dwell there
+            return float(self.trajectory.time_s[-1]) + sig.release_s
+        return float(self.trajectory.first_time_at(head)[0]) + sig.release_s
+
+
+class _Dispatcher:
+    def __init__(
+        self, line: Line, states: list[_TrainState], rule: Rule, approach_fns: dict[int, Callable]
+    ) -> None:
+        self.line = line
+        self.states = states
+        self.rule = rule
+        self.approach = approach_fns
+        self.holder: dict[str, int] = {}
+        self.heap: list[tuple[float, int, int, int, int]] = []
+        self.seq = 0
+        self.now = -np.inf
+        self.waiting: list[int] = []
+
+    # -- events
+    def schedule(self, st: _TrainState) -> None:
+        st.version += 1
+        if st.done:
+            return
+        fn = self.approach[st.index]
+        best: tuple[float, int] | None = None
+        if st.waiting_since is None and st.pending_step() is not None:
+            t_req, _q, _a = st.request_point(fn)
+            best = (max(t_req, self.now), 1)
+        horizon = st.horizon_m(fn)
+        for h in st.held:
+            if h[3] is None and h[1] + st.length_m <= horizon + 1e-9:
+                h[3] = st.release_time(h[1])
+            if h[3] is not None and (best is None or (h[3], 0) < best):
+                best = (max(h[3], self.now), 0)
+        if best is None:
+            if st.pending_step() is None and not st.held:
+                st.done = True
+            return
+        self.seq += 1
+        heapq.heappush(self.heap, (best[0], best[1], self.seq, st.index, st.version))
+
+    def run(self) -> None:
+        for st in self.states:
+            self.schedule(st)
+        while self.heap:
+            t, kind, _seq, i, version = heapq.heappop(self.heap)
+            st = self.states[i]
+            if version != st.version:
+                continue
+            self.now = t
+            if kind == 0:
+                self.release_due(st, t)
+                self.schedule(st)
+                self.wake(t)
+            else:
+                self.request(st, t)
+
+    def release_due(self, st: _TrainState, t: float) -> None:
+        keep = []
+        for h in st.held:
+            if h[3] is not None and h[3] <= t + TIME_TOLERANCE_S:
+                if self.holder.get(h[0]) == st.index:
+                    del self.holder[h[0]]
+            else:
+                keep.append(h)
+        st.held = keep
+        if not st.held and st.pending_step() is None:
+            st.done = True
+
+    def _free(self, st: _TrainState, routes: Sequence[Route], t: float) -> bool:
+        for r in routes:
+            for res in r.resources:
+                k = self.holder.get(res.name)
+                if k is None or k == st.index:
+                    continue
+                other = self.states[k]
+                due = [h for h in other.held if h[0] == res.name]
+                if due and due[0][3] is not None and due[0][3] <= t + TIME_TOLERANCE_S:
+                    # released at this very instant (a follower at exactly the minimum headway)
+                    self.release_due(other, t)
+                    self.schedule(other)
+                    # let the trains waiting for what it freed try again at this instant
+                    self.seq += 1
+                    heapq.heappush(self.heap, (t, 0, self.seq, other.index, other.version))
+                    continue
+                return False
+        return True
+
+    def _choices(self, st: _TrainState) -> list[list[tuple[int, Route]]]:
+        j, step = st.pending_step()
+        first = self._alternatives(st, j, step)
+        if any(r.reserve_next for r in step.alternatives) and st.next + 1 < len(st.steps):
+            j2 = st.steps[st.next + 1]
+            second = self._alternatives(st, j2, st.path.steps[j2])
+            return [[(j, a), (j2, b)] for a in first for b in second]
+        return [[(j, a)] for a in first]
+
+    def _alternatives(self, st: _TrainState, j: int, step: RouteStep) -> list[Route]:
+        if step.kind != "entry" or len(step.alternatives) == 1:
+            return list(step.alternatives)
+        wanted = next((s.track for s in st.stops if s.name == step.station and s.kind != "signal"), None)
+        if wanted is not None:
+            return [r for r in step.alternatives if r.track == wanted]
+        return list(step.alternatives)
+
+    def try_grant(self, st: _TrainState, t: float) -> bool:
+        for choice in self._choices(st):
+            routes = [r for _j, r in choice]
+            if self._free(st, routes, t):
+                self.grant(st, choice, t)
+                return True
+        return False
+
+    def grant(self, st: _TrainState, choice: list[tuple[int, Route]], t: float) -> None:
+        sig = self.line.signalling
+        for j, r in choice:
+            for res in r.resources:
+                self.holder[res.name] = st.index
+            for res, point in zip(r.resources, route_release_points(r, sig.release), strict=True):
+                st.held.append([res.name, point, r.name, None])
+            st.granted.append((j, r))
+        st.next += len(choice)
+        if st.waiting_since is not None:
+            depart = t + sig.setup_s + sig.reaction_s
+            q = st.waiting_stop
+            before = st.trajectory.last_time_at(q)
+            st.override[q] = max(st.override.get(q, -np.inf), depart)
+            st.refresh_trajectory()
+            after = st.trajectory.last_time_at(q)
+            kind = "signal" if any(s.kind == "signal" and s.position_m == q for s in st.stops) else "stop"
+            where = next(s.name for s in st.stops if s.position_m == q)
+            if after > before + TIME_TOLERANCE_S or kind == "signal":
+                st.hindrances.append(
+                    Hindrance(kind, where, q, st.waiting_since, after - before, choice[0][1].name)
+                )
+            st.waiting_since = None
+            st.waiting_stop = None
+            if st.index in self.waiting:
+                self.waiting.remove(st.index)
+        self.schedule(st)
+
+    def request(self, st: _TrainState, t: float) -> None:
+        t_req, q, _a = st.request_point(self.approach[st.index])
+        if self.try_grant(st, t):
+            if q is not None and t > t_req + TIME_TOLERANCE_S:
+                # asked late (after standing elsewhere): it leaves the stop once the route is set
+                st.override[q] = max(
+                    st.override.get(q, -np.inf),
+                    t + self.line.signalling.setup_s + self.line.signalling.reaction_s,
+                )
+                st.refresh_trajectory()
+                self.schedule(st)
+            return
+        # not given: wait at the stop inside the approach, or brake to a stand before the signal
+        _t, q, a = st.request_point(self.approach[st.index])
+        _j, step = st.pending_step()
+        sig = self.line.signalling
+        if q is not None:
+            ahead = [x.start_m for x in st.path.steps if x.start_m > q + 1e-9]
+            if ahead and step.start_m > min(ahead) + 1e-9:
+                # another signal lies between the stop and this one: the train leaves and brakes later
+                q = None
+        if q is None:
+            q = step.start_m - sig.standing_distance_m
+            pos = st.stop_positions()
+            near = pos[np.abs(pos - q) < 2.0]
+            if near.size:
+                q = float(near[0])
+            else:
+                name = f"signal {step.alternatives[0].signal}"
+                k = int(np.searchsorted(pos, q))
+                st.stops.insert(k, _Stop(name, q, "signal", 0.0, None))
+                v = st.trajectory.speed_at(a)
+                brake = self.approach_brake(st)
+                if brake is not None and brake(v) > q - a + 1e-6:
+                    st.warnings.append(
+                        f"{name}: the train needs {brake(v):.0f} m to stop from {v * 3.6:.0f} km/h but sees the "
+                        f"aspect only {q - a:.0f} m before (warning too late for its braking distance)"
+                    )
+                st.refresh_movement()
+        st.waiting_since = t
+        st.waiting_stop = q
+        st.version += 1
+        self.waiting.append(st.index)
+        self.schedule(st)
+
+    def approach_brake(self, st: _TrainState):
+        return getattr(st, "_brake", None)
+
+    def wake(self, t: float) -> None:
+        if not self.waiting:
+            return
+        if self.rule == "priority":
+            order = sorted(
+                self.waiting, key=lambda i: (-self.states[i].svc.priority, self.states[i].waiting_since, i)
+            )
+        else:
+            order = sorted(self.waiting, key=lambda i: (self.states[i].waiting_since, i))
+        for i in order:
+            st = self.states[i]
+            if i in self.waiting and st.waiting_since is not None:
+                # a stand at a signal cannot end before the train has arrived there: it simply
+                # leaves once both are done (override keeps the later of the two)
+                self.try_grant(st, t)
+
+
+# --------------------------------------------------------------------------- public entry
+
+
+def service_braking_deceleration(
+    train: Train, braking_fraction: float = 1.0
+) -> Callable[[np.ndarray], np.ndarray]:
+    """The train's service braking deceleration over speed, ``F_b(v) / (rho m)`` or its constant
+    deceleration [m/s^2] (running resistance and gradient left out: a braking distance on the safe
+    side on level track)."""
+    b = train.braking
+    if b.deceleration_mps2 is not None:
+        d = float(b.deceleration_mps2) * braking_fraction
+        return lambda v: np.full_like(np.asarray(v, dtype=float), d)
+    curve = b.service_force
+    m = train.inertial_mass_kg
+    return lambda v: np.asarray(curve(np.asarray(v, dtype=float)), dtype=float) * braking_fraction / m
+
+
+def _approach_function(line: Line, train: Train, settings: RunSettings) -> Callable[[float], float] | None:
+    sig = line.signalling
+    brake = braking_distance_table(
+        service_braking_deceleration(train, settings.braking_fraction), train.max_speed_mps
+    )
+    if sig.system == "fixed_block":
+        return None
+    if sig.system == "moving_block":
+        return brake
+    from trainsim.operations.separation import etcs_approach_distance
+
+    return etcs_approach_distance(train, brake)
+
+
+def _check_services(line: Line, services: Sequence[TrainService]) -> None:
+    from trainsim.errors import Problem
+
+    problems = []
+    ids = [s.id for s in services]
+    names = {s.name for s in line.stations}
+    for k, svc in enumerate(services):
+        where = f"trains[{k}]"
+        if ids.count(svc.id) > 1:
+            problems.append(Problem("train ids must be unique", field=f"{where}.id", value=svc.id))
+        for f in ("origin", "destination"):
+            if getattr(svc, f) not in names:
+                problems.append(
+                    Problem(
+                        "unknown station",
+                        field=f"{where}.{f}",
+                        value=getattr(svc, f),
+                        allowed=", ".join(sorted(names)),
+                    )
+                )
+        if svc.direction not in ("up", "down"):
+            problems.append(
+                Problem(
+                    "unknown direction", field=f"{where}.direction", value=svc.direction, allowed="up, down"
+                )
+            )
+            continue
+        if svc.origin not in names or svc.destination not in names:
+            continue
+        path = line.paths[svc.direction]
+        p0, p1 = path.stop_m[svc.origin], path.stop_m[svc.destination]
+        if not p1 > p0:
+            problems.append(
+                Problem(
+                    f"the destination does not lie ahead of the origin in the {svc.direction} direction (the route is not connected)",
+                    field=f"{where}.destination",
+                    value=svc.destination,
+                )
+            )
+            continue
+        last = p0
+        for i, s in enumerate(svc.stops):
+            if s.station not in names:
+                problems.append(
+                    Problem(
+                        "unknown station",
+                        field=f"{where}.stops[{i}].station",
+                        value=s.station,
+                        allowed=", ".join(sorted(names)),
+                    )
+                )
+                continue
+            p = path.stop_m[s.station]
+            if not (last < p <= p1):
+                problems.append(
+                    Problem(
+                        "stops must lie between origin and destination, in running order",
+                        field=f"{where}.stops[{i}].station",
+                        value=s.station,
+                    )
+                )
+            last = p
+            n = line.station(s.station).tracks
+            if s.track is not None and not 1 <= s.track <= n:
+                problems.append(
+                    Problem(
+                        "no such platform track",
+                        field=f"{where}.stops[{i}].track",
+                        value=s.track,
+                        allowed=f"1 .. {n}",
+                    )
+                )
+            if not (np.isfinite(s.dwell_s) and s.dwell_s >= 0):
+                problems.append(
+                    Problem(
+                        "invalid dwell",
+                        field=f"{where}.stops[{i}].dwell_s",
+                        value=s.dwell_s,
+                        allowed=">= 0 s",
+                    )
+                )
+        if not (np.isfinite(svc.departure_s) and np.isfinite(svc.entry_delay_s) and svc.entry_delay_s >= 0):
+            problems.append(
+                Problem(
+                    "departure and entry delay must be finite (delay >= 0)",
+                    field=f"{where}.departure",
+                    value=(svc.departure_s, svc.entry_delay_s),
+                )
+            )
+        if svc.train.length_m > 0.9 * min(
+            st.switch_zone_m + st.entry_signal_distance_m for st in line.stations
+        ):
+            problems.append(
+                Problem(
+                    "the train is longer than the station platforms (entry signal to stopping point plus switch zone)",
+                    field=f"{where}.train",
+                    value=svc.train.length_m,
+                )
+            )
+    if problems:
+        raise InputError.from_problems(problems)
+
+
+def simulate(
+    line: Line,
+    geometry: GeometryRoute,
+    services: Sequence[TrainService],
+    settings: RunSettings | None = None,
+    rule: Rule = "fcfs",
+    conflicts: bool = True,
+    headways: bool = True,
+) -> OperationResult:
+    """Simulate ``services`` on ``line`` together in time, and compare with their planned runs.
+
+    Args:
+        line: the signalled line (``build_line``).
+        geometry: the line's speed limits, gradients, curves, tunnels and electrification as a
+            ``Route`` in up-direction positions covering ``0 .. line.length_m``.
+        services: the trains.
+        settings: run settings of every train's fastest run.
+        rule: dispatching rule, ``fcfs`` or ``priority``.
+        conflicts: list the conflicts of the planned timetable.
+        headways: compute the minimum headway of consecutive trains of each direction.
+    """
+    settings = settings or RunSettings()
+    if rule not in ("fcfs", "priority"):
+        raise InputError(
+            "unknown dispatching rule", field="dispatching.rule", value=rule, allowed="fcfs, priority"
+        )
+    if not (abs(geometry.start_m) < 1e-6 and abs(geometry.end_m - line.length_m) < 1e-6):
+        raise InputError(
+            "the line's geometry must cover the whole line",
+            field="line.route",
+            value=(geometry.start_m, geometry.end_m),
+            allowed=f"0 .. {line.length_m:g} m",
+        )
+    _check_services(line, services)
+    directed = {d: direction_route(geometry, line.length_m, d) for d in ("up", "down")}
+    cache = RunCache(settings)
+    approach: dict[int, Callable | None] = {}
+    states = []
+    for i, svc in enumerate(services):
+        st = _TrainState(i, svc, line, directed[svc.direction], cache)
+        approach[i] = _approach_function(line, svc.train, settings)
+        st._brake = braking_distance_table(
+            service_braking_deceleration(svc.train, settings.braking_fraction), svc.train.max_speed_mps
+        )
+        states.append(st)
+    # planned runs: each train alone, on time
+    planned = [_planned(st) for st in states]
+    dispatcher = _Dispatcher(line, states, rule, approach)
+    dispatcher.run()
+    stuck = [st for st in states if not st.done]
+    deadlock = []
+    if stuck:
+        for st in stuck:
+            waits = ""
+            if st.pending_step() is not None:
+                _j, step = st.pending_step()
+                blockers = sorted(
+                    {
+                        f"{res.name} (held by {states[dispatcher.holder[res.name]].svc.id})"
+                        for r in step.alternatives
+                        for res in r.resources
+                        if res.name in dispatcher.holder and dispatcher.holder[res.name] != st.index
+                    }
+                )
+                waits = f" waits for route '{step.alternatives[0].name}': " + ", ".join(blockers)
+            deadlock.append(f"train {st.svc.id}{waits}")
+    outcomes = []
+    blocking: list[BlockingTime] = []
+    warnings: list[str] = []
+    sig = line.signalling
+    for st, plan in zip(states, planned, strict=True):
+        fn = approach[st.index]
+        outcome = _outcome(st, plan, line, stuck=st in stuck)
+        outcomes.append(outcome)
+        if st not in stuck:
+            blocking.extend(
+                blocking_times(
+                    st.svc.id, st.trajectory, st.path, st.granted, list(st.stop_positions()), sig,
+                    _line_pos(line, st.svc.direction), fn,
+                )
+            )  # fmt: skip
+        warnings.extend(f"train {st.svc.id}: {w}" for w in outcome.warnings)
+    _check_invariants(outcomes, blocking)
+    planned_blocking, conflict_list = _planned_blocking(line, states, planned, approach, conflicts)
+    headway_list = _headways(states, planned_blocking) if headways else []
+    status = "ok"
+    if any(o.status == "stalled" for o in outcomes):
+        status = "stalled"
+    if stuck:
+        status = "deadlock"
+    elif conflict_list and status == "ok":
+        status = "conflicts"
+    return OperationResult(
+        status, warnings, outcomes, conflict_list, headway_list, blocking, planned_blocking,
+        cache.computed, cache.hits, deadlock,
+    )  # fmt: skip
+
+
+def _line_pos(line: Line, direction: Direction) -> Callable[[float], float]:
+    return lambda x: float(line.line_position(direction, x))
+
+
+@dataclass
+class _Plan:
+    trajectory: Trajectory
+    movement: Movement
+    departures: list[float]
+    energy_kwh: float
+
+
+def _planned(st: _TrainState) -> _Plan:
+    delay = st.svc.entry_delay_s
+    st.stops[0].scheduled_departure_s -= delay
+    deps = st.departures()
+    st.stops[0].scheduled_departure_s += delay
+    traj = st.movement.trajectory(deps, st.length_m, st.dest_dwell_s)
+    standing = _standing_s(st.movement, deps, st.dest_dwell_s)
+    energy = st.movement.energy_kwh(standing, auxiliary_power_w(st.svc.train))
+    return _Plan(traj, st.movement, deps, energy)
+
+
+def _standing_s(movement: Movement, deps: list[float], final_dwell_s: float) -> float:
+    rt = movement.running_times_s()
+    standing = final_dwell_s
+    for k in range(1, len(deps)):
+        standing += deps[k] - (deps[k - 1] + rt[k - 1])
+    return standing
+
+
+def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutcome:
+    svc = st.svc
+    status = "deadlocked" if stuck else ("stalled" if st.movement.result.status != "ok" else "ok")
+    warnings = list(st.warnings)
+    if st.movement.result.status != "ok":
+        warnings.extend(st.movement.result.warnings)
+    deps = st.departures() if not stuck else None
+    traj = st.trajectory if not stuck else None
+    rt = st.movement.running_times_s()
+    sched = {s.station: s for s in svc.stops}
+    plan_rt = plan.movement.running_times_s()
+    plan_arr = [None] + [plan.departures[k] + plan_rt[k] for k in range(len(plan.departures))]
+    stop_times = []
+    station_stops = [k for k, s in enumerate(st.stops) if s.kind != "signal"]
+    delay = 0.0
+    for pk, k in enumerate(station_stops):
+        s = st.stops[k]
+        arr = None if k == 0 or deps is None else deps[k - 1] + rt[k - 1]
+        dep = None if deps is None or k == len(st.stops) - 1 else deps[k]
+        p_arr = plan_arr[pk]
+        p_dep = plan.departures[pk] if pk < len(plan.departures) else None
+        sc = sched.get(s.name)
+        s_arr = sc.arrival_s if sc is not None and sc.arrival_s is not None else p_arr
+        s_dep = p_dep
+        if k == 0:
+            s_dep = svc.departure_s
+        elif sc is not None and sc.departure_s is not None:
+            s_dep = sc.departure_s
+        if s.kind == "destination":
+            d = None if arr is None else arr - s_arr
+        else:
+            d = None if dep is None else dep - s_dep
+        if d is not None:
+            delay = d
+        if sc is not None and sc.arrival_s is not None and p_arr is not None and sc.arrival_s < p_arr - 1e-6:
+            warnings.append(
+                f"scheduled arrival at {s.name} ({sc.arrival_s:.0f} s) is earlier than the train can make it "
+                f"on time ({p_arr:.0f} s): the timetable is too tight there"
+            )
+        track = next((r.track for _j, r in st.granted if r.station == s.name and r.track is not None), None)
+        stop_times.append(StopTimes(s.name, s.kind, s_arr, s_dep, arr, dep, d, track))
+    if stuck:
+        delay = np.inf
+    standing = _standing_s(st.movement, deps, st.dest_dwell_s) if deps is not None else 0.0
+    energy = st.movement.energy_kwh(standing, auxiliary_power_w(svc.train)) if deps is not None else np.nan
+    return TrainOutcome(
+        svc.id, svc.direction, status, stop_times, float(delay), energy, plan.energy_kwh,
+        st.hindrances, traj, plan.trajectory, list(st.granted), warnings,
+    )  # fmt: skip
+
+
+def _planned_blocking(
+    line: Line, states: list[_TrainState], plans: list[_Plan], approach: dict, want_conflicts: bool
+) -> tuple[list[BlockingTime], list[Conflict]]:
+    """Blocking times of the planned runs (tracks: the given one, else the first one free in the plan,
+    trains taken in order of departure) and their conflicts."""
+    sig = line.signalling
+    order = sorted(range(len(states)), key=lambda i: plans[i].departures[0])
+    booked: dict[str, list[tuple[float, float]]] = {}
+    per_train: dict[int, list[BlockingTime]] = {}
+    for i in order:
+        st, plan = states[i], plans[i]
+        stations_stops = [s for s in st.stops if s.kind != "signal"]
+        stops_m = [s.position_m for s in stations_stops]
+        times: list[BlockingTime] = []
+        for j in st.steps:
+            step = st.path.steps[j]
+            alts = list(step.alternatives)
+            wanted = (
+                next((s.track for s in stations_stops if s.name == step.station), None)
+                if step.kind == "entry"
+                else None
+            )
+            if wanted is not None:
+                alts = [r for r in alts if r.track == wanted] or alts
+            best = None
+            for r in alts:
+                bt = blocking_times(
+                    st.svc.id, plan.trajectory, st.path, [(j, r)], stops_m, sig,
+                    _line_pos(line, st.svc.direction), approach[i],
+                )  # fmt: skip
+                clash = any(
+                    b.start_s < e - TIME_TOLERANCE_S and s0 < b.end_s - TIME_TOLERANCE_S
+                    for b in bt
+                    for s0, e in booked.get(b.resource, ())
+                )
+                if best is None:
+                    best = bt
+                if not clash:
+                    best = bt
+                    break
+            for b in best:
+                booked.setdefault(b.resource, []).append((b.start_s, b.end_s))
+            times.extend(best)
+        per_train[i] = times
+    planned = [b for i in range(len(states)) for b in per_train[i]]
+    conflicts: list[Conflict] = []
+    if want_conflicts:
+        by_res: dict[str, list[BlockingTime]] = {}
+        for b in planned:
+            by_res.setdefault(b.resource, []).append(b)
+        for res, items in by_res.items():
+            items.sort(key=lambda b: b.start_s)
+            active: list[BlockingTime] = []
+            for b in items:
+                active = [a for a in active if a.end_s > b.start_s + TIME_TOLERANCE_S]
+                for a in active:
+                    if a.train != b.train:
+                        overlap = min(a.end_s, b.end_s) - b.start_s
+                        conflicts.append(Conflict(a.train, b.train, b.route, res, b.start_s, overlap))
+                active.append(b)
+        conflicts.sort(key=lambda c: (c.time_s, c.first, c.second))
+    return planned, conflicts
+
+
+def _headways(states: list[_TrainState], planned: list[BlockingTime]) -> list[Headway]:
+    by_train: dict[str, list[BlockingTime]] = {}
+    for b in planned:
+        by_train.setdefault(b.train, []).append(b)
+    out = []
+    for direction in ("up", "down"):
+        trains = sorted(
+            (st for st in states if st.svc.direction == direction),
+            key=lambda st: (st.svc.departure_s, st.index),
+        )
+        for a, b in pairwise(trains):
+            h = minimum_headway(
+                a.svc.id,
+                by_train.get(a.svc.id, []),
+                a.svc.departure_s,
+                b.svc.id,
+                by_train.get(b.svc.id, []),
+                b.svc.departure_s,
+            )
+            if h is not None:
+                out.append(h)
+    return out
+
+
+def _check_invariants(outcomes: list[TrainOutcome], blocking: list[BlockingTime]) -> None:
+    """Every operated trajectory is finite with v >= 0 and non-decreasing time and position, and no
+    resource is claimed by two trains at once (the dispatcher's promise). A failure is a bug."""
+    for o in outcomes:
+        tr = o.trajectory
+        if tr is None:
+            continue
+        arrays = (tr.time_s, tr.position_m, tr.speed_mps)
+        if not all(np.all(np.isfinite(a)) for a in arrays):
+            raise RuntimeError(f"train {o.id}: non-finite values in the operated trajectory")
+        if (
+            np.any(tr.speed_mps < -1e-9)
+            or np.any(np.diff(tr.time_s) < -1e-9)
+            or np.any(np.diff(tr.position_m) < -1e-9)
+        ):
+            raise RuntimeError(f"train {o.id}: negative speed or time or position going back")
+    by_res: dict[str, list[BlockingTime]] = {}
+    for b in blocking:
+        by_res.setdefault(b.resource, []).append(b)
+    for res, items in by_res.items():
+        items.sort(key=lambda b: b.start_s)
+        last_end, last_train = -np.inf, None
+        for b in items:
+            if b.train != last_train and b.start_s < last_end - INVARIANT_TOLERANCE_S:
+                raise RuntimeError(
+                    f"resource {res}: trains {last_train} and {b.train} overlap by {last_end - b.start_s:.3f} s in operation"
+                )
+            if b.end_s > last_end:
+                last_end, last_train = b.end_s, b.train

@@ -1,0 +1,143 @@
+"""Many trains together: hindrance at the minimum headway, delays, single-track meets, deadlocks."""
+
+from __future__ import annotations
+
+from itertools import pairwise
+
+import numpy as np
+import pytest
+
+import trainsim
+from trainsim import Route, RunSettings, SpeedLimit
+from trainsim.errors import InputError
+from trainsim.operations.line import Signalling, StationLayout, build_line
+from trainsim.operations.simulate import ScheduledStop, TrainService, simulate
+
+SETTINGS = RunSettings(max_step_m=20)
+
+
+@pytest.fixture(scope="module")
+def train() -> trainsim.Train:
+    return trainsim.load_train("examples/metro_b/train.yaml")
+
+
+def _double(length_m: float = 6000.0, **sig) -> tuple:
+    geometry = Route("geo", 0, length_m, (), (SpeedLimit(0, length_m, 80 / 3.6),))
+    stations = (StationLayout("A", 500), StationLayout("B", 3000), StationLayout("C", length_m - 500))
+    return build_line(
+        "metro", length_m, "double_track", stations, Signalling(**sig), block_length_m=600
+    ), geometry
+
+
+def _pair(train, line, geometry, headway_s: float):
+    svcs = [
+        TrainService("lead", train, "up", "A", "C", 0.0, (ScheduledStop("B", 30),)),
+        TrainService("follow", train, "up", "A", "C", headway_s, (ScheduledStop("B", 30),)),
+    ]
+    return simulate(line, geometry, svcs, SETTINGS)
+
+
+def test_follower_at_minimum_headway_is_never_braked_and_one_second_closer_is(train) -> None:
+    line, geometry = _double()
+    probe = _pair(train, line, geometry, 600.0)
+    assert probe.status == "ok"
+    (h,) = probe.headways
+    assert h.buffer_s > 0
+    at = _pair(train, line, geometry, h.min_headway_s)
+    follower = at.trains[1]
+    assert at.status == "ok" and not at.conflicts
+    assert follower.hindrances == [] and follower.delay_s == pytest.approx(0.0, abs=1e-9)
+    assert follower.energy_kwh == pytest.approx(follower.planned_energy_kwh)
+    closer = _pair(train, line, geometry, h.min_headway_s - 1.0)
+    follower = closer.trains[1]
+    assert closer.status == "conflicts" and closer.conflicts[0].overlap_s == pytest.approx(1.0, abs=1e-6)
+    assert closer.conflicts[0].resource == h.critical_resource
+    assert follower.hindrances and follower.hindrances[0].kind == "signal"
+    assert follower.delay_s > 0
+    # it braked to a stand and started again: more energy than planned
+    assert follower.energy_kwh > follower.planned_energy_kwh
+    assert np.min(follower.trajectory.speed_mps[1:-1]) == 0.0
+
+
+def test_delays_propagate_to_the_following_trains(train) -> None:
+    line, geometry = _double()
+    svcs = [
+        TrainService(
+            f"T{k}",
+            train,
+            "up",
+            "A",
+            "C",
+            180.0 * k,
+            (ScheduledStop("B", 30),),
+            entry_delay_s=150.0 if k == 0 else 0.0,
+        )
+        for k in range(4)
+    ]
+    res = simulate(line, geometry, svcs, SETTINGS)
+    delays = [t.delay_s for t in res.trains]
+    assert delays[0] == pytest.approx(150.0, abs=1e-6)
+    assert delays[1] > 0 and delays[2] >= 0
+    assert delays[1] < 150.0  # the buffer absorbs part of it
+    # no resource is ever held by two trains at once (checked inside simulate as well)
+    assert res.runs_computed < len(svcs) + 4
+
+
+def _single(train, n_tracks: int = 2):
+    length = 12_000.0
+    geometry = Route("geo", 0, length, (), (SpeedLimit(0, length, 80 / 3.6),))
+    stations = (
+        StationLayout("A", 600, tracks=n_tracks),
+        StationLayout("B", 6000, tracks=n_tracks),
+        StationLayout("C", 11_400, tracks=n_tracks),
+    )
+    return build_line("single", length, "single_track", stations, Signalling()), geometry
+
+
+@pytest.mark.parametrize("rule", ["fcfs", "priority"])
+def test_single_track_meets_at_the_passing_loop(train, rule) -> None:
+    line, geometry = _single(train)
+    svcs = [
+        TrainService("up1", train, "up", "A", "C", 0.0, (ScheduledStop("B", 20),), priority=1),
+        TrainService("down1", train, "down", "C", "A", 30.0, (ScheduledStop("B", 20),), priority=2),
+    ]
+    res = simulate(line, geometry, svcs, SETTINGS, rule=rule)
+    assert res.status in ("ok", "conflicts") and not res.deadlock
+    tracks = {t.id: next(s.track for s in t.stops if s.station == "B") for t in res.trains}
+    assert tracks["up1"] != tracks["down1"]  # they meet at B on different tracks
+    # single-track sections are never used by both at once
+    for section in ("A-B", "B-C"):
+        spans = sorted((b.start_s, b.end_s) for b in res.blocking if b.resource == section)
+        assert all(e0 <= s1 + 1e-3 for (_s0, e0), (s1, _e1) in pairwise(spans))
+    # the later train waits at B for the other one to clear the section ahead
+    assert sum(len(t.hindrances) for t in res.trains) >= 1
+
+
+def test_single_track_without_loops_deadlock_is_reported(train) -> None:
+    line, geometry = _single(train, n_tracks=1)
+    svcs = [
+        TrainService("up1", train, "up", "A", "C", 0.0),
+        TrainService("up2", train, "up", "B", "C", 0.0),
+        TrainService("down1", train, "down", "C", "A", 0.0),
+    ]
+    res = simulate(line, geometry, svcs, SETTINGS)
+    assert res.status == "deadlock"
+    assert any("waits for route" in d for d in res.deadlock)
+    assert any(t.status == "deadlocked" for t in res.trains)
+
+
+def test_bad_timetables_are_input_errors(train) -> None:
+    line, geometry = _double()
+    with pytest.raises(InputError) as e:
+        simulate(
+            line,
+            geometry,
+            [
+                TrainService("x", train, "up", "C", "A", 0.0),
+                TrainService("x", train, "up", "A", "Z", 0.0),
+                TrainService("y", train, "up", "A", "C", 0.0, (ScheduledStop("B", 10, track=3),)),
+            ],
+        )
+    text = str(e.value)
+    assert "not connected" in text and "unique" in text and "unknown station" in text
+    assert any(p.field == "trains[2].stops[0].track" for p in e.value.problems)
