@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import numbers
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -68,7 +69,7 @@ SPEED_HEADROOM_MPS = 5.0
 #: at most a few hundred m/s reach the float64 resolution.
 BISECTION_STEPS = 64
 #: Speeds in the table that brackets a limit's inversion, and regula falsi steps refining the bracket.
-TABLE_POINTS = 257
+TABLE_POINTS = 129
 REGULA_FALSI_STEPS = 8
 #: A limit's speed is accepted when its location is within this distance of the position asked [m].
 ROOT_TOLERANCE_M = 1e-9
@@ -151,13 +152,13 @@ class StepFunction:
 def _as_step(value: StepFunction | float | int, name: str) -> StepFunction:
     if isinstance(value, StepFunction):
         return value
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
         raise _bad(f"{name} must be a StepFunction or a number", name, value, "a StepFunction or a number")
     return StepFunction.constant(float(value))
 
 
 def _check_range(name: str, value: float, lo: float, hi: float, allowed: str | None = None) -> None:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not (lo <= value <= hi):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (lo <= value <= hi):
         raise _bad(f"{name} out of range", name, value, allowed or f"{lo} to {hi}")
 
 
@@ -267,7 +268,11 @@ class EtcsTrainData:
             if getattr(self, name) is not None:
                 _check_range(name, getattr(self, name), 0.0, 300.0, "0 to 300 s or None")
         _check_range("length_m", self.length_m, 0.0, 5000.0, "0 to 5000 m")
-        if isinstance(self.max_speed_mps, bool) or not (0 < self.max_speed_mps <= 200):
+        if (
+            isinstance(self.max_speed_mps, bool)
+            or not isinstance(self.max_speed_mps, numbers.Real)
+            or not (0 < self.max_speed_mps <= 200)
+        ):
             raise _bad("max_speed_mps out of range", "max_speed_mps", self.max_speed_mps, "0 < v <= 200 m/s")
         if self.m_rotating_nom_percent is not None:
             _check_range("m_rotating_nom_percent", self.m_rotating_nom_percent, 0.0, 100.0, "0 to 100 %")
@@ -920,6 +925,7 @@ class _Target:
         lo, hi = speeds[i - 1], speeds[i]
         f_lo, f_hi = locations[i - 1] - x, locations[i] - x  # >= 0 and < 0
         v = hi.copy()
+        done = np.zeros(x.shape, dtype=bool)
         last = np.zeros(x.shape, dtype=int)  # which end moved last: -1 lo, +1 hi, 0 none
         for _ in range(REGULA_FALSI_STEPS):
             denom = f_hi - f_lo
@@ -935,7 +941,9 @@ class _Target:
             f_hi = np.where(right, f, f_hi)
             hi = np.where(right, v, hi)
             last = np.where(right, 1, -1)
-        done = np.abs(self.d_limit(kind, v) - x) <= ROOT_TOLERANCE_M
+            done = np.abs(f) <= ROOT_TOLERANCE_M
+            if np.all(done):
+                break
         if not np.all(done):
             b_lo, b_hi = lo[~done], hi[~done]
             xb = x[~done]
@@ -1202,13 +1210,13 @@ def supervision_curves(
             the downhill gradient).
     """
     for name, value in (("eoa_position_m", eoa_position_m), ("target_speed_mps", target_speed_mps)):
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
             raise _bad(f"{name} must be a finite number", name, value, "a finite number")
     if target_speed_mps < 0:
         raise _bad("target speed must not be negative", "target_speed_mps", target_speed_mps, ">= 0 m/s")
     if svl_position_m is None:
         svl_position_m = eoa_position_m
-    if isinstance(svl_position_m, bool) or not isinstance(svl_position_m, int | float):
+    if isinstance(svl_position_m, bool) or not isinstance(svl_position_m, numbers.Real):
         raise _bad("svl_position_m must be a number", "svl_position_m", svl_position_m, "a number >= the EoA")
     if not (math.isfinite(svl_position_m) and svl_position_m >= eoa_position_m):
         raise _bad(
@@ -1518,7 +1526,7 @@ def moving_block_ceiling(
         ("rear_of_train_ahead_m", rear_of_train_ahead_m),
         ("safety_margin_m", safety_margin_m),
     ):
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
             raise _bad(f"{name} must be a finite number", name, value, "a finite number")
     if safety_margin_m < 0:
         raise _bad("the safety margin must not be negative", "safety_margin_m", safety_margin_m, ">= 0 m")
