@@ -129,3 +129,28 @@ def test_bad_signalling_and_layout_are_input_errors() -> None:
             "x", 9000, "double_track", (StationLayout("A", 500), StationLayout("B", 8000)), Signalling(),
             block_signals_m={"up": [3000.0, 8500.0]},
         )  # fmt: skip
+
+
+def test_etcs_l2_headway_uses_the_indication_distance() -> None:
+    from trainsim.model import Braking, EffortCurve, Train
+    from trainsim.operations.etcs import EtcsNationalValues, supervision_curves
+    from trainsim.operations.separation import EtcsBraking, etcs_approach_distance
+
+    train = Train("t", 400e3, 1.06, L, 44.0, EffortCurve.constant(200e3), Braking(deceleration_mps2=0.7), ())
+    etcs = EtcsBraking(1.0, 0.8, 2.0, 3.0, 1.0)
+    sig = Signalling(system="etcs_l2", overlap_m=50.0, setup_s=3.0, reaction_s=4.0, release_s=2.0)
+    line = _line(sig)
+    approach = etcs_approach_distance(train, etcs, sig.overlap_m)
+    direct = supervision_curves(etcs.train_data(train), EtcsNationalValues(), None, 0.0, svl_position_m=50.0)
+    assert approach(V) == pytest.approx(-float(direct.indication_point_m(V)), rel=2e-3)
+    h, path = _headway(line, sig, approach, plain_line_only=True)
+    block = np.diff(path.signal_positions())[3]
+    expected = (approach(V) + block + 50.0 + L) / V + 3.0 + 4.0 + 2.0
+    assert h.min_headway_s == pytest.approx(expected, abs=1e-6)
+    # side by side at the same block length: fixed 3-aspect > ETCS L2 (here) > moving block
+    fixed = Signalling(overlap_m=50.0, setup_s=3.0, reaction_s=4.0, release_s=2.0)
+    h_fixed, _ = _headway(_line(fixed), fixed, plain_line_only=True)
+    moving = Signalling(system="moving_block", overlap_m=0.0, setup_s=3.0, reaction_s=4.0, release_s=2.0)
+    brake = braking_distance_table(lambda v: np.full_like(v, 0.7), 44.0)
+    h_moving, _ = _headway(_line(moving), moving, brake, plain_line_only=True)
+    assert h_fixed.min_headway_s > h.min_headway_s > h_moving.min_headway_s

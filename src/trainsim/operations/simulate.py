@@ -53,6 +53,7 @@ from trainsim.operations.blocking import (
 )
 from trainsim.operations.line import Direction, Line, Route, RouteStep
 from trainsim.operations.runs import Movement, RunCache, auxiliary_power_w, direction_route
+from trainsim.operations.separation import EtcsBraking, etcs_approach_distance
 
 Rule = Literal["fcfs", "priority"]
 #: Times closer than this are the same instant (a follower at exactly the minimum headway) [s].
@@ -589,7 +590,12 @@ def service_braking_deceleration(
     return lambda v: np.asarray(curve(np.asarray(v, dtype=float)), dtype=float) * braking_fraction / m
 
 
-def _approach_function(line: Line, train: Train, settings: RunSettings) -> Callable[[float], float] | None:
+def approach_function(
+    line: Line, train: Train, settings: RunSettings, etcs: EtcsBraking | None = None
+) -> Callable[[float], float] | None:
+    """The approach distance over speed [m] of ``train`` under the line's separation: None for fixed
+    block (the signals fix it), the service braking distance for moving block, the indication distance
+    for ETCS Level 2."""
     sig = line.signalling
     brake = braking_distance_table(
         service_braking_deceleration(train, settings.braking_fraction), train.max_speed_mps
@@ -598,9 +604,7 @@ def _approach_function(line: Line, train: Train, settings: RunSettings) -> Calla
         return None
     if sig.system == "moving_block":
         return brake
-    from trainsim.operations.separation import etcs_approach_distance
-
-    return etcs_approach_distance(train, brake)
+    return etcs_approach_distance(train, etcs, sig.overlap_m)
 
 
 def _check_services(line: Line, services: Sequence[TrainService]) -> None:
@@ -714,6 +718,7 @@ def simulate(
     rule: Rule = "fcfs",
     conflicts: bool = True,
     headways: bool = True,
+    etcs: EtcsBraking | None = None,
 ) -> OperationResult:
     """Simulate ``services`` on ``line`` together in time, and compare with their planned runs.
 
@@ -726,6 +731,7 @@ def simulate(
         rule: dispatching rule, ``fcfs`` or ``priority``.
         conflicts: list the conflicts of the planned timetable.
         headways: compute the minimum headway of consecutive trains of each direction.
+        etcs: the trains' ETCS braking data (needed for ``etcs_l2``).
     """
     settings = settings or RunSettings()
     if rule not in ("fcfs", "priority"):
@@ -746,7 +752,7 @@ def simulate(
     states = []
     for i, svc in enumerate(services):
         st = _TrainState(i, svc, line, directed[svc.direction], cache)
-        approach[i] = _approach_function(line, svc.train, settings)
+        approach[i] = approach_function(line, svc.train, settings, etcs)
         st._brake = braking_distance_table(
             service_braking_deceleration(svc.train, settings.braking_fraction), svc.train.max_speed_mps
         )
