@@ -423,3 +423,56 @@ def test_docs_example_runs_and_prints_what_the_docs_show(capsys):
     shown = blocks[blocks.index(next(b for b in blocks if b.startswith("python\n"))) + 2].strip("\n")
     exec(compile(code, "docs/ETCS.md", "exec"), {})
     assert capsys.readouterr().out.strip("\n") == shown
+
+
+def _fine_step_curve(a_of_v_s, s_target, v_target, s_query, ds=0.05):
+    """Independent reference: march v^2 backwards from the target in steps of ds, the deceleration
+    taken in the middle of each step (first order at the discontinuities)."""
+    out = {}
+    s, v2 = s_target, v_target**2
+    for q in sorted(s_query, reverse=True):
+        while s - ds > q:
+            v2 += 2 * a_of_v_s(math.sqrt(v2), s - ds / 2) * ds
+            s -= ds
+        out[q] = math.sqrt(v2 + 2 * a_of_v_s(math.sqrt(v2), (s + q) / 2) * (s - q))
+    return np.array([out[q] for q in s_query])
+
+
+def test_ebd_and_guidance_against_a_fine_step_reference():
+    sections = [(0.0, 0.0), (1500.0, -12.0), (2300.0, 6.0), (2600.0, -3.0), (3500.0, 0.0)]
+    length = 350.0
+    t = train(
+        a_brake_emergency=StepFunction.from_kmh([60, 120], [1.2, 1.0, 0.85]),
+        kdry_rst=StepFunction.from_kmh([60, 120], [0.9, 0.85, 0.8]),
+        kwet_rst=0.9,
+        a_brake_normal_service=0.6,
+        kn_minus=StepFunction.from_kmh([80], [1.0, 2.0]),
+        length_m=length,
+    )
+    nv = EtcsNationalValues(m_nvavadh=0.3)
+    c = supervision_curves(t, nv, ([p for p, _ in sections], [g for _, g in sections]), 4000.0)
+
+    def grad_under_train(s):  # lowest gradient between the rear and the front, by brute force
+        starts = [p for p, _ in sections] + [math.inf]
+        found = [0.0] if s - length < starts[0] else []
+        for (p, g), nxt in zip(sections, starts[1:], strict=True):
+            if p <= s and nxt > s - length:
+                found.append(g)
+        return min(found)
+
+    def a_grad(g):
+        return G * g / (1000 + 10 * (15 if g > 0 else 2))
+
+    def a_safe(v, s):
+        k = 0 if v <= 60 * KMH else (1 if v <= 120 * KMH else 2)
+        a_e, kdry = (1.2, 1.0, 0.85)[k], (0.9, 0.85, 0.8)[k]
+        return kdry * (0.9 + 0.3 * 0.1) * a_e + a_grad(grad_under_train(s))
+
+    def a_normal(v, s):
+        g = grad_under_train(s)
+        kn = 0.0 if g >= 0 else (1.0 if v <= 80 * KMH else 2.0)
+        return 0.6 + a_grad(g) - kn * g / 1000
+
+    s = np.array([1200.0, 1900.0, 2450.0, 2800.0, 3300.0, 3900.0])
+    assert np.allclose(c.ebd(s), _fine_step_curve(a_safe, 4000.0, 0.0, s), rtol=2e-5, atol=0)
+    assert np.allclose(c.guidance(s), _fine_step_curve(a_normal, 4000.0, 0.0, s), rtol=2e-5, atol=0)
