@@ -6,9 +6,10 @@ the normal service deceleration) and, from them, the supervision limits valid fo
 emergency brake intervention (EBI), service brake intervention (SBI1 from the SBD, SBI2 from the EBI),
 warning (W), permitted speed (P) and indication (I) limits. This module computes them as functions of
 the train's front-end position, from the train's braking model, the gradient profile and the national
-and fixed values, with one function per equation citing its clause of SUBSET-026-3 (numbering of the
-3.13 text of baseline 3 release 3.6.0; the same clause numbers are used in 4.0.0, where baseline 4
-also splits the build-up times into reaction and build-up parts, which is not done here).
+and fixed values, with one function per equation citing its clause of SUBSET-026-3. The clause numbers
+are those of the 3.13 text consulted (a baseline 4 issue, whose 3.13 keeps baseline 3's structure); the
+formulas are baseline 3's: baseline 4's split of the build-up times into reaction and build-up parts
+and their reduction per target (A.3.12) are not used.
 
 Everything is SI: positions [m], speeds [m/s], decelerations [m/s^2], times [s]; gradients are in
 per mille, positive uphill (3.13.4.3.2). Decelerations are positive numbers.
@@ -1009,7 +1010,7 @@ class SupervisionCurves:
 
     def guidance(self, s: ArrayLike) -> NDArray[np.float64] | float:
         """Guidance curve GUI [m/s] (3.13.8.5): the lowest over the targets."""
-        return self._curve_min(s, lambda t: t.gui is not None, lambda t, x: t.curve_speed(t.gui, x))  # type: ignore[union-attr]
+        return self._curve_min(s, lambda t: t.gui is not None, lambda t, x: t.curve_speed(t.gui, x))
 
     # --- supervision limits ---
     def ebi(self, s: ArrayLike) -> NDArray[np.float64] | float:
@@ -1263,45 +1264,45 @@ def supervision_curves(
     if train.conversion_model_used:
         if train.brake_position == "passenger_p":
             kv_a, kv_b = n.kv_int_passenger_a, n.kv_int_passenger_b
-            limits = _limits_of(kv_a, kv_b)  # type: ignore[arg-type]
+            limits = _limits_of(kv_a, kv_b)
             kv_values = kv_int_passenger(
-                _a_ebmax_mps2(train.a_brake_emergency, v_max),  # type: ignore[arg-type]
-                kv_a(_representative_speeds(limits)),  # type: ignore[operator]
-                kv_b(_representative_speeds(limits)),  # type: ignore[operator]
+                _a_ebmax_mps2(train.a_brake_emergency, v_max),
+                kv_a(_representative_speeds(limits)),
+                kv_b(_representative_speeds(limits)),
                 n.a_nvp12_mps2,
                 n.a_nvp23_mps2,
             )
             kv_fn = StepFunction(tuple(np.atleast_1d(kv_values)), tuple(limits))
         else:
-            kv_fn = n.kv_int_freight  # type: ignore[assignment]
-        kr = float(n.kr_int(train.length_m))  # type: ignore[operator]
+            kv_fn = n.kv_int_freight
+        kr = float(n.kr_int(train.length_m))
         ebr_limits, a_brake_safe = _speed_table(
-            [train.a_brake_emergency, kv_fn],  # type: ignore[list-item]
+            [train.a_brake_emergency, kv_fn],
             lambda a, k: a_brake_safe_conversion_mps2(a, k, kr),
         )
     else:
         ebr_limits, a_brake_safe = _speed_table(
-            [train.a_brake_emergency, train.kdry_for(n.m_nvebcl), train.kwet_rst],  # type: ignore[list-item]
+            [train.a_brake_emergency, train.kdry_for(n.m_nvebcl), train.kwet_rst],
             lambda a, kd, kw: a_brake_safe_gamma_mps2(a, kd, kw, n.m_nvavadh),
         )
     safe_table = a_brake_safe[:, None] + a_grad[None, :]  # A_safe = A_brake_safe + A_gradient (3.13.6.2.1.3)
-    sb_limits, a_service = _speed_table([train.a_brake_service], lambda a: a)  # type: ignore[list-item]
+    sb_limits, a_service = _speed_table([train.a_brake_service], lambda a: a)
     expected_table = a_service[:, None] + a_grad[None, :]  # A_expected (3.13.6.3.1.3)
     ns_limits = np.unique(
         np.concatenate(
             [
                 np.asarray(f.upper_limits, float)
-                for f in (train.a_brake_normal_service, train.kn_plus, train.kn_minus)  # type: ignore[union-attr]
+                for f in (train.a_brake_normal_service, train.kn_plus, train.kn_minus)
             ]
         )
     )
     reps = _representative_speeds(ns_limits)
     normal_table = a_normal_service_mps2(
-        np.atleast_1d(train.a_brake_normal_service(reps))[:, None],  # type: ignore[misc]
+        np.atleast_1d(train.a_brake_normal_service(reps))[:, None],
         a_grad[None, :],
         grad[None, :],
-        np.atleast_1d(train.kn_plus(reps))[:, None],  # type: ignore[operator]
-        np.atleast_1d(train.kn_minus(reps))[:, None],  # type: ignore[operator]
+        np.atleast_1d(train.kn_plus(reps))[:, None],
+        np.atleast_1d(train.kn_minus(reps))[:, None],
     )
 
     # times (3.13.6.2.2.3, 3.13.6.3.2.4, 3.13.9.3.2.3, 3.13.9.3.2.6, 3.13.9.3.3, 3.13.9.3.6)
@@ -1363,7 +1364,7 @@ def supervision_curves(
             continue
         times = times_for(after)
         curve = ebd_curve(float(location), after + float(_dv("ebi", after, n)), after)
-        target = _Target("mrsp", float(location), after, curve, times, **common)  # type: ignore[arg-type]
+        target = _Target("mrsp", float(location), after, curve, times, **common)
         v0t = float(v_delta0(after))
         d_ebi_t = float(curve.position_m(after + v0t)) - (after + v0t) * (times.t_berem + times.t_traction)
         foot = min(d_ebi_t - after * (n.t_driver_s + times.t_bs2), float(location))
@@ -1377,12 +1378,12 @@ def supervision_curves(
     if target_speed_mps == 0:
         svl_target = _Target(
             "svl", svl_position_m, 0.0, ebd_curve(svl_position_m, 0.0, 0.0), times0, **common
-        )  # type: ignore[arg-type]
+        )
         svl_target.gui = gui_curve(svl_position_m, 0.0)
         sbd = BrakingCurve.build(
             sb_limits, pos_breaks, expected_table, eoa_position_m, 0.0, v_high, 0.0, "SBD"
         )
-        eoa_target = _Target("eoa", eoa_position_m, 0.0, sbd, times0, **common)  # type: ignore[arg-type]
+        eoa_target = _Target("eoa", eoa_position_m, 0.0, sbd, times0, **common)
         eoa_target.gui = gui_curve(eoa_position_m, 0.0)
         targets += [svl_target, eoa_target]
         trip = eoa_position_m + eoa_trip_margin_m
