@@ -1,0 +1,443 @@
+"""One time step of the power network: assembly on sparse matrices and the nonlinear solution.
+
+Nodal analysis: node potentials V [V] (earth = 0) satisfy Kirchhoff's current law
+
+    G V + I_trains(V) = J_substations,
+
+where G is the conductance (AC: admittance) matrix of the contact lines, rails, rail-to-earth
+leakage and the substations' internal impedances, J the substations' Norton currents E / Z_i and
+I_trains the trains' currents, constant-power loads and sources that depend on the pantograph
+voltage u = V_contact - V_rail (EN 50388 traction limitation, regenerative curtailment):
+
+    I_k = P_k(u) / u,   P_k(u) = P_traction a(u) + P_aux - P_regen r(u).
+
+DC: Newton's method on this system (Jacobian G + dI/du stamps) with the step limited to 0.3 Un,
+and an active-set iteration for the diode rectifiers: a non-reversible substation whose current
+would be negative is switched off (open), an off one whose busbar voltage falls below its no-load
+voltage is switched on again, until no state changes (complementarity: I_s >= 0, E - U_s >= 0 when
+off). AC: fixed-point iteration on the complex currents I_k = conj(S_k / u_k) with one LU
+factorisation per step (simplified impedance model). Convergence is checked on every step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from trainsim.power.limits import (
+    regen_acceptance,
+    regen_acceptance_slope,
+    traction_availability,
+    traction_availability_slope,
+)
+from trainsim.power.network import Network
+
+#: Newton / fixed point stop when no node potential moves by more than this share of Un
+#: (7.5e-7 V at 750 V): far below any meaningful voltage, and the analytic tests need 1e-9.
+VOLTAGE_TOLERANCE_SHARE = 1e-10
+#: Largest Newton step, as a share of Un: keeps the first iterations of heavily loaded steps from
+#: jumping to the non-physical low-voltage branch of a constant-power load.
+MAX_STEP_SHARE = 0.3
+MAX_NEWTON_ITERATIONS = 60
+MAX_FIXED_POINT_ITERATIONS = 200
+#: Positions are rounded to this [m] before nodes are built: two trains (or a train and a
+#: substation) closer than 0.1 m share a node. Segments shorter than that would have conductances
+#: above 1e5 S and make the nodal matrix too ill-conditioned for the tolerances below; 5 cm of
+#: contact line is a few micro-ohms.
+POSITION_RESOLUTION_M = 0.1
+#: Kirchhoff residual accepted as converged, as a share of the substations' total short-circuit
+#: current sum(E / R_i) (about 1e-5 A on a metro line): round-off of G V is well below it.
+CURRENT_TOLERANCE_SHARE = 1e-10
+
+
+@dataclass
+class StepLoads:
+    """What the trains on the wire ask for at one instant (one entry per train on the wire).
+
+    Attributes:
+        track: track index of each train.
+        position_m: chainage [m].
+        traction_w: traction power demanded at the pantograph before voltage limitation [W] (>= 0).
+        regen_w: regenerated power offered to the line before curtailment [W] (>= 0).
+        auxiliary_w: auxiliaries [W] (>= 0), drawn whatever the voltage.
+        tan_phi: reactive / active power of each train (AC; 0 for DC) [-].
+    """
+
+    track: np.ndarray
+    position_m: np.ndarray
+    traction_w: np.ndarray
+    regen_w: np.ndarray
+    auxiliary_w: np.ndarray
+    tan_phi: np.ndarray
+
+
+@dataclass
+class StepSolution:
+    """Solution of one time step.
+
+    Attributes:
+        converged: whether the iteration met its tolerance (and the rectifier states settled).
+        iterations: Newton / fixed-point iterations summed over the rectifier active-set passes.
+        train_voltage_v: pantograph voltage magnitude of each train [V].
+        train_power_w: active power at the pantograph (traction + aux - accepted regen) [W].
+        train_current_a: current magnitude drawn (negative when feeding back) [A].
+        traction_share: a(u) of each train [-]; regen_share: r(u) [-].
+        substation_power_w: active power at each substation's busbar (negative: taken back) [W].
+        substation_source_w: active power of each source E (busbar power + internal losses) [W].
+        substation_current_a: current of each substation (signed, DC; magnitude x sign(P) AC) [A].
+        substation_on: rectifier state.
+        line_loss_w: losses in contact lines, rails and leakages [W].
+        substation_loss_w: losses in the substations' internal resistances [W].
+        rail_potential_v: rail-to-earth potentials of the rail nodes (DC), or empty.
+    """
+
+    converged: bool
+    iterations: int
+    train_voltage_v: np.ndarray
+    train_power_w: np.ndarray
+    train_current_a: np.ndarray
+    traction_share: np.ndarray
+    regen_share: np.ndarray
+    substation_power_w: np.ndarray
+    substation_source_w: np.ndarray
+    substation_current_a: np.ndarray
+    substation_on: np.ndarray
+    line_loss_w: float
+    substation_loss_w: float
+    rail_potential_v: np.ndarray
+
+
+@dataclass
+class _Assembly:
+    n: int  # nodes (earth excluded)
+    a: np.ndarray  # branch ends (node ids, -1 earth)
+    b: np.ndarray
+    y: np.ndarray  # branch admittances [S]
+    train_c: np.ndarray  # train contact / rail nodes
+    train_r: np.ndarray
+    rail_nodes: np.ndarray
+
+
+def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assembly:
+    """Nodes and branches for trains at the given tracks and positions (all on the wire)."""
+    topo = net.topology
+    ac = net.system == "ac"
+    next_id = topo.n_fixed
+    a_parts, b_parts, y_parts = [], [], []
+    train_c = np.empty(len(track), dtype=np.int64)
+    train_r = np.empty(len(track), dtype=np.int64)
+    rail_nodes = []
+    for ti, t in enumerate(net.tracks):
+        sel = np.flatnonzero(track == ti)
+        fp = topo.fixed_positions[ti]
+        xt = np.round(position_m[sel] / POSITION_RESOLUTION_M) * POSITION_RESOLUTION_M
+        nf = len(fp)
+        uniq, inv = np.unique(np.concatenate([fp, xt]), return_inverse=True)
+        cu = np.empty(len(uniq), dtype=np.int64)
+        ru = np.empty(len(uniq), dtype=np.int64)
+        is_new = np.ones(len(uniq), dtype=bool)
+        is_new[inv[:nf]] = False
+        cu[inv[:nf]] = topo.contact_ids[ti]
+        ru[inv[:nf]] = topo.rail_ids[ti]
+        k = int(is_new.sum())
+        cu[is_new] = next_id + np.arange(k)
+        next_id += k
+        if ac:
+            ru[is_new] = -1
+        else:
+            ru[is_new] = next_id + np.arange(k)
+            next_id += k
+            rail_nodes.append(ru)
+        train_c[sel] = cu[inv[nf:]]
+        train_r[sel] = ru[inv[nf:]]
+        dx = np.diff(uniq)
+        keep = ~topo.segment_cut(ti, uniq[:-1], uniq[1:])
+        z = (
+            complex(t.contact_resistance_ohm_per_m, t.contact_reactance_ohm_per_m)
+            if ac
+            else t.contact_resistance_ohm_per_m
+        )
+        a_parts.append(cu[:-1][keep])
+        b_parts.append(cu[1:][keep])
+        y_parts.append(1.0 / (z * dx[keep]))
+        # leakage contact -> return at every node (keeps isolated sections solvable; losses counted)
+        a_parts.append(cu)
+        b_parts.append(ru)
+        y_parts.append(np.full(len(uniq), net.contact_leakage_s))
+        if not ac:
+            a_parts.append(ru[:-1])
+            b_parts.append(ru[1:])
+            y_parts.append(1.0 / (t.rail_resistance_ohm_per_m * dx))
+            g = t.rail_to_earth_conductance_s_per_m
+            if g > 0:
+                half = np.zeros(len(uniq))
+                half[:-1] += dx / 2
+                half[1:] += dx / 2
+                a_parts.append(ru)
+                b_parts.append(np.full(len(uniq), -1, dtype=np.int64))
+                y_parts.append(g * half)
+    a = np.concatenate(a_parts)
+    b = np.concatenate(b_parts)
+    y = np.concatenate(y_parts)
+    # earthed nodes are the reference
+    if topo.earthed:
+        earthed = np.fromiter(topo.earthed, dtype=np.int64)
+        a = np.where(np.isin(a, earthed), -1, a)
+        b = np.where(np.isin(b, earthed), -1, b)
+        train_r = np.where(np.isin(train_r, earthed), -1, train_r)
+    # renumber so that the unknowns are 0..n-1 (earthed fixed nodes dropped)
+    used = np.ones(next_id, dtype=bool)
+    if topo.earthed:
+        used[list(topo.earthed)] = False
+    new_index = np.full(next_id + 1, -1, dtype=np.int64)  # last slot maps -1 -> -1
+    new_index[:next_id][used] = np.arange(int(used.sum()))
+    rail = np.concatenate(rail_nodes) if rail_nodes else np.empty(0, dtype=np.int64)
+    return _Assembly(
+        n=int(used.sum()),
+        a=new_index[a],
+        b=new_index[b],
+        y=y,
+        train_c=new_index[train_c],
+        train_r=new_index[train_r],
+        rail_nodes=np.unique(new_index[rail][new_index[rail] >= 0]),
+    )
+
+
+def _stamp(a: np.ndarray, b: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """COO entries of two-terminal admittances y between nodes a and b (-1 = earth)."""
+    ma, mb = a >= 0, b >= 0
+    both = ma & mb
+    rows = np.concatenate([a[ma], b[mb], a[both], b[both]])
+    cols = np.concatenate([a[ma], b[mb], b[both], a[both]])
+    vals = np.concatenate([y[ma], y[mb], -y[both], -y[both]])
+    return rows, cols, vals
+
+
+def _potential(v: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    out = np.zeros(len(nodes), dtype=v.dtype)
+    ok = nodes >= 0
+    out[ok] = v[nodes[ok]]
+    return out
+
+
+def _injection(n: int, nodes: np.ndarray, values: np.ndarray, dtype) -> np.ndarray:
+    out = np.zeros(n, dtype=dtype)
+    ok = nodes >= 0
+    np.add.at(out, nodes[ok], values[ok])
+    return out
+
+
+def solve_step(net: Network, loads: StepLoads, substation_on: np.ndarray) -> StepSolution:
+    """Solve one instant: node potentials, trains' accepted powers, substation powers.
+
+    ``substation_on`` is the rectifier state to start from (e.g. the previous step's); it is not
+    modified.
+    """
+    asm = assemble(net, loads.track, loads.position_m)
+    topo = net.topology
+    lim = net.limits
+    ac = net.system == "ac"
+    subs = net.substations
+    sub_p = np.array([topo.substation_nodes[i][0] for i in range(len(subs))], dtype=np.int64)
+    sub_n = np.array([topo.substation_nodes[i][1] for i in range(len(subs))], dtype=np.int64)
+    if topo.earthed:
+        earthed = np.fromiter(topo.earthed, dtype=np.int64)
+        sub_n = np.where(np.isin(sub_n, earthed), -1, sub_n)
+    # fixed node ids keep their order below n_fixed except for dropped earthed ones: remap
+    remap = np.full(topo.n_fixed + 1, -1, dtype=np.int64)
+    used = np.ones(topo.n_fixed, dtype=bool)
+    if topo.earthed:
+        used[list(topo.earthed)] = False
+    remap[:-1][used] = np.arange(int(used.sum()))
+    sub_p, sub_n = remap[sub_p], remap[sub_n]
+    e = np.array([s.no_load_voltage_v for s in subs])
+    z = np.array([complex(s.internal_resistance_ohm, s.internal_reactance_ohm) for s in subs])
+    ys = 1.0 / z if ac else 1.0 / z.real
+    reversible = np.array([s.reversible or ac for s in subs])
+    # active set: start from the given states; a pass whose Newton iteration fails (e.g. every
+    # rectifier of a section blocked while its trains draw power: no solution) restarts from all
+    # rectifiers conducting; each pass blocks the one rectifier with the most negative current and
+    # unblocks every blocked one whose busbar voltage fell below its no-load voltage.
+    on = substation_on.copy() | reversible
+    un = lim.nominal_v
+    tol = VOLTAGE_TOLERANCE_SHARE * un
+    iterations = 0
+    converged = False
+    v = None
+    restarted = False
+    for _pass in range(3 * len(subs) + 6):
+        if ac:
+            v, its, ok = _fixed_point_ac(net, asm, loads, sub_p, sub_n, e, ys, tol, v)
+            iterations += its
+            converged = ok
+            break
+        v_new, its, ok = _newton_dc(net, asm, loads, sub_p, sub_n, e, ys, on, tol, v)
+        iterations += its
+        if not ok:
+            if restarted or on.all():
+                v = v_new
+                converged = False
+                break
+            on = np.ones(len(subs), dtype=bool)
+            restarted = True
+            v = None
+            continue
+        v = v_new
+        us = _potential(v, sub_p) - _potential(v, sub_n)
+        current = (e - us) * ys
+        negative = on & ~reversible & (current < -1e-9)
+        on_now = ~on & (us < e - tol)
+        if not (negative.any() or on_now.any()):
+            converged = True
+            break
+        if negative.any():
+            on[int(np.argmin(np.where(negative, current, np.inf)))] = False
+        on |= on_now
+    # results
+    uc = _potential(v, asm.train_c) - _potential(v, asm.train_r)
+    umag = np.abs(uc)
+    a_share = traction_availability(umag, lim.min1_v, lim.traction_full_v)
+    r_share = regen_acceptance(umag, lim.regen_full_v, lim.regen_zero_v)
+    p_train = loads.traction_w * a_share + loads.auxiliary_w - loads.regen_w * r_share
+    us = _potential(v, sub_p) - _potential(v, sub_n)
+    i_sub = (e - us) * ys * on
+    if ac:
+        s_bus = us * np.conj(i_sub)
+        p_bus = s_bus.real
+        p_src = (e * np.conj(i_sub)).real
+        i_sub_signed = np.abs(i_sub) * np.sign(p_bus)
+        i_train = np.abs(p_train * (1 + 1j * loads.tan_phi) / np.where(umag > 0, umag, 1.0)) * np.sign(
+            p_train
+        )
+    else:
+        p_bus = us * i_sub.real
+        p_src = e * i_sub.real
+        i_sub_signed = i_sub.real
+        i_train = p_train / np.maximum(umag, 1e-3 * un)
+    dv = _potential(v, asm.a) - _potential(v, asm.b)
+    line_loss = float(np.sum(np.abs(dv) ** 2 * np.real(asm.y)))
+    sub_loss = float(np.sum(p_src - p_bus))
+    rail = np.real(v[asm.rail_nodes]) if (not ac and topo.rail_potential_defined) else np.empty(0)
+    return StepSolution(
+        converged=converged,
+        iterations=iterations,
+        train_voltage_v=umag,
+        train_power_w=p_train,
+        train_current_a=np.real(i_train),
+        traction_share=a_share,
+        regen_share=r_share,
+        substation_power_w=p_bus,
+        substation_source_w=p_src,
+        substation_current_a=np.real(i_sub_signed),
+        substation_on=on,
+        line_loss_w=line_loss,
+        substation_loss_w=sub_loss,
+        rail_potential_v=rail,
+    )
+
+
+def _base_matrix(asm: _Assembly, sub_p, sub_n, ys, on, dtype):
+    rows, cols, vals = _stamp(asm.a, asm.b, asm.y.astype(dtype))
+    sr, sc, sv = _stamp(sub_p[on], sub_n[on], np.asarray(ys, dtype=dtype)[on])
+    return np.concatenate([rows, sr]), np.concatenate([cols, sc]), np.concatenate([vals, sv])
+
+
+def _newton_dc(net, asm: _Assembly, loads: StepLoads, sub_p, sub_n, e, ys, on, tol, v0):
+    """Newton's method on the DC nodal equations; returns (V, iterations, converged)."""
+    lim = net.limits
+    un = lim.nominal_v
+    n = asm.n
+    rows, cols, vals = _base_matrix(asm, sub_p, sub_n, ys, on, float)
+    g = sp.csc_matrix((vals, (rows, cols)), shape=(n, n))
+    j_src = _injection(n, sub_p[on], (e * ys)[on], float) - _injection(n, sub_n[on], (e * ys)[on], float)
+    if v0 is None:
+        # flat start: contact nodes at the mean no-load voltage, rails at 0
+        v = np.zeros(n)
+        cnodes = np.unique(np.concatenate([asm.a[asm.y == net.contact_leakage_s], sub_p]))
+        v[cnodes[cnodes >= 0]] = float(np.mean(e))
+        rnodes = asm.rail_nodes
+        v[rnodes] = 0.0
+    else:
+        v = v0.copy()
+    tc, tr = asm.train_c, asm.train_r
+    u_floor = 1e-3 * un
+    ftol = CURRENT_TOLERANCE_SHARE * max(float(np.sum(np.abs(e * ys))), 1.0)
+
+    def residual(v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        u = _potential(v, tc) - _potential(v, tr)
+        uu = np.maximum(u, u_floor)
+        a_s = traction_availability(uu, lim.min1_v, lim.traction_full_v)
+        r_s = regen_acceptance(uu, lim.regen_full_v, lim.regen_zero_v)
+        p = loads.traction_w * a_s + loads.auxiliary_w - loads.regen_w * r_s
+        i_t = p / uu
+        f = g @ v - j_src + _injection(n, tc, i_t, float) - _injection(n, tr, i_t, float)
+        return f, uu, p
+
+    f, uu, p = residual(v)
+    norm = float(np.max(np.abs(f))) if n else 0.0
+    for it in range(1, MAX_NEWTON_ITERATIONS + 1):
+        if norm < ftol:
+            return v, it - 1, True
+        dp = loads.traction_w * traction_availability_slope(uu, lim.min1_v, lim.traction_full_v) - (
+            loads.regen_w * regen_acceptance_slope(uu, lim.regen_full_v, lim.regen_zero_v)
+        )
+        di = np.where(uu > u_floor, dp / uu - p / uu**2, 0.0)
+        jr, jc, jv = _stamp(tc, tr, di)
+        jac = g + sp.csc_matrix((jv, (jr, jc)), shape=(n, n))
+        dv = -splu(jac.tocsc()).solve(f)
+        step = float(np.max(np.abs(dv)))
+        if step > MAX_STEP_SHARE * un:
+            dv *= MAX_STEP_SHARE * un / step
+        # fraction to the boundary: a regenerating train's voltage never steps past the voltage where
+        # its regeneration stops (above it only constant-power auxiliaries remain, whose negative
+        # incremental conductance would send Newton the wrong way in a section with every rectifier
+        # blocked)
+        du = _potential(dv, tc) - _potential(dv, tr)
+        rising = (loads.regen_w > 0) & (du > 0) & (uu < lim.regen_zero_v)
+        if rising.any():
+            room = np.min(0.9 * (lim.regen_zero_v - uu[rising]) / du[rising])
+            if room < 1.0:
+                dv *= room
+                step *= room
+        # backtracking on the residual: Newton steps across the kinks of a(u) and r(u) may cycle
+        lam = 1.0
+        for _ in range(12):
+            v_try = v + lam * dv
+            f_try, uu_try, p_try = residual(v_try)
+            norm_try = float(np.max(np.abs(f_try)))
+            if norm_try < norm or lam * step < tol:
+                break
+            lam *= 0.5
+        v, f, uu, p, norm = v_try, f_try, uu_try, p_try, norm_try
+        if lam * step < tol and norm < max(ftol, 1e3 * ftol * lam):
+            return v, it, True
+    return v, MAX_NEWTON_ITERATIONS, norm < ftol
+
+
+def _fixed_point_ac(net, asm: _Assembly, loads: StepLoads, sub_p, sub_n, e, ys, tol, v0):
+    """Fixed-point (current injection) iteration on the AC phasor equations."""
+    lim = net.limits
+    n = asm.n
+    on = np.ones(len(e), dtype=bool)
+    rows, cols, vals = _base_matrix(asm, sub_p, sub_n, ys, on, complex)
+    lu = splu(sp.csc_matrix((vals, (rows, cols)), shape=(n, n)))
+    j_src = _injection(n, sub_p, e * ys, complex) - _injection(n, sub_n, e * ys, complex)
+    v = lu.solve(j_src) if v0 is None else v0.copy()
+    tc, tr = asm.train_c, asm.train_r
+    for it in range(1, MAX_FIXED_POINT_ITERATIONS + 1):
+        u = _potential(v, tc) - _potential(v, tr)
+        um = np.maximum(np.abs(u), 1e-3 * lim.nominal_v)
+        a_s = traction_availability(um, lim.min1_v, lim.traction_full_v)
+        r_s = regen_acceptance(um, lim.regen_full_v, lim.regen_zero_v)
+        p = loads.traction_w * a_s + loads.auxiliary_w - loads.regen_w * r_s
+        s = p * (1 + 1j * loads.tan_phi)
+        i_t = np.conj(s / np.where(np.abs(u) > 0, u, um))
+        v_new = lu.solve(j_src - _injection(n, tc, i_t, complex) + _injection(n, tr, i_t, complex))
+        step = np.max(np.abs(v_new - v)) if n else 0.0
+        v = v_new
+        if step < tol:
+            return v, it, True
+    return v, MAX_FIXED_POINT_ITERATIONS, False
