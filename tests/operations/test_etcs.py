@@ -476,3 +476,34 @@ def test_ebd_and_guidance_against_a_fine_step_reference():
     s = np.array([1200.0, 1900.0, 2450.0, 2800.0, 3300.0, 3900.0])
     assert np.allclose(c.ebd(s), _fine_step_curve(a_safe, 4000.0, 0.0, s), rtol=2e-5, atol=0)
     assert np.allclose(c.guidance(s), _fine_step_curve(a_normal, 4000.0, 0.0, s), rtol=2e-5, atol=0)
+
+
+def test_limits_are_ordered_on_a_random_line():
+    # invariants on a line with 60 gradient sections and 40 MRSP steps: no NaN, I <= P <= W <= SBI <= EBI,
+    # P never above the MRSP, every limit 0 beyond the EoA's trip location
+    rng = np.random.default_rng(17)
+    mrsp_pos = np.concatenate([[0.0], np.cumsum(rng.uniform(200.0, 600.0, 39))])
+    mrsp_v = rng.choice([60.0, 80.0, 100.0, 120.0, 160.0], 40) * KMH
+    grad_pos = np.concatenate([[0.0], np.cumsum(rng.uniform(100.0, 500.0, 59))])
+    grads = rng.uniform(-8.0, 8.0, 60)
+    t = train(
+        a_brake_emergency=StepFunction.from_kmh([100], [1.0, 0.9]),
+        a_brake_service=0.7,
+        length_m=400.0,
+        max_speed_mps=160 * KMH,
+        speed_under_reading_ratio=0.01,
+    )
+    eoa = float(mrsp_pos[-1]) + 300.0
+    c = supervision_curves(
+        t, NV, (grad_pos, grads), eoa, eoa + 120.0, mrsp=(mrsp_pos, mrsp_v), estimated_acceleration_mps2=0.2
+    )
+    s = np.linspace(0.0, eoa + 200.0, 4001)
+    ebi, sbi, w, p, i = (getattr(c, k)(s) for k in ("ebi", "sbi", "warning", "permitted", "indication"))
+    for limit in (ebi, sbi, w, p, i):
+        assert not np.any(np.isnan(limit))
+        assert np.all(limit[s >= eoa] == 0.0)
+    tol = 1e-9
+    assert (
+        np.all(i <= p + tol) and np.all(p <= w + tol) and np.all(w <= sbi + tol) and np.all(sbi <= ebi + tol)
+    )
+    assert np.all(p <= c.v_mrsp(s) + tol)
