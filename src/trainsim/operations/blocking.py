@@ -343,7 +343,7 @@ class CapacityConsumption:
             first train of the next pattern at its minimum headway [s].
         period_s: the pattern's period [s].
         consumption: occupation / period [-].
-        offsets_s: compressed time of each train relative to the first [s].
+        offsets_s: compressed blocking start of each train relative to the first train's [s].
     """
 
     occupation_s: float
@@ -382,4 +382,7 @@ def compression(
     if not closing:
         raise ValueError("the pattern's first train claims no resource of the section")
     occupation = max(closing)
-    return CapacityConsumption(float(occupation), float(period_s), float(occupation / period_s), tuple(c))
+    # compressed blocking start of each train relative to the first one's
+    first = [min((b.start_s for b in t), default=0.0) for t in trains]
+    offsets = tuple(float(c[k] + first[k] - first[0]) for k in range(n))
+    return CapacityConsumption(float(occupation), float(period_s), float(occupation / period_s), offsets)

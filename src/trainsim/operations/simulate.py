@@ -174,7 +174,7 @@ class TrainOutcome:
             "direction": self.direction,
             "status": self.status,
             "delay_s": round(self.delay_s, 3) if np.isfinite(self.delay_s) else None,
-            "energy_kwh": round(self.energy_kwh, 4),
+            "energy_kwh": round(self.energy_kwh, 4) if np.isfinite(self.energy_kwh) else None,
             "planned_energy_kwh": round(self.planned_energy_kwh, 4),
             "stops": [s.to_dict() for s in self.stops],
             "hindrances": [
@@ -238,7 +238,7 @@ class OperationResult:
             "runs": {"computed": self.runs_computed, "reused": self.runs_reused},
             "total_delay_s": round(sum(t.delay_s for t in self.trains if np.isfinite(t.delay_s)), 3),
             "energy_kwh": {
-                "operated": round(sum(t.energy_kwh for t in self.trains), 4),
+                "operated": round(sum(t.energy_kwh for t in self.trains if np.isfinite(t.energy_kwh)), 4),
                 "planned": round(sum(t.planned_energy_kwh for t in self.trains), 4),
             },
         }

@@ -1,0 +1,137 @@
+"""Run an operation file: simulate its trains, compare separation systems, write tables and plots.
+
+``run_operation_file`` is what ``trainsim operate FILE`` calls; it returns the JSON-ready summary and
+the status (``ok`` or the reason it is not).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from trainsim.errors import InputError
+from trainsim.operations.blocking import compression
+from trainsim.operations.reader import Operation, read_operation
+from trainsim.operations.simulate import OperationResult, simulate
+
+
+def run_operation(op: Operation) -> OperationResult:
+    """Simulate an operation read by ``read_operation``."""
+    try:
+        return simulate(op.line, op.geometry, op.services, op.settings, op.rule, etcs=op.etcs)
+    except InputError as e:
+        raise e.located(op.file) from None
+
+
+def capacity(result: OperationResult, period_s: float) -> dict[str, Any]:
+    """UIC 406 compression of each direction's planned trains over ``period_s`` [s]."""
+    out: dict[str, Any] = {}
+    for direction in ("up", "down"):
+        trains = sorted(
+            (t for t in result.trains if t.direction == direction),
+            key=lambda t: t.planned_trajectory.time_s[0],
+        )
+        if not trains:
+            continue
+        by = {t.id: [] for t in trains}
+        for b in result.planned_blocking:
+            if b.train in by:
+                by[b.train].append(b)
+        out[direction] = compression([by[t.id] for t in trains], period_s).to_dict()
+    return out
+
+
+def compare_systems(op: Operation, systems: list[str]) -> dict[str, Any]:
+    """Minimum headways of consecutive planned trains and UIC 406 consumption under each separation
+    system, the line's layout and times otherwise unchanged."""
+    out: dict[str, Any] = {}
+    for system in systems:
+        line = op.with_system(system)
+        res = simulate(line, op.geometry, op.services, op.settings, op.rule, etcs=op.etcs, conflicts=False)
+        entry: dict[str, Any] = {"headways": [h.to_dict() for h in res.headways]}
+        if op.pattern_period_s:
+            entry["capacity"] = capacity(res, op.pattern_period_s)
+        out[system] = entry
+    return out
+
+
+def run_operation_file(
+    path: str | Path, out_dir: str | Path | None = None, parquet: bool = False, plots: bool = True
+) -> tuple[dict[str, Any], str]:
+    """Read, simulate and report an operation file.
+
+    Returns the summary (``status``, ``trains`` with per-stop scheduled and simulated times and delay,
+    ``energy_kwh``, ``conflicts``, ``headways``, ``capacity`` and ``separation`` when asked for) and the
+    status. With ``out_dir``: ``summary.json``, ``trains.csv`` (stop times), ``blocking_times.csv``
+    (operated and planned), ``traces.csv`` (every train's position and speed over time), Parquet copies
+    with ``parquet``, and the plots (``train_graph.png``, ``delays.png``, ``headways.png``).
+    """
+    op = read_operation(path)
+    result = run_operation(op)
+    summary: dict[str, Any] = {"name": op.name, "file": str(path), "signalling": op.line.signalling.system}
+    summary.update(result.summary())
+    if op.pattern_period_s:
+        summary["capacity"] = capacity(result, op.pattern_period_s)
+    if op.compare_systems:
+        summary["separation"] = compare_systems(op, op.compare_systems)
+    if out_dir is not None:
+        write_outputs(op, result, summary, Path(out_dir), parquet, plots)
+    return summary, result.status
+
+
+def tables(op: Operation, result: OperationResult):  # -> dict[str, pandas.DataFrame]
+    """The result as tables: stop times, blocking times (operated and planned) and traces."""
+    import numpy as np
+    import pandas as pd
+
+    stops = [{"train": t.id, "direction": t.direction, **s.to_dict()} for t in result.trains for s in t.stops]
+    blocking = [
+        {"kind": kind, **b.__dict__}
+        for kind, items in (("operated", result.blocking), ("planned", result.planned_blocking))
+        for b in items
+    ]
+    traces = []
+    for t in result.trains:
+        for kind, tr in (("operated", t.trajectory), ("planned", t.planned_trajectory)):
+            if tr is None:
+                continue
+            pos = op.line.line_position(t.direction, tr.position_m)
+            traces.append(
+                pd.DataFrame(
+                    {
+                        "train": t.id,
+                        "kind": kind,
+                        "time_s": tr.time_s,
+                        "line_position_m": np.asarray(pos, dtype=float),
+                        "speed_kmh": tr.speed_mps * 3.6,
+                    }
+                )
+            )
+    return {
+        "trains": pd.DataFrame(stops),
+        "blocking_times": pd.DataFrame(blocking),
+        "traces": pd.concat(traces, ignore_index=True) if traces else pd.DataFrame(),
+    }
+
+
+def write_outputs(
+    op: Operation, result: OperationResult, summary: dict[str, Any], out: Path, parquet: bool, plots: bool
+) -> list[Path]:
+    """Write the summary, the tables and the plots into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    written = [out / "summary.json"]
+    written[0].write_text(json.dumps(summary, indent=2, allow_nan=False))
+    for name, df in tables(op, result).items():
+        p = out / f"{name}.csv"
+        df.to_csv(p, index=False)
+        written.append(p)
+        if parquet:
+            p = out / f"{name}.parquet"
+            df.to_parquet(p, index=False)
+            written.append(p)
+    if plots:
+        from trainsim.operations.plots import write_plots
+
+        written.extend(write_plots(op.line, result, out))
+    return written

@@ -1,0 +1,468 @@
+"""Reader of the operation file (``schema: trainsim/operation``, version 1): a line, its signalling and
+a timetable of trains. Trains and the line's geometry are read with trainsim's own loaders
+(``trainsim.load_train``, ``trainsim.load_route``); see docs/OPERATIONS.md for the fields.
+
+Strict: unknown fields, wrong types and values out of range are ``InputError`` naming the file, the
+field, the value and what is allowed, all problems of a file at once.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
+
+from trainsim.errors import InputError, Problem
+from trainsim.model import Route as GeometryRoute
+from trainsim.model import Train
+from trainsim.model.scenario import RunSettings
+from trainsim.operations.etcs import EtcsNationalValues
+from trainsim.operations.line import Line, Signalling, StationLayout, build_line
+from trainsim.operations.separation import EtcsBraking
+from trainsim.operations.simulate import ScheduledStop, TrainService
+
+SCHEMA = "trainsim/operation"
+VERSIONS = (1,)
+#: Most trains one file may expand to (repeat included): bounds memory and run time.
+MAX_TRAINS = 20_000
+_CLOCK = re.compile(r"^(\d{1,2}):([0-5]\d)(?::([0-5]\d(?:\.\d+)?))?$")
+
+
+class _Spec(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class _Station(_Spec):
+    name: str
+    position_m: float | None = None
+    tracks: int = 1
+    entry_signal_distance_m: float = 400.0
+    exit_signal_offset_m: float = 20.0
+    switch_zone_m: float = 100.0
+
+
+class _Etcs(_Spec):
+    a_brake_emergency_mps2: float
+    a_brake_service_mps2: float
+    t_brake_emergency_s: float
+    t_brake_service_s: float
+    t_traction_cut_off_s: float
+
+
+class _Signalling(_Spec):
+    system: Literal["fixed_block", "etcs_l2", "moving_block"]
+    aspects: Literal[2, 3, 4] = 3
+    distant_distance_m: float = 1000.0
+    sighting_distance_m: float = 200.0
+    overlap_m: float = 50.0
+    setup_s: float = 6.0
+    reaction_s: float = 6.0
+    release_s: float = 3.0
+    release: Literal["sectional", "whole_route"] = "sectional"
+    safety_margin_m: float = 50.0
+    moving_block_step_m: float = 50.0
+    standing_distance_m: float = 10.0
+    etcs: _Etcs | None = None
+
+
+class _Line(_Spec):
+    route: str
+    layout: Literal["double_track", "single_track"]
+    stations: list[_Station]
+    signalling: _Signalling
+    block_length_m: float = 2000.0
+    block_signals_m: dict[Literal["up", "down"], list[float]] | None = None
+
+
+class _Stop(_Spec):
+    station: str
+    dwell_s: float = 0.0
+    arrival: str | None = None
+    arrival_s: float | None = None
+    departure: str | None = None
+    departure_s: float | None = None
+    track: int | None = None
+
+
+class _Repeat(_Spec):
+    count: int
+    every_s: float
+
+    @field_validator("count")
+    @classmethod
+    def _count(cls, v: int) -> int:
+        if not 1 <= v <= MAX_TRAINS:
+            raise ValueError(f"count must be 1 .. {MAX_TRAINS}")
+        return v
+
+    @field_validator("every_s")
+    @classmethod
+    def _every(cls, v: float) -> float:
+        if not (np.isfinite(v) and v > 0):
+            raise ValueError("every_s must be > 0")
+        return v
+
+
+class _Train(_Spec):
+    id: str
+    train: str
+    direction: Literal["up", "down"]
+    origin: str
+    destination: str
+    departure: str | None = None
+    departure_s: float | None = None
+    stops: list[_Stop] = []
+    priority: int = 0
+    entry_delay_s: float = 0.0
+    origin_track: int | None = None
+    strategy: Literal["fastest"] = "fastest"
+    repeat: _Repeat | None = None
+
+
+class _Delays(_Spec):
+    seed: int
+    probability: float
+    mean_s: float
+
+
+class _Dispatching(_Spec):
+    rule: Literal["fcfs", "priority"] = "fcfs"
+
+
+class _Settings(_Spec):
+    max_step_m: float = 20.0
+    braking_fraction: float = 1.0
+
+
+class _Operation(_Spec):
+    schema_: str
+    version: int
+    name: str
+    description: str | None = None
+    line: _Line
+    trains: list[_Train]
+    dispatching: _Dispatching = _Dispatching()
+    settings: _Settings = _Settings()
+    delays: _Delays | None = None
+    compare_systems: list[Literal["fixed_block", "etcs_l2", "moving_block"]] = []
+    pattern_period_s: float | None = None
+
+
+@dataclass
+class Operation:
+    """An operation file, read: the line, its geometry, the trains and the run options."""
+
+    name: str
+    file: str
+    line: Line
+    geometry: GeometryRoute
+    services: list[TrainService]
+    settings: RunSettings
+    rule: str
+    etcs: EtcsBraking | None
+    compare_systems: list[str] = field(default_factory=list)
+    pattern_period_s: float | None = None
+    line_args: dict[str, Any] = field(default_factory=dict)
+
+    def with_system(self, system: str) -> Line:
+        """The same line with another train separation."""
+        sig = replace(self.line.signalling, system=system)
+        if system == "moving_block":
+            sig = replace(sig, overlap_m=0.0)
+        return build_line(**{**self.line_args, "signalling": sig})
+
+
+def parse_clock(text: str, field_name: str, file: str) -> float:
+    """``"HH:MM"`` or ``"HH:MM:SS"`` -> seconds after midnight [s]."""
+    m = _CLOCK.match(text.strip())
+    if not m or int(m.group(1)) > 47:
+        raise InputError(
+            "invalid time of day",
+            file=file,
+            field=field_name,
+            value=text,
+            allowed="HH:MM or HH:MM:SS (00:00 .. 47:59)",
+        )
+    return int(m.group(1)) * 3600 + int(m.group(2)) * 60 + float(m.group(3) or 0)
+
+
+def _time(
+    clock: str | None,
+    seconds: float | None,
+    field_name: str,
+    file: str,
+    required: bool,
+    problems: list[Problem],
+) -> float | None:
+    if clock is not None and seconds is not None:
+        problems.append(Problem("give the time once", file=file, field=field_name, value=(clock, seconds)))
+        return None
+    if clock is not None:
+        try:
+            return parse_clock(clock, field_name, file)
+        except InputError as e:
+            problems.extend(e.problems)
+            return None
+    if seconds is not None:
+        if not np.isfinite(seconds):
+            problems.append(Problem("must be finite", file=file, field=f"{field_name}_s", value=seconds))
+            return None
+        return float(seconds)
+    if required:
+        problems.append(
+            Problem(
+                "a departure time is required",
+                file=file,
+                field=field_name,
+                allowed="departure: HH:MM:SS or departure_s",
+            )
+        )
+    return None
+
+
+def _validation_problems(err: ValidationError, file: str) -> list[Problem]:
+    out = []
+    for e in err.errors():
+        loc = [("schema" if x == "schema_" else x) for x in e["loc"]]
+        path = ""
+        for x in loc:
+            path += f"[{x}]" if isinstance(x, int) else (f".{x}" if path else str(x))
+        allowed = None
+        ctx = e.get("ctx") or {}
+        if "expected" in ctx:
+            allowed = str(ctx["expected"])
+        reason = "unknown field" if e["type"] == "extra_forbidden" else e["msg"]
+        value = e.get("input") if e["type"] != "missing" else None
+        out.append(Problem(reason, file=file, field=path, value=value, allowed=allowed))
+    return out
+
+
+def read_operation(path: str | Path) -> Operation:
+    """Read and check an operation file; trains and the line's route are loaded relative to it."""
+    from trainsim.io.loader import load_route, load_train
+    from trainsim.io.trainsim_yaml import read_yaml
+
+    path = Path(path)
+    file = str(path)
+    data = read_yaml(path)
+    if not isinstance(data, dict):
+        raise InputError("an operation file is a mapping", file=file, value=type(data).__name__)
+    if data.get("schema") != SCHEMA:
+        raise InputError(
+            "not an operation file", file=file, field="schema", value=data.get("schema"), allowed=SCHEMA
+        )
+    if data.get("version") not in VERSIONS:
+        raise InputError(
+            "unsupported version", file=file, field="version", value=data.get("version"), allowed="1"
+        )
+    data = {("schema_" if k == "schema" else k): v for k, v in data.items()}
+    try:
+        spec = _Operation.model_validate(data)
+    except ValidationError as err:
+        raise InputError.from_problems(_validation_problems(err, file)) from None
+    base = path.parent
+    problems: list[Problem] = []
+
+    def load(kind: str, name: str, where: str):
+        target = (base / name).resolve()
+        if not target.is_file():
+            problems.append(
+                Problem(
+                    "file not found",
+                    file=file,
+                    field=where,
+                    value=name,
+                    allowed="a path relative to the operation file",
+                )
+            )
+            return None
+        try:
+            return load_train(target) if kind == "train" else load_route(target)
+        except InputError as e:
+            problems.extend(p if p.file else replace(p, file=str(target)) for p in e.problems)
+            return None
+
+    geometry = load("route", spec.line.route, "line.route")
+    trains: dict[str, Train] = {}
+    for i, t in enumerate(spec.trains):
+        if t.train not in trains:
+            loaded = load("train", t.train, f"trains[{i}].train")
+            if loaded is not None:
+                trains[t.train] = loaded
+    if problems:
+        raise InputError.from_problems(problems)
+    assert geometry is not None
+    if abs(geometry.start_m) > 1e-6:
+        raise InputError(
+            "the line's route must start at 0 (line positions run from 0 to its length)",
+            file=file,
+            field="line.route",
+            value=geometry.start_m,
+        )
+    route_stations = {s.name: s.position_m for s in geometry.stations}
+    stations = []
+    for i, s in enumerate(spec.line.stations):
+        pos = s.position_m if s.position_m is not None else route_stations.get(s.name)
+        if pos is None:
+            problems.append(
+                Problem(
+                    "station position unknown: give position_m or a station of that name in the line's route",
+                    file=file,
+                    field=f"line.stations[{i}].position_m",
+                    value=s.name,
+                )
+            )
+            continue
+        stations.append(
+            StationLayout(
+                s.name,
+                float(pos),
+                s.tracks,
+                s.entry_signal_distance_m,
+                s.exit_signal_offset_m,
+                s.switch_zone_m,
+            )
+        )
+    sg = spec.line.signalling
+    etcs = None
+    if sg.etcs is not None:
+        e = sg.etcs
+        etcs = EtcsBraking(
+            e.a_brake_emergency_mps2, e.a_brake_service_mps2, e.t_brake_emergency_s, e.t_brake_service_s,
+            e.t_traction_cut_off_s, EtcsNationalValues(),
+        )  # fmt: skip
+    wants_etcs = sg.system == "etcs_l2" or "etcs_l2" in spec.compare_systems
+    if wants_etcs and etcs is None:
+        problems.append(
+            Problem(
+                "ETCS Level 2 needs the trains' ETCS braking data",
+                file=file,
+                field="line.signalling.etcs",
+                allowed="a mapping with a_brake_emergency_mps2, a_brake_service_mps2, t_brake_emergency_s, "
+                "t_brake_service_s, t_traction_cut_off_s",
+            )
+        )
+    if problems:
+        raise InputError.from_problems(problems)
+    fields = sg.model_dump(exclude={"etcs"})
+    if sg.system == "moving_block" and "overlap_m" not in sg.model_fields_set:
+        fields["overlap_m"] = 0.0
+    try:
+        signalling = Signalling(**fields)
+        line_args = {
+            "name": spec.name,
+            "length_m": geometry.end_m,
+            "layout": spec.line.layout,
+            "stations": tuple(stations),
+            "signalling": signalling,
+            "block_length_m": spec.line.block_length_m,
+            "block_signals_m": spec.line.block_signals_m,
+        }
+        line = build_line(**line_args)
+        settings = RunSettings(
+            max_step_m=spec.settings.max_step_m, braking_fraction=spec.settings.braking_fraction
+        )
+    except InputError as e:
+        raise e.located(file) from None
+    services = _services(spec, trains, file, problems)
+    if problems:
+        raise InputError.from_problems(problems)
+    return Operation(
+        spec.name, file, line, geometry, services, settings, spec.dispatching.rule, etcs,
+        list(spec.compare_systems), spec.pattern_period_s, line_args,
+    )  # fmt: skip
+
+
+def _services(
+    spec: _Operation, trains: dict[str, Train], file: str, problems: list[Problem]
+) -> list[TrainService]:
+    total = sum(t.repeat.count if t.repeat else 1 for t in spec.trains)
+    if total > MAX_TRAINS:
+        problems.append(
+            Problem("too many trains", file=file, field="trains", value=total, allowed=f"<= {MAX_TRAINS}")
+        )
+        return []
+    rng = np.random.default_rng(spec.delays.seed) if spec.delays else None
+    if spec.delays and not (0 <= spec.delays.probability <= 1 and spec.delays.mean_s >= 0):
+        problems.append(
+            Problem(
+                "invalid delay distribution",
+                file=file,
+                field="delays",
+                value=spec.delays.model_dump(),
+                allowed="0 <= probability <= 1, mean_s >= 0",
+            )
+        )
+        rng = None
+    out = []
+    for i, t in enumerate(spec.trains):
+        where = f"trains[{i}]"
+        dep = _time(t.departure, t.departure_s, f"{where}.departure", file, True, problems)
+        stops = []
+        for k, s in enumerate(t.stops):
+            arr = _time(s.arrival, s.arrival_s, f"{where}.stops[{k}].arrival", file, False, problems)
+            sdep = _time(s.departure, s.departure_s, f"{where}.stops[{k}].departure", file, False, problems)
+            if arr is not None and sdep is not None and sdep < arr:
+                problems.append(
+                    Problem(
+                        "departure before arrival",
+                        file=file,
+                        field=f"{where}.stops[{k}].departure",
+                        value=(arr, sdep),
+                    )
+                )
+            if not (np.isfinite(s.dwell_s) and 0 <= s.dwell_s <= 86400):
+                problems.append(
+                    Problem(
+                        "invalid dwell",
+                        file=file,
+                        field=f"{where}.stops[{k}].dwell_s",
+                        value=s.dwell_s,
+                        allowed="0 .. 86400 s",
+                    )
+                )
+            stops.append(ScheduledStop(s.station, s.dwell_s, arr, sdep, s.track))
+        if not (np.isfinite(t.entry_delay_s) and t.entry_delay_s >= 0):
+            problems.append(
+                Problem(
+                    "invalid entry delay",
+                    file=file,
+                    field=f"{where}.entry_delay_s",
+                    value=t.entry_delay_s,
+                    allowed=">= 0 s",
+                )
+            )
+        if dep is None or t.train not in trains:
+            continue
+        count, every = (t.repeat.count, t.repeat.every_s) if t.repeat else (1, 0.0)
+        for r in range(count):
+            shift = r * every
+            delay = t.entry_delay_s
+            if rng is not None and rng.random() < spec.delays.probability:
+                delay += float(rng.exponential(spec.delays.mean_s))
+            out.append(
+                TrainService(
+                    t.id if count == 1 else f"{t.id}.{r + 1}",
+                    trains[t.train],
+                    t.direction,
+                    t.origin,
+                    t.destination,
+                    dep + shift,
+                    tuple(
+                        replace(
+                            s,
+                            arrival_s=None if s.arrival_s is None else s.arrival_s + shift,
+                            departure_s=None if s.departure_s is None else s.departure_s + shift,
+                        )
+                        for s in stops
+                    ),
+                    t.priority,
+                    delay,
+                    t.origin_track,
+                )
+            )
+    return out
