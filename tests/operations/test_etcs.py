@@ -15,12 +15,17 @@ from trainsim.constants import KMH
 from trainsim.errors import InfeasibleError, InputError
 from trainsim.model.route import GradientSection, Route, SpeedLimit, Station
 from trainsim.operations.etcs import (
+    CONVERSION_AD_COEFFICIENTS,
     EtcsNationalValues,
     EtcsTrainData,
     StepFunction,
     a_gradient_mps2,
+    basic_deceleration,
     ceiling_offset_mps,
     compensated_gradient_profile,
+    conversion_build_up_time_s,
+    conversion_kto,
+    conversion_v_lim_mps,
     kv_int_passenger,
     moving_block_ceiling,
     supervision_curves,
@@ -507,3 +512,80 @@ def test_limits_are_ordered_on_a_random_line():
         np.all(i <= p + tol) and np.all(p <= w + tol) and np.all(w <= sbi + tol) and np.all(sbi <= ebi + tol)
     )
     assert np.all(p <= c.v_mrsp(s) + tol)
+
+
+# ------------------------------------------------------------------------- conversion model (lambda)
+
+
+def test_conversion_v_lim_matches_an_independent_table():
+    # V_lim = 16.85 lambda^0.428 km/h (A.3.7); an independent SPARK on-board tabulates it in cm/s,
+    # rounded down: 2006 (lambda 30), 3359 (100), 4972 (250)
+    for lam, cm_s in ((30, 2006), (100, 3359), (250, 4972)):
+        assert math.floor(conversion_v_lim_mps(lam) * 100) == cm_s
+
+
+def test_basic_deceleration_steps():
+    def ad(n, lam):
+        a0, a1, a2, a3 = CONVERSION_AD_COEFFICIENTS[n - 1]
+        return a0 + a1 * lam + a2 * lam**2 + a3 * lam**3
+
+    # lambda = 100: V_lim = 120.95 km/h, so AD_0 up to V_lim, then AD_3 (to 150), AD_4 (to 180), AD_5
+    fn = basic_deceleration(100)
+    assert fn.upper_limits == pytest.approx((16.85 * 100**0.428 * KMH, 150 * KMH, 180 * KMH))
+    assert fn.values == pytest.approx((0.0075 * 100 + 0.076, ad(3, 100), ad(4, 100), ad(5, 100)))
+    # lambda = 50: V_lim = 89.3 km/h, AD_1 up to 100 km/h
+    fn = basic_deceleration(50)
+    assert len(fn.values) == 6 and fn.values[1] == pytest.approx(ad(1, 50))
+    assert fn.upper_limits[1] == pytest.approx(100 * KMH)
+    assert ad(1, 50) == pytest.approx(0.0663 + 4.72e-3 * 50 + 6.1e-5 * 2500 - 6.3e-7 * 125000)
+
+
+def test_conversion_build_up_times():
+    # A.3.8 / A.3.9: a + b (L/100) + c (L/100)^2, L floored at 400 m where the clause says so
+    assert conversion_build_up_time_s("emergency", "passenger_p", 300.0) == pytest.approx(2.3 + 0.17 * 16)
+    assert conversion_build_up_time_s("service", "passenger_p", 300.0) == pytest.approx(3 + 1.5 * 3 + 0.1 * 9)
+    assert conversion_build_up_time_s("emergency", "freight_g", 700.0) == pytest.approx(12 + 0.05 * 49)
+    assert conversion_build_up_time_s("service", "freight_g", 300.0) == pytest.approx(3 + 2.77 * 4)
+    assert conversion_build_up_time_s("emergency", "freight_p", 1200.0) == pytest.approx(
+        -0.4 + 1.6 * 12 + 0.03 * 144
+    )
+    assert conversion_build_up_time_s("service", "freight_p", 1200.0) == pytest.approx(
+        10.5 + 0.32 * 12 + 0.18 * 144
+    )
+    assert conversion_kto("freight_g") == 1.16 and conversion_kto("passenger_p") == 1.20
+
+
+def test_lambda_train_curves():
+    t = EtcsTrainData.from_brake_percentage(
+        brake_percentage=120,
+        brake_position="freight_p",
+        length_m=600.0,
+        max_speed_mps=100 * KMH,
+        t_traction_cut_off_s=2.0,
+    )
+    assert t.conversion_model_used and t.a_brake_service == basic_deceleration(120)
+    t_basic = 2.3 + 0.17 * 36
+    c = supervision_curves(t, NV, None, eoa_position_m=3000.0)
+    assert c.times["t_be"] == pytest.approx(1.1 * t_basic)  # Kt_int
+    a0 = 0.7 * 0.9 * (0.0075 * 120 + 0.076)  # Kv_int Kr_int AD_0 below V_lim
+    assert c.ebd(2950.0) == pytest.approx(math.sqrt(2 * a0 * 50.0), rel=1e-12)
+    decrease = supervision_curves(t, NV, None, eoa_position_m=3000.0, target_speed_mps=40 * KMH)
+    assert decrease.times["t_be"] == pytest.approx(1.1 * 1.2 * t_basic)  # kto for V_target > 0
+    # a heavy service brake percentage is capped at 135 for A_brake_service
+    heavy = EtcsTrainData.from_brake_percentage(180, "passenger_p", 200.0, 160 * KMH, 1.0)
+    assert heavy.a_brake_service == basic_deceleration(135)
+
+
+@pytest.mark.parametrize(
+    ("args", "field"),
+    [
+        ((20, "freight_p", 500.0, 100 * KMH), "brake_percentage"),
+        ((100, "passenger_p", 1000.0, 100 * KMH), "length_m"),
+        ((100, "freight_g", 500.0, 220 * KMH), "max_speed_mps"),
+        ((100, "express", 500.0, 100 * KMH), "brake_position"),
+    ],
+)
+def test_conversion_model_outside_its_validity_is_an_input_error(args, field):
+    with pytest.raises(InputError) as info:
+        EtcsTrainData.from_brake_percentage(*args, t_traction_cut_off_s=1.0)
+    assert info.value.field == field

@@ -14,9 +14,10 @@ and their reduction per target (A.3.12) are not used.
 Everything is SI: positions [m], speeds [m/s], decelerations [m/s^2], times [s]; gradients are in
 per mille, positive uphill (3.13.4.3.2). Decelerations are positive numbers.
 
-Not modelled (see docs/ETCS.md): the brake percentage conversion model of A.3.7-A.3.9 (a "lambda" train
-is given its converted deceleration model and build-up times, the integrated correction factors Kv_int,
-Kr_int and Kt_int are then applied), special brakes and their track conditions (A_brake_emergency(V, d)
+"Lambda" trains (brake percentage and brake position) get their models from the conversion model of
+3.13.3 / A.3.7-A.3.9 (``EtcsTrainData.from_brake_percentage``) with the integrated correction factors.
+
+Not modelled (see docs/ETCS.md): special brakes and their track conditions (A_brake_emergency(V, d)
 depends on V only), reduced adhesion (A_NVMAXREDADH, Q_NVDRIVER_ADHES), the service brake feedback
 (T_bs2_locked, A.3.10) and the train position confidence interval (the curves are given for the front
 end; a margin can be added to the EoA trip location).
@@ -39,6 +40,7 @@ from trainsim.errors import InfeasibleError, InputError
 from trainsim.model.route import Route
 
 __all__ = [
+    "CONVERSION_AD_COEFFICIENTS",
     "BrakingCurve",
     "EtcsNationalValues",
     "EtcsTrainData",
@@ -48,8 +50,12 @@ __all__ = [
     "a_brake_safe_gamma_mps2",
     "a_gradient_mps2",
     "a_normal_service_mps2",
+    "basic_deceleration",
     "ceiling_offset_mps",
     "compensated_gradient_profile",
+    "conversion_build_up_time_s",
+    "conversion_kto",
+    "conversion_v_lim_mps",
     "d_bec_m",
     "kv_int_passenger",
     "moving_block_ceiling",
@@ -194,7 +200,7 @@ class EtcsTrainData:
         conversion_model_used: the deceleration and build-up times come from the brake percentage
             conversion model (a "lambda" train); then Kdry_rst/Kwet_rst do not apply and the integrated
             correction factors Kv_int, Kr_int, Kt_int of the national values do (3.13.6.2.1.4,
-            3.13.6.2.2.3). The conversion model itself (A.3.7-A.3.9) is not implemented here.
+            3.13.6.2.2.3). ``from_brake_percentage`` builds such a train from the conversion model.
         brake_position: ``passenger_p``, ``freight_p`` or ``freight_g`` (3.13.2.2.4); selects the
             Kv_int set with the conversion model.
         traction_cut_off_implemented: the traction cut-off command is implemented (3.13.2.2.8.1).
@@ -286,6 +292,57 @@ class EtcsTrainData:
             )
         _check_range("speed_under_reading_mps", self.speed_under_reading_mps, 0.0, 10.0, "0 to 10 m/s")
         _check_range("speed_under_reading_ratio", self.speed_under_reading_ratio, 0.0, 0.2, "0 to 0.2")
+
+    @classmethod
+    def from_brake_percentage(
+        cls,
+        brake_percentage: float,
+        brake_position: BrakePosition,
+        length_m: float,
+        max_speed_mps: float,
+        t_traction_cut_off_s: float,
+        **changes: Any,
+    ) -> EtcsTrainData:
+        """A "lambda" train: its braking models from the conversion model (3.13.3, A.3.7-A.3.9).
+
+        A_brake_emergency is the basic deceleration of the brake percentage, A_brake_service that of
+        min(lambda, 135); the build-up times are T_brake_basic (target speed 0) and kto T_brake_basic
+        (target speed above 0). The integrated correction factors Kv_int, Kr_int and Kt_int of the
+        national values then apply (3.13.6.2.1.4, 3.13.6.2.2.3). Outside the validity limits of
+        3.13.3.2.1 (V <= 200 km/h, 30 <= lambda <= 250 %, L <= 900 m in P / 1500 m freight) the model
+        is not applicable and an ``InputError`` says so. ``changes`` sets further fields (kn_plus,
+        a_brake_normal_service, speed_under_reading_mps, ...).
+        """
+        if brake_position not in CONVERSION_MAX_LENGTH_M:
+            raise _bad(
+                "unknown brake position",
+                "brake_position",
+                brake_position,
+                "passenger_p, freight_p, freight_g",
+            )
+        lo, hi = CONVERSION_BRAKE_PERCENTAGE
+        _check_range("brake_percentage", brake_percentage, lo, hi, f"{lo:g} to {hi:g} % (3.13.3.2.1)")
+        max_length = CONVERSION_MAX_LENGTH_M[brake_position]
+        _check_range("length_m", length_m, 0.0, max_length, f"0 to {max_length:g} m for {brake_position}")
+        _check_range("max_speed_mps", max_speed_mps, 0.0, CONVERSION_MAX_SPEED_MPS, "up to 200 km/h")
+        kto = conversion_kto(brake_position)
+        t_eb = conversion_build_up_time_s("emergency", brake_position, length_m)
+        t_sb = conversion_build_up_time_s("service", brake_position, length_m)
+        service_lambda = min(float(brake_percentage), CONVERSION_SERVICE_MAX_BRAKE_PERCENTAGE)
+        return cls(
+            a_brake_emergency=basic_deceleration(brake_percentage),
+            a_brake_service=basic_deceleration(service_lambda),
+            t_brake_emergency_s=t_eb,
+            t_brake_service_s=t_sb,
+            t_traction_cut_off_s=t_traction_cut_off_s,
+            length_m=length_m,
+            max_speed_mps=max_speed_mps,
+            t_brake_emergency_cmt_s=kto * t_eb,
+            t_brake_service_cmt_s=kto * t_sb,
+            conversion_model_used=True,
+            brake_position=brake_position,
+            **changes,
+        )
 
     def v_ura_mps(self, v_mps: ArrayLike) -> NDArray[np.float64]:
         """Speed under-reading amount V_ura(V) = a + b V [m/s] (3.13.9.3.2.1)."""
@@ -593,6 +650,90 @@ def d_bec_m(
         np.maximum(v + v_delta1 / 2, v_target_mps) * t_traction
         + (np.maximum(v + v_delta1, v_target_mps) + v_delta2 / 2) * t_berem
     )
+
+
+# ----------------------------------------------------------------------------------------------------
+# Conversion model of the brake percentage and brake position ("lambda" trains, 3.13.3, A.3.7-A.3.9)
+# ----------------------------------------------------------------------------------------------------
+
+#: A.3.7: coefficients (a0, a1, a2, a3) of AD_n(lambda) = a3 lambda^3 + a2 lambda^2 + a1 lambda + a0
+#: [m/s^2], n = 1..5 (the same in two independent on-board implementations consulted).
+CONVERSION_AD_COEFFICIENTS: tuple[tuple[float, float, float, float], ...] = (
+    (0.0663, 4.72e-3, 6.10e-5, -6.30e-7),
+    (0.1300, 5.14e-3, -4.54e-6, 2.73e-7),
+    (0.0479, 5.81e-3, -6.76e-6, 5.58e-8),
+    (0.0480, 5.52e-3, -3.85e-6, 3.00e-8),
+    (0.0559, 5.06e-3, 1.66e-6, 3.23e-9),
+)
+#: A.3.7: upper speed limits of AD_1 .. AD_4 [km/h]; AD_5 is open ended.
+CONVERSION_SPEED_LIMITS_KMH: tuple[float, ...] = (100.0, 120.0, 150.0, 180.0)
+#: A.3.8.1-3 (emergency) and A.3.9.1-3 (service): T_brake_basic = a + b (L/100) + c (L/100)^2 [s], L in
+#: m, per brake position: ((longest train length [m] of the row, (a, b, c), length floored at 400 m), ...).
+CONVERSION_BUILD_UP: dict[str, dict[str, tuple[tuple[float, tuple[float, float, float], bool], ...]]] = {
+    "emergency": {
+        "passenger_p": ((math.inf, (2.30, 0.0, 0.17), True),),
+        "freight_p": ((900.0, (2.30, 0.0, 0.17), True), (math.inf, (-0.40, 1.60, 0.03), False)),
+        "freight_g": ((900.0, (12.0, 0.0, 0.05), False), (math.inf, (-0.40, 1.60, 0.03), False)),
+    },
+    "service": {
+        "passenger_p": ((math.inf, (3.00, 1.50, 0.10), False),),
+        "freight_p": ((900.0, (3.00, 2.77, 0.0), False), (math.inf, (10.50, 0.32, 0.18), False)),
+        "freight_g": ((900.0, (3.00, 2.77, 0.0), True), (math.inf, (10.50, 0.32, 0.18), True)),
+    },
+}
+#: A.3.8.4-5: kto = 1 + Ct for targets with a target speed above 0; Ct per brake position.
+CONVERSION_CT: dict[str, float] = {"passenger_p": 0.20, "freight_p": 0.20, "freight_g": 0.16}
+#: 3.13.3.2.1: validity limits of the conversion model: maximum speed [m/s], brake percentage [%],
+#: train length [m] (900 m for a passenger train in P, 1500 m for freight trains).
+CONVERSION_MAX_SPEED_MPS = 200.0 * KMH
+CONVERSION_BRAKE_PERCENTAGE = (30.0, 250.0)
+CONVERSION_MAX_LENGTH_M: dict[str, float] = {"passenger_p": 900.0, "freight_p": 1500.0, "freight_g": 1500.0}
+#: The brake percentage above which the service brake model no longer grows: A_brake_service is the
+#: basic deceleration of min(lambda, 135) (3.13.3.3.3 with A.3.7).
+CONVERSION_SERVICE_MAX_BRAKE_PERCENTAGE = 135.0
+
+
+def conversion_v_lim_mps(brake_percentage: float) -> float:
+    """Upper speed of the first step of the basic deceleration, V_lim = 16.85 lambda^0.428 km/h [m/s]
+    (SUBSET-026-3 A.3.7)."""
+    return 16.85 * float(brake_percentage) ** 0.428 * KMH
+
+
+def basic_deceleration(brake_percentage: float) -> StepFunction:
+    """The basic deceleration A_basic(V) of a train of brake percentage lambda [m/s^2] (3.13.3.3.2, A.3.7).
+
+    AD_0 = 0.0075 lambda + 0.076 from 0 to V_lim; above V_lim, AD_n(lambda) (a cubic in lambda) up to
+    the first of 100, 120, 150, 180 km/h above V_lim, and so on; AD_5 above 180 km/h.
+    """
+    lam = float(brake_percentage)
+    v_lim = conversion_v_lim_mps(lam)
+    values = [0.0075 * lam + 0.076]
+    limits = [v_lim]
+    for n, (a0, a1, a2, a3) in enumerate(CONVERSION_AD_COEFFICIENTS):
+        upper = CONVERSION_SPEED_LIMITS_KMH[n] * KMH if n < len(CONVERSION_SPEED_LIMITS_KMH) else math.inf
+        if upper > v_lim:
+            values.append(a3 * lam**3 + a2 * lam**2 + a1 * lam + a0)
+            if math.isfinite(upper):
+                limits.append(upper)
+    return StepFunction(tuple(values), tuple(limits))
+
+
+def conversion_build_up_time_s(
+    kind: Literal["emergency", "service"], brake_position: str, length_m: float
+) -> float:
+    """Basic equivalent build-up time T_brake_basic_eb / T_brake_basic_sb [s] of the brake position
+    conversion model: a + b (L/100) + c (L/100)^2 (SUBSET-026-3 A.3.8.1-3, A.3.9.1-3)."""
+    for longest, (a, b, c), floor_400 in CONVERSION_BUILD_UP[kind][brake_position]:
+        if length_m <= longest:
+            x = max(length_m, 400.0) / 100 if floor_400 else length_m / 100
+            return a + b * x + c * x * x
+    raise AssertionError("unreachable: the last row is open ended")
+
+
+def conversion_kto(brake_position: str) -> float:
+    """kto = 1 + Ct, the factor on the build-up times for targets with a target speed above 0
+    (SUBSET-026-3 A.3.8.4-5, A.3.9.4)."""
+    return 1.0 + CONVERSION_CT[brake_position]
 
 
 # ----------------------------------------------------------------------------------------------------
