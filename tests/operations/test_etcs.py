@@ -589,3 +589,30 @@ def test_conversion_model_outside_its_validity_is_an_input_error(args, field):
     with pytest.raises(InputError) as info:
         EtcsTrainData.from_brake_percentage(*args, t_traction_cut_off_s=1.0)
     assert info.value.field == field
+
+
+def test_reduced_adhesion_limits_the_safe_deceleration():
+    # 3.13.6.2.1.3: A_safe = MIN(A_brake_safe, A_MAXREDADH) + A_gradient where the adhesion is reduced
+    strong = train(a_brake_emergency=1.2)
+    everywhere = supervision_curves(strong, NV, None, 3000.0, reduced_adhesion=True)
+    assert everywhere.ebd(2000.0) == pytest.approx(math.sqrt(2 * 0.7 * 1000.0), rel=1e-12)  # A_NVMAXREDADH2
+    extra = train(a_brake_emergency=1.2, adhesion_independent_brake=True)
+    assert supervision_curves(extra, NV, None, 3000.0, reduced_adhesion=True).ebd(2000.0) == pytest.approx(
+        math.sqrt(2 * 1.0 * 1000.0), rel=1e-12
+    )  # A_NVMAXREDADH1
+    freight = train(a_brake_emergency=1.2, brake_position="freight_p")
+    no_limit = EtcsNationalValues(a_nvmaxredadh3_mps2=None)
+    assert supervision_curves(freight, no_limit, None, 3000.0, reduced_adhesion=True).ebd(
+        2000.0
+    ) == pytest.approx(math.sqrt(2 * 1.2 * 1000.0), rel=1e-12)
+    # a trackside section 1000-2000 m acts up to 2000 m + the train length (3.13.5.3)
+    t = train(a_brake_emergency=1.2, length_m=300.0)
+    c = supervision_curves(t, NV, None, 3000.0, reduced_adhesion=[(1000.0, 2000.0)])
+    v2_at_2300 = 2 * 1.2 * 700.0
+    assert c.ebd(2300.0) == pytest.approx(math.sqrt(v2_at_2300), rel=1e-12)
+    assert c.ebd(1500.0) == pytest.approx(math.sqrt(v2_at_2300 + 2 * 0.7 * 800.0), rel=1e-12)
+    assert c.ebd(500.0) == pytest.approx(
+        math.sqrt(v2_at_2300 + 2 * 0.7 * 1300.0 + 2 * 1.2 * 500.0), rel=1e-12
+    )
+    with pytest.raises(InputError, match="reduced adhesion"):
+        supervision_curves(t, NV, None, 3000.0, reduced_adhesion=[(2000.0, 1000.0)])

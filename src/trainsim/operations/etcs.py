@@ -18,7 +18,7 @@ per mille, positive uphill (3.13.4.3.2). Decelerations are positive numbers.
 3.13.3 / A.3.7-A.3.9 (``EtcsTrainData.from_brake_percentage``) with the integrated correction factors.
 
 Not modelled (see docs/ETCS.md): special brakes and their track conditions (A_brake_emergency(V, d)
-depends on V only), reduced adhesion (A_NVMAXREDADH, Q_NVDRIVER_ADHES), the service brake feedback
+depends on V only), Q_NVDRIVER_ADHES, the service brake feedback
 (T_bs2_locked, A.3.10) and the train position confidence interval (the curves are given for the front
 end; a margin can be added to the EoA trip location).
 """
@@ -49,6 +49,7 @@ __all__ = [
     "a_brake_safe_conversion_mps2",
     "a_brake_safe_gamma_mps2",
     "a_gradient_mps2",
+    "a_max_reduced_adhesion_mps2",
     "a_normal_service_mps2",
     "basic_deceleration",
     "ceiling_offset_mps",
@@ -210,6 +211,9 @@ class EtcsTrainData:
         speed_under_reading_mps / speed_under_reading_ratio: speed under-reading amount
             V_ura = a + b V [m/s] used as V_delta0 (3.13.9.3.2.1) and as f41(V) (3.13.9.3.5.9 b,
             3.13.9.4.6 b). Default 0 (an exact speed measurement).
+        adhesion_independent_brake: the train has an active special/additional brake independent of
+            the wheel/rail adhesion whose contribution may be counted under reduced adhesion
+            (3.13.2.2.6.4-6); selects A_NVMAXREDADH1 instead of 2 for a passenger train in P.
     """
 
     a_brake_emergency: StepFunction | float
@@ -234,6 +238,7 @@ class EtcsTrainData:
     service_brake_feedback: bool = False
     speed_under_reading_mps: float = 0.0
     speed_under_reading_ratio: float = 0.0
+    adhesion_independent_brake: bool = False
 
     def __post_init__(self) -> None:
         for name in ("a_brake_emergency", "a_brake_service", "kwet_rst", "kn_plus", "kn_minus"):
@@ -383,6 +388,9 @@ class EtcsNationalValues:
         kr_int: integrated correction factor Kr_int(L), a step function of the train length [m]
             (default 0.9).
         kt_int: integrated correction factor Kt_int for the build-up time (default 1.1).
+        a_nvmaxredadh1_mps2 / 2 / 3: maximum emergency deceleration under reduced adhesion
+            A_NVMAXREDADH1..3 [m/s^2] (defaults 1.0, 0.7, 0.7); ``None`` where the national value
+            asks for DMI information instead of a limit (3.13.2.3.7.7).
 
     Fixed values (A.3.1):
         dv_ebi_min_mps, dv_ebi_max_mps, v_ebi_min_mps, v_ebi_max_mps: 7.5 km/h, 15 km/h, 110 km/h,
@@ -411,6 +419,9 @@ class EtcsNationalValues:
     a_nvp23_mps2: float = 0.0
     kr_int: StepFunction | float = 0.9
     kt_int: float = 1.1
+    a_nvmaxredadh1_mps2: float | None = 1.0
+    a_nvmaxredadh2_mps2: float | None = 0.7
+    a_nvmaxredadh3_mps2: float | None = 0.7
     dv_ebi_min_mps: float = 7.5 * KMH
     dv_ebi_max_mps: float = 15.0 * KMH
     v_ebi_min_mps: float = 110.0 * KMH
@@ -446,6 +457,9 @@ class EtcsNationalValues:
                 raise _bad(f"{name} out of range", name, fn.values, "0 < K <= 2")
             object.__setattr__(self, name, fn)
         _check_range("kt_int", self.kt_int, 0.1, 5.0)
+        for name in ("a_nvmaxredadh1_mps2", "a_nvmaxredadh2_mps2", "a_nvmaxredadh3_mps2"):
+            if getattr(self, name) is not None:
+                _check_range(name, getattr(self, name), 0.0, 10.0, "0 to 10 m/s^2, or None (no limit)")
         _check_range("v_nvrel_mps", self.v_nvrel_mps, 0.0, 100.0, "0 to 100 m/s")
         for name in (
             "dv_ebi_min_mps",
@@ -1299,6 +1313,56 @@ def _mrsp_piecewise(mrsp: Any, v_max: float) -> _Piecewise:
     return _Piecewise(pos, np.minimum(speeds, v_max))
 
 
+def _representative_positions(breaks: NDArray[np.float64]) -> NDArray[np.float64]:
+    """One position inside each cell (-inf, b0), [b0, b1), ..., [bn, inf) of the position breaks."""
+    if breaks.size == 0:
+        return np.zeros(1)
+    return np.concatenate([[breaks[0] - 1.0], (breaks[:-1] + breaks[1:]) / 2, [breaks[-1] + 1.0]])
+
+
+def _reduced_adhesion_piecewise(reduced: bool | Sequence[tuple[float, float]], length_m: float) -> _Piecewise:
+    """1 where the adhesion is reduced, else 0 (3.13.5.3: a trackside section up to its end plus the
+    train length; 3.13.5.4: slippery rail selected by the driver, everywhere)."""
+    if reduced is True:
+        return _Piecewise(np.zeros(0), np.ones(1))
+    if reduced is False or reduced is None:
+        return _Piecewise(np.zeros(0), np.zeros(1))
+    try:
+        spans = [(float(a), float(b)) for a, b in reduced]
+    except (TypeError, ValueError) as exc:
+        raise _bad(
+            "reduced adhesion not understood",
+            "reduced_adhesion",
+            reduced,
+            "True, False, or sections [(start_m, end_m), ...]",
+        ) from exc
+    for a, b in spans:
+        if not (math.isfinite(a) and math.isfinite(b) and b > a):
+            raise _bad(
+                "a reduced adhesion section must end after it starts",
+                "reduced_adhesion",
+                (a, b),
+                "start < end",
+            )
+    points = np.unique([x for a, b in spans for x in (a, b + length_m)])
+    mids = _representative_positions(points)
+    flags = np.array([any(a <= x < b + length_m for a, b in spans) for x in mids], dtype=float)
+    return _Piecewise(points, flags)
+
+
+def a_max_reduced_adhesion_mps2(train: EtcsTrainData, national: EtcsNationalValues) -> float:
+    """A_MAXREDADH [m/s^2]: A_NVMAXREDADH1 for a passenger train in P whose adhesion-independent brakes
+    may count, A_NVMAXREDADH2 for one without, A_NVMAXREDADH3 for freight trains (3.13.6.2.1.6);
+    np.inf if that national value does not limit the deceleration."""
+    if train.brake_position != "passenger_p":
+        value = national.a_nvmaxredadh3_mps2
+    elif train.adhesion_independent_brake:
+        value = national.a_nvmaxredadh1_mps2
+    else:
+        value = national.a_nvmaxredadh2_mps2
+    return math.inf if value is None else float(value)
+
+
 def _speed_table(
     fns: Sequence[StepFunction], combine: Callable[..., NDArray[np.float64]]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -1320,6 +1384,7 @@ def supervision_curves(
     release_speed: float | Literal["calculated", "national"] = "calculated",
     estimated_acceleration_mps2: float = 0.0,
     eoa_trip_margin_m: float = 0.0,
+    reduced_adhesion: bool | Sequence[tuple[float, float]] = False,
 ) -> SupervisionCurves:
     """ETCS braking curves and supervision limits toward a target (SUBSET-026-3 3.13.8, 3.13.9).
 
@@ -1345,6 +1410,11 @@ def supervision_curves(
             value Subset-026 uses for limits computed in advance (3.13.9.3.5.9 a, 3.13.9.4.8.1).
         eoa_trip_margin_m: distance from the EoA to its trip location [m] (the position confidence
             part of d_tripEOA in 3.13.9.4.8.2); default 0.
+
+        reduced_adhesion: ``True`` for slippery rail selected by the driver (everywhere,
+            3.13.5.4), or the reduced adhesion sections ``[(start_m, end_m), ...]`` given by trackside
+            (each applied up to its end plus the train length, 3.13.5.3); there A_brake_safe is limited
+            to A_NVMAXREDADH (3.13.6.2.1.3, 3.13.6.2.1.6). Default none.
 
     Raises:
         InputError: bad input (naming the field, the value and what is allowed).
@@ -1396,10 +1466,17 @@ def supervision_curves(
     v_high = v_ceiling_top + float(_dv("ebi", v_ceiling_top, n)) + SPEED_HEADROOM_MPS
 
     # gradient: compensated in location (3.13.4.2) and value (3.13.4.3)
-    pos_breaks, grad = compensated_gradient_profile(gradient_profile, train.length_m)
+    grad_breaks, grad_values = compensated_gradient_profile(gradient_profile, train.length_m)
+    adhesion = _reduced_adhesion_piecewise(reduced_adhesion, train.length_m)
+    # position cells: every change of the compensated gradient and of the adhesion conditions
+    pos_breaks = np.unique(np.concatenate([grad_breaks, adhesion.breaks]))
+    where = _representative_positions(pos_breaks)
+    grad = _Piecewise(grad_breaks, grad_values)(where)
     a_grad = a_gradient_mps2(
         grad, train.m_rotating_nom_percent, n.m_rotating_max_percent, n.m_rotating_min_percent, n.gravity_mps2
     )
+    a_maxredadh = a_max_reduced_adhesion_mps2(train, n)
+    safe_cap = np.where(adhesion(where) > 0, a_maxredadh, np.inf)
 
     # safe emergency deceleration (3.13.6.2.1.4)
     if train.conversion_model_used:
@@ -1426,7 +1503,8 @@ def supervision_curves(
             [train.a_brake_emergency, train.kdry_for(n.m_nvebcl), train.kwet_rst],
             lambda a, kd, kw: a_brake_safe_gamma_mps2(a, kd, kw, n.m_nvavadh),
         )
-    safe_table = a_brake_safe[:, None] + a_grad[None, :]  # A_safe = A_brake_safe + A_gradient (3.13.6.2.1.3)
+    # A_safe = MIN(A_brake_safe, A_MAXREDADH) + A_gradient, the cap only with reduced adhesion (3.13.6.2.1.3)
+    safe_table = np.minimum(a_brake_safe[:, None], safe_cap[None, :]) + a_grad[None, :]
     sb_limits, a_service = _speed_table([train.a_brake_service], lambda a: a)
     expected_table = a_service[:, None] + a_grad[None, :]  # A_expected (3.13.6.3.1.3)
     ns_limits = np.unique(
