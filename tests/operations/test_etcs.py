@@ -616,3 +616,21 @@ def test_reduced_adhesion_limits_the_safe_deceleration():
     )
     with pytest.raises(InputError, match="reduced adhesion"):
         supervision_curves(t, NV, None, 3000.0, reduced_adhesion=[(2000.0, 1000.0)])
+
+
+def test_normal_service_model_chosen_by_the_service_deceleration_at_standstill():
+    # 3.13.2.2.3.1.10: A_brake_service(0) = 0.8 lies between A_SB01 = 0.6 and A_SB12 = 0.9: model 1
+    sets = (0.3, 0.45, 0.6)
+    t = train(a_brake_normal_service_sets=sets, a_sb01_mps2=0.6, a_sb12_mps2=0.9)
+    assert t.a_brake_normal_service == StepFunction.constant(0.45)
+    assert train(
+        a_brake_normal_service_sets=sets, a_sb01_mps2=0.8, a_sb12_mps2=0.9
+    ).a_brake_normal_service.values == (0.3,)
+    assert train(
+        a_brake_normal_service_sets=sets, a_sb01_mps2=0.5, a_sb12_mps2=0.7
+    ).a_brake_normal_service.values == (0.6,)
+    c = supervision_curves(t, NV, None, 2000.0)
+    assert c.guidance(1000.0) == pytest.approx(math.sqrt(2 * 0.45 * 1000.0), rel=1e-12)
+    with pytest.raises(InputError) as info:
+        train(a_brake_normal_service_sets=sets, a_sb01_mps2=0.6)
+    assert info.value.field == "a_sb12_mps2"

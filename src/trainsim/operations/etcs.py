@@ -60,6 +60,7 @@ __all__ = [
     "d_bec_m",
     "kv_int_passenger",
     "moving_block_ceiling",
+    "select_normal_service_model",
     "supervision_curves",
     "t_berem_s",
     "t_indication_s",
@@ -187,7 +188,8 @@ class EtcsTrainData:
         max_speed_mps: maximum train speed [m/s] (3.13.2.2.13), part of the MRSP.
         a_brake_normal_service: normal service brake deceleration A_brake_normal_service(V) [m/s^2]
             for the guidance curve (3.13.2.2.3.1.6); default: ``a_brake_service``. One model only (the
-            selection among three by A_brake_service(0), 3.13.2.2.3.1.10, is left to the caller).
+            selection among three by A_brake_service(0), 3.13.2.2.3.1.10: give
+            ``a_brake_normal_service_sets`` and the pivots instead).
         t_brake_emergency_cmt_s / t_brake_service_cmt_s: build-up times used for targets with a target
             speed above 0 (T_brake_*_cmt of 3.13.3.4.4.1); default: the values above.
         kdry_rst: rolling stock correction factor Kdry_rst(V, EBCL) (3.13.2.2.9.1.3): a step function
@@ -211,6 +213,9 @@ class EtcsTrainData:
         speed_under_reading_mps / speed_under_reading_ratio: speed under-reading amount
             V_ura = a + b V [m/s] used as V_delta0 (3.13.9.3.2.1) and as f41(V) (3.13.9.3.5.9 b,
             3.13.9.4.6 b). Default 0 (an exact speed measurement).
+        a_brake_normal_service_sets / a_sb01_mps2 / a_sb12_mps2: the three A_brake_normal_service models
+            of the train's brake position and their pivots A_SB01, A_SB12 [m/s^2]; the model is chosen by
+            A_brake_service(0) (3.13.2.2.3.1.9-11).
         adhesion_independent_brake: the train has an active special/additional brake independent of
             the wheel/rail adhesion whose contribution may be counted under reduced adhesion
             (3.13.2.2.6.4-6); selects A_NVMAXREDADH1 instead of 2 for a passenger train in P.
@@ -239,10 +244,48 @@ class EtcsTrainData:
     speed_under_reading_mps: float = 0.0
     speed_under_reading_ratio: float = 0.0
     adhesion_independent_brake: bool = False
+    a_brake_normal_service_sets: tuple[StepFunction | float, ...] | None = None
+    a_sb01_mps2: float | None = None
+    a_sb12_mps2: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("a_brake_emergency", "a_brake_service", "kwet_rst", "kn_plus", "kn_minus"):
             object.__setattr__(self, name, _as_step(getattr(self, name), name))
+        if self.a_brake_normal_service_sets is not None:
+            sets = self.a_brake_normal_service_sets
+            if self.a_brake_normal_service is not None:
+                raise _bad(
+                    "give either one normal service model or the three sets",
+                    "a_brake_normal_service",
+                    "both",
+                    "a_brake_normal_service or a_brake_normal_service_sets with a_sb01_mps2, a_sb12_mps2",
+                )
+            if isinstance(sets, str) or not isinstance(sets, Sequence) or len(sets) != 3:
+                raise _bad(
+                    "the normal service brake needs three models",
+                    "a_brake_normal_service_sets",
+                    sets,
+                    "three step functions (3.13.2.2.3.1.10)",
+                )
+            steps = tuple(_as_step(m, f"a_brake_normal_service_sets[{k}]") for k, m in enumerate(sets))
+            object.__setattr__(self, "a_brake_normal_service_sets", steps)
+            for name in ("a_sb01_mps2", "a_sb12_mps2"):
+                if getattr(self, name) is None:
+                    raise _bad(
+                        f"{name} is needed with the three normal service models", name, None, "a deceleration"
+                    )
+                _check_range(name, getattr(self, name), 0.0, 10.0, "0 to 10 m/s^2")
+            if self.a_sb12_mps2 < self.a_sb01_mps2:
+                raise _bad(
+                    "A_SB12 must not be below A_SB01", "a_sb12_mps2", self.a_sb12_mps2, ">= a_sb01_mps2"
+                )
+            chosen = select_normal_service_model(
+                float(self.a_brake_service(0.0)),
+                steps,
+                float(self.a_sb01_mps2),
+                float(self.a_sb12_mps2),
+            )
+            object.__setattr__(self, "a_brake_normal_service", chosen)
         if self.a_brake_normal_service is None:
             object.__setattr__(self, "a_brake_normal_service", self.a_brake_service)
         else:
@@ -522,6 +565,18 @@ def _dv(kind: str, v_mps: ArrayLike, national: EtcsNationalValues) -> NDArray[np
         getattr(n, f"v_{kind}_min_mps"),
         getattr(n, f"v_{kind}_max_mps"),
     )
+
+
+def select_normal_service_model(
+    a_brake_service_at_0_mps2: float, models: Sequence[StepFunction], a_sb01_mps2: float, a_sb12_mps2: float
+) -> StepFunction:
+    """The normal service brake model of a set of three (SUBSET-026-3 3.13.2.2.3.1.10): model 0 when
+    A_brake_service(V = 0) <= A_SB01, model 1 when A_SB01 < A_brake_service(0) <= A_SB12, else model 2."""
+    if a_brake_service_at_0_mps2 <= a_sb01_mps2:
+        return models[0]
+    if a_brake_service_at_0_mps2 <= a_sb12_mps2:
+        return models[1]
+    return models[2]
 
 
 def a_gradient_mps2(
