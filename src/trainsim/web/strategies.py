@@ -29,7 +29,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -122,10 +122,11 @@ class EnergyParams(BaseModel):
         10.0,
         ge=0,
         le=300,
+        allow_inf_nan=False,
         description="running-time supplement over the fastest run for the whole line [%], split between "
         "the sections by the optimizer",
     )
-    section_running_times_s: list[float] | None = Field(
+    section_running_times_s: list[Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)]] | None = Field(
         None,
         max_length=1000,
         description="a timetable instead: the scheduled running time of each section between stops [s]",
