@@ -634,3 +634,29 @@ def test_normal_service_model_chosen_by_the_service_deceleration_at_standstill()
     with pytest.raises(InputError) as info:
         train(a_brake_normal_service_sets=sets, a_sb01_mps2=0.6)
     assert info.value.field == "a_sb12_mps2"
+
+
+def test_position_confidence_interval():
+    c0 = supervision_curves(train(), NV, None, 5000.0, 5100.0, mrsp=([0.0, 3000.0], [160 * KMH, 80 * KMH]))
+    c = supervision_curves(
+        train(),
+        NV,
+        None,
+        5000.0,
+        5100.0,
+        mrsp=([0.0, 3000.0], [160 * KMH, 80 * KMH]),
+        position_confidence_m=20.0,
+    )
+    v = 20.0
+    # EBD targets (the SvL) are supervised with the max safe front end, 20 m ahead of the estimated one
+    assert c.limit_position_m("ebi", v) == pytest.approx(c0.limit_position_m("ebi", v) - 20.0, abs=1e-9)
+    # the EoA with the estimated front end: SBI1 unchanged, so the SBI is the lower of the two
+    d_sbi1 = 5000.0 - v**2 / 1.6 - 4 * v
+    d_sbi2 = 5100.0 - v**2 / 2 - 3 * v - 4 * v - 20.0
+    assert c.limit_position_m("sbi", v) == pytest.approx(min(d_sbi1, d_sbi2), abs=1e-9)
+    # V_MRSP: the lowest speed between the min and max safe front ends
+    assert c.v_mrsp(2985.0) == pytest.approx(80 * KMH) and c.v_mrsp(2975.0) == pytest.approx(160 * KMH)
+    # release speed from d_tripEOA = EoA + 2 x 20 m: V^2 = 2 (60 - 3 V); trip when the min safe front
+    # end passes the EoA
+    assert c.release_speed_mps == pytest.approx(-3.0 + math.sqrt(9.0 + 120.0), abs=1e-9)
+    assert c.ebi(5010.0) == pytest.approx(c.release_speed_mps) and c.ebi(5021.0) == 0.0

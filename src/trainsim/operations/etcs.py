@@ -18,9 +18,9 @@ per mille, positive uphill (3.13.4.3.2). Decelerations are positive numbers.
 3.13.3 / A.3.7-A.3.9 (``EtcsTrainData.from_brake_percentage``) with the integrated correction factors.
 
 Not modelled (see docs/ETCS.md): special brakes and their track conditions (A_brake_emergency(V, d)
-depends on V only), Q_NVDRIVER_ADHES, the service brake feedback
-(T_bs2_locked, A.3.10) and the train position confidence interval (the curves are given for the front
-end; a margin can be added to the EoA trip location).
+depends on V only), Q_NVDRIVER_ADHES, the service brake feedback (T_bs2_locked, A.3.10), a position
+confidence interval that grows with the distance run (one constant interval can be given) and the
+level 1 terms (L_antenna, D41).
 """
 
 from __future__ import annotations
@@ -903,6 +903,12 @@ def _compensate(raw: _Piecewise, length_m: float) -> tuple[NDArray[np.float64], 
     return points[keep[1:]], values[keep]
 
 
+def _window_min(fn: _Piecewise, behind_m: float, ahead_m: float) -> _Piecewise:
+    """x -> the lowest value of ``fn`` on [x - behind_m, x + ahead_m]."""
+    breaks, values = _compensate(fn, behind_m + ahead_m)
+    return _Piecewise(breaks - ahead_m, values)
+
+
 # ----------------------------------------------------------------------------------------------------
 # Braking curves: interconnected arcs of parabola (3.13.8.1.3)
 # ----------------------------------------------------------------------------------------------------
@@ -1057,6 +1063,8 @@ class _Target:
     national: EtcsNationalValues
     gui: BrakingCurve | None = None
     gui_in_p: bool = False
+    #: estimated-front to max-safe-front distance for EBD targets, 0 for the EoA [m] (3.13.9.3.1)
+    offset_m: float = 0.0
     _tables: dict[tuple[str, float], tuple[NDArray[np.float64], NDArray[np.float64]]] = field(
         default_factory=dict, repr=False
     )
@@ -1103,11 +1111,13 @@ class _Target:
         return self.d_permitted(v) - v * self.times.t_indication
 
     def d_limit(self, kind: str, v: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The limit's location for the estimated front end: an EBD target is supervised with the max
+        safe front end, ``offset_m`` ahead of it; the EoA with the estimated front end."""
         if kind == "ebi":
             if not self.ebd_based:
                 return np.full_like(v, np.inf)
-            return self.d_ebi(v)
-        return getattr(self, f"d_{'sbi' if kind == 'sbi' else kind}")(v)
+            return self.d_ebi(v) - self.offset_m
+        return getattr(self, f"d_{'sbi' if kind == 'sbi' else kind}")(v) - self.offset_m
 
     def _table(self, kind: str, v_high: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The limit's location on a speed grid from V_target to ``v_high`` (cached)."""
@@ -1126,8 +1136,8 @@ class _Target:
         """
         speeds, locations = self._table(kind, v_high)
         out = np.where(s >= locations[0], self.v_target_mps, np.inf)
-        if self.kind == "mrsp":  # passed by the front end: the ceiling limits take over (3.13.8.2.3)
-            out = np.where(s >= self.position_m, np.inf, out)
+        if self.kind == "mrsp":  # passed by the max safe front end: the ceiling limits take over (3.13.8.2.3)
+            out = np.where(s >= self.position_m - self.offset_m, np.inf, out)
         inside = (s < locations[0]) & (s >= locations[-1])
         if not np.any(inside):
             return out
@@ -1440,6 +1450,7 @@ def supervision_curves(
     estimated_acceleration_mps2: float = 0.0,
     eoa_trip_margin_m: float = 0.0,
     reduced_adhesion: bool | Sequence[tuple[float, float]] = False,
+    position_confidence_m: float = 0.0,
 ) -> SupervisionCurves:
     """ETCS braking curves and supervision limits toward a target (SUBSET-026-3 3.13.8, 3.13.9).
 
@@ -1471,6 +1482,15 @@ def supervision_curves(
             (each applied up to its end plus the train length, 3.13.5.3); there A_brake_safe is limited
             to A_NVMAXREDADH (3.13.6.2.1.3, 3.13.6.2.1.6). Default none.
 
+        position_confidence_m: distance between the estimated front end and the max (and min) safe
+            front end [m] (L_DOUBTOVER = L_DOUBTUNDER, 3.6.4); default 0. The supervision limits are
+            then for the estimated front end: EBD targets are supervised with the max safe front end,
+            the EoA with the estimated one (3.13.9.3.1, Tables 8-9), V_MRSP is the lowest MRSP speed
+            between the min and max safe front ends (3.13.7.2), the train trips when the min safe
+            front end passes the EoA (3.13.10.2.6) and d_tripEOA is at least the confidence interval
+            beyond the EoA (3.13.9.4.8.2). The braking curves (ebd, sbd, guidance) stay in track
+            coordinates.
+
     Raises:
         InputError: bad input (naming the field, the value and what is allowed).
         InfeasibleError: the net deceleration is not positive somewhere on a curve (brakes weaker than
@@ -1498,6 +1518,8 @@ def supervision_curves(
         )
     _check_range("estimated_acceleration_mps2", estimated_acceleration_mps2, -10.0, 10.0, "-10 to 10 m/s^2")
     _check_range("eoa_trip_margin_m", eoa_trip_margin_m, 0.0, 10000.0, "0 to 10000 m")
+    _check_range("position_confidence_m", position_confidence_m, 0.0, 10000.0, "0 to 10000 m")
+    confidence = float(position_confidence_m)
     if isinstance(release_speed, str):
         if release_speed not in ("calculated", "national"):
             raise _bad(
@@ -1628,7 +1650,13 @@ def supervision_curves(
         )
 
     targets: list[_Target] = []
-    common = {"a_est_mps2": a_est, "v_delta0": v_delta0, "national": n, "gui_in_p": n.q_nvguiperm}
+    common = {
+        "a_est_mps2": a_est,
+        "v_delta0": v_delta0,
+        "national": n,
+        "gui_in_p": n.q_nvguiperm,
+        "offset_m": confidence,
+    }
 
     # MRSP speed decreases before the SvL (3.13.8.2.1 a), EBD through V_target + dV_ebi at the target
     # location down to V_target (3.13.8.3.1); GUI foot at d_P(V_target) (3.13.9.3.5.9-10)
@@ -1657,19 +1685,22 @@ def supervision_curves(
         sbd = BrakingCurve.build(
             sb_limits, pos_breaks, expected_table, eoa_position_m, 0.0, v_high, 0.0, "SBD"
         )
-        eoa_target = _Target("eoa", eoa_position_m, 0.0, sbd, times0, **common)
+        eoa_target = _Target("eoa", eoa_position_m, 0.0, sbd, times0, **{**common, "offset_m": 0.0})
         eoa_target.gui = gui_curve(eoa_position_m, 0.0)
         targets += [svl_target, eoa_target]
-        trip = eoa_position_m + eoa_trip_margin_m
+        # d_tripEOA: at least the confidence interval (d_maxsafefront - d_minsafefront) beyond the EoA
+        d_trip = eoa_position_m + max(eoa_trip_margin_m, 2 * confidence)
+        # the train trips when its min safe front end passes the EoA (3.13.10.2.6 a)
+        trip = eoa_position_m + confidence
         # EBD targets for the release speed: the SvL and, when calculated, those between the trip
         # location and the SvL (3.13.9.4.6, 3.13.9.4.8)
         release_targets = [svl_target]
         if release_speed == "calculated":
             release_targets += [
-                t for t in targets if t.kind == "mrsp" and trip < t.position_m <= svl_position_m
+                t for t in targets if t.kind == "mrsp" and d_trip < t.position_m <= svl_position_m
             ]
             release_v = min(
-                _calculated_release_speed(t, train, n, trip, v_high, v_delta0) for t in release_targets
+                _calculated_release_speed(t, train, n, d_trip, v_high, v_delta0) for t in release_targets
             )
         elif release_speed == "national":
             release_v = n.v_nvrel_mps
@@ -1678,7 +1709,7 @@ def supervision_curves(
         if release_v > 0:
             release_start = _release_start(eoa_target, release_targets, release_v, v_delta0)
             # 3.13.9.4.9: not above the MRSP between the start of release speed monitoring and the trip
-            lo, hi = min(release_start, trip), trip
+            lo, hi = min(release_start, d_trip), d_trip
             inside = (mrsp_fn.breaks > lo) & (mrsp_fn.breaks < hi)
             speeds = np.concatenate([mrsp_fn(np.asarray([lo, hi])), mrsp_fn.values[1:][inside]])
             v_cap = float(np.min(speeds))
@@ -1689,6 +1720,8 @@ def supervision_curves(
         svl_position_m = eoa_position_m
 
     t = times0 if target_speed_mps == 0 else times_for(target_speed_mps)
+    if confidence > 0:  # V_MRSP: the lowest MRSP speed between the min and max safe front ends (3.13.7.2)
+        mrsp_fn = _window_min(mrsp_fn, confidence, confidence)
     return SupervisionCurves(
         eoa_position_m=float(eoa_position_m),
         svl_position_m=float(svl_position_m),
@@ -1777,7 +1810,7 @@ def _release_start(
         t = target.times
         v_bec = max(v_release + dv0, target.v_target_mps)
         d_ebi = float(target.curve.position_m(v_bec)) - (v_release + dv0) * (t.t_berem + t.t_traction)
-        start = min(start, d_ebi - v_release * t.t_bs2)
+        start = min(start, d_ebi - v_release * t.t_bs2 - target.offset_m)
     return start
 
 
