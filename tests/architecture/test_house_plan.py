@@ -69,3 +69,13 @@ def test_help_imports_no_command():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip().splitlines()[-1] == "LOADED:"
+
+
+def test_first_run_after_an_install_says_it_compiles(tmp_path):
+    # an empty numba cache stands for a fresh install: the user is told why the first run is slow
+    import os
+
+    probe = "import os; from trainsim.cli.context import notice_first_compile; notice_first_compile()"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    proc = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, env=env)
+    assert "compiling trainsim's numerical kernels" in proc.stderr

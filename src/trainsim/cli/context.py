@@ -101,6 +101,29 @@ def exit_for_status(status: str) -> None:
         raise typer.Exit(code=int(ExitCode.NOT_AS_ASKED))
 
 
+def notice_first_compile() -> None:
+    """Say so on stderr when numba has no cached machine code yet (the first run after an install).
+
+    numba compiles the kernels on first use and caches them; the first run after an install therefore
+    takes about half a minute, the later ones milliseconds. The cache is probed through numba's cache
+    object of the main kernel; if numba changes that private layout, no notice is printed.
+    """
+    import os
+
+    try:
+        from trainsim.sim import kernel
+
+        index = kernel.fastest_segment._cache._cache_file._index_path
+    except Exception:  # numba's cache layout is private: never fail a run over a notice
+        return
+    if not os.path.exists(index):
+        typer.echo(
+            "note: compiling trainsim's numerical kernels for this machine (first run after an install "
+            "only; about half a minute, later runs take milliseconds)",
+            err=True,
+        )
+
+
 def require_file(path: Path, what: str) -> None:
     """An InputError unless ``path`` is an existing file."""
     if not path.exists():

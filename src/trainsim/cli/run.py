@@ -17,6 +17,7 @@ from trainsim.cli.context import (
     echo_warnings,
     exit_for_status,
     load_scenario,
+    notice_first_compile,
     user_errors,
 )
 
@@ -72,6 +73,7 @@ def run(
             scn = dataclasses.replace(scn, settings=dataclasses.replace(scn.settings, max_step_m=step))
         import trainsim
 
+        notice_first_compile()
         result = trainsim.run(scn)
         written: list[Path] = []
         if out is not None:
