@@ -37,10 +37,11 @@ class Problem:
     value: Any = None
     allowed: str | None = None
 
-    def text(self) -> str:
-        """The problem as one sentence (no trailing full stop)."""
+    def text(self, with_file: bool = True) -> str:
+        """The problem as one sentence (no trailing full stop); without the file name if
+        ``with_file`` is false (a list of problems of one file names it once)."""
         where = []
-        if self.file:
+        if self.file and with_file:
             where.append(f"{self.file}" + (f", line {self.line}" if self.line else ""))
         elif self.line:
             where.append(f"line {self.line}")
@@ -129,9 +130,17 @@ class InputError(TrainsimError, ValueError):
         )
 
     def _compose(self) -> str:
-        texts = [p.text() for p in self.problems[:5]]
-        more = len(self.problems) - len(texts)
-        text = "; ".join(texts)
+        if len(self.problems) == 1:
+            return self.problems[0].text() + "."
+        # several problems: "FILE: N problems: (1) line 3, field 'a': ...; (2) ..." (file named once)
+        files = {p.file for p in self.problems}
+        one_file = len(files) == 1 and None not in files
+        shown = self.problems[:5]
+        texts = [f"({i}) {p.text(with_file=not one_file)}" for i, p in enumerate(shown, 1)]
+        text = f"{len(self.problems)} problems: " + "; ".join(texts)
+        if one_file:
+            text = f"{self.problems[0].file}: {text}"
+        more = len(self.problems) - len(shown)
         if more > 0:
             text += f"; and {more} more problem{'s' if more > 1 else ''}"
         return text + "."

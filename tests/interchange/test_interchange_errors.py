@@ -171,8 +171,10 @@ def test_several_problems_are_reported_together(tmp_path):
     assert message.count(" problems: ") == 1
     assert (
         "<speedChange id='sc2'> @pos" in message
-        and "<radiusChange id='rc2'> @radius: not a number" in message
+        and "field '<radiusChange id='rc2'> @radius': not a number" in message
     )
+    fields = [p.field for p in err.value.problems]
+    assert "<radiusChange id='rc2'> @radius" in fields and all(p.line for p in err.value.problems)
 
 
 def test_malformed_xml_names_the_line(tmp_path):

@@ -50,6 +50,7 @@ __all__ = [
     "read_yaml_text",
     "xml_root",
     "yaml_line",
+    "yaml_lines",
 ]
 
 
@@ -382,11 +383,16 @@ def read_yaml(path: str | Path, limits: DocumentLimits | None = None) -> Any:
 def yaml_line(text: str, loc: Sequence[str | int]) -> int | None:
     """Line (1-based) of the value at ``loc`` (keys and list indices) in YAML ``text`` (the line of its
     key inside a mapping), or of its deepest existing parent; None if the text cannot be read."""
-    target = list(loc)
+    return yaml_lines(text, [loc])[0]
+
+
+def yaml_lines(text: str, locs: Sequence[Sequence[str | int]]) -> list[int | None]:
+    """:func:`yaml_line` of several locations, in one pass over the text."""
+    targets = [tuple(loc) for loc in locs]
+    best: list[int | None] = [None] * len(targets)
+    best_len = [-1] * len(targets)
     # one frame per open collection: [path, is_map, next index, expecting a key, pending key, key line]
     stack: list[list[Any]] = []
-    best: int | None = None
-    best_len = -1
     starts = (yaml.MappingStartEvent, yaml.SequenceStartEvent)
     try:
         parser = yaml.CSafeLoader(text) if yaml.__with_libyaml__ else yaml.SafeLoader(text)
@@ -402,8 +408,9 @@ def yaml_line(text: str, loc: Sequence[str | int]) -> int | None:
                 if cls not in (yaml.ScalarEvent, yaml.AliasEvent, *starts):
                     continue
                 line = event.start_mark.line + 1
+                here: tuple[Any, ...] | None
                 if not stack:
-                    here: list[Any] | None = []
+                    here = ()
                 else:
                     top = stack[-1]
                     if top[0] is None:  # inside a complex key: no path
@@ -414,13 +421,16 @@ def yaml_line(text: str, loc: Sequence[str | int]) -> int | None:
                             stack.append([None, cls is yaml.MappingStartEvent, 0, True, None, line])
                         continue
                     elif top[1]:  # a mapping's value
-                        here, line = [*top[0], top[4]], top[5]
+                        here, line = (*top[0], top[4]), top[5]
                         top[3] = True
                     else:
-                        here = [*top[0], top[2]]
+                        here = (*top[0], top[2])
                         top[2] += 1
-                if here is not None and len(here) > best_len and here == target[: len(here)]:
-                    best, best_len = line, len(here)
+                if here is not None:
+                    n = len(here)
+                    for i, target in enumerate(targets):
+                        if n > best_len[i] and target[:n] == here:
+                            best[i], best_len[i] = line, n
                 if cls in starts:
                     if len(stack) >= LIMITS.max_depth:
                         break

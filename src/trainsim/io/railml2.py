@@ -131,7 +131,8 @@ class _Reader:
         self.content = Content(format=f"railML {self.version}", file=self.file)
         if self.version not in SUPPORTED:
             self.content.notes.append(f"railML version {self.version}: read as railML 2.5")
-        self.ids = {el.get("id"): el for el in self.root.iter() if local(el) and el.get("id")}
+        self.ids = rc.index_ids(self.root, self.problems)
+        self.problems.raise_if_any()
         self.infra = child(self.root, "infrastructure")
         self.rollingstock = child(self.root, "rollingstock")
         self.timetable = child(self.root, "timetable")
@@ -181,7 +182,7 @@ class _Reader:
                 name = train.get("name") or train.get("trainNumber") or train.get("id") or ""
                 refs = []
                 for seq in children(train, "trainPartSequence"):
-                    order = int(seq.get("sequence") or 0)
+                    order = rc.attr_int(seq, "sequence", self.problems)
                     refs += [(order, r.get("ref")) for r in children(seq, "trainPartRef")]
                 for _, ref in sorted(refs, key=lambda x: x[0]):
                     if ref not in parts:
@@ -240,8 +241,8 @@ class _Reader:
         if chosen:
             t = chosen[0]
             self.usage.use(t)
-            arr = rc.parse_clock(t.get("arrival"), int(t.get("arrivalDay") or 0))
-            dep = rc.parse_clock(t.get("departure"), int(t.get("departureDay") or 0))
+            arr = rc.parse_clock(t.get("arrival"), rc.attr_int(t, "arrivalDay", self.problems, high=366))
+            dep = rc.parse_clock(t.get("departure"), rc.attr_int(t, "departureDay", self.problems, high=366))
             for attr, value in (("arrival", arr), ("departure", dep)):
                 if t.get(attr) is not None and value is None:
                     self.problems.add(t, "not a time hh:mm:ss", attribute=attr, value=t.get(attr))
@@ -678,8 +679,8 @@ class _Reader:
                         value=r.get("vehicleRef"),
                     )
                     continue
-                count = attr_float(r, "vehicleCount", p, positive=True)
-                order.append((v, int(count) if count else 1, r))
+                count = rc.attr_int(r, "vehicleCount", p, default=1, low=1)
+                order.append((v, count, r))
             if not order:
                 p.add(formation, "the formation lists no vehicle (trainOrder/vehicleRef)")
         p.raise_if_any()

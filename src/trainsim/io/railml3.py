@@ -114,7 +114,8 @@ class _Reader:
         self.content = Content(format=f"railML {self.version}", file=self.file)
         if self.version not in SUPPORTED:
             self.content.notes.append(f"railML version {self.version}: read as railML 3.2")
-        self.ids = {el.get("id"): el for el in self.root.iter() if local(el) and el.get("id")}
+        self.ids = rc.index_ids(self.root, self.problems)
+        self.problems.raise_if_any()
         self.infra = child(self.root, "infrastructure")
         self.rollingstock = child(self.root, "rollingstock")
         self.timetable = child(self.root, "timetable")
@@ -522,12 +523,12 @@ class _Reader:
         out = []
         for which in ("arrival", "departure"):
             el = child(t, which)
-            text, day = (
-                (el.get("time"), el.get("dayOffset"))
-                if el is not None
-                else (t.get(which), t.get(f"{which}Day"))
+            text = el.get("time") if el is not None else t.get(which)
+            holder = el if el is not None else t
+            days = rc.attr_int(
+                holder, "dayOffset" if el is not None else f"{which}Day", self.problems, high=366
             )
-            value = rc.parse_clock(text, int(day or 0)) if text is not None else None
+            value = rc.parse_clock(text, days) if text is not None else None
             if text is not None and value is None:
                 self.problems.add(el if el is not None else t, "not a time hh:mm:ss", value=text)
             out.append(value)
@@ -733,7 +734,7 @@ class _Reader:
                         value=r.get("vehicleRef"),
                     )
                     continue
-                count = int(attr_float(r, "vehicleCount", p, positive=True) or 1)
+                count = rc.attr_int(r, "vehicleCount", p, default=1, low=1)
                 if order and order[-1][0] is v and r.get("vehicleCount") is None:
                     order[-1] = (v, order[-1][1] + 1, order[-1][2])
                 else:

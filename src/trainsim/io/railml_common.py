@@ -20,6 +20,7 @@ namespace of the file (railML 2.2 to 2.5 and 3.1 to 3.2 all use different namesp
 
 from __future__ import annotations
 
+import dataclasses
 import heapq
 import itertools
 import math
@@ -35,8 +36,9 @@ from lxml import etree
 
 from trainsim.constants import KMH
 from trainsim.errors import InputError
+from trainsim.errors import Problem as ErrorProblem
 from trainsim.io.units import UNITS, Unit, format_units
-from trainsim.model import EffortCurve
+from trainsim.model import EffortCurve, bounds
 
 __all__ = [
     "EXTENSION_NS",
@@ -198,20 +200,20 @@ class Problems:
         return self.as_error()
 
     def as_error(self) -> InputError:
-        first = self.items[0]
-        if len(self.items) == 1:
-            return InputError(
-                first.message,
-                file=self.file,
-                field=first.element + (f" @{first.attribute}" if first.attribute else ""),
-                value=first.value,
-                allowed=first.allowed,
-                line=first.line,
-            )
-        listed = "; ".join(f"({i}) {p.text()}" for i, p in enumerate(self.items, 1))
-        error = InputError(f"{len(self.items)} problems: {listed}", file=self.file, line=first.line)
-        error.field = first.element
-        return error
+        """The problems collected as one InputError with one structured problem each."""
+        return InputError.from_problems(
+            [
+                ErrorProblem(
+                    p.message,
+                    file=self.file,
+                    line=p.line,
+                    field=p.element + (f" @{p.attribute}" if p.attribute else ""),
+                    value=p.value,
+                    allowed=p.allowed,
+                )
+                for p in self.items
+            ]
+        )
 
     def raise_if_any(self) -> None:
         if self.items:
@@ -260,7 +262,54 @@ def attr_float(
     if positive and value <= 0:
         problems.add(el, "out of range", attribute=name, value=text, allowed="> 0")
         return None
+    if abs(value) > _LARGEST:
+        problems.add(
+            el, "out of range", attribute=name, value=text, allowed=f"at most {_LARGEST:g} in size"
+        )
+        return None
     return value
+
+
+#: Largest magnitude of any number in a railML file (the quantity's own bounds apply later).
+_LARGEST = bounds.BOUNDS["coefficient"].high
+
+
+def attr_int(
+    el: etree._Element, name: str, problems: Problems, *, default: int = 0, low: int = 0, high: int = 100_000
+) -> int:
+    """A whole-number attribute (``sequence``, ``arrivalDay``, ``orderNumber``...) from ``low`` to
+    ``high``; ``default`` when it is absent; a bad value is recorded in ``problems``."""
+    text = el.get(name)
+    if text is None or not text.strip():
+        return default
+    stripped = text.strip()
+    if not re.fullmatch(r"[-+]?[0-9]{1,9}", stripped) or not low <= int(stripped) <= high:
+        problems.add(
+            el, "not a whole number in range", attribute=name, value=text, allowed=f"{low} to {high}"
+        )
+        return default
+    return int(stripped)
+
+
+def index_ids(root: etree._Element, problems: Problems) -> dict[str, etree._Element]:
+    """The elements by ``id``; a duplicate id (railML ids are unique in a file) is a problem."""
+    ids: dict[str, etree._Element] = {}
+    for el in root.iter():
+        ident = el.get("id") if isinstance(el.tag, str) else None
+        if not ident:
+            continue
+        if ident in ids:
+            first = ids[ident]
+            problems.add(
+                el,
+                f"duplicate id (also {label(first)} on line {first.sourceline})",
+                attribute="id",
+                value=ident,
+                allowed="ids unique in the file",
+            )
+            continue
+        ids[ident] = el
+    return ids
 
 
 def attr_bool(el: etree._Element, name: str) -> bool | None:
@@ -855,27 +904,34 @@ class Content:
     notes: list[str] = field(default_factory=list)
     ignored: list[str] = field(default_factory=list)
     origins: dict[str, str] = field(default_factory=dict)
+    origin_lines: dict[str, int | None] = field(default_factory=dict)
     figures: dict[str, str] = field(default_factory=dict)
     train_error: InputError | None = None
     route_error: InputError | None = None
     station_elements: list[etree._Element] = field(default_factory=list)
 
     def located(self, exc: InputError) -> InputError:
-        """An error of the trainsim validation pointed at the element the field came from."""
-        where = None
-        if exc.field:
+        """An error of the trainsim validation pointed at the element each field came from."""
+
+        def locate(p: ErrorProblem) -> ErrorProblem:
             best = ""
-            for prefix in self.origins:
-                if exc.field.startswith(prefix) and len(prefix) > len(best):
-                    best = prefix
-            where = self.origins.get(best)
-        reason = exc.reason + (f" (read from {where})" if where else "")
-        return InputError(
-            reason, file=self.file, field=exc.field, value=exc.value, allowed=exc.allowed, line=exc.line
-        )
+            if p.field:
+                for prefix in self.origins:
+                    if p.field.startswith(prefix) and len(prefix) > len(best):
+                        best = prefix
+            where = self.origins.get(best) if best else None
+            return dataclasses.replace(
+                p,
+                reason=p.reason + (f" (read from {where})" if where else ""),
+                file=self.file,
+                line=self.origin_lines.get(best) if best else None,
+            )
+
+        return InputError.from_problems([locate(p) for p in exc.problems])
 
     def origin(self, key: str, el: etree._Element) -> None:
         self.origins[key] = f"{label(el)} at line {el.sourceline}"
+        self.origin_lines[key] = el.sourceline
 
 
 # ====================================================================== route and train mappings

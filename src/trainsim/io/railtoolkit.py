@@ -65,7 +65,7 @@ from typing import Any, Literal
 import jsonschema
 
 from trainsim.constants import KMH, TONNE, TRAINRUNS_GRAVITY
-from trainsim.errors import InputError
+from trainsim.errors import InputError, Problem
 from trainsim.io.trainsim_yaml import read_yaml
 from trainsim.model import (
     Braking,
@@ -248,6 +248,17 @@ def _describe_schema_error(error: jsonschema.ValidationError) -> tuple[str, str,
     return _path_text(where), error.message, None, None
 
 
+def _lines(file: str, locs: list[list[str | int]]) -> list[int | None]:
+    """The YAML lines of the values at ``locs`` in the file (None where unknown)."""
+    from trainsim.io import documents
+
+    try:
+        text = documents.read_text(file)
+    except InputError:
+        return [None] * len(locs)
+    return documents.yaml_lines(text, locs)
+
+
 def _check(data: Any, file: str, expected_url: str, kind: str) -> str:
     """Check header and JSON Schema; returns the schema version."""
     if not isinstance(data, dict):
@@ -298,27 +309,20 @@ def _check(data: Any, file: str, expected_url: str, kind: str) -> str:
     errors = sorted(validator.iter_errors(data), key=lambda e: (list(map(str, e.absolute_path)), e.validator))
     if errors:
         described = [_describe_schema_error(e) for e in errors]
-        path, reason, value, allowed = described[0]
-        if len(described) == 1:
-            raise InputError(
-                f"{reason} (railtoolkit {kind} schema {version})",
-                file=file,
-                field=path or None,
-                value=value,
-                allowed=allowed,
-            )
-        shown = [
-            f"{p or '(top level)'}: {r}" + (f" (got {v!r})" if v is not None else "")
-            for p, r, v, _ in described
-        ]
-        error = InputError(
-            f"{len(described)} problems with the railtoolkit {kind} schema {version}: "
-            + "; ".join(shown[:8])
-            + (f" (and {len(shown) - 8} more)" if len(shown) > 8 else ""),
-            file=file,
+        lines = _lines(file, [list(e.absolute_path) for e in errors[:20]])
+        raise InputError.from_problems(
+            [
+                Problem(
+                    f"{reason} (railtoolkit {kind} schema {version})",
+                    file=file,
+                    line=lines[i] if i < len(lines) else None,
+                    field=path or None,
+                    value=value,
+                    allowed=allowed,
+                )
+                for i, (path, reason, value, allowed) in enumerate(described)
+            ]
         )
-        error.field = path or None
-        raise error
     return version
 
 

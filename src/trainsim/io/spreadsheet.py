@@ -55,7 +55,7 @@ from trainsim.constants import KMH
 from trainsim.errors import InputError
 from trainsim.io import railml_common as rc
 from trainsim.io.units import UNITS, Unit, format_units
-from trainsim.model import Route, Train
+from trainsim.model import Route, Train, bounds
 
 __all__ = ["is_spreadsheet", "read_spreadsheet", "write_spreadsheet"]
 
@@ -277,6 +277,8 @@ def _columns(sheet: Sheet, known: Sequence[Column], required: Sequence[str]) -> 
     return out
 
 
+#: "1,500" or "-12,000": one comma before exactly three digits, no dot: 1500 or 1.5?
+_AMBIGUOUS_SEPARATOR = re.compile(r"[-+]?[0-9]{1,3},[0-9]{3}")
 _TRUE = {"yes", "y", "true", "1", "x", "ja", "oui"}
 _FALSE = {"no", "n", "false", "0", "", "-", "nein", "non"}
 
@@ -294,14 +296,28 @@ def _value(sheet: Sheet, row: int, col: int, kind: str, factor: float = 1.0) -> 
         raise sheet.error("expected yes or no", row=row, col=col, value=text, allowed="yes, no")
     if text == "":
         return None
+    if _AMBIGUOUS_SEPARATOR.fullmatch(text):
+        raise sheet.error(
+            "ambiguous number: the comma may separate thousands or decimals",
+            row=row,
+            col=col,
+            value=text,
+            allowed=f"{text.replace(',', '')} or {text.replace(',', '.')} written without the comma",
+        )
     value = rc.num(text.replace(",", ".") if text.count(",") == 1 and "." not in text else text)
     if value is None:
         raise sheet.error("not a number", row=row, col=col, value=text)
     if kind == "int":
-        if not value.is_integer() or value < 0:
-            raise sheet.error("expected a whole number >= 0", row=row, col=col, value=text)
-        return int(value)
-    return value * factor
+        try:
+            return bounds.check_count(value)
+        except InputError as exc:
+            raise sheet.error(exc.reason, row=row, col=col, value=text, allowed=exc.allowed) from exc
+    si = value * factor
+    if not (math.isfinite(si) and abs(si) <= bounds.BOUNDS["coefficient"].high):
+        raise sheet.error(
+            "out of range", row=row, col=col, value=text, allowed=bounds.BOUNDS["coefficient"].allowed()
+        )
+    return si
 
 
 def _table(sheet: Sheet, y_aliases: tuple[str, ...]) -> tuple[list[float], list[float]]:

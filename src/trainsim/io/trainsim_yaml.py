@@ -26,6 +26,8 @@ import dataclasses
 import difflib
 import itertools
 import math
+import types
+import typing
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -37,9 +39,9 @@ from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, Validatio
 from pydantic_core import PydanticCustomError
 
 from trainsim.constants import GRAVITY_RANGE_MPS2, KMH, KN, KW, TONNE
-from trainsim.errors import InputError
+from trainsim.errors import InputError, Problem
 from trainsim.io import documents
-from trainsim.io.units import split_suffix, to_unit
+from trainsim.io.units import UNITS, split_suffix, to_unit
 from trainsim.model import (
     Braking,
     Curve,
@@ -56,6 +58,7 @@ from trainsim.model import (
     Train,
     Tunnel,
     Vehicle,
+    bounds,
 )
 from trainsim.model.route import ApplyOver, CurveFormula, GradientFormula, TunnelFormula
 from trainsim.model.scenario import RunSettings, Scenario
@@ -109,11 +112,16 @@ def read_yaml(path: str | Path) -> Any:
 
 def _yaml_line(path: str | Path, loc: Sequence[str | int]) -> int | None:
     """Line (1-based) of the YAML node at ``loc`` in the file, or of its deepest existing parent."""
+    return _yaml_lines(path, [loc])[0]
+
+
+def _yaml_lines(path: str | Path, locs: Sequence[Sequence[str | int]]) -> list[int | None]:
+    """:func:`_yaml_line` of several locations (one pass over the file)."""
     try:
         text = documents.read_text(path)
     except InputError:
-        return None
-    return documents.yaml_line(text, loc)
+        return [None] * len(locs)
+    return documents.yaml_lines(text, locs)
 
 
 # ====================================================================== validation errors
@@ -268,28 +276,17 @@ def _validation_error(
         problems.append((loc, reason, value, allowed))
     full = [[*([prefix] if prefix else []), *loc] for loc, *_ in problems]
     paths = [_format_loc(loc) for loc in full]
-    line = _yaml_line(path, full[0]) if path is not None and full else None
-    if len(problems) == 1:
-        _, reason, value, allowed = problems[0]
-        error = InputError(reason, file=file, field=paths[0] or None, value=value, allowed=allowed, line=line)
-    else:
-        parts = []
-        for p, (_, reason, value, allowed) in zip(paths, problems, strict=True):
-            part = f"{p or '(top level)'}: {reason}"
-            if value is not None:
-                shown = repr(value)
-                part += f" (got {shown if len(shown) <= 60 else shown[:57] + '...'})"
-            if allowed:
-                part += f", allowed: {allowed}"
-            parts.append(part)
-        error = InputError(
-            f"{len(problems)} problems: " + "; ".join(f"({i}) {t}" for i, t in enumerate(parts, 1)),
-            file=file,
-            line=line,
-        )
-        error.field = paths[0] or None  # for programs; the message already names every field
-    error.problems = list(zip(paths, [p[1] for p in problems], strict=True))  # type: ignore[attr-defined]
-    return error
+    lines = _yaml_lines(path, full[:_LINES_LOOKED_UP]) if path is not None and full else []
+    lines += [None] * (len(full) - len(lines))
+    structured = [
+        Problem(reason, file=file, line=line, field=p or None, value=value, allowed=allowed)
+        for p, line, (_, reason, value, allowed) in zip(paths, lines, problems, strict=True)
+    ]
+    return InputError.from_problems(structured)
+
+
+#: Problems of one file whose YAML line is looked up (each lookup is cheap, but files can be huge).
+_LINES_LOOKED_UP = 20
 
 
 @contextmanager
@@ -298,13 +295,15 @@ def _located(file: str, field: str) -> Iterator[None]:
     try:
         yield
     except InputError as exc:
-        if exc.field and exc.field.startswith(field):
-            field, inner = exc.field, ""  # already a spec path
-        else:
-            inner = f" ({exc.field})" if exc.field else ""
-        raise InputError(
-            exc.reason + inner, file=exc.file or file, field=field, value=exc.value, allowed=exc.allowed
-        ) from exc
+
+        def locate(p: Problem) -> Problem:
+            if p.field and p.field.startswith(field):
+                where, inner = p.field, ""  # already a spec path
+            else:
+                where, inner = field, f" ({p.field})" if p.field else ""
+            return dataclasses.replace(p, reason=p.reason + inner, file=p.file or file, field=where)
+
+        raise InputError.from_problems([locate(p) for p in exc.problems]) from exc
 
 
 @contextmanager
@@ -313,14 +312,18 @@ def _prefixed(prefix: str) -> Iterator[None]:
     try:
         yield
     except InputError as exc:
-        raise InputError(
-            exc.reason,
-            file=exc.file,
-            field=f"{prefix}.{exc.field}" if exc.field else prefix,
-            value=exc.value,
-            allowed=exc.allowed,
-            line=exc.line,
-        ) from exc
+        raise prefixed_error(exc, prefix) from exc
+
+
+def prefixed_error(exc: InputError, prefix: str, file: str | None = None) -> InputError:
+    """The error with ``prefix.`` put before the field of each of its problems (and ``file`` given
+    to problems that name none)."""
+    return InputError.from_problems(
+        [
+            dataclasses.replace(p, field=f"{prefix}.{p.field}" if p.field else prefix, file=p.file or file)
+            for p in exc.problems
+        ]
+    )
 
 
 # ====================================================================== base spec
@@ -341,14 +344,25 @@ class _Spec(BaseModel):
     @classmethod
     def _field_names(
         cls,
-    ) -> tuple[dict[str, str], dict[str, tuple[str, str]], dict[str, tuple[str, str]]]:
-        """(names by key, generic name -> (field, unit), field -> its (name, unit) split), per class."""
+    ) -> tuple[dict[str, str], dict[str, tuple[str, str]], dict[str, tuple[str, str]], dict[str, _Numeric]]:
+        """(names by key, generic name -> (field, unit), field -> its (name, unit) split, numeric
+        fields -> how to check them), per class."""
         cached = cls.__dict__.get("_names_cache")
         if cached is not None:
             return cached
         names: dict[str, str] = {}
+        numeric: dict[str, _Numeric] = {}
         for name, info in cls.model_fields.items():
-            names[info.alias or name] = name
+            key = info.alias or name
+            names[key] = name
+            depth = _numeric_depth(info.annotation)
+            if depth is not None:
+                split = split_suffix(key)
+                unit = UNITS[split[1]] if split else None
+                bound = bounds.bound_for(key, unit.dimension if unit else None)
+                numeric[key] = _Numeric(
+                    depth, bound, unit.symbol if unit else None, unit.factor if unit else 1.0
+                )
         generic: dict[str, tuple[str, str]] = {}
         suffixed: dict[str, tuple[str, str]] = {}
         for key in names:
@@ -357,7 +371,7 @@ class _Spec(BaseModel):
                 suffixed[key] = split
                 if split[0] not in names:
                     generic.setdefault(split[0], (key, split[1]))
-        cached = (names, generic, suffixed)
+        cached = (names, generic, suffixed, numeric)
         type.__setattr__(cls, "_names_cache", cached)
         return cached
 
@@ -366,7 +380,7 @@ class _Spec(BaseModel):
     def _fields_and_units(cls, data: Any) -> Any:
         if not isinstance(data, dict):
             return data
-        names, generic, suffixed = cls._field_names()
+        names, generic, suffixed, numeric = cls._field_names()
         out: dict[str, Any] = {}
         unknown: list[str] = []
         for key, value in data.items():
@@ -374,13 +388,15 @@ class _Spec(BaseModel):
                 _fail("field names must be text", value=key)
             if key in names:
                 split = suffixed.get(key)
-                if split and isinstance(value, str):
+                if split and isinstance(value, str) and not _is_number_text(value):
                     _fail(
                         f"'{key}' takes a plain number in {split[1]}; to give a unit, write "
                         f"'{split[0]}: {value}' instead",
                         field=key,
                         value=value,
                     )
+                if key in numeric and value is not None:
+                    _check_numbers(value, numeric[key], key)
                 out[key] = value
             elif key in generic:
                 target, unit = generic[key]
@@ -397,6 +413,8 @@ class _Spec(BaseModel):
                         reason = f"'{key}' needs a unit, e.g. '{key}: {value} {unit}'"
                         reason += f"; or write '{target}: {value}'"
                     _fail(reason, field=key, value=value, allowed=exc.allowed)
+                if target in numeric:
+                    _check_numbers(out[target], numeric[target], key, written=value)
             else:
                 unknown.append(key)
         for key in unknown:
@@ -405,6 +423,75 @@ class _Spec(BaseModel):
             close = difflib.get_close_matches(key, [*names, *generic], n=1, cutoff=0.6)
             out[key] = _UnknownField(data[key], close[0] if close else None, ", ".join(names))
         return out
+
+
+def _is_number_text(text: str) -> bool:
+    """Whether a text is a plain number ("12", " 3.5 "), i.e. a quoted number."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+@dataclasses.dataclass(frozen=True)
+class _Numeric:
+    """How to check a numeric field: list nesting depth (0: a number), its bound and its unit."""
+
+    depth: int
+    bound: bounds.Bound
+    unit: str | None
+    factor: float
+
+
+def _numeric_depth(annotation: Any) -> int | None:
+    """0 for a number (float or int, optional, constrained), 1 for a list of numbers...; None otherwise."""
+    if annotation is float or annotation is int:
+        return 0
+    origin = typing.get_origin(annotation)
+    args = typing.get_args(annotation)
+    if origin is Annotated:
+        return _numeric_depth(args[0])
+    if origin is typing.Union or origin is types.UnionType:
+        depths = {_numeric_depth(a) for a in args if a is not type(None)}
+        return depths.pop() if len(depths) == 1 else None
+    if origin in (list, tuple) and args:
+        inner = {_numeric_depth(a) for a in args if a is not Ellipsis}
+        depth = inner.pop() if len(inner) == 1 else None
+        return None if depth is None else depth + 1
+    return None
+
+
+def _check_numbers(value: Any, numeric: _Numeric, field: str, written: Any = None) -> None:
+    """Refuse text, true/false, non-finite and implausible values in a numeric field (one rule for
+    every trainsim file: a number is written as a number, and inside :mod:`trainsim.model.bounds`)."""
+    if numeric.depth > 0:
+        if isinstance(value, list):
+            for i, item in enumerate(value):
+                if item is not None:
+                    _check_numbers(
+                        item,
+                        _Numeric(numeric.depth - 1, numeric.bound, numeric.unit, numeric.factor),
+                        f"{field}[{i}]",
+                        written[i] if isinstance(written, list) and i < len(written) else None,
+                    )
+        return  # not a list: pydantic says "must be a list"
+    shown = written if written is not None else value
+    allowed = numeric.bound.allowed(numeric.unit, numeric.factor)
+    if isinstance(value, bool):
+        _fail("must be a number, not true/false", field=field, value=value, allowed=allowed)
+    if isinstance(value, str):
+        _fail(
+            "must be a number, not text (write it without quotes)", field=field, value=value, allowed=allowed
+        )
+    if isinstance(value, int | float):
+        bound = numeric.bound
+        if bound.low == 0 and -bound.high / numeric.factor <= value < 0:
+            return  # a sign error of a plausible magnitude: the field's own rule says what is allowed
+        try:
+            bounds.check(value, bound, unit=numeric.unit, factor=numeric.factor)
+        except InputError as exc:
+            _fail(exc.reason, field=field, value=shown, allowed=exc.allowed)
 
 
 def _check_increasing(
@@ -1664,13 +1751,7 @@ def driving_from_spec(
         try:
             timetable = line_supplement(spec.supplement)
         except InputError as exc:
-            raise InputError(
-                exc.reason,
-                file=file,
-                field=f"driving.{exc.field}" if exc.field else "driving",
-                value=exc.value,
-                allowed=exc.allowed,
-            ) from None
+            raise prefixed_error(exc, "driving", file) from None
     else:
         timetable = None
     if spec.strategy != "fastest" and timetable is None:
