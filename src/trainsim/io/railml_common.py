@@ -263,9 +263,7 @@ def attr_float(
         problems.add(el, "out of range", attribute=name, value=text, allowed="> 0")
         return None
     if abs(value) > _LARGEST:
-        problems.add(
-            el, "out of range", attribute=name, value=text, allowed=f"at most {_LARGEST:g} in size"
-        )
+        problems.add(el, "out of range", attribute=name, value=text, allowed=f"at most {_LARGEST:g} in size")
         return None
     return value
 
