@@ -126,7 +126,7 @@ def optimize(
     from trainsim.io.export import summary_table
 
     out_console = console()
-    out_console.print(summary_table(result.run))
+    out_console.print(summary_table(result.run, status=str(summary["status"])))
     out_console.print(
         f"strategy {strategy}: running {result.run.running_time_s:.1f} s (fastest {result.fastest.running_time_s:.1f} s), "
         f"net energy {result.run.energy_kwh.net:.2f} kWh (fastest {result.fastest.energy_kwh.net:.2f} kWh, "

@@ -38,11 +38,15 @@ def _num(value: float | None, digits: int) -> str:
     return f"{value:,.{digits}f}"
 
 
-def summary_table(result: RunResult) -> Table:
-    """Per-section figures and a total row, for printing with ``rich``."""
+def summary_table(result: RunResult, status: str | None = None) -> Table:
+    """Per-section figures and a total row, for printing with ``rich``.
+
+    ``status`` replaces the run's own status in the caption where the command's result has one of its
+    own (an optimisation whose schedule cannot be met drives a run that is itself ``ok``).
+    """
     table = Table(
         title=Text(f"{result.train_name} on {result.route_name}"),
-        caption=Text(f"{result.kind} run, status {result.status}"),
+        caption=Text(f"{result.kind} run, status {status or result.status}"),
     )
     headers: tuple[tuple[str, JustifyMethod], ...] = (
         ("from", "left"),
