@@ -14,7 +14,7 @@ lists the formats trainsim knows.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -386,7 +386,16 @@ def check_file(path: str | Path) -> CheckReport:
     if (report := interchange.check_file(path)) is not None:
         return report
     data = tsy.read_yaml(path)
+    schema = data.get("schema") if isinstance(data, dict) else None
+    if isinstance(schema, str) and schema in CHECKERS:
+        return CHECKERS[schema](Path(path))
     detected = _detect(data, file)
+    if detected.format.startswith("ttobench/"):
+        return _check_ttobench(path, detected)
+    if detected.format == "trainsim/timetable":
+        return _check_timetable(path, detected)
+    if detected.format == "trainsim/scenario" and ("model" in data or "multi_point" in data):
+        return _check_multipoint(path, detected)
     fmt = detected.format + (f" v{detected.version}" if detected.format.startswith("trainsim/") else "")
     if detected.format.startswith("railtoolkit/"):
         fmt += f" {detected.version}"
@@ -446,3 +455,81 @@ def check_file(path: str | Path) -> CheckReport:
     settings = rtk.load_railtoolkit_settings(path)
     figures = {"mass model": settings.mass_model, "line resistance applied over": settings.apply_over}
     return CheckReport(file, "settings", fmt, Path(file).stem, figures, list(settings.notes))
+
+
+#: Checkers of document kinds read by higher layers (``schema`` -> function returning the report);
+#: e.g. the CLI registers ``trainsim/study`` (the batch layer sits above this one).
+CHECKERS: dict[str, Callable[[Path], CheckReport]] = {}
+
+
+def register_checker(schema: str, checker: Callable[[Path], CheckReport]) -> None:
+    """Let :func:`check_file` check files whose ``schema`` is read by a layer above ``io``."""
+    CHECKERS[schema] = checker
+
+
+def _check_ttobench(path: str | Path, detected: Detected) -> CheckReport:
+    """A TTOBench train, track or journey file, read by the reader ``run`` and ``optimize`` use."""
+    from trainsim.io import ttobench
+
+    file = str(path)
+    fmt = f"{detected.format} {detected.version}".strip()
+    if detected.format == "ttobench/train":
+        loaded = ttobench.read_ttobench_train(path)
+        figures = _train_figures(loaded.train)
+        if loaded.tunnel_drag:
+            figures["tunnel drag"] = f"{len(loaded.tunnel_drag)} cross-section(s)"
+        return CheckReport(file, "train", fmt, loaded.train.name, figures, list(loaded.notes))
+    if detected.format == "ttobench/track":
+        route = ttobench.read_ttobench_track(path)
+        return CheckReport(file, "route", fmt, route.name, _route_figures(route))
+    journey = ttobench.read_ttobench_journey(path)
+    points = journey.points
+    windows = [p for p in points if p.earliest_s is not None or p.latest_s is not None]
+    figures = {
+        "track": journey.track_id or "(not named)",
+        "timing points": f"{len(points)} from {points[0].position_m:g} m to {points[-1].position_m:g} m",
+        "stops": str(sum(p.is_stop for p in points)),
+        "time windows": str(len(windows)),
+    }
+    return CheckReport(file, "timetable", fmt, journey.name, figures, list(journey.notes))
+
+
+def _check_timetable(path: str | Path, detected: Detected) -> CheckReport:
+    """A ``trainsim/timetable`` file (the schedule of ``optimize``)."""
+    from trainsim.optimize.timetable import read_timetable_yaml
+
+    timetable = read_timetable_yaml(path)
+    figures = {k: str(v) for k, v in _public_figures(timetable).items()}
+    return CheckReport(
+        str(path), "timetable", f"trainsim/timetable v{detected.version}", Path(path).stem, figures
+    )
+
+
+def _public_figures(obj: Any) -> dict[str, Any]:
+    """The public dataclass fields of an object, shortened for a report."""
+    import dataclasses as dc
+
+    if not dc.is_dataclass(obj):
+        return {"value": obj}
+    out: dict[str, Any] = {}
+    for f in dc.fields(obj):
+        if f.name.startswith("_"):
+            continue
+        value = getattr(obj, f.name)
+        text = repr(value)
+        out[f.name.replace("_", " ")] = text if len(text) <= 100 else text[:97] + "..."
+    return out
+
+
+def _check_multipoint(path: str | Path, detected: Detected) -> CheckReport:
+    """A scenario with ``model: multi_point``: read as ``run`` and ``multipoint`` read it."""
+    scenario = load_scenario(path)
+    figures = {f"train {k}": v for k, v in _train_figures(scenario.train).items()}
+    figures.update({f"route {k}": v for k, v in _route_figures(scenario.route).items()})
+    figures["model"] = scenario.model
+    spec = scenario.multi_point
+    if spec is not None:
+        figures.update({f"multi-point {k}": str(v) for k, v in _public_figures(spec).items()})
+    return CheckReport(
+        str(path), "scenario", f"{detected.format} v{detected.version}", scenario.name, figures
+    )
