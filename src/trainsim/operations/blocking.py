@@ -26,6 +26,7 @@ compressed span over the pattern period is its capacity consumption.
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -59,6 +60,8 @@ class Trajectory:
         ``v(x)^2 = v0^2 + (v1^2 - v0^2) dx / ds``.
         """
         s, t, v = self.position_m, self.time_s, self.speed_mps
+        if isinstance(x_m, float | int):
+            return np.array([self._first_time_scalar(float(x_m))])
         x = np.atleast_1d(np.asarray(x_m, dtype=float))
         i = np.searchsorted(s, x, side="left")
         out = np.empty_like(x)
@@ -81,13 +84,33 @@ class Trajectory:
         out[mid] = np.where(ok, kin, lin)
         return out
 
+    def _first_time_scalar(self, x: float) -> float:
+        # the same as the vectorised form, for one position (most calls of the dispatcher)
+        s = self.position_m
+        i = int(s.searchsorted(x, side="left"))
+        if i == 0:
+            return float(self.time_s[0])
+        if i >= len(s):
+            return float("inf")
+        s0, s1 = float(s[i - 1]), float(s[i])
+        t0, t1 = float(self.time_s[i - 1]), float(self.time_s[i])
+        v0, v1 = float(self.speed_mps[i - 1]), float(self.speed_mps[i])
+        ds, dx = s1 - s0, x - s0
+        frac = dx / ds if ds > 0 else 1.0
+        vx = max(v0 * v0 + (v1 * v1 - v0 * v0) * frac, 0.0) ** 0.5
+        if v0 + vx > 1e-9:
+            kin = t0 + 2.0 * dx / (v0 + vx)
+            if t0 - 1e-9 <= kin <= t1 + 1e-9:
+                return kin
+        return t0 + frac * (t1 - t0)
+
     def last_time_at(self, x_m: float) -> float:
         """The last time the head is at ``x_m`` (the departure if the train stops there) [s]."""
         s, t = self.position_m, self.time_s
         j = int(np.searchsorted(s, x_m, side="right")) - 1
         if j >= 0 and abs(s[j] - x_m) < 1e-9:
             return float(t[j])
-        return float(self.first_time_at(x_m)[0])
+        return self._first_time_scalar(float(x_m))
 
     def speed_at(self, x_m: float) -> float:
         """Speed where the head first reaches ``x_m`` (linear in position) [m/s]."""
@@ -250,39 +273,42 @@ def blocking_times(
         approach_distance_m: ETCS / moving block: approach distance over speed [m].
     """
     sig = signalling
-    out: list[BlockingTime] = []
-    stops = np.sort(np.asarray(stops_m, dtype=float))
+    if not steps:
+        return []
+    stops = sorted(float(x) for x in stops_m)
     length = trajectory.length_m
-    for j, route in steps:
+    n = len(steps)
+    approach = np.empty(n)
+    stand = [None] * n
+    for k, (j, route) in enumerate(steps):
         a = approach_start_m(path, j, sig, trajectory, approach_distance_m)
-        inside = stops[(stops >= a - 1e-9) & (stops < route.start_m)]
-        if inside.size:
-            t_see = trajectory.last_time_at(float(inside.max()))
-        else:
-            t_see = float(trajectory.first_time_at(a)[0])
-        start = t_see - sig.reaction_s - sig.setup_s
-        entry = float(trajectory.first_time_at(route.start_m)[0])
-        points = route_release_points(route, sig.release)
-        clears = trajectory.first_time_at(np.asarray(points) + length)
-        # a train leaves the line at the end of its trajectory (its destination, after the dwell there)
-        clears = np.where(np.isfinite(clears), clears, trajectory.time_s[-1])
-        lo = route.start_m
-        for res, point, clear in zip(route.resources, points, clears, strict=True):
+        approach[k] = a
+        # the last stop before the signal, if it lies inside the approach
+        i = bisect_left(stops, route.start_m)
+        if i > 0 and stops[i - 1] >= a - 1e-9:
+            stand[k] = stops[i - 1]
+    t_pass = trajectory.first_time_at(approach)
+    t_see = np.array([t_pass[k] if q is None else trajectory.last_time_at(q) for k, q in enumerate(stand)])
+    entries = trajectory.first_time_at(np.array([route.start_m for _j, route in steps]))
+    points = [route_release_points(route, sig.release) for _j, route in steps]
+    flat = np.array([p for ps in points for p in ps]) + length
+    clears = trajectory.first_time_at(flat)
+    # a train leaves the line at the end of its trajectory (its destination, after the dwell there)
+    clears = np.where(np.isfinite(clears), clears, trajectory.time_s[-1])
+    out: list[BlockingTime] = []
+    c = 0
+    for k, (j, route) in enumerate(steps):
+        start = float(t_see[k]) - sig.reaction_s - sig.setup_s
+        lo = float(line_position(route.start_m))
+        for res, point in zip(route.resources, points[k], strict=True):
+            clear = float(clears[c])
+            c += 1
             out.append(
                 BlockingTime(
-                    train_id,
-                    route.name,
-                    res.name,
-                    j,
-                    start,
-                    t_see,
-                    entry,
-                    float(clear),
-                    float(clear) + sig.release_s,
-                    float(line_position(lo)),
-                    float(line_position(point)),
+                    train_id, route.name, res.name, j, start, float(t_see[k]), float(entries[k]), clear,
+                    clear + sig.release_s, lo, float(line_position(point)),
                 )
-            )
+            )  # fmt: skip
     return out
 
 

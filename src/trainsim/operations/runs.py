@@ -9,6 +9,7 @@ set to zero and the standing times are put in afterwards (``Movement.trajectory`
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from itertools import pairwise
 
 import numpy as np
 
@@ -85,13 +86,14 @@ def service_route(directed: Route, stops: list[tuple[str, float]]) -> Route:
 
 @dataclass(frozen=True)
 class Movement:
-    """A train's fastest run through its stops with zero dwell times.
+    """A train's fastest run through its stops with zero dwell times, joined from one run per stretch
+    between two stops.
 
     Attributes:
         stops_m: the stop positions (running coordinate, first and last included) [m].
-        position_m, speed_mps, time_s: the run's trace [m, m/s, s].
+        position_m, speed_mps, time_s: the joined trace [m, m/s, s].
         arrival_index, departure_index: trace index of arriving at / leaving each stop.
-        result: the core's run.
+        results: the core's run of each stretch.
     """
 
     stops_m: tuple[float, ...]
@@ -100,7 +102,17 @@ class Movement:
     time_s: np.ndarray
     arrival_index: np.ndarray
     departure_index: np.ndarray
-    result: RunResult
+    results: tuple[RunResult, ...]
+
+    @property
+    def status(self) -> str:
+        """``ok``, or the status of the first stretch that is not."""
+        return next((r.status for r in self.results if r.status != "ok"), "ok")
+
+    @property
+    def warnings(self) -> list[str]:
+        """The warnings of every stretch."""
+        return [w for r in self.results for w in r.warnings]
 
     def running_times_s(self) -> np.ndarray:
         """Running time from each stop to the next [s]."""
@@ -125,44 +137,76 @@ class Movement:
         return Trajectory(np.concatenate(ts), np.concatenate(ss), np.concatenate(vs), length_m)
 
     def energy_kwh(self, standing_s: float, auxiliary_power_w: float) -> float:
-        """Net energy from the line of the run plus the auxiliaries while standing ``standing_s`` [kWh]."""
-        return float(self.result.energy_kwh.net + auxiliary_power_w * standing_s / KWH)
+        """Net energy from the line of the runs plus the auxiliaries while standing ``standing_s`` [kWh]."""
+        return float(sum(r.energy_kwh.net for r in self.results) + auxiliary_power_w * standing_s / KWH)
 
 
 class RunCache:
-    """Fastest runs by train, direction and stops, so identical runs are simulated once."""
+    """Fastest runs by train, direction and stretch between two stops, so that identical stretches are
+    simulated once: a train held at one more signal only needs the two runs of the stretch it splits.
+
+    A run from a stop to the next does not depend on the other stops (the train is at rest at both
+    ends); the one approximation is that a speed limit behind a stop, still under the train's rear when
+    it starts, is not held.
+    """
 
     def __init__(self, settings: RunSettings) -> None:
         self.settings = settings
-        self._runs: dict[tuple, Movement] = {}
+        self._runs: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray, RunResult]] = {}
         self._keep: list[object] = []
         self.computed = 0
         self.hits = 0
 
-    def movement(self, train: Train, directed: Route, stops: list[tuple[str, float]]) -> Movement:
-        """The fastest run of ``train`` on ``directed`` through ``stops`` (names and running positions)."""
-        key = (id(train), id(directed), tuple(round(p, 6) for _, p in stops))
+    def stretch(self, train: Train, directed: Route, a: tuple[str, float], b: tuple[str, float]):
+        """The fastest run from stop ``a`` to stop ``b`` (names and running positions): (position, speed,
+        time, result)."""
+        key = (id(train), id(directed), round(a[1], 6), round(b[1], 6))
         found = self._runs.get(key)
         if found is not None:
             self.hits += 1
             return found
         self._keep.extend((train, directed))  # ids stay valid while the cache lives
-        route = service_route(directed, stops)
-        result = run_fastest(train, route, self.settings)
+        result = run_fastest(train, service_route(directed, [a, b]), self.settings)
         tr = result.trace
         s, v, t = tr.position_m, tr.speed_mps, tr.time_s
-        pos = np.array([p for _, p in stops])
-        arr = np.searchsorted(s, pos - 1e-6, side="left")
-        dep = np.searchsorted(s, pos + 1e-6, side="right") - 1
-        arr[0] = 0
-        if result.status != "ok":
-            # a stalled run ends early: the stops it did not reach point at its end
-            arr = np.minimum(arr, len(s) - 1)
-            dep = np.minimum(dep, len(s) - 1)
-        movement = Movement(tuple(float(p) for p in pos), s, v, t, arr, dep, result)
-        self._runs[key] = movement
+        if result.status == "ok" and abs(s[-1] - b[1]) > 1e-6:
+            s, v, t = np.append(s, b[1]), np.append(v, 0.0), np.append(t, t[-1])
+        found = (s, v, t, result)
+        self._runs[key] = found
         self.computed += 1
-        return movement
+        return found
+
+    def movement(self, train: Train, directed: Route, stops: list[tuple[str, float]]) -> Movement:
+        """The fastest run of ``train`` on ``directed`` through ``stops`` (names and running positions)."""
+        ss, vs, ts, results = [], [], [], []
+        arr, dep = [0], [0]
+        n = 0
+        t0 = 0.0
+        for a, b in pairwise(stops):
+            s, v, t, result = self.stretch(train, directed, a, b)
+            ss.append(s)
+            vs.append(v)
+            ts.append(t - t[0] + t0)
+            results.append(result)
+            dep[-1] = n
+            n += len(s)
+            arr.append(n - 1)
+            dep.append(n - 1)
+            t0 = ts[-1][-1]
+            if result.status != "ok":
+                # a stalled run ends where it stalled: the stops it did not reach point at its end
+                arr.extend([n - 1] * (len(stops) - len(arr)))
+                dep.extend([n - 1] * (len(stops) - len(dep)))
+                break
+        return Movement(
+            tuple(float(p) for _, p in stops),
+            np.concatenate(ss),
+            np.concatenate(vs),
+            np.concatenate(ts),
+            np.array(arr),
+            np.array(dep),
+            tuple(results),
+        )
 
 
 def auxiliary_power_w(train: Train) -> float:

@@ -30,6 +30,7 @@ a hindered train (one more stop) needs a new run.
 from __future__ import annotations
 
 import heapq
+from bisect import bisect_left, bisect_right
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from itertools import pairwise
@@ -289,6 +290,7 @@ class _TrainState:
             )
         self.stops.append(_Stop(svc.destination, p1, "destination", dest_dwell, None))
         self.dest_dwell_s = dest_dwell
+        self.tracks = {s.name: s.track for s in self.stops if s.track is not None}
         self.override: dict[float, float] = {}  # stop position -> decided departure
         self.next = 0  # index into self.steps of the next route to request
         self.granted: list[tuple[int, Route]] = []
@@ -301,6 +303,8 @@ class _TrainState:
         self.done = False
         self.movement: Movement | None = None
         self.trajectory: Trajectory | None = None
+        self._request_key: tuple | None = None
+        self._request_value: tuple[float, float | None, float] = (0.0, None, 0.0)
         self.refresh_movement()
 
     # -- runs and trajectories
@@ -338,6 +342,14 @@ class _TrainState:
 
     def request_point(self, approach_fn) -> tuple[float, float | None, float]:
         """(request time, stop standing inside the approach or None, approach start)."""
+        key = (self.next, id(self.trajectory), len(self.stops))
+        if self._request_key == key:
+            return self._request_value
+        value = self._request_point(approach_fn)
+        self._request_key, self._request_value = key, value
+        return value
+
+    def _request_point(self, approach_fn) -> tuple[float, float | None, float]:
         j, step = self.pending_step()
         sig = self.line.signalling
         a = approach_start_m(self.path, j, sig, self.trajectory, approach_fn)
@@ -466,7 +478,7 @@ class _Dispatcher:
     def _alternatives(self, st: _TrainState, j: int, step: RouteStep) -> list[Route]:
         if step.kind != "entry" or len(step.alternatives) == 1:
             return list(step.alternatives)
-        wanted = next((s.track for s in st.stops if s.name == step.station and s.kind != "signal"), None)
+        wanted = st.tracks.get(step.station)
         if wanted is not None:
             return [r for r in step.alternatives if r.track == wanted]
         return list(step.alternatives)
@@ -843,10 +855,10 @@ def _standing_s(movement: Movement, deps: list[float], final_dwell_s: float) -> 
 
 def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutcome:
     svc = st.svc
-    status = "deadlocked" if stuck else ("stalled" if st.movement.result.status != "ok" else "ok")
+    status = "deadlocked" if stuck else ("stalled" if st.movement.status != "ok" else "ok")
     warnings = list(st.warnings)
-    if st.movement.result.status != "ok":
-        warnings.extend(st.movement.result.warnings)
+    if st.movement.status != "ok":
+        warnings.extend(st.movement.warnings)
     deps = st.departures() if not stuck else None
     traj = st.trajectory if not stuck else None
     rt = st.movement.running_times_s()
@@ -899,41 +911,47 @@ def _planned_blocking(
     trains taken in order of departure) and their conflicts."""
     sig = line.signalling
     order = sorted(range(len(states)), key=lambda i: plans[i].departures[0])
-    booked: dict[str, list[tuple[float, float]]] = {}
+    booked: dict[str, tuple[list[float], list[float], list[float]]] = {}
     per_train: dict[int, list[BlockingTime]] = {}
     for i in order:
         st, plan = states[i], plans[i]
         stations_stops = [s for s in st.stops if s.kind != "signal"]
         stops_m = [s.position_m for s in stations_stops]
         times: list[BlockingTime] = []
-        for j in st.steps:
+        line_pos = _line_pos(line, st.svc.direction)
+
+        def allowed(j: int, st=st, stations_stops=stations_stops) -> list[Route]:
             step = st.path.steps[j]
             alts = list(step.alternatives)
-            wanted = (
-                next((s.track for s in stations_stops if s.name == step.station), None)
-                if step.kind == "entry"
-                else None
-            )
-            if wanted is not None:
-                alts = [r for r in alts if r.track == wanted] or alts
-            best = None
-            for r in alts:
-                bt = blocking_times(
-                    st.svc.id, plan.trajectory, st.path, [(j, r)], stops_m, sig,
-                    _line_pos(line, st.svc.direction), approach[i],
-                )  # fmt: skip
-                clash = any(
-                    b.start_s < e - TIME_TOLERANCE_S and s0 < b.end_s - TIME_TOLERANCE_S
-                    for b in bt
-                    for s0, e in booked.get(b.resource, ())
-                )
-                if best is None:
-                    best = bt
-                if not clash:
-                    best = bt
-                    break
+            if step.kind == "entry" and len(alts) > 1:
+                wanted = next((s.track for s in stations_stops if s.name == step.station), None)
+                if wanted is not None:
+                    alts = [r for r in alts if r.track == wanted] or alts
+            return alts
+
+        options = {j: allowed(j) for j in st.steps}
+        # every step on its first allowed route at once; other tracks are tried where that one clashes
+        first = blocking_times(
+            st.svc.id, plan.trajectory, st.path, [(j, options[j][0]) for j in st.steps], stops_m, sig,
+            line_pos, approach[i],
+        )  # fmt: skip
+        by_step: dict[int, list[BlockingTime]] = {}
+        for b in first:
+            by_step.setdefault(b.step, []).append(b)
+        for j in st.steps:
+            best = by_step.get(j, [])
+            if len(options[j]) > 1 and any(
+                _overlaps(booked.get(b.resource), b.start_s, b.end_s) for b in best
+            ):
+                for r in options[j][1:]:
+                    bt = blocking_times(
+                        st.svc.id, plan.trajectory, st.path, [(j, r)], stops_m, sig, line_pos, approach[i]
+                    )
+                    if not any(_overlaps(booked.get(b.resource), b.start_s, b.end_s) for b in bt):
+                        best = bt
+                        break
             for b in best:
-                booked.setdefault(b.resource, []).append((b.start_s, b.end_s))
+                _book(booked, b)
             times.extend(best)
         per_train[i] = times
     planned = [b for i in range(len(states)) for b in per_train[i]]
@@ -1009,3 +1027,25 @@ def _check_invariants(outcomes: list[TrainOutcome], blocking: list[BlockingTime]
                 )
             if b.end_s > last_end:
                 last_end, last_train = b.end_s, b.train
+
+
+def _book(booked: dict, b: BlockingTime) -> None:
+    """Keep a resource's planned blocking times sorted by start, with the longest one's duration."""
+    starts, ends, longest = booked.setdefault(b.resource, ([], [], [0.0]))
+    k = bisect_right(starts, b.start_s)
+    starts.insert(k, b.start_s)
+    ends.insert(k, b.end_s)
+    longest[0] = max(longest[0], b.end_s - b.start_s)
+
+
+def _overlaps(entry: tuple | None, start: float, end: float) -> bool:
+    """Whether ``[start, end]`` overlaps a booked blocking time (only those that can are looked at)."""
+    if entry is None:
+        return False
+    starts, ends, longest = entry
+    k = bisect_left(starts, end - TIME_TOLERANCE_S)
+    while k > 0 and starts[k - 1] >= start - longest[0] - 1.0:
+        k -= 1
+        if ends[k] > start + TIME_TOLERANCE_S:
+            return True
+    return False
