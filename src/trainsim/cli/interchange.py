@@ -130,9 +130,9 @@ def convert(
     rotating_mass_factor: Rho = None,
 ) -> None:
     """Convert any readable input to trainsim's YAML (a train, a route, or a scenario with both)."""
-    from trainsim.io import convert as conv
-
     with user_errors():
+        from trainsim.io import convert as conv
+
         if not inp.exists():
             raise InputError("input not found", file=str(inp))
         options = _options(
@@ -169,10 +169,10 @@ def check(
 ) -> None:
     """Read a file and print what it holds, what was read and what was not (with lines), or why it is
     not usable."""
-    from trainsim.io import convert as conv
-    from trainsim.io import loader
-
     with user_errors():
+        from trainsim.io import convert as conv
+        from trainsim.io import loader
+
         if not file.exists():
             raise InputError("file not found", file=str(file))
         options = _options(
@@ -235,10 +235,10 @@ def export_results(
     rotating_mass_factor: Rho = None,
 ) -> None:
     """Run the fastest run and write its trace and summary as CSV, Parquet and/or JSON."""
-    import trainsim
-    from trainsim.io import results_export
-
     with user_errors():
+        import trainsim
+        from trainsim.io import results_export
+
         chosen = [f.strip().lower() for f in formats.split(",") if f.strip()]
         for f in chosen:
             if f not in results_export.FORMATS:
@@ -281,12 +281,12 @@ def runtimes(
 ) -> None:
     """Run the fastest run of a railML timetable train and write its running times back into the timetable
     (runTimes@minimalTime and times@scope='calculated')."""
-    import trainsim
-    from trainsim.io import convert as conv
-    from trainsim.io import loader, results_export
-    from trainsim.model.scenario import Scenario
-
     with user_errors():
+        import trainsim
+        from trainsim.io import convert as conv
+        from trainsim.io import loader, results_export
+        from trainsim.model.scenario import Scenario
+
         if not railml.exists():
             raise InputError("input not found", file=str(railml))
         options = _options(

@@ -19,13 +19,27 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import yaml
 
 from trainsim.errors import InputError
-from trainsim.io import railml_common as rc
-from trainsim.io.railml_common import Content
+
+if TYPE_CHECKING:
+    from trainsim.io.railml_common import Content
+
+
+class _RailmlCommon:
+    """``trainsim.io.railml_common``, imported on first use: it needs lxml (the ``interchange`` extra),
+    which a light install reading only YAML and JSON files does not have."""
+
+    def __getattr__(self, name: str) -> Any:
+        from trainsim.io import railml_common
+
+        return getattr(railml_common, name)
+
+
+rc = _RailmlCommon()
 
 __all__ = [
     "check_file",
@@ -46,14 +60,16 @@ _MASS_MODELS = {"mass_point": "head", "homogeneous_strip": "train_length"}
 
 def detect_interchange(path: str | Path) -> Format | None:
     """``railml2``, ``railml3`` or ``spreadsheet`` from the content, or None for other files."""
-    from trainsim.io import spreadsheet
-
     p = Path(path)
     if p.is_dir():
+        # the spreadsheet reader (and lxml behind it) is imported only for what may be a spreadsheet:
+        # a light install without the interchange extra reads YAML and JSON files
+        from trainsim.io import spreadsheet
+
         return "spreadsheet" if spreadsheet.is_spreadsheet(p) else None
     if not p.is_file():
         return None
-    if p.suffix.lower() in spreadsheet.EXCEL_SUFFIXES:
+    if p.suffix.lower() in (".xlsx", ".xlsm"):  # spreadsheet.EXCEL_SUFFIXES
         return "spreadsheet"
     try:
         with p.open("rb") as fh:
