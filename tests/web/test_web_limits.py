@@ -186,8 +186,9 @@ def test_one_session_cannot_hold_every_worker() -> None:
         async with httpx.AsyncClient(transport=transport, base_url="http://127.0.0.1") as c:
             r = await c.post("/api/examples/freight_000")
             h = {"X-Trainsim-Session": r.headers["x-trainsim-session"]}
-            body = {"settings": {"max_step_m": 1}}
-            rs = await asyncio.gather(*(c.post("/api/runs", json=body, headers=h) for _ in range(3)))
+            # three different runs (identical ones would share one computation)
+            bodies = [{"settings": {"max_step_m": 1 + k / 10}} for k in range(3)]
+            rs = await asyncio.gather(*(c.post("/api/runs", json=b, headers=h) for b in bodies))
             return sorted(r.status_code for r in rs)
 
     try:

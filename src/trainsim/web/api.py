@@ -7,6 +7,7 @@ JSON ``{"message", "detail": [{"field", "loc", "msg"}...]}`` (see :mod:`trainsim
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 import time
@@ -22,6 +23,7 @@ from trainsim.errors import InputError, TrainsimError
 from trainsim.io import trainsim_yaml as tsy
 from trainsim.model.scenario import RunSettings
 from trainsim.web import strategies
+from trainsim.web.cache import identity
 from trainsim.web.config import WebSettings
 from trainsim.web.convert import spec_dict
 from trainsim.web.errors import ApiError, format_loc, input_error
@@ -135,14 +137,18 @@ def _route_out(session: WebSession) -> Any:
     return _raw(_cached(session.route, route_payload))
 
 
+@functools.lru_cache(maxsize=16)
 def _example_train(name: str) -> Loaded:
+    """An example's train, validated and with its answer body (one shared object: never modified)."""
     spec = train_spec(name)
     loaded = Loaded(spec, spec.to_train(name), f"example {name}", spec.notes(), spec.warnings())
     _cached(loaded, train_payload)
     return loaded
 
 
+@functools.lru_cache(maxsize=16)
 def _example_route(name: str) -> Loaded:
+    """An example's route (one shared object: never modified)."""
     spec = route_spec(name)
     loaded = Loaded(spec, spec.to_route(name), f"example {name}", spec.notes())
     _cached(loaded, route_payload)
@@ -538,20 +544,34 @@ async def create_run(request: Request, body: RunRequest) -> Response:
         if session.train is None or session.route is None:
             raise ApiError(409, "load a train and a route before running")
         settings = run_settings_for(session, body.settings, limits)
-        train, route = session.train.model, session.route.model
+        train_loaded, route_loaded = session.train, session.route
+        train, route = train_loaded.model, route_loaded.model
     built_in = strategy.name in strategies.BUILT_IN and strategies.get(strategy.name) is strategy
-    result, body_json = await work(
-        request,
-        session,
-        "run",
-        strategy.name if built_in else strategy,
-        params.model_dump(),
-        train,
-        route,
-        settings,
-        limits.max_plot_points,
-        local=not built_in,
-    )
+    params_dict = params.model_dump()
+
+    def compute() -> Any:
+        return work(
+            request,
+            session,
+            "run",
+            strategy.name if built_in else strategy,
+            params_dict,
+            train,
+            route,
+            settings,
+            limits.max_plot_points,
+            local=not built_in,
+        )
+
+    if built_in:
+        key = json.dumps(
+            [identity(train_loaded), identity(route_loaded), repr(settings), strategy.name, params_dict],
+            sort_keys=True,
+            default=str,
+        )
+        result, body_json = await request.app.state.run_cache.get(key, compute)
+    else:
+        result, body_json = await compute()
     with session.lock:
         run_id = session.next_run_id()
         run = StoredRun(

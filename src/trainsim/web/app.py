@@ -7,6 +7,7 @@ offline.
 
 from __future__ import annotations
 
+import asyncio
 import json
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -22,6 +23,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 import trainsim
 from trainsim.web import api, drive, errors
+from trainsim.web.cache import RunCache
 from trainsim.web.config import WebSettings
 from trainsim.web.sessions import COOKIE_NAME, HEADER_NAME, SessionStore, WebSession
 from trainsim.web.workers import WorkerPool
@@ -222,11 +224,13 @@ def create_app(settings: WebSettings | None = None) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         if pool is not None:
-            await pool.start()
+            # in the background: the server answers at once, the first heavy request waits for it
+            starting = asyncio.ensure_future(pool.start())
         try:
             yield
         finally:
             if pool is not None:
+                starting.cancel()
                 pool.close()
 
     app = FastAPI(
@@ -247,6 +251,7 @@ def create_app(settings: WebSettings | None = None) -> FastAPI:
     store = SessionStore(settings)
     app.state.store = store
     app.state.pool = pool
+    app.state.run_cache = RunCache()
     app.state.web_settings = settings
 
     def session_for(request: Request) -> WebSession:

@@ -24,6 +24,7 @@ from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
 from trainsim.sim.result import RunResult
 from trainsim.web import guard, strategies
+from trainsim.web.cache import identity
 from trainsim.web.config import WebSettings
 from trainsim.web.convert import loaded_route, loaded_train, route_to_dict, spec_dict, train_to_dict
 from trainsim.web.payloads import route_payload, run_body, train_payload
@@ -74,6 +75,7 @@ def train_from_mapping(
     guard.check_document(data, limits)
     loaded = loaded_train(data, source)
     loaded.source = shown_source or source
+    identity(loaded)
     return loaded, _dumps(train_payload(spec_dict(loaded.spec), loaded), "train")
 
 
@@ -86,6 +88,7 @@ def route_from_mapping(
     loaded = loaded_route(data, source)
     loaded.source = shown_source or source
     _check_route(loaded, limits)
+    identity(loaded)
     return loaded, _dumps(route_payload(spec_dict(loaded.spec), loaded), "route")
 
 

@@ -16,8 +16,9 @@ from trainsim.web.sessions import Loaded, StoredRun
 
 def floats(values: Any, digits: int = 4) -> list[float | None]:
     """A numeric array as a JSON list, rounded to ``digits`` decimals, NaN and inf as null."""
-    arr = np.asarray(values, dtype=float)
-    rounded = np.round(arr, digits)
+    rounded = np.round(np.asarray(values, dtype=float), digits)
+    if np.isfinite(rounded).all():
+        return rounded.tolist()
     return [float(x) if math.isfinite(x) else None for x in rounded.tolist()]
 
 

@@ -74,6 +74,8 @@ class Loaded:
     warnings: list[str] = field(default_factory=list)
     #: the JSON body of GET /api/train or /api/route, computed when it was validated
     payload: bytes | None = None
+    #: hash of the validated spec (:func:`trainsim.web.cache.identity`)
+    key: str = ""
 
 
 @dataclass

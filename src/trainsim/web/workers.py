@@ -165,6 +165,7 @@ class WorkerPool:
         self.memory_limit_bytes = memory_limit_bytes
         self.max_queued = max_queued
         self._idle: asyncio.Queue[_Worker] | None = None
+        self._starting: asyncio.Task | None = None
         self._all: list[_Worker] = []
         self._waiting = 0
         self._closed = False
@@ -198,13 +199,18 @@ class WorkerPool:
             self._all.remove(worker)
 
     async def start(self) -> None:
-        """Start the workers (in a thread: the first start also starts the fork server)."""
-        if self._idle is not None:
-            return
-        self._idle = asyncio.Queue()
+        """Start the workers (in a thread: the first start also starts the fork server, which
+        imports trainsim and compiles its kernels: seconds). Concurrent callers wait for one start."""
+        if self._starting is None:
+            self._starting = asyncio.ensure_future(self._start())
+        await asyncio.shield(self._starting)
+
+    async def _start(self) -> None:
+        idle: asyncio.Queue[_Worker] = asyncio.Queue()
         workers = await asyncio.to_thread(lambda: [self._spawn() for _ in range(self.processes)])
         for w in workers:
-            self._idle.put_nowait(w)
+            idle.put_nowait(w)
+        self._idle = idle
 
     def close(self) -> None:
         """Stop every worker."""
