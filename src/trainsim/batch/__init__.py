@@ -12,7 +12,7 @@
 The study format, the result columns and the executors are described in docs/BATCH.md.
 """
 
-from trainsim.batch.executors import EXECUTORS, configured_scheduler, default_workers
+from trainsim.batch.executors import EXECUTORS, ClusterLostError, configured_scheduler, default_workers
 from trainsim.batch.expand import Expansion, expand, run_id
 from trainsim.batch.paths import get_values, parse_path, set_value
 from trainsim.batch.runner import StudyOutcome, auto_chunk_size, run_study
@@ -21,6 +21,7 @@ from trainsim.batch.study import Study, load_study, study_from_dict
 
 __all__ = [
     "EXECUTORS",
+    "ClusterLostError",
     "Expansion",
     "Study",
     "StudyOutcome",

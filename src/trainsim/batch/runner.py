@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from trainsim.batch.executors import ExecutorName, default_workers, executor_for
+from trainsim.batch.executors import WORKER_TIMEOUT_S, ExecutorName, default_workers, executor_for
 from trainsim.batch.expand import Expansion, RunTask
 from trainsim.batch.sink import MemorySink, ParquetSink, read_results
 from trainsim.batch.study import Study, load_study
@@ -166,6 +166,7 @@ def run_study(
     chunk_size: int | None = None,
     restart: bool = False,
     progress: bool = False,
+    worker_timeout_s: float = WORKER_TIMEOUT_S,
 ) -> StudyOutcome:
     """Run every run of a study that is not yet in ``out``; a failed run is a row, never an exception.
 
@@ -179,6 +180,12 @@ def run_study(
         chunk_size: runs per task (default: the study's ``chunk_size``, else :func:`auto_chunk_size`).
         restart: discard the results already in ``out`` and start again.
         progress: show a progress bar on stderr.
+        worker_timeout_s: how long a Dask study waits when its cluster has no worker [s].
+
+    Raises:
+        InputError: the study cannot be run as written.
+        ClusterLostError: the workers or the Dask scheduler were lost (see
+            :mod:`trainsim.batch.executors`); what was computed is written and the study resumes.
     """
     if not isinstance(study, Study):
         study = load_study(study)
@@ -210,7 +217,9 @@ def run_study(
     computed = failed = stalled = chunks = 0
     t0 = time.perf_counter()
     if todo:
-        with executor_for(payload, executor, workers=workers, scheduler=scheduler) as ex:
+        with executor_for(
+            payload, executor, workers=workers, scheduler=scheduler, worker_timeout_s=worker_timeout_s
+        ) as ex:
             n_workers = ex.workers
             # the bar (a thread) starts once the workers are running
             bar = _Progress(study.name, len(expansion), already, progress)

@@ -105,6 +105,8 @@ def batch(
             restart=restart,
             progress=progress,
         )
+    except executors.ClusterLostError as exc:  # workers or scheduler lost: exit 4, resumable
+        raise _fail(str(exc), ExitCode.INFRASTRUCTURE) from None
     except TrainsimError as exc:
         raise _fail(str(exc)) from None
     except OSError as exc:
