@@ -97,3 +97,30 @@ def test_cli_on_dask_by_address_and_by_dask_configuration(dask_cluster, write_st
     assert result.exit_code == 0, result.output
     assert "on dask" in result.output
     assert read_results(tmp_path / "a", as_table=True).equals(read_results(tmp_path / "b", as_table=True))
+
+
+def test_a_killed_pool_process_is_replaced_and_its_chunks_computed_again(study, serial):
+    """SIGKILL of a worker process breaks the pool: a new pool computes the chunks that were lost."""
+    import os
+    import signal
+
+    from trainsim.batch.executors import _Processes
+    from trainsim.batch.runner import _chunks
+    from trainsim.batch.worker import Payload
+
+    expansion = study.expand()
+    payload = Payload(study.fingerprint, study.name, tuple(e.data for e in study.entries))
+    ex = _Processes(payload, 2)
+    ex.start()
+    try:
+        rows = []
+        for k, chunk_rows in enumerate(ex.results(_chunks(expansion, list(range(18)), 2, 2))):
+            rows.extend(chunk_rows)
+            if k == 1:  # after two chunks: kill a worker while others are in flight
+                os.kill(next(iter(ex.pool._processes)), signal.SIGKILL)
+    finally:
+        ex.close()
+    assert ex.restarts == 1
+    assert sorted(i for i, _ in rows) == list(range(18))  # every run exactly once
+    by_index = dict(rows)
+    assert [by_index[i]["status"] for i in range(18)] == serial.column("status").to_pylist()
