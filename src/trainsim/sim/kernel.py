@@ -63,6 +63,46 @@ def effort(v, starts, coefs, fcap, pcap):
 
 
 @njit(cache=True)
+def _law(v, j, coefs):
+    """Interval j's law c0 + c1 v + c2 v^2 + ch / v of a compiled EffortCurve [N]."""
+    f = coefs[j, 0] + coefs[j, 1] * v + coefs[j, 2] * v * v
+    if coefs[j, 3] != 0.0:
+        f += coefs[j, 3] / v if v > 0.0 else np.inf
+    return f
+
+
+@njit(cache=True)
+def effort_branch(v, vref, starts, coefs, fcap, pcap):
+    """Force [N] of a compiled EffortCurve at speed v [m/s] on the smooth branch that holds at the
+    reference speed ``vref`` (its interval, and whichever of law, force cap, power cap or zero binds
+    there), continued smoothly to v; with ``vref < 0`` the curve itself (``effort``).
+
+    An integration between two kinks evaluates its stages on the branch of the piece it integrates:
+    a stage that lands just beyond a kink (a table step such as source 002's braking force jumping
+    from 150 to 335 kN between 5 and 6 km/h, or a cap) must not see the next branch, and a piece
+    that starts exactly at a kink must see the branch it goes into."""
+    if vref < 0.0:
+        return effort(v, starts, coefs, fcap, pcap)
+    j = np.searchsorted(starts, vref, side="right") - 1
+    if j < 0:
+        j = 0
+    best = _law(vref, j, coefs)
+    branch = 0
+    if fcap < best:
+        best, branch = fcap, 1
+    if vref > 0.0 and pcap / vref < best:
+        best, branch = pcap / vref, 2
+    if not best > 0.0:
+        return 0.0
+    if branch == 1:
+        return fcap
+    if branch == 2:
+        return pcap / v if v > 0.0 else fcap
+    f = _law(v, j, coefs)
+    return f if f > 0.0 else 0.0
+
+
+@njit(cache=True)
 def resistance_force(v, u, line, P):
     """Running plus line resistance [N] at speed v and offset u into the interval whose line
     resistance laws are ``line = (a0, a1, b0, b1)``: specific resistance a0 + a1 u [N/kg] and
@@ -73,33 +113,64 @@ def resistance_force(v, u, line, P):
 
 
 @njit(cache=True)
-def acceleration(mode, E, u, line, P, curves):
+def acceleration(mode, E, u, line, P, curves, vref=-1.0):
     """dE/ds = acceleration [m/s^2] in a regime with maximum effort. ``curves`` holds the compiled
     traction, service braking and regenerative braking EffortCurves,
-    ``(ts, tc, tf, tp, bs, bc, bf, bp, rs, rc, rf, rp)``."""
+    ``(ts, tc, tf, tp, bs, bc, bf, bp, rs, rc, rf, rp)``; ``vref`` >= 0 selects the curves' branch
+    (``effort_branch``)."""
     ts, tc, tf, tp, bs, bc, bf, bp, rs, rc, rf, rp = curves
     v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
     res = resistance_force(v, u, line, P)
     M = P[P_INERTIAL_MASS]
     if mode == TRACTION:
-        return (P[P_TRACTION_SCALE] * effort(v, ts, tc, tf, tp) - res) / M
+        return (P[P_TRACTION_SCALE] * effort_branch(v, vref, ts, tc, tf, tp) - res) / M
     if mode == BRAKE:
         if P[P_DECEL] > 0.0:
             a_res = res / M
             return -a_res if a_res > P[P_DECEL] else -P[P_DECEL]
-        return -(P[P_BRAKE_FRACTION] * effort(v, bs, bc, bf, bp) + res) / M
+        return -(P[P_BRAKE_FRACTION] * effort_branch(v, vref, bs, bc, bf, bp) + res) / M
     if mode == REGEN:
-        return -(effort(v, rs, rc, rf, rp) + res) / M
+        return -(effort_branch(v, vref, rs, rc, rf, rp) + res) / M
     return -res / M
 
 
+#: Longest RK4 step as a share of the motion's length scale 2E / |a| = v^2 / |a| [-] (within about
+#: that distance E(s) meets the square-root singularity of standstill), at most ``MAX_SUBSTEPS``
+#: sub-steps per step. Only slow, strongly braked or accelerated steps are divided: at 20 m/s and
+#: 1 m/s^2 the scale is 400 m.
+LENGTH_SCALE_FRACTION = 0.01
+MAX_SUBSTEPS = 64
+
+
 @njit(cache=True)
-def rk4_energy(E, u, h, mode, line, P, curves):
-    """E after a step h [m] (negative: backwards) from offset u; not clipped at 0."""
-    k1 = acceleration(mode, E, u, line, P, curves)
-    k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, line, P, curves)
-    k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, line, P, curves)
-    k4 = acceleration(mode, E + h * k3, u + h, line, P, curves)
+def _substeps(E, u, h, mode, line, P, curves, vref):
+    """Number of RK4 sub-steps for a step h [m] from (u, E) (see ``LENGTH_SCALE_FRACTION``)."""
+    a = abs(acceleration(mode, E, u, line, P, curves, vref))
+    if not (a > 0.0 and E > 0.0):
+        return 1
+    n = int(np.ceil(abs(h) * a / (LENGTH_SCALE_FRACTION * 2.0 * E)))
+    return min(max(n, 1), MAX_SUBSTEPS)
+
+
+@njit(cache=True)
+def rk4_energy(E, u, h, mode, line, P, curves, vref=-1.0):
+    """E after a step h [m] (negative: backwards) from offset u; not clipped at 0. Slow steps are
+    divided into sub-steps (``LENGTH_SCALE_FRACTION``)."""
+    n = _substeps(E, u, h, mode, line, P, curves, vref)
+    d = h / n
+    for _ in range(n):
+        E = _rk4_energy_1(E, u, d, mode, line, P, curves, vref)
+        u += d
+    return E
+
+
+@njit(cache=True)
+def _rk4_energy_1(E, u, h, mode, line, P, curves, vref):
+    """One RK4 step of E over h [m] from offset u."""
+    k1 = acceleration(mode, E, u, line, P, curves, vref)
+    k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, line, P, curves, vref)
+    k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, line, P, curves, vref)
+    k4 = acceleration(mode, E + h * k3, u + h, line, P, curves, vref)
     return E + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
 
@@ -108,19 +179,33 @@ TIME_SUBSTEPS = 4
 
 
 @njit(cache=True)
-def rk4_energy_time(E, u, h, mode, line, P, curves):
-    """(E, elapsed time) after a forward step h [m] from offset u.
+def rk4_energy_time(E, u, h, mode, line, P, curves, vref=-1.0):
+    """(E, elapsed time) after a forward step h [m] from offset u; slow steps are divided into
+    sub-steps (``LENGTH_SCALE_FRACTION``), each as ``_rk4_energy_time_1``."""
+    n = _substeps(E, u, h, mode, line, P, curves, vref)
+    d = h / n
+    total = 0.0
+    for _ in range(n):
+        E, dt = _rk4_energy_time_1(E if E > 0.0 else 0.0, u, d, mode, line, P, curves, vref)
+        total += dt
+        u += d
+    return E, total
+
+
+@njit(cache=True)
+def _rk4_energy_time_1(E, u, h, mode, line, P, curves, vref):
+    """(E, elapsed time) after one forward RK4 step h [m] from offset u.
 
     Time is the integral of ds / v, singular at standstill. E(s) over the step is taken as the
     cubic Hermite interpolant of its end values and slopes, and on each sub-interval, where E is
     nearly linear, dt = 2 ds / (v_a + v_b), exact for linear E (constant acceleration).
     """
-    k1 = acceleration(mode, E, u, line, P, curves)
-    k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, line, P, curves)
-    k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, line, P, curves)
-    k4 = acceleration(mode, E + h * k3, u + h, line, P, curves)
+    k1 = acceleration(mode, E, u, line, P, curves, vref)
+    k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, line, P, curves, vref)
+    k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, line, P, curves, vref)
+    k4 = acceleration(mode, E + h * k3, u + h, line, P, curves, vref)
     E1 = E + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-    d1 = acceleration(mode, E1 if E1 > 0.0 else 0.0, u + h, line, P, curves)
+    d1 = acceleration(mode, E1 if E1 > 0.0 else 0.0, u + h, line, P, curves, vref)
     dt = 0.0
     v_prev = np.sqrt(2.0 * E) if E > 0.0 else 0.0
     for j in range(1, TIME_SUBSTEPS + 1):
@@ -136,43 +221,52 @@ def rk4_energy_time(E, u, h, mode, line, P, curves):
     return E1, dt
 
 
-#: Speed change covered by one RK4 step of a speed-domain integration [m/s].
-SPEED_DOMAIN_STEP = 0.5
+#: Speed change covered by one RK4 step of a speed-domain integration [m/s], and the fewest steps:
+#: a table force that changes steeply with speed (source 002's braking force, 150 to 335 kN between
+#: 5 and 6 km/h) puts a pole of ds/dv = v / a(v) close to the interval.
+SPEED_DOMAIN_STEP = 0.05
+SPEED_DOMAIN_MIN_STEPS = 8
 
 
 @njit(cache=True)
 def distance_to_speed(E, u, Et, mode, line, P, curves):
     """Signed distance [m] from (u, E) along ``mode`` until E reaches Et, integrating
-    ds/dE = 1/a(E, s) in the speed domain (exact event location, no root finding). The law must be
-    smooth between E and Et (no kink inside). Returns inf when the acceleration vanishes or changes
-    sign on the way, i.e. Et is never reached."""
+    ds/dv = v / a(v, s) in the speed domain (exact event location, no root finding; regular down to
+    standstill, and exact for a constant force). The law must be smooth between E and Et (no kink
+    inside; it is evaluated on the branch of the speeds in between). Returns inf when the
+    acceleration vanishes or changes sign on the way, i.e. Et is never reached."""
+    v_from = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+    v_to = np.sqrt(2.0 * Et) if Et > 0.0 else 0.0
+    vref = 0.5 * (v_from + v_to)  # the law is smooth in between: evaluate it on that branch
     # one RK4 step per SPEED_DOMAIN_STEP of speed change keeps the local error far below 1 mm
-    dv = abs(np.sqrt(2.0 * Et if Et > 0.0 else 0.0) - np.sqrt(2.0 * E if E > 0.0 else 0.0))
-    n = min(max(int(np.ceil(dv / SPEED_DOMAIN_STEP)), 3), 16)
-    dE = (Et - E) / n
+    n = min(max(int(np.ceil(abs(v_to - v_from) / SPEED_DOMAIN_STEP)), SPEED_DOMAIN_MIN_STEPS), 128)
+    dv = (v_to - v_from) / n
+    v = v_from
     s = 0.0
     sign = 0.0
     for _ in range(n):
-        k1 = acceleration(mode, E, u + s, line, P, curves)
+        a1 = acceleration(mode, 0.5 * v * v, u + s, line, P, curves, vref)
         if sign == 0.0:
-            sign = 1.0 if k1 > 0.0 else -1.0
-        if k1 * sign <= 0.0:
+            sign = 1.0 if a1 > 0.0 else -1.0
+        if a1 * sign <= 0.0:
             return np.inf
-        r1 = 1.0 / k1
-        k2 = acceleration(mode, E + 0.5 * dE, u + s + 0.5 * dE * r1, line, P, curves)
-        if k2 * sign <= 0.0:
+        r1 = v / a1
+        vm = v + 0.5 * dv
+        a2 = acceleration(mode, 0.5 * vm * vm, u + s + 0.5 * dv * r1, line, P, curves, vref)
+        if a2 * sign <= 0.0:
             return np.inf
-        r2 = 1.0 / k2
-        k3 = acceleration(mode, E + 0.5 * dE, u + s + 0.5 * dE * r2, line, P, curves)
-        if k3 * sign <= 0.0:
+        r2 = vm / a2
+        a3 = acceleration(mode, 0.5 * vm * vm, u + s + 0.5 * dv * r2, line, P, curves, vref)
+        if a3 * sign <= 0.0:
             return np.inf
-        r3 = 1.0 / k3
-        k4 = acceleration(mode, E + dE, u + s + dE * r3, line, P, curves)
-        if k4 * sign <= 0.0:
+        r3 = vm / a3
+        ve = v + dv
+        a4 = acceleration(mode, 0.5 * ve * ve, u + s + dv * r3, line, P, curves, vref)
+        if a4 * sign <= 0.0:
             return np.inf
-        r4 = 1.0 / k4
-        s += dE / 6.0 * (r1 + 2.0 * r2 + 2.0 * r3 + r4)
-        E += dE
+        r4 = ve / a4
+        s += dv / 6.0 * (r1 + 2.0 * r2 + 2.0 * r3 + r4)
+        v = ve
     return s
 
 
@@ -192,6 +286,15 @@ def _next_kink(v0, rising, v_far, kinks):
 
 
 @njit(cache=True)
+def _is_kink(v, kinks):
+    """Whether speed v [m/s] is one of the kink speeds (sorted), to within SPEED_TOLERANCE."""
+    j = np.searchsorted(kinks, v)
+    if j < len(kinks) and abs(kinks[j] - v) <= SPEED_TOLERANCE:
+        return True
+    return j > 0 and abs(kinks[j - 1] - v) <= SPEED_TOLERANCE
+
+
+@njit(cache=True)
 def step_energy_time(E, u, h, mode, line, P, curves, kinks):
     """(E, elapsed time) after a step h [m] from offset u, restarted at every kink of the
     effort curve on the way: one RK4 step across a kink (e.g. source 002's braking force jumping
@@ -199,6 +302,7 @@ def step_energy_time(E, u, h, mode, line, P, curves, kinks):
     speed domain and the step split there."""
     remaining = h
     total_dt = 0.0
+    split = _is_kink(np.sqrt(2.0 * E) if E > 0.0 else 0.0, kinks)
     for _ in range(64):
         E1, dt = rk4_energy_time(E, u, remaining, mode, line, P, curves)
         v0 = np.sqrt(2.0 * E) if E > 0.0 else 0.0
@@ -207,12 +311,16 @@ def step_energy_time(E, u, h, mode, line, P, curves, kinks):
         # a kink just beyond v1 may still lie inside the step: RK4 across it can land on either side
         v_far = v1 + 0.5 * (v1 - v0) + 1e-6 if rising else v1 - 0.5 * (v0 - v1) - 1e-6
         vk = _next_kink(v0, rising, v_far, kinks)
-        if vk < 0.0:
-            return E1, total_dt + dt
-        hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, line, P, curves)
+        hk = np.inf
+        if vk >= 0.0:
+            hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, line, P, curves)
         if not (hk * remaining > 0.0 and abs(hk) < abs(remaining) - POSITION_TOLERANCE):
+            if split or vk >= 0.0:
+                # again on this piece's branch: it starts at a kink, or one lies at its very end
+                E1, dt = rk4_energy_time(E, u, remaining, mode, line, P, curves, 0.5 * (v0 + v1))
             return E1, total_dt + dt
-        _, dtk = rk4_energy_time(E, u, hk, mode, line, P, curves)
+        split = True
+        _, dtk = rk4_energy_time(E, u, hk, mode, line, P, curves, 0.5 * (v0 + vk))
         total_dt += dtk
         E = 0.5 * vk * vk
         u += hk
@@ -226,6 +334,7 @@ def step_energy(E, u, h, mode, line, P, curves, kinks):
     ``step_energy_time`` without the time, for the backward braking curves."""
     remaining = h
     E1 = E
+    split = _is_kink(np.sqrt(2.0 * E) if E > 0.0 else 0.0, kinks)
     for _ in range(64):
         E1 = rk4_energy(E, u, remaining, mode, line, P, curves)
         v0 = np.sqrt(2.0 * E) if E > 0.0 else 0.0
@@ -233,11 +342,14 @@ def step_energy(E, u, h, mode, line, P, curves, kinks):
         rising = v1 > v0
         v_far = v1 + 0.5 * (v1 - v0) + 1e-6 if rising else v1 - 0.5 * (v0 - v1) - 1e-6
         vk = _next_kink(v0, rising, v_far, kinks)
-        if vk < 0.0:
-            return E1
-        hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, line, P, curves)
+        hk = np.inf
+        if vk >= 0.0:
+            hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, line, P, curves)
         if not (hk * remaining > 0.0 and abs(hk) < abs(remaining) - POSITION_TOLERANCE):
+            if split or vk >= 0.0:
+                E1 = rk4_energy(E, u, remaining, mode, line, P, curves, 0.5 * (v0 + v1))
             return E1
+        split = True
         E = 0.5 * vk * vk
         u += hk
         remaining -= hk
@@ -563,7 +675,7 @@ def insert_kink_points(x, a0, a1, b0, b1, tscale, P, curves, tk, bk, s, v, t, m)
             hk = distance_to_speed(E, u, 0.5 * vk * vk, m[k], line, P, curves)
             if not (0.0 < hk < remaining):
                 break
-            _, dt = rk4_energy_time(E, u, hk, m[k], line, P, curves)
+            _, dt = rk4_energy_time(E, u, hk, m[k], line, P, curves, 0.5 * (vc + vk))
             E = 0.5 * vk * vk
             u += hk
             remaining -= hk

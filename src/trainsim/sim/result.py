@@ -12,6 +12,7 @@ from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
 from trainsim.physics import electrical as el
+from trainsim.sim.energy import run_works
 from trainsim.sim.kernel import BRAKE, CRUISE, DWELL, FOLLOW, REGEN, REGIME_NAMES, TRACTION
 from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear
 
@@ -310,7 +311,6 @@ def build_result(
     accel[regime == DWELL] = 0.0
 
     # stretch integrals: both ends in the stretch's regime, line resistance at its middle
-    ds = np.diff(s)
     dt = np.diff(t)
     r = regime[:-1]
     v0, v1 = v[:-1], v[1:]
@@ -322,17 +322,24 @@ def build_result(
     avail_mid = availability(mid)
     f0t, f0b = _regime_forces(train, settings, r, v0, run0, line_mid, level[:-1], avail_mid, inertia_pts[:-1])
     f1t, f1b = _regime_forces(train, settings, r, v1, run1, line_mid, level[:-1], avail_mid, inertia_pts[:-1])
-    w_traction = 0.5 * (f0t + f1t) * ds
-    w_braking = 0.5 * (f0b + f1b) * ds
     if train.braking.regenerative is not None:
         rg0 = np.minimum(f0b, train.braking.regenerative(v0))
         rg1 = np.minimum(f1b, train.braking.regenerative(v1))
     else:
         rg0 = rg1 = np.zeros_like(v0)
-    w_regen = 0.5 * (rg0 + rg1) * ds
-    w_running = 0.5 * (run0 + run1) * ds
-    w_gradient = g_mid * ds
-    w_curve_tunnel = (c_mid + t_mid) * ds
+    # work integrals: exact between the events of each stretch's motion (trainsim.sim.energy)
+    works, v_end, off_regime = run_works(
+        train=train,
+        route=route,
+        settings=settings,
+        profile=profile,
+        available=availability,
+        s=s,
+        v=v,
+        regime=regime,
+        level=level,
+    )
+    w_traction, w_braking, w_regen, w_running, w_gradient, w_curve_tunnel = (works[:, q] for q in range(6))
 
     eta_t = elec.traction_efficiency if elec else 1.0
     eta_r = elec.regenerative_efficiency * elec.receptivity if elec else 0.0
@@ -472,7 +479,13 @@ def build_result(
         "traction_work_j": supplied,
         "kinetic_potential_resistance_braking_j": spent,
         "relative_error": (supplied - spent) / max(abs(supplied), 1.0),
+        "off_regime_stretches": float(off_regime.sum()),
     }
+    if off_regime.any():
+        # stretches whose recorded motion is not their regime's maximum effort (a holding arc labelled
+        # braking, a head trace of a multi-point run): their energy is that of the recorded motion
+        k_off = np.flatnonzero(off_regime)
+        balance["off_regime_max_speed_difference_mps"] = float(np.max(np.abs(v_end[k_off] - v[k_off + 1])))
     return RunResult(
         train_name=train.name,
         route_name=route.name,
