@@ -19,7 +19,9 @@ from trainsim.operations.simulate import OperationResult, simulate
 def run_operation(op: Operation) -> OperationResult:
     """Simulate an operation read by ``read_operation``."""
     try:
-        return simulate(op.line, op.geometry, op.services, op.settings, op.rule, etcs=op.etcs)
+        return simulate(
+            op.line, op.geometry, op.services, op.settings, op.rule, etcs=op.etcs, lookahead_s=op.lookahead_s
+        )
     except InputError as e:
         raise e.located(op.file) from None
 
@@ -48,7 +50,10 @@ def compare_systems(op: Operation, systems: list[str]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for system in systems:
         line = op.with_system(system)
-        res = simulate(line, op.geometry, op.services, op.settings, op.rule, etcs=op.etcs, conflicts=False)
+        res = simulate(
+            line, op.geometry, op.services, op.settings, op.rule, etcs=op.etcs, conflicts=False,
+            lookahead_s=op.lookahead_s,
+        )  # fmt: skip
         entry: dict[str, Any] = {"headways": [h.to_dict() for h in res.headways]}
         if op.pattern_period_s:
             entry["capacity"] = capacity(res, op.pattern_period_s)

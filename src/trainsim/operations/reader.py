@@ -131,6 +131,7 @@ class _Delays(_Spec):
 
 class _Dispatching(_Spec):
     rule: Literal["fcfs", "priority"] = "fcfs"
+    lookahead_s: float = 0.0
 
 
 class _Settings(_Spec):
@@ -166,6 +167,7 @@ class Operation:
     etcs: EtcsBraking | None
     compare_systems: list[str] = field(default_factory=list)
     pattern_period_s: float | None = None
+    lookahead_s: float = 0.0
     line_args: dict[str, Any] = field(default_factory=dict)
 
     def with_system(self, system: str) -> Line:
@@ -373,7 +375,7 @@ def read_operation(path: str | Path) -> Operation:
         raise InputError.from_problems(problems)
     return Operation(
         spec.name, file, line, geometry, services, settings, spec.dispatching.rule, etcs,
-        list(spec.compare_systems), spec.pattern_period_s, line_args,
+        list(spec.compare_systems), spec.pattern_period_s, spec.dispatching.lookahead_s, line_args,
     )  # fmt: skip
 
 

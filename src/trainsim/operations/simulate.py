@@ -395,6 +395,7 @@ class _Dispatcher:
         self.seq = 0
         self.now = -np.inf
         self.waiting: list[int] = []
+        self.lookahead_s = 0.0
 
     # -- events
     def schedule(self, st: _TrainState) -> None:
@@ -483,12 +484,37 @@ class _Dispatcher:
             return [r for r in step.alternatives if r.track == wanted]
         return list(step.alternatives)
 
-    def try_grant(self, st: _TrainState, t: float) -> bool:
+    def try_grant(self, st: _TrainState, t: float, standing: bool = False) -> bool:
         for choice in self._choices(st):
             routes = [r for _j, r in choice]
             if self._free(st, routes, t):
+                if standing and self._yields(st, routes, t):
+                    return False
                 self.grant(st, choice, t)
                 return True
+        return False
+
+    def _yields(self, st: _TrainState, routes: Sequence[Route], t: float) -> bool:
+        """Priority rule with look-ahead: a train standing at a stop is held while a train of higher
+        priority, running (not waiting), will ask for one of the same resources within
+        ``lookahead_s``."""
+        if self.rule != "priority" or self.lookahead_s <= 0:
+            return False
+        mine = {res.name for r in routes for res in r.resources}
+        for other in self.states:
+            if other.done or other.svc.priority <= st.svc.priority or other.waiting_since is not None:
+                continue
+            for k in range(other.next, len(other.steps)):
+                step = other.path.steps[other.steps[k]]
+                if any(res.name in mine for r in step.alternatives for res in r.resources):
+                    if k == other.next:
+                        t_req = other.request_point(self.approach[other.index])[0]
+                    else:
+                        # a later route of the other train: when its head passes the route's signal
+                        t_req = float(other.trajectory.first_time_at(step.start_m)[0])
+                    if t - 1e-9 <= t_req <= t + self.lookahead_s:
+                        return True
+                    break
         return False
 
     def grant(self, st: _TrainState, choice: list[tuple[int, Route]], t: float) -> None:
@@ -521,7 +547,7 @@ class _Dispatcher:
 
     def request(self, st: _TrainState, t: float) -> None:
         t_req, q, _a = st.request_point(self.approach[st.index])
-        if self.try_grant(st, t):
+        if self.try_grant(st, t, standing=q is not None):
             if q is not None and t > t_req + TIME_TOLERANCE_S:
                 # asked late (after standing elsewhere): it leaves the stop once the route is set
                 st.override[q] = max(
@@ -581,7 +607,7 @@ class _Dispatcher:
             if i in self.waiting and st.waiting_since is not None:
                 # a stand at a signal cannot end before the train has arrived there: it simply
                 # leaves once both are done (override keeps the later of the two)
-                self.try_grant(st, t)
+                self.try_grant(st, t, standing=True)
 
 
 # --------------------------------------------------------------------------- public entry
@@ -731,6 +757,7 @@ def simulate(
     conflicts: bool = True,
     headways: bool = True,
     etcs: EtcsBraking | None = None,
+    lookahead_s: float = 0.0,
 ) -> OperationResult:
     """Simulate ``services`` on ``line`` together in time, and compare with their planned runs.
 
@@ -744,8 +771,14 @@ def simulate(
         conflicts: list the conflicts of the planned timetable.
         headways: compute the minimum headway of consecutive trains of each direction.
         etcs: the trains' ETCS braking data (needed for ``etcs_l2``).
+        lookahead_s: ``priority`` rule: a train standing at a stop is held while a train of higher
+            priority will ask for the same resources within this time [s]; 0: no look-ahead.
     """
     settings = settings or RunSettings()
+    if not (np.isfinite(lookahead_s) and 0 <= lookahead_s <= 7200):
+        raise InputError(
+            "invalid look-ahead", field="dispatching.lookahead_s", value=lookahead_s, allowed="0 .. 7200 s"
+        )
     if rule not in ("fcfs", "priority"):
         raise InputError(
             "unknown dispatching rule", field="dispatching.rule", value=rule, allowed="fcfs, priority"
@@ -772,6 +805,7 @@ def simulate(
     # planned runs: each train alone, on time
     planned = [_planned(st) for st in states]
     dispatcher = _Dispatcher(line, states, rule, approach)
+    dispatcher.lookahead_s = lookahead_s
     dispatcher.run()
     stuck = [st for st in states if not st.done]
     deadlock = []
@@ -985,14 +1019,12 @@ def _headways(states: list[_TrainState], planned: list[BlockingTime]) -> list[He
             key=lambda st: (st.svc.departure_s, st.index),
         )
         for a, b in pairwise(trains):
-            h = minimum_headway(
-                a.svc.id,
-                by_train.get(a.svc.id, []),
-                a.svc.departure_s,
-                b.svc.id,
-                by_train.get(b.svc.id, []),
-                b.svc.departure_s,
-            )
+            lead, follow = by_train.get(a.svc.id, []), by_train.get(b.svc.id, [])
+            # where the follower overtakes (passing tracks) the order is reversed: the pair's headway
+            # is that of the resources on which the leader runs ahead in the plan
+            ahead = {x.resource: x.start_s for x in lead}
+            follow = [x for x in follow if x.resource in ahead and x.start_s >= ahead[x.resource]]
+            h = minimum_headway(a.svc.id, lead, a.svc.departure_s, b.svc.id, follow, b.svc.departure_s)
             if h is not None:
                 out.append(h)
     return out
