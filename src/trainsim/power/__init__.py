@@ -2,7 +2,7 @@
 
 Layers: :mod:`limits` (EN 50163 data, EN 50388-style train behaviour), :mod:`network` (tracks,
 substations, connections, gaps), :mod:`solver` (one time step: sparse nodal analysis, Newton,
-rectifier states), :mod:`simulate` (many trains over time, results), :mod:`study` (trains from
+rectifier states), :mod:`simulation` (many trains over time, results), :mod:`study` (trains from
 runs, voltage-limited traction fed back into the runs). The file reader (:mod:`file`) and plots
 (:mod:`plots`) sit on top and are not imported here.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from trainsim.power.limits import EN50163, VoltageLimits, standard_limits
 from trainsim.power.network import Connection, Gap, Network, Substation, Track
-from trainsim.power.simulate import PowerResult, TrainLoad, simulate, train_load_from_run
+from trainsim.power.simulation import PowerResult, TrainLoad, simulate, train_load_from_run
 from trainsim.power.solver import StepLoads, StepSolution, solve_step
 
 __all__ = [

@@ -150,6 +150,12 @@ class Network:
         object.__setattr__(self, "_topology", Topology(self))
 
     @property
+    def ideal_return(self) -> bool:
+        """Whether the return is the reference (AC, or DC with rail resistance 0 on every track):
+        then there are no rail nodes and no rail potentials."""
+        return self.system == "ac" or all(t.rail_resistance_ohm_per_m == 0 for t in self.tracks)
+
+    @property
     def topology(self) -> Topology:
         """Fixed nodes and supplied stretches (built once)."""
         assert self._topology is not None
@@ -218,7 +224,6 @@ def validate_network(net: Network) -> list[Problem]:
             p,
             f"{f}.rail_resistance_ohm_per_km",
             t.rail_resistance_ohm_per_m * 1000,
-            strict=net.system == "dc",
         )
         _nonneg(p, f"{f}.rail_to_earth_conductance_s_per_km", t.rail_to_earth_conductance_s_per_m * 1000)
         _nonneg(p, f"{f}.contact_reactance_ohm_per_km", t.contact_reactance_ohm_per_m * 1000)
@@ -231,6 +236,17 @@ def validate_network(net: Network) -> list[Problem]:
                     allowed="resistance or reactance > 0",
                 )
             )
+    zero_rails = [t.rail_resistance_ohm_per_m == 0 for t in net.tracks]
+    if net.system == "dc" and any(zero_rails) and not all(zero_rails):
+        k = zero_rails.index(True)
+        p.append(
+            Problem(
+                "rail resistance 0 (ideal return, rails = earth) must hold for every track or none",
+                field=f"tracks[{k}].rail_resistance_ohm_per_km",
+                value=0.0,
+                allowed="> 0 on every track, or 0 on every track",
+            )
+        )
     by_id = {t.id: t for t in net.tracks}
 
     def check_on_tracks(f: str, tracks: tuple[str, ...], position: float) -> None:
@@ -417,7 +433,7 @@ def _connectivity_problems(net: Network) -> list[Problem]:
                         allowed="every feeding section fed by a substation or a paralleling post",
                     )
                 )
-        if net.system == "dc" and find(("r", ti)) not in neg:
+        if not net.ideal_return and find(("r", ti)) not in neg:
             problems.append(
                 Problem(
                     f"disconnected network: the rails of track {net.tracks[ti].id} reach no substation negative",
@@ -482,7 +498,7 @@ class Topology:
             for ti in tis:
                 union((layer, tis[0], pidx(tis[0], c.position_m)), (layer, ti, pidx(ti, c.position_m)))
         roots: dict = {}
-        ac = net.system == "ac"
+        ac = net.ideal_return
         self.contact_ids: list[np.ndarray] = []
         self.rail_ids: list[np.ndarray] = []
         for ti in range(n_tracks):
@@ -504,7 +520,7 @@ class Topology:
         # earth: earthed negatives are the reference; floating rails without leakage get one reference
         # node per rail group (rail potentials are then not defined)
         self.earthed: set[int] = set()
-        self.rail_potential_defined = True
+        self.rail_potential_defined = not ac
         if not ac:
             if net.negative_earthed:
                 self.earthed = {rn for _, rn in self.substation_nodes}

@@ -42,6 +42,15 @@ VOLTAGE_TOLERANCE_SHARE = 1e-10
 #: jumping to the non-physical low-voltage branch of a constant-power load.
 MAX_STEP_SHARE = 0.3
 MAX_NEWTON_ITERATIONS = 60
+#: A diode rectifier blocks when its busbar is above E by more than this share of Un and conducts
+#: again when below E by as much (7.5e-4 V at 750 V; the power at stake is this times a current
+#: that is zero at the switching point).
+RECTIFIER_MARGIN_SHARE = 1e-6
+#: A diode rectifier's current is ys max(E - U, 0) rounded over this share of Un (7.5 mV at 750 V):
+#: I = ys (x + sqrt(x^2 + d^2)) / 2 with x = E - U. Still I > 0 always (a rectifier never takes
+#: power), the blocked current is ys d^2 / (4 |x|) (about 5e-5 A at 10 V above E), and Newton no
+#: longer cycles when the solution sits at the switching point (a rectifier at exactly E).
+DIODE_SMOOTHING_SHARE = 1e-5
 MAX_FIXED_POINT_ITERATIONS = 200
 #: Positions are rounded to this [m] before nodes are built: two trains (or a train and a
 #: substation) closer than 0.1 m share a node. Segments shorter than that would have conductances
@@ -125,6 +134,7 @@ def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assemb
     """Nodes and branches for trains at the given tracks and positions (all on the wire)."""
     topo = net.topology
     ac = net.system == "ac"
+    ideal = net.ideal_return
     next_id = topo.n_fixed
     a_parts, b_parts, y_parts = [], [], []
     train_c = np.empty(len(track), dtype=np.int64)
@@ -145,7 +155,7 @@ def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assemb
         k = int(is_new.sum())
         cu[is_new] = next_id + np.arange(k)
         next_id += k
-        if ac:
+        if ideal:
             ru[is_new] = -1
         else:
             ru[is_new] = next_id + np.arange(k)
@@ -167,7 +177,7 @@ def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assemb
         a_parts.append(cu)
         b_parts.append(ru)
         y_parts.append(np.full(len(uniq), net.contact_leakage_s))
-        if not ac:
+        if not ideal:
             a_parts.append(ru[:-1])
             b_parts.append(ru[1:])
             y_parts.append(1.0 / (t.rail_resistance_ohm_per_m * dx))
@@ -257,45 +267,63 @@ def solve_step(net: Network, loads: StepLoads, substation_on: np.ndarray) -> Ste
     z = np.array([complex(s.internal_resistance_ohm, s.internal_reactance_ohm) for s in subs])
     ys = 1.0 / z if ac else 1.0 / z.real
     reversible = np.array([s.reversible or ac for s in subs])
-    # active set: start from the given states; a pass whose Newton iteration fails (e.g. every
-    # rectifier of a section blocked while its trains draw power: no solution) restarts from all
-    # rectifiers conducting; each pass blocks the one rectifier with the most negative current and
-    # unblocks every blocked one whose busbar voltage fell below its no-load voltage.
-    on = substation_on.copy() | reversible
     un = lim.nominal_v
     tol = VOLTAGE_TOLERANCE_SHARE * un
-    iterations = 0
-    converged = False
-    v = None
-    restarted = False
-    for _pass in range(3 * len(subs) + 6):
-        if ac:
-            v, its, ok = _fixed_point_ac(net, asm, loads, sub_p, sub_n, e, ys, tol, v)
-            iterations += its
-            converged = ok
-            break
-        v_new, its, ok = _newton_dc(net, asm, loads, sub_p, sub_n, e, ys, on, tol, v)
-        iterations += its
-        if not ok:
-            if restarted or on.all():
-                v = v_new
-                converged = False
-                break
-            on = np.ones(len(subs), dtype=bool)
-            restarted = True
+    if ac:
+        v, iterations, converged = _fixed_point_ac(net, asm, loads, sub_p, sub_n, e, ys, tol, None)
+    else:
+        v, iterations, converged = _newton_dc(
+            net, asm, loads, sub_p, sub_n, e, ys, reversible.copy(), tol, None
+        )
+        if not converged and not reversible.all():
+            # Newton from the no-load voltage may stall before a hump of the residual: when every
+            # rectifier of a section blocks and the regenerated power exceeds what the other trains
+            # and the losses take, the voltage must rise until regeneration is curtailed, while the
+            # residual first grows (constant-power loads draw less current as the voltage rises).
+            # Continuation: the rectifiers are first given a reverse conductance equal to their
+            # forward one (a reversible network, well conditioned), which is then divided by 10 at
+            # each stage down to 1e-9 of it, each stage starting from the previous solution; the
+            # last stage is the true rectifier.
+            # First try the branch where regeneration is curtailed (the usual cause): start every
+            # contact node in the middle of the curtailment ramp and keep regenerating trains on it.
+            start = 0.5 * (lim.regen_full_v + lim.regen_zero_v)
+            if np.any(loads.regen_w > 0):
+                v, its, converged = _newton_dc(
+                    net,
+                    asm,
+                    loads,
+                    sub_p,
+                    sub_n,
+                    e,
+                    ys,
+                    reversible.copy(),
+                    tol,
+                    None,
+                    start_v=start,
+                    keep_curtailed=True,
+                )
+                iterations += its
+        if not converged and not reversible.all():
             v = None
-            continue
-        v = v_new
-        us = _potential(v, sub_p) - _potential(v, sub_n)
-        current = (e - us) * ys
-        negative = on & ~reversible & (current < -1e-9)
-        on_now = ~on & (us < e - tol)
-        if not (negative.any() or on_now.any()):
-            converged = True
-            break
-        if negative.any():
-            on[int(np.argmin(np.where(negative, current, np.inf)))] = False
-        on |= on_now
+            for reverse_share in (*(10.0**-k for k in range(10)), 0.0):
+                v, its, converged = _newton_dc(
+                    net,
+                    asm,
+                    loads,
+                    sub_p,
+                    sub_n,
+                    e,
+                    ys,
+                    reversible.copy(),
+                    tol,
+                    v,
+                    reverse_share=reverse_share,
+                )
+                iterations += its
+                if not converged:
+                    break
+    us = _potential(v, sub_p) - _potential(v, sub_n)
+    on = reversible | (us < e)
     # results
     uc = _potential(v, asm.train_c) - _potential(v, asm.train_r)
     umag = np.abs(uc)
@@ -304,6 +332,10 @@ def solve_step(net: Network, loads: StepLoads, substation_on: np.ndarray) -> Ste
     p_train = loads.traction_w * a_share + loads.auxiliary_w - loads.regen_w * r_share
     us = _potential(v, sub_p) - _potential(v, sub_n)
     i_sub = (e - us) * ys * on
+    if not ac:
+        delta = DIODE_SMOOTHING_SHARE * un
+        i_sub = np.where(reversible, (e - us) * ys, _smooth_max((e - us).real, delta) * ys)
+        on = reversible | (us < e)
     if ac:
         s_bus = us * np.conj(i_sub)
         p_bus = s_bus.real
@@ -320,7 +352,9 @@ def solve_step(net: Network, loads: StepLoads, substation_on: np.ndarray) -> Ste
     dv = _potential(v, asm.a) - _potential(v, asm.b)
     line_loss = float(np.sum(np.abs(dv) ** 2 * np.real(asm.y)))
     sub_loss = float(np.sum(p_src - p_bus))
-    rail = np.real(v[asm.rail_nodes]) if (not ac and topo.rail_potential_defined) else np.empty(0)
+    rail = (
+        np.real(v[asm.rail_nodes]) if (not net.ideal_return and topo.rail_potential_defined) else np.empty(0)
+    )
     return StepSolution(
         converged=converged,
         iterations=iterations,
@@ -345,19 +379,39 @@ def _base_matrix(asm: _Assembly, sub_p, sub_n, ys, on, dtype):
     return np.concatenate([rows, sr]), np.concatenate([cols, sc]), np.concatenate([vals, sv])
 
 
-def _newton_dc(net, asm: _Assembly, loads: StepLoads, sub_p, sub_n, e, ys, on, tol, v0):
+def _newton_dc(
+    net,
+    asm: _Assembly,
+    loads: StepLoads,
+    sub_p,
+    sub_n,
+    e,
+    ys,
+    on,
+    tol,
+    v0,
+    start_v: float | None = None,
+    reverse_share: float = 0.0,
+    keep_curtailed: bool = False,
+):
     """Newton's method on the DC nodal equations; returns (V, iterations, converged)."""
     lim = net.limits
     un = lim.nominal_v
     n = asm.n
+    # reversible substations are linear (in the matrix); diode rectifiers (``on`` False here) are
+    # nonlinear elements I_s = max(E - U_s, 0) / R_i inside the residual (semismooth Newton), so
+    # that I_s >= 0 and I_s (U_s - E) = 0 hold by construction
     rows, cols, vals = _base_matrix(asm, sub_p, sub_n, ys, on, float)
     g = sp.csc_matrix((vals, (rows, cols)), shape=(n, n))
     j_src = _injection(n, sub_p[on], (e * ys)[on], float) - _injection(n, sub_n[on], (e * ys)[on], float)
+    dio = ~on
+    delta = DIODE_SMOOTHING_SHARE * un
+    dp_, dn_, de, dy = sub_p[dio], sub_n[dio], e[dio], np.asarray(ys, dtype=float)[dio]
     if v0 is None:
         # flat start: contact nodes at the mean no-load voltage, rails at 0
         v = np.zeros(n)
         cnodes = np.unique(np.concatenate([asm.a[asm.y == net.contact_leakage_s], sub_p]))
-        v[cnodes[cnodes >= 0]] = float(np.mean(e))
+        v[cnodes[cnodes >= 0]] = float(np.mean(e)) if start_v is None else start_v
         rnodes = asm.rail_nodes
         v[rnodes] = 0.0
     else:
@@ -374,10 +428,16 @@ def _newton_dc(net, asm: _Assembly, loads: StepLoads, sub_p, sub_n, e, ys, on, t
         p = loads.traction_w * a_s + loads.auxiliary_w - loads.regen_w * r_s
         i_t = p / uu
         f = g @ v - j_src + _injection(n, tc, i_t, float) - _injection(n, tr, i_t, float)
+        if len(de):
+            x = de - (_potential(v, dp_) - _potential(v, dn_))
+            forward = _smooth_max(x, delta)
+            i_d = (forward + reverse_share * (x - forward)) * dy
+            f += _injection(n, dn_, i_d, float) - _injection(n, dp_, i_d, float)
         return f, uu, p
 
     f, uu, p = residual(v)
     norm = float(np.max(np.abs(f))) if n else 0.0
+    stalls = 0
     for it in range(1, MAX_NEWTON_ITERATIONS + 1):
         if norm < ftol:
             return v, it - 1, True
@@ -386,6 +446,10 @@ def _newton_dc(net, asm: _Assembly, loads: StepLoads, sub_p, sub_n, e, ys, on, t
         )
         di = np.where(uu > u_floor, dp / uu - p / uu**2, 0.0)
         jr, jc, jv = _stamp(tc, tr, di)
+        if len(de):
+            slope = _smooth_max_slope(de - (_potential(v, dp_) - _potential(v, dn_)), delta)
+            sr, sc, sv = _stamp(dp_, dn_, dy * (slope + reverse_share * (1.0 - slope)))
+            jr, jc, jv = np.concatenate([jr, sr]), np.concatenate([jc, sc]), np.concatenate([jv, sv])
         jac = g + sp.csc_matrix((jv, (jr, jc)), shape=(n, n))
         dv = -splu(jac.tocsc()).solve(f)
         step = float(np.max(np.abs(dv)))
@@ -402,19 +466,48 @@ def _newton_dc(net, asm: _Assembly, loads: StepLoads, sub_p, sub_n, e, ys, on, t
             if room < 1.0:
                 dv *= room
                 step *= room
+                du *= room
+        if keep_curtailed:
+            falling = (loads.regen_w > 0) & (du < 0) & (uu > lim.regen_full_v)
+            if falling.any():
+                room = np.min(0.9 * (uu[falling] - lim.regen_full_v) / -du[falling])
+                if room < 1.0:
+                    dv *= room
+                    step *= room
         # backtracking on the residual: Newton steps across the kinks of a(u) and r(u) may cycle
+        # (Euclidean norm, sufficient decrease); if no step length decreases it, the full step is
+        # taken once in a while (non-monotone), which leaves shallow local minima of the residual
         lam = 1.0
+        l2 = float(np.linalg.norm(f))
+        accepted = False
         for _ in range(12):
             v_try = v + lam * dv
             f_try, uu_try, p_try = residual(v_try)
-            norm_try = float(np.max(np.abs(f_try)))
-            if norm_try < norm or lam * step < tol:
+            if float(np.linalg.norm(f_try)) <= (1.0 - 1e-4 * lam) * l2 or lam * step < tol:
+                accepted = True
                 break
             lam *= 0.5
+        if not accepted:
+            stalls += 1
+            if stalls % 3 == 0:
+                lam = 1.0
+                v_try = v + dv
+                f_try, uu_try, p_try = residual(v_try)
+        norm_try = float(np.max(np.abs(f_try)))
         v, f, uu, p, norm = v_try, f_try, uu_try, p_try, norm_try
         if lam * step < tol and norm < max(ftol, 1e3 * ftol * lam):
             return v, it, True
     return v, MAX_NEWTON_ITERATIONS, norm < ftol
+
+
+def _smooth_max(x: np.ndarray, delta: float) -> np.ndarray:
+    """max(x, 0) rounded over delta: (x + sqrt(x^2 + delta^2)) / 2 (> 0 everywhere)."""
+    return 0.5 * (x + np.sqrt(x * x + delta * delta))
+
+
+def _smooth_max_slope(x: np.ndarray, delta: float) -> np.ndarray:
+    """Derivative of :func:`_smooth_max` with respect to x."""
+    return 0.5 * (1.0 + x / np.sqrt(x * x + delta * delta))
 
 
 def _fixed_point_ac(net, asm: _Assembly, loads: StepLoads, sub_p, sub_n, e, ys, tol, v0):
