@@ -9,6 +9,9 @@ from typing import Any
 #: Longest value shown in a message; hostile files can hold values of megabytes.
 MAX_SHOWN_VALUE_CHARS = 80
 
+#: Longest reason shown for one problem (a reason that quotes a hostile value is cut).
+MAX_REASON_CHARS = 1000
+
 
 def shown_value(value: Any, limit: int = MAX_SHOWN_VALUE_CHARS) -> str:
     """``repr(value)`` cut to a readable length (with ``...`` where it was cut)."""
@@ -47,7 +50,12 @@ class Problem:
             where.append(f"line {self.line}")
         if self.field:
             where.append(f"field '{self.field}'")
-        text = (": ".join([", ".join(where), self.reason]) if where else self.reason).rstrip(".")
+        reason = (
+            self.reason
+            if len(self.reason) <= MAX_REASON_CHARS
+            else self.reason[: MAX_REASON_CHARS - 3] + "..."
+        )
+        text = (": ".join([", ".join(where), reason]) if where else reason).rstrip(".")
         if self.value is not None:
             text += f" (got {shown_value(self.value)})"
         if self.allowed:

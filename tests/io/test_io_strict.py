@@ -179,3 +179,20 @@ def test_railml_whole_numbers(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="whole number") as err:
         trainsim.load_route(bad)
     assert err.value.value == "1,5"
+
+
+# ====================================================================== gravity
+def test_route_gravity_is_a_bounded_setting(tmp_path: Path) -> None:
+    from trainsim.constants import STANDARD_GRAVITY, TRAINRUNS_GRAVITY
+
+    route = _doc("route.yaml")
+    path = tmp_path / "route.yaml"
+    path.write_text(yaml.safe_dump(route), encoding="utf-8")
+    assert trainsim.load_route(path).gravity_mps2 == STANDARD_GRAVITY
+    path.write_text(yaml.safe_dump({**route, "gravity_mps2": 9.81}), encoding="utf-8")
+    assert trainsim.load_route(path).gravity_mps2 == 9.81
+    error = _refused(tmp_path, "route", {**route, "gravity_mps2": 1.62})  # the Moon
+    assert error.field == "gravity_mps2" and error.allowed == ">= 9.7 m/s^2 and <= 9.9 m/s^2"
+    trainruns = Path(__file__).resolve().parents[1] / "data" / "trainruns" / "paths" / "const.yaml"
+    if trainruns.is_file():
+        assert trainsim.load_route(trainruns).gravity_mps2 == TRAINRUNS_GRAVITY

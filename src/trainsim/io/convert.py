@@ -61,6 +61,10 @@ _MASS_MODELS = {"mass_point": "head", "homogeneous_strip": "train_length"}
 def detect_interchange(path: str | Path) -> Format | None:
     """``railml2``, ``railml3`` or ``spreadsheet`` from the content, or None for other files."""
     p = Path(path)
+    try:
+        p.is_dir()
+    except (OSError, ValueError) as exc:  # a name too long, a NUL byte in it...
+        raise InputError("not a usable file name", file=str(path)[:200], allowed="a path to a file") from exc
     if p.is_dir():
         # the spreadsheet reader (and lxml behind it) is imported only for what may be a spreadsheet:
         # a light install without the interchange extra reads YAML and JSON files

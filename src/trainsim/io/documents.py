@@ -102,9 +102,15 @@ def read_bytes(path: str | Path, limits: DocumentLimits | None = None) -> bytes:
     limits = limits or LIMITS
     file = str(path)
     p = Path(path)
-    if not p.exists():
+    try:
+        exists, is_dir = p.exists(), p.is_dir()
+    except (OSError, ValueError) as exc:  # a name too long, a NUL byte in it...
+        raise InputError(
+            "not a usable file name", file=shown_value(file)[1:-1], allowed="a path to a file"
+        ) from exc
+    if not exists:
         raise InputError("file not found", file=file)
-    if p.is_dir():
+    if is_dir:
         raise InputError("this is a directory, not a file", file=file)
     try:
         size = p.stat().st_size

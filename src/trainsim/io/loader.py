@@ -14,10 +14,11 @@ lists the formats trainsim knows.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, ParamSpec, TypeVar
 
 from trainsim.constants import KMH, KN, TONNE
 from trainsim.errors import InputError
@@ -27,6 +28,9 @@ from trainsim.io import railtoolkit as rtk
 from trainsim.io import trainsim_yaml as tsy
 from trainsim.model import Route, Train
 from trainsim.model.scenario import RunSettings, Scenario
+
+P = ParamSpec("P")
+R = TypeVar("R")
 
 __all__ = [
     "KNOWN_FORMATS",
@@ -63,6 +67,24 @@ _BY_SCHEMA = {
     rtk.ROLLING_STOCK_SCHEMA_URL: "railtoolkit/rolling-stock",
     rtk.PATH_SCHEMA_URL: "railtoolkit/running-path",
 }
+
+
+def _errors_name_the_file(func: Callable[P, R]) -> Callable[P, R]:
+    """Decorator of the loaders: an InputError raised below the file layer (a model class, a
+    reader that does not know the file name) names the file read (the first argument)."""
+
+    @functools.wraps(func)
+    def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
+        try:
+            return func(*args, **kwargs)
+        except InputError as exc:
+            if args and isinstance(args[0], str | Path):
+                located = exc.located(str(args[0]))
+                if located is not exc:
+                    raise located from exc
+            raise
+
+    return wrapper
 
 
 @dataclass(frozen=True)
@@ -146,6 +168,7 @@ def _expect(detected: Detected, kind: Kind, file: str) -> None:
 
 
 @documents.gc_paused
+@_errors_name_the_file
 def load_train(path: str | Path, train_id: str | None = None) -> Train:
     """A train from a ``trainsim/train`` or railtoolkit rolling-stock file.
 
@@ -174,6 +197,7 @@ def load_train(path: str | Path, train_id: str | None = None) -> Train:
 
 
 @documents.gc_paused
+@_errors_name_the_file
 def load_route(path: str | Path, mass_model: str | None = None, path_id: str | None = None) -> Route:
     """A route from a ``trainsim/route`` or railtoolkit running-path file.
 
@@ -209,6 +233,7 @@ def load_route(path: str | Path, mass_model: str | None = None, path_id: str | N
 
 
 @documents.gc_paused
+@_errors_name_the_file
 def load_scenario(path: str | Path) -> Scenario:
     """A scenario from a ``trainsim/scenario`` file (train and route files relative to it)."""
     if (scenario := interchange.detect_and_load(path, "scenario")) is not None:
@@ -376,6 +401,7 @@ def _ignored_rtk_fields(data: dict[str, Any]) -> list[str]:
 
 
 @documents.gc_paused
+@_errors_name_the_file
 def check_file(path: str | Path) -> CheckReport:
     """Read and check a file of any known format; InputError if it is not valid.
 

@@ -78,6 +78,7 @@ from trainsim.model import (
     Station,
     Train,
     Vehicle,
+    bounds,
 )
 from trainsim.physics import resistance as res
 
@@ -259,6 +260,60 @@ def _lines(file: str, locs: list[list[str | int]]) -> list[int | None]:
     return documents.yaml_lines(text, locs)
 
 
+#: railtoolkit keys -> (quantity of trainsim.model.bounds, unit, SI value of one unit); other numbers
+#: are bounded as coefficients.
+_KEY_BOUNDS: dict[str, tuple[str, str, float]] = {
+    "mass": ("mass", "t", TONNE),
+    "load_limit": ("mass", "t", TONNE),
+    "mass_traction": ("mass", "t", TONNE),
+    "length": ("length", "m", 1.0),
+    "position": ("length", "m", 1.0),
+    "speed_limit": ("speed", "km/h", KMH),
+    "speed": ("speed", "km/h", KMH),
+    "resistance": ("ratio", "per mille", 1e-3),
+    "base_resistance": ("ratio", "per mille", 1e-3),
+    "rolling_resistance": ("ratio", "per mille", 1e-3),
+    "air_resistance": ("ratio", "per mille", 1e-3),
+    "a_braking": ("acceleration", "m/s^2", 1.0),
+    "rotation_mass": ("coefficient", "", 1.0),
+}
+
+
+def _check_magnitudes(data: Any, file: str) -> None:
+    """Every number of the file finite and inside the plausible range of its quantity
+    (:mod:`trainsim.model.bounds`); all problems reported together, with their lines."""
+    problems: list[tuple[list[str | int], str, Any, str | None]] = []
+    todo: list[tuple[list[str | int], Any, str | None]] = [([], data, None)]
+    while todo and len(problems) < 50:
+        loc, value, key = todo.pop()
+        if isinstance(value, dict):
+            todo.extend(([*loc, k], v, k if isinstance(k, str) else None) for k, v in value.items())
+        elif isinstance(value, list):
+            todo.extend(([*loc, i], v, key) for i, v in enumerate(value))
+        elif isinstance(value, int | float) and not isinstance(value, bool):
+            quantity, unit, factor = _KEY_BOUNDS.get(key or "", ("coefficient", "", 1.0))
+            try:
+                bounds.check(value, quantity, unit=unit, factor=factor)
+            except InputError as exc:
+                problems.append((loc, exc.reason, value, exc.allowed))
+    if problems:
+        problems.sort(key=lambda p: [str(x) for x in p[0]])
+        lines = _lines(file, [p[0] for p in problems[:20]])
+        raise InputError.from_problems(
+            [
+                Problem(
+                    reason,
+                    file=file,
+                    line=lines[i] if i < len(lines) else None,
+                    field=_path_text(loc) or None,
+                    value=value,
+                    allowed=allowed,
+                )
+                for i, (loc, reason, value, allowed) in enumerate(problems)
+            ]
+        )
+
+
 def _check(data: Any, file: str, expected_url: str, kind: str) -> str:
     """Check header and JSON Schema; returns the schema version."""
     if not isinstance(data, dict):
@@ -323,6 +378,7 @@ def _check(data: Any, file: str, expected_url: str, kind: str) -> str:
                 for i, (path, reason, value, allowed) in enumerate(described)
             ]
         )
+    _check_magnitudes(data, file)
     return version
 
 

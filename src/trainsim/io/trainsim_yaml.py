@@ -38,8 +38,8 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
 
-from trainsim.constants import GRAVITY_RANGE_MPS2, KMH, KN, KW, TONNE
-from trainsim.errors import InputError, Problem
+from trainsim.constants import GRAVITY_RANGE_MPS2, KMH, KN, KW, STANDARD_GRAVITY, TONNE
+from trainsim.errors import InputError, Problem, shown_value
 from trainsim.io import documents
 from trainsim.io.units import UNITS, split_suffix, to_unit
 from trainsim.model import (
@@ -391,7 +391,7 @@ class _Spec(BaseModel):
                 if split and isinstance(value, str) and not _is_number_text(value):
                     _fail(
                         f"'{key}' takes a plain number in {split[1]}; to give a unit, write "
-                        f"'{split[0]}: {value}' instead",
+                        f"'{split[0]}: {shown_value(value, 40)[1:-1]}' instead",
                         field=key,
                         value=value,
                     )
@@ -410,8 +410,9 @@ class _Spec(BaseModel):
                 except InputError as exc:
                     reason = exc.reason
                     if "without unit" in reason:
-                        reason = f"'{key}' needs a unit, e.g. '{key}: {value} {unit}'"
-                        reason += f"; or write '{target}: {value}'"
+                        shown = shown_value(value, 40)
+                        reason = f"'{key}' needs a unit, e.g. '{key}: {shown} {unit}'"
+                        reason += f"; or write '{target}: {shown}'"
                     _fail(reason, field=key, value=value, allowed=exc.allowed)
                 if target in numeric:
                     _check_numbers(out[target], numeric[target], key, written=value)
@@ -1472,6 +1473,9 @@ class RouteSpec(_Spec):
     tunnels: list[TunnelSpec] = Field(default_factory=list)
     electrification: list[ElectrificationSpec] = Field(default_factory=list)
     line_resistance: LineResistanceSpec
+    #: g for every weight force on the route [m/s^2]; default the standard 9.80665 (sources differ:
+    #: TTOBench 9.81, ALTRIOS 9.80155; see trainsim.constants)
+    gravity_mps2: float = STANDARD_GRAVITY
 
     @model_validator(mode="after")
     def _check_route(self) -> RouteSpec:
@@ -1636,6 +1640,7 @@ class RouteSpec(_Spec):
                 tunnels=tuple(tunnels),
                 electrification=tuple(electrification),
                 line_resistance=self.line_resistance.build(),
+                gravity_mps2=self.gravity_mps2,
             )
 
 
@@ -1767,7 +1772,11 @@ def driving_from_spec(
 def _resolve(base: Path, name: str, file: str, field: str) -> Path:
     path = Path(name)
     path = path if path.is_absolute() else base / path
-    if not path.exists():
+    try:
+        exists = path.exists()
+    except (OSError, ValueError):  # a name too long, a NUL byte in it...
+        raise InputError("not a usable file name", file=file, field=field, value=name) from None
+    if not exists:
         raise InputError("referenced file not found", file=file, field=field, value=str(path))
     return path
 

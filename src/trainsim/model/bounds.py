@@ -87,6 +87,7 @@ BOUNDS: dict[str, Bound] = {
 _BY_NAME: dict[str, str] = {
     "count": "count",
     "propagation_speed_mps": "signal_speed",
+    "gravity_mps2": "gravity",
     "motors": "count",
     "axles": "count",
     "number": "count",
