@@ -1,29 +1,58 @@
-"""Load test of the web application on loopback: concurrent clients running the metro example.
+"""Load test of the web application on loopback: concurrent clients running and driving the metro example.
 
-    python benchmarks/bench_web_load.py [--clients 20] [--runs 10] [--max-seconds 60]
+    python benchmarks/bench_web_load.py [--clients 20] [--runs 10] [--drives 20] [--drive-seconds 8]
+                                        [--max-seconds 60]
 
-Starts ``uvicorn`` with the trainsim app on 127.0.0.1 (a free port), then ``--clients`` clients,
-each with its own session (cookie), load the metro example and run its fastest run ``--runs``
-times, all at once. Prints requests per second and latency percentiles of the run requests and of
-all requests. Bounded: at most clients x (runs + 2) requests, and no new request after
-``--max-seconds``. Every answer is checked (status, the metro's running time, and that a
-client's run list holds its own runs only).
+Starts ``uvicorn`` with the trainsim app on 127.0.0.1 (a free port; two worker processes), then:
+
+1. **baseline**: one client alone makes ``--runs`` run requests, one after the other;
+2. **runs**: ``--clients`` clients at once, each with its own session (cookie), load the metro
+   example and repeat the page's run request (``POST /api/runs``) ``--runs`` times;
+3. **distinct runs**: the same, but every request asks for a different integration step, so that
+   no run is served from the result cache (every one is computed in a worker);
+4. **live driving**: one drive alone at 20x (baseline), then ``--drives`` drives at once at 20x
+   with full power for ``--drive-seconds``; the figure is the time between two state messages
+   (nominally 0.1 s).
+
+Prints latency percentiles and throughput with their ratio to the baseline, and the server's CPU
+time per request (server and worker processes, from /proc), which says what the machine can do
+when it is not shared. Bounded: at most clients x (runs + 2) requests per phase, no new request
+after ``--max-seconds``, drives end after ``--drive-seconds``. Every answer is checked (status, the
+metro's running time as the CLI computes it, a client's run list holds its own runs only).
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
+import json
 import os
 import socket
 import statistics
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import httpx
 
-METRO_RUNNING_TIME_S = 278.98761151498184
+
+def metro_running_time_s(step_m: float | None = None) -> float:
+    """The metro example's running time as the CLI computes it (the web must give the same)."""
+    import dataclasses
+
+    import trainsim
+
+    root = Path(__file__).resolve().parents[1]
+    scenario = trainsim.load_scenario(root / "examples" / "metro_b" / "scenario.yaml")
+    if step_m is not None:
+        scenario = dataclasses.replace(
+            scenario, settings=dataclasses.replace(scenario.settings, max_step_m=step_m)
+        )
+    return trainsim.run(scenario).running_time_s
+
+
+METRO_RUNNING_TIME_S = metro_running_time_s()
 
 
 def free_port() -> int:
@@ -47,7 +76,7 @@ def start_server(port: int) -> subprocess.Popen:
         "warning",
     ]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 30
+    deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
         if proc.poll() is not None:
             raise RuntimeError(f"server exited: {proc.stderr.read().decode() if proc.stderr else ''}")
@@ -57,10 +86,39 @@ def start_server(port: int) -> subprocess.Popen:
         except httpx.HTTPError:
             time.sleep(0.1)
     proc.kill()
-    raise RuntimeError("server did not start in 30 s")
+    raise RuntimeError("server did not start in 60 s")
 
 
-async def one_client(base: str, k: int, runs: int, stop_at: float, lat: dict[str, list[float]]) -> int:
+def cpu_seconds(pid: int) -> float:
+    """CPU time of a process and its children (workers, fork server) so far [s]."""
+    tick = os.sysconf("SC_CLK_TCK")
+    total = 0.0
+    pids = [pid]
+    seen = set()
+    while pids:
+        p = pids.pop()
+        if p in seen:
+            continue
+        seen.add(p)
+        try:
+            fields = Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()
+            total += (int(fields[11]) + int(fields[12])) / tick
+            for task in Path(f"/proc/{p}/task").iterdir():  # children are listed per thread
+                pids += [int(c) for c in (task / "children").read_text().split()]
+        except (OSError, IndexError, ValueError):
+            continue
+    return total
+
+
+def pct(values: list[float], q: int) -> float:
+    if len(values) == 1:
+        return values[0]
+    return statistics.quantiles(values, n=100, method="inclusive")[q - 1]
+
+
+async def one_client(
+    base: str, k: int, runs: int, stop_at: float, lat: dict[str, list[float]], distinct: bool = False
+) -> int:
     """One browser-like client; returns the number of runs it made. Raises on a wrong answer."""
     async with httpx.AsyncClient(base_url=base, timeout=60) as c:
 
@@ -76,9 +134,13 @@ async def one_client(base: str, k: int, runs: int, stop_at: float, lat: dict[str
         for i in range(runs):
             if time.monotonic() > stop_at:
                 break
-            r = await call("run", "POST", "/api/runs", json={"label": f"client {k} run {i}"})
+            body: dict = {"label": f"client {k} run {i}"}
+            if distinct:  # a step no other request uses: computed, not cached
+                body["settings"] = {"max_step_m": round(5.0 + 0.001 * (k * 1000 + i + 1), 4)}
+            r = await call("run", "POST", "/api/runs", json=body)
             assert r.status_code == 201, r.text
-            assert abs(r.json()["summary"]["running_time_s"] - METRO_RUNNING_TIME_S) < 1e-6
+            if not distinct:
+                assert abs(r.json()["summary"]["running_time_s"] - METRO_RUNNING_TIME_S) < 1e-6
             done += 1
         r = await call("other", "GET", "/api/runs")
         labels = {x["label"] for x in r.json()}
@@ -86,20 +148,16 @@ async def one_client(base: str, k: int, runs: int, stop_at: float, lat: dict[str
         return done
 
 
-async def load(base: str, clients: int, runs: int, max_seconds: float) -> dict[str, float]:
+async def load(
+    base: str, clients: int, runs: int, max_seconds: float, distinct: bool = False
+) -> dict[str, float]:
     """Run the load against ``base``; returns the figures."""
     lat: dict[str, list[float]] = {"run": [], "other": []}
     stop_at = time.monotonic() + max_seconds
     t0 = time.perf_counter()
-    done = await asyncio.gather(*(one_client(base, k, runs, stop_at, lat) for k in range(clients)))
+    done = await asyncio.gather(*(one_client(base, k, runs, stop_at, lat, distinct) for k in range(clients)))
     wall = time.perf_counter() - t0
     every = lat["run"] + lat["other"]
-
-    def pct(values: list[float], q: float) -> float:
-        return (
-            statistics.quantiles(values, n=100, method="inclusive")[q - 1] if len(values) > 1 else values[0]
-        )
-
     return {
         "clients": clients,
         "runs": sum(done),
@@ -114,32 +172,99 @@ async def load(base: str, clients: int, runs: int, max_seconds: float) -> dict[s
     }
 
 
+async def one_drive(base: str, seconds: float, gaps: list[float], speeds: list[float]) -> None:
+    """A live drive at 20x with full power; records the time between state messages [s]."""
+    import websockets
+
+    async with httpx.AsyncClient(base_url=base, timeout=60) as c:
+        r = await c.post("/api/examples/metro_b")
+        assert r.status_code == 200, r.text
+        sid = r.headers["x-trainsim-session"]
+    url = base.replace("http://", "ws://") + f"/api/drive?session={sid}"
+    async with websockets.connect(url, open_timeout=30, max_size=2**22) as ws:
+        await ws.send(json.dumps({"type": "start", "time_scale": 20}))
+        await ws.send(json.dumps({"type": "command", "value": 1.0}))
+        end = time.monotonic() + seconds
+        last = None
+        while time.monotonic() < end:
+            msg = json.loads(await asyncio.wait_for(ws.recv(), 30))
+            if msg["type"] == "state" and msg["clock"] == "realtime":
+                now = time.perf_counter()
+                if last is not None and msg["speed_kmh"] > 0:
+                    gaps.append(now - last)
+                last = now
+                speeds.append(msg["speed_kmh"])
+            elif msg["type"] in ("finished", "ended"):
+                break
+        await ws.send(json.dumps({"type": "finish"}))
+
+
+async def drives(base: str, count: int, seconds: float) -> dict[str, float]:
+    gaps: list[float] = []
+    speeds: list[float] = []
+    await asyncio.gather(*(one_drive(base, seconds, gaps, speeds) for _ in range(count)))
+    return {
+        "drives": count,
+        "states": len(gaps),
+        "gap_p50_ms": 1000 * pct(gaps, 50),
+        "gap_p95_ms": 1000 * pct(gaps, 95),
+        "gap_max_ms": 1000 * max(gaps),
+        "max_speed_kmh": max(speeds),
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--clients", type=int, default=20)
-    parser.add_argument("--runs", type=int, default=10, help="fastest runs per client")
+    parser.add_argument("--runs", type=int, default=10, help="run requests per client")
+    parser.add_argument("--drives", type=int, default=20)
+    parser.add_argument("--drive-seconds", type=float, default=8.0)
     parser.add_argument("--max-seconds", type=float, default=60.0)
     args = parser.parse_args()
     port = free_port()
     proc = start_server(port)
+    out: dict[str, dict[str, float]] = {}
+    cpu: dict[str, float] = {}
     try:
         base = f"http://127.0.0.1:{port}"
-        # warm-up: the numba kernel's first call loads its compiled code
-        asyncio.run(load(base, 1, 1, 30))
-        figures = asyncio.run(load(base, args.clients, args.runs, args.max_seconds))
+        asyncio.run(load(base, 1, 2, 60))  # warm-up: the workers are started and have run once
+        for name, clients, distinct in (
+            ("baseline", 1, False),
+            ("runs", args.clients, False),
+            ("distinct", args.clients, True),
+        ):
+            c0 = cpu_seconds(proc.pid)
+            out[name] = asyncio.run(load(base, clients, args.runs, args.max_seconds, distinct))
+            cpu[name] = (cpu_seconds(proc.pid) - c0) / out[name]["requests"]
+        out["drive_baseline"] = asyncio.run(drives(base, 1, min(args.drive_seconds, 4.0)))
+        out["drive"] = asyncio.run(drives(base, args.drives, args.drive_seconds))
     finally:
         proc.terminate()
         proc.wait(timeout=10)
-    print(f"web load on 127.0.0.1, {os.cpu_count()} cores, one uvicorn worker:")
+    b = out["baseline"]
+    load_avg = os.getloadavg()[0]
     print(
-        f"  {figures['clients']} concurrent clients, {figures['runs']} metro fastest runs, "
-        f"{figures['requests']} requests in {figures['wall_s']:.2f} s"
+        f"web load on 127.0.0.1, {os.cpu_count()} cores (load average {load_avg:.1f}), one uvicorn process:"
     )
-    print(f"  throughput: {figures['requests_per_s']:.1f} requests/s ({figures['runs_per_s']:.1f} runs/s)")
-    print(
-        f"  run request latency: p50 {figures['run_p50_ms']:.0f} ms, p95 {figures['run_p95_ms']:.0f} ms, "
-        f"max {figures['run_max_ms']:.0f} ms; all requests p95 {figures['all_p95_ms']:.0f} ms"
-    )
+    for name, what in (
+        ("baseline", "1 client alone (baseline)"),
+        ("runs", f"{args.clients} clients repeating the page's run request"),
+        ("distinct", f"{args.clients} clients, every run a different step (computed, not cached)"),
+    ):
+        f = out[name]
+        print(
+            f"  {what}: {f['runs']} runs in {f['wall_s']:.2f} s = {f['runs_per_s']:.0f} runs/s "
+            f"(x{f['runs_per_s'] / b['runs_per_s']:.2f} of baseline); run p50 {f['run_p50_ms']:.0f} ms, "
+            f"p95 {f['run_p95_ms']:.0f} ms (x{f['run_p95_ms'] / b['run_p95_ms']:.1f}), max {f['run_max_ms']:.0f} ms; "
+            f"server CPU {1000 * cpu[name]:.1f} ms per request"
+        )
+    d0, d = out["drive_baseline"], out["drive"]
+    for f, what in ((d0, "1 live drive at 20x (baseline)"), (d, f"{args.drives} live drives at 20x")):
+        print(
+            f"  {what}: {f['states']} state messages, interval p50 {f['gap_p50_ms']:.0f} ms, "
+            f"p95 {f['gap_p95_ms']:.0f} ms (x{f['gap_p95_ms'] / d0['gap_p95_ms']:.2f} of baseline), "
+            f"max {f['gap_max_ms']:.0f} ms; top speed {f['max_speed_kmh']:.1f} km/h"
+        )
 
 
 if __name__ == "__main__":

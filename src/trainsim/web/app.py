@@ -25,6 +25,7 @@ import trainsim
 from trainsim.web import api, drive, errors
 from trainsim.web.cache import RunCache
 from trainsim.web.config import WebSettings
+from trainsim.web.drivehost import DriveHosts
 from trainsim.web.sessions import COOKIE_NAME, HEADER_NAME, SessionStore, WebSession
 from trainsim.web.workers import WorkerPool
 
@@ -221,16 +222,21 @@ def create_app(settings: WebSettings | None = None) -> FastAPI:
         else None
     )
 
+    hosts = DriveHosts(settings.drive_hosts)
+
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        # in the background: the server answers at once, the first heavy request waits for it
+        starting = [asyncio.ensure_future(hosts.start())]
         if pool is not None:
-            # in the background: the server answers at once, the first heavy request waits for it
-            starting = asyncio.ensure_future(pool.start())
+            starting.append(asyncio.ensure_future(pool.start()))
         try:
             yield
         finally:
+            for task in starting:
+                task.cancel()
+            hosts.close()
             if pool is not None:
-                starting.cancel()
                 pool.close()
 
     app = FastAPI(
@@ -252,6 +258,7 @@ def create_app(settings: WebSettings | None = None) -> FastAPI:
     app.state.store = store
     app.state.pool = pool
     app.state.run_cache = RunCache()
+    app.state.drive_hosts = hosts
     app.state.web_settings = settings
 
     def session_for(request: Request) -> WebSession:

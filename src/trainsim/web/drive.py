@@ -34,157 +34,56 @@ number of live drives over all sessions and their wall-clock duration are bounde
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import math
-import threading
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import urlsplit
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
-from trainsim.constants import KMH, KN, KWH
-from trainsim.errors import InputError, TrainsimError
-from trainsim.sim.driving import DrivingSession, DrivingState
-from trainsim.sim.fastest import run_fastest
+from trainsim.constants import KMH
+from trainsim.errors import InputError
 from trainsim.web.config import WebSettings
+from trainsim.web.drivehost import DriveHostError, DriveHosts
 from trainsim.web.errors import input_error_detail
-from trainsim.web.payloads import floats, route_profile, run_brief
+from trainsim.web.payloads import route_profile, run_brief
 from trainsim.web.sessions import COOKIE_NAME, HEADER_NAME, SessionStore, StoredRun, WebSession
 
 router = APIRouter()
 
 TIME_SCALES = (1, 5, 20)
+#: drives being recorded after their connection closed (kept referenced until done)
+_ENDING: set[asyncio.Future] = set()
 #: largest message a client may send [characters]
 MAX_MESSAGE_CHARS = 4096
 
 
-def _clean(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
-def _gradient_permille(route: Any, position_m: float) -> float:
-    for g in route.gradients:
-        if g.start_m <= position_m < g.end_m:
-            return float(g.gradient_permille)
-    return 0.0
-
-
-def _location(drive: _Drive, position_m: float, speed_mps: float) -> tuple[str, float | None]:
-    """Where the train is in words, and its distance from the nearest station's stop mark [m]
-    when it stands within 50 m of one (stopping accuracy; + past the mark)."""
-    stations = drive.core.route.stations
-    nearest = min(stations, key=lambda s: abs(s.position_m - position_m), default=None)
-    if nearest is not None and abs(nearest.position_m - position_m) <= 50.0 and speed_mps < 0.01:
-        return f"at {nearest.name}", position_m - nearest.position_m
-    before = [s for s in stations if s.position_m <= position_m]
-    after = [s for s in stations if s.position_m > position_m]
-    if before and after:
-        return f"between {before[-1].name} and {after[0].name}", None
-    if after:
-        return f"before {after[0].name}", None
-    return (f"past {before[-1].name}" if before else "on the line"), None
-
-
-def state_message(state: DrivingState, drive: _Drive) -> dict[str, Any]:
-    """A driving state in the units the page shows."""
-    d = asdict(state)
-    if drive.departure_s is None and d["speed_mps"] > 0:
-        drive.departure_s = d["time_s"]
-    location, stop_error = _location(drive, d["position_m"], d["speed_mps"])
-    limit = d["speed_limit_mps"]
-    out = {
-        "type": "state",
-        "time_s": d["time_s"],
-        "position_m": d["position_m"],
-        "speed_kmh": d["speed_mps"] / KMH,
-        "acceleration_mps2": d["acceleration_mps2"],
-        "command": d["command"],
-        "regime": d["regime"],
-        "traction_force_kn": d["traction_force_n"] / KN,
-        "braking_force_kn": d["braking_force_n"] / KN,
-        "speed_limit_kmh": d["speed_limit_mps"] / KMH,
-        "next_limit_position_m": d["next_limit_position_m"],
-        "next_limit_kmh": d["next_limit_mps"] / KMH if d["next_limit_mps"] is not None else None,
-        "next_limit_distance_m": (
-            d["next_limit_position_m"] - d["position_m"] if d["next_limit_position_m"] is not None else None
-        ),
-        "gradient_permille": _gradient_permille(drive.core.route, d["position_m"]),
-        "clock_s": d["time_s"] - drive.departure_s if drive.departure_s is not None else 0.0,
-        "location": location,
-        "stop_error_m": stop_error,
-        "atp": drive.atp,
-        "atp_braking": drive.atp_braking,
-        "max_speed_kmh": drive.core.train.max_speed_mps / KMH,
-        "overspeed_by_kmh": max(0.0, (d["speed_mps"] - limit) / KMH) if limit else 0.0,
-        "next_stop_name": d["next_stop_name"],
-        "next_stop_distance_m": d["next_stop_distance_m"],
-        "dwell_remaining_s": d["dwell_remaining_s"],
-        "line_current_a": d["line_current_a"],
-        "energy_kwh": d["electrical_energy_j"] / KWH,
-        "overspeed": d["overspeed"],
-        "finished": d["finished"],
-        "message": d["message"],
-        "time_scale": drive.scale,
-        "paused": drive.paused,
-        "clock": drive.clock,
-    }
-    return {k: _clean(v) for k, v in out.items()}
+def state_message(view: dict[str, Any], drive: _Drive) -> dict[str, Any]:
+    """A host's view of a drive with the server's fields (time scale, pause, clock)."""
+    return {**view, "time_scale": drive.scale, "paused": drive.paused, "clock": drive.clock}
 
 
 @dataclass
 class _Drive:
-    """One drive of a connection."""
+    """One drive of a connection (its state lives in a drive host: :mod:`trainsim.web.drivehost`)."""
 
     number: int
-    core: DrivingSession
+    drive_id: int
     token: object
     clock: str
     scale: int
     started: float
+    atp: bool
+    last: dict[str, Any]
     command: float = 0.0
     paused: bool = False
     recorded: bool = False
-    #: automatic train protection: full service braking on overspeed
-    atp: bool = True
-    atp_braking: bool = False
-    #: simulated time when the train first moved [s] (the clock starts there)
-    departure_s: float | None = None
     ticker: asyncio.Task | None = field(default=None, repr=False)
-    #: the core session is used from worker threads: one at a time (a cancelled await does not
-    #: stop its thread, so a step may still run when the drive is recorded)
-    core_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
-
-    def call(self, fn: Any, *args: Any) -> Any:
-        # a step takes a few ms: run in the event loop (a thread per step costs more than the step)
-        with self.core_lock:
-            return fn(*args)
-
-    def effective_command(self) -> float:
-        """The command the train gets: the driver's, overridden by ATP on overspeed and with
-        traction cut at the train's design speed (no train is driven past it)."""
-        core = self.core
-        state = core.state(self.command)
-        v, limit = state.speed_mps, state.speed_limit_mps
-        if self.atp:
-            if v > limit + 1.0 * KMH:
-                if not self.atp_braking:
-                    self.atp_braking = True
-                    self.command = 0.0  # the driver must take the lever again afterwards
-            elif self.atp_braking and v <= limit:
-                self.atp_braking = False
-            if self.atp_braking:
-                return -1.0
-        if self.command > 0 and v >= core.train.max_speed_mps:
-            return 0.0
-        return self.command
-
-    def state(self) -> DrivingState:
-        with self.core_lock:
-            return self.core.state(self.command)
+    train: Any = None
+    route: Any = None
 
 
 class _BadMessageError(Exception):
@@ -207,8 +106,11 @@ def _number(msg: dict[str, Any], key: str, lo: float, hi: float, *, low_open: bo
 class DriveConnection:
     """The drives of one WebSocket connection."""
 
-    def __init__(self, ws: WebSocket, store: SessionStore, session: WebSession, limits: WebSettings) -> None:
+    def __init__(
+        self, ws: WebSocket, store: SessionStore, session: WebSession, limits: WebSettings, hosts: DriveHosts
+    ) -> None:
         self.ws = ws
+        self.hosts = hosts
         self.store = store
         self.session = session
         self.limits = limits
@@ -253,10 +155,18 @@ class DriveConnection:
                     await self.error(exc.message, exc.field)
                 except InputError as exc:
                     await self.error(str(exc), detail=input_error_detail(exc))
+                except DriveHostError as exc:
+                    await self.stop(record=False, notify=False)
+                    await self.error(f"{exc}; the drive ended: start a new one")
         except (WebSocketDisconnect, RuntimeError):
             pass  # (RuntimeError: the socket closed while a message was being sent)
         finally:
-            await self.stop(record=True, notify=False)
+            # recorded even when the connection's task is being cancelled
+            ending = asyncio.ensure_future(self.stop(record=True, notify=False))
+            _ENDING.add(ending)
+            ending.add_done_callback(_ENDING.discard)
+            with contextlib.suppress(asyncio.CancelledError):
+                await asyncio.shield(ending)
 
     async def handle(self, msg: dict[str, Any]) -> None:
         kind = msg.get("type")
@@ -300,7 +210,8 @@ class DriveConnection:
             await self.stop(record=True, notify=True)
             return
         # acknowledge with the current state so the page shows the change at once
-        await self.send(state_message(drive.state(), drive))
+        drive.last = await self.hosts.view(drive.drive_id, drive.command)
+        await self.send(state_message(drive.last, drive))
 
     # ------------------------------------------------------------------ drives
     async def start(self, msg: dict[str, Any]) -> None:
@@ -327,8 +238,7 @@ class DriveConnection:
             await self.ws.close(code=1013)
             raise WebSocketDisconnect(1013)
         try:
-            core = await asyncio.to_thread(DrivingSession, train=train, route=route, settings=settings)
-            reference = await asyncio.to_thread(self._reference, train, route, settings)
+            drive_id, reference, view = await self.hosts.open(train, route, settings, atp)
         except BaseException:
             self.store.release_drive()
             raise
@@ -337,7 +247,8 @@ class DriveConnection:
             session.drive_counter += 1
             number = session.drive_counter
             session.drive_token = token
-        drive = _Drive(number, core, token, clock, int(scale), time.monotonic(), atp=atp)
+        drive = _Drive(number, drive_id, token, clock, int(scale), time.monotonic(), atp, view)
+        drive.train, drive.route = train, route
         self.drive = drive
         await self.send(
             {
@@ -347,45 +258,25 @@ class DriveConnection:
                 "route": route.name,
                 "max_speed_kmh": train.max_speed_mps / KMH,
                 "clock": clock,
+                "atp": atp,
                 "time_scales": list(TIME_SCALES),
                 "profile": route_profile(route),
                 "reference": reference,
             }
         )
-        await self.send(state_message(drive.state(), drive))
+        await self.send(state_message(view, drive))
         if clock == "realtime":
             drive.ticker = asyncio.create_task(self._tick(drive))
 
-    @staticmethod
-    def _reference(train: Any, route: Any, settings: Any) -> dict[str, Any] | None:
-        """The fastest run's speed over distance, to drive against (None if it cannot be run)."""
-        try:
-            result = run_fastest(train, route, settings)
-        except TrainsimError:
-            return None
-        tr = result.trace
-        step = max(1, len(tr) // 1500)
-        return {
-            "running_time_s": result.running_time_s,
-            "position_m": floats(tr.position_m[::step], 2),
-            "speed_kmh": floats(tr.speed_mps[::step] / KMH, 2),
-        }
-
     async def advance(self, drive: _Drive, dt_s: float) -> None:
-        # long steps are cut so that ATP and the design-speed cut act at least every 0.5 s
-        state = None
-        left = dt_s
-        while left > 1e-9:
-            h = min(left, 0.5)
-            state = drive.call(drive.core.step, drive.effective_command(), h)
-            left -= h
-            if state.finished:
-                break
-        assert state is not None
+        view = await self.hosts.advance(drive.drive_id, drive.command, dt_s)
         if drive is not self.drive:
             return
-        await self.send(state_message(state, drive))
-        if state.finished:
+        drive.last = view
+        if view["lever_reset"]:
+            drive.command = 0.0
+        await self.send(state_message(view, drive))
+        if view["finished"]:
             await self.stop(record=True, notify=True)
 
     async def _tick(self, drive: _Drive) -> None:
@@ -394,8 +285,10 @@ class DriveConnection:
         while self.drive is drive:
             await asyncio.sleep(tick)
             now = time.monotonic()
-            # a late tick advances by the wall time it stood for, but never by more than 1 s
-            dt_wall, last = min(now - last, 1.0), now
+            # a late tick advances by the wall time it stood for, but by at most two ticks: an
+            # overloaded server lets the drive fall behind the wall clock rather than take ever
+            # longer steps (which would make it later still)
+            dt_wall, last = min(now - last, 2 * tick), now
             if self.session.drive_token is not drive.token:
                 await self.stop(record=True, notify=False)
                 await self.send({"type": "ended", "reason": "replaced by a drive in another window"})
@@ -405,7 +298,12 @@ class DriveConnection:
                 return
             if drive.paused or dt_wall <= 0:
                 continue
-            await self.advance(drive, min(dt_wall * drive.scale, 60.0))
+            try:
+                await self.advance(drive, min(dt_wall * drive.scale, 60.0))
+            except DriveHostError as exc:
+                await self.stop(record=False, notify=False)
+                await self.error(f"{exc}; the drive ended: start a new one")
+                return
 
     async def stop(self, *, record: bool, notify: bool, reason: str | None = None) -> None:
         """End the current drive, record it in the session's runs if the train moved."""
@@ -419,12 +317,15 @@ class DriveConnection:
             if self.session.drive_token is drive.token:
                 self.session.drive_token = None
         run = None
-        moved = drive.core.position_m != drive.core.route.stops[0].position_m or drive.core.time_s > 0
-        if record and moved and not drive.recorded:
+        result = None
+        if record and not drive.recorded:
             drive.recorded = True
-            # synchronously: a closing connection may cancel this task at its next await
-            with drive.core_lock:
-                result = drive.core.result()
+            try:
+                result = await self.hosts.result(drive.drive_id)
+            except DriveHostError:
+                result = None
+        await self.hosts.close_drive(drive.drive_id)
+        if result is not None:
             with self.session.lock:
                 run = StoredRun(
                     id=self.session.next_run_id(),
@@ -432,16 +333,16 @@ class DriveConnection:
                     strategy="drive",
                     created=time.time(),
                     result=result,
-                    route=drive.core.route,
-                    train=drive.core.train,
-                    params={"settings": {"braking_fraction": drive.core.settings.braking_fraction}},
+                    route=drive.route,
+                    train=drive.train,
+                    params={"settings": {"atp": drive.atp}},
                 )
                 self.store.add_run(self.session, run)
         if notify:
             await self.send(
                 {
                     "type": "finished",
-                    "reason": reason or drive.state().message,
+                    "reason": reason or drive.last.get("message", "drive ended"),
                     "run": run_brief(run) if run else None,
                     "summary": run.result.summary() if run else None,
                 }
@@ -468,4 +369,4 @@ async def drive_socket(ws: WebSocket) -> None:
         )
         await ws.close(code=4401)
         return
-    await DriveConnection(ws, store, session, limits).serve()
+    await DriveConnection(ws, store, session, limits, ws.app.state.drive_hosts).serve()
