@@ -42,3 +42,12 @@ def test_bench_fastest_quick(capsys):
     for heading in ("1. wall time", "2. where one run goes", "3. convergence", "4. converged run"):
         assert heading in out
     assert "metro_b" in out and "compile_track" in out
+
+
+@pytest.mark.filterwarnings("ignore")
+def test_bench_cost_model_quick(capsys):
+    load("bench_cost_model").main(["--quick"])
+    out = capsys.readouterr().out
+    for dimension in ("km [km]", "stops [stop]", "effort points [point]", "trace points [point]", "vehicles"):
+        assert dimension in out
+    assert out.count("growth:") == 5
