@@ -163,6 +163,14 @@ class SectionSolver:
         #: whether a final phase that starts on an arc held by braking starts braking (adjoint
         #: just below eta_r) rather than coasting (just below 1/eta_t)
         self.braking_arc_exits = False
+        #: whether the stop is approached on the regenerative braking curve (where the train's
+        #: regenerative brake alone can stop it) rather than the service braking curve
+        regen = train.braking.regenerative
+        self.regen_final_approach = bool(
+            self.has_regen
+            and regen is not None
+            and float(np.min(regen(np.linspace(0.0, float(self.track.vlim.max()), 200)))) > 0.0
+        )
         self._final_phase_on_braking_arc = False
         self._has_long_excursions = False
         #: the last departure point ahead of each lower limit, to search near first
@@ -399,6 +407,8 @@ class SectionSolver:
             plateau = np.flatnonzero(US_s > 0.0)
             last = self.i0 + (int(plateau[-1]) if len(plateau) else -1)
             modes[self.i0 : last + 1] = kernel.REGEN
+            if self.regen_final_approach:
+                modes[self.i0 : self.i1] = kernel.REGEN
         Cr, _, US = kernel.braking_ceiling_mixed(
             tr.x,
             tr.a0,
@@ -534,7 +544,7 @@ class SectionSolver:
             n, status, _, iq, uq, tq, e_path = pk.coast_excursion(
                 tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, W, tr.traction_scale, i, u, vp, tp, self.i1,
                 self.P, self.curves, self.bk, V, v_rejoin, mu, self.inv_eta_t, self.eta_r, ADJOINT_STEP_M,
-                *out,
+                *out, self.Cr, self.US,
             )  # fmt: skip
             if status != 0 or n >= self.n_max - 8:
                 return np.inf, None

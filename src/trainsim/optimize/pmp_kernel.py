@@ -415,7 +415,7 @@ def _capped_coast_step(E, v, u, h, cap, line, P, curves, bk):
 @njit(cache=True)
 def coast_excursion(
     x, a0, a1, b0, b1, vlim, W, tscale, i, u, v0, t, i_end, P, curves, bk, V, v_rejoin, mu, inv_eta_t, eta_r,
-    h_max, out_s, out_v, out_t, out_m,
+    h_max, out_s, out_v, out_t, out_m, Cr, US,
 ):  # fmt: skip
     """Leave the holding arc (or the traction arc below V) into coasting, ahead of a descent too
     steep to hold V on.
@@ -425,8 +425,10 @@ def coast_excursion(
     train rejoins where coasting brings it back up to that limit. The train holds the speed limit ``vlim`` with
     braking where coasting would exceed it, and the regenerative holding speed W once the adjoint
     has fallen to eta_r (the singular regenerative arc; above eta_r the optimal control coasts).
+    The coast must stay below the service braking curves (``Cr``, ``US``, as ``ceiling_at``) to
+    lower limits and the stop: an excursion that would cross one fails (status 2), it is not taken.
     Returns (n, status, phi(q) - 1/eta_t, i_q, u_q, t_q, energy_j): status 0 rejoined, 1 came to
-    rest or reached the end without rejoining; energy_j is the electrical energy of the path
+    rest or reached the end without rejoining, 2 crossed a braking curve; energy_j is the electrical energy of the path
     (regenerated while holding with braking, so <= 0)."""
     phi = inv_eta_t
     E = 0.5 * v0 * v0
@@ -451,6 +453,10 @@ def coast_excursion(
             mode, h, E1, dt = _capped_coast_step(E, v, uu, h, cap, line, P, curves, bk)
             if E1 <= 0.0:
                 return n, 1, -np.inf, ii, uu, t, energy
+            v_ceiling = ceiling_at(uu + h, w, ii, Cr, US, vlim[ii], line, P, curves, bk)
+            e_ceiling = 0.5 * v_ceiling * v_ceiling * (1.0 + 1e-6) + 1e-6
+            if e_ceiling < E1:  # the coast crosses a braking curve
+                return n, 2, -np.inf, ii, uu, t, energy
             if on_limit and below and E1 >= ER * (1.0 - 1e-12):
                 # back up to the limit: the rejoin point, where the limit is held again
                 hq = h

@@ -9,59 +9,25 @@ section has the same marginal energy per second (the optimal split, Albrecht et 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import yaml
 
 from trainsim.errors import InputError
+from trainsim.model.timetable import Journey, SectionSchedule, Timetable, TimingPoint
 
-
-@dataclass(frozen=True)
-class SectionSchedule:
-    """The schedule of one section: exactly one of the three fields is set.
-
-    Attributes:
-        running_time_s: scheduled running time [s].
-        supplement_fraction: supplement over the fastest run as a fraction (0.1 = 10 %) [-].
-        supplement_s: supplement over the fastest run [s].
-    """
-
-    running_time_s: float | None = None
-    supplement_fraction: float | None = None
-    supplement_s: float | None = None
-
-    def target_s(self, fastest_s: float) -> float:
-        """Scheduled running time [s] given the section's fastest running time [s]."""
-        if self.running_time_s is not None:
-            return self.running_time_s
-        if self.supplement_fraction is not None:
-            return fastest_s * (1.0 + self.supplement_fraction)
-        return fastest_s + (self.supplement_s or 0.0)
-
-
-@dataclass(frozen=True)
-class Timetable:
-    """Per-section schedules (one per section, in order), or one line supplement.
-
-    Attributes:
-        sections: one schedule per section between consecutive stops, or empty.
-        line: a supplement for the whole line, split optimally between sections.
-        source: where it came from (file name), for messages.
-    """
-
-    sections: tuple[SectionSchedule, ...] = ()
-    line: SectionSchedule | None = None
-    source: str = ""
-
-    def __post_init__(self) -> None:
-        if (self.line is None) == (not self.sections):
-            raise InputError(
-                "a timetable gives either one schedule per section or one line supplement",
-                file=self.source or None,
-                field="timetable",
-            )
+__all__ = [
+    "Journey",
+    "SectionSchedule",
+    "Timetable",
+    "TimingPoint",
+    "line_supplement",
+    "parse_supplement",
+    "passing_point_warnings",
+    "read_timetable_yaml",
+    "timetable_from_journey",
+]
 
 
 def parse_supplement(

@@ -1,0 +1,140 @@
+"""The reference optimum (CasADi/IPOPT): speeds never below 0, warm starts, time limits, mesh
+refinement, the convex relaxation's lower bound, and timing-point windows."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from trainsim.constants import KMH
+from trainsim.model import (
+    Braking,
+    EffortCurve,
+    Electrical,
+    GradientSection,
+    Quadratic,
+    ResistanceTerm,
+    Route,
+    SpeedLimit,
+    Station,
+    Train,
+)
+from trainsim.model.timetable import TimingPoint
+from trainsim.optimize.optimal import SectionSolver
+from trainsim.optimize.reference import concave_hull_in_slowness
+
+casadi = pytest.importorskip("casadi")
+
+from trainsim.optimize.reference import (  # noqa: E402
+    certified_reference,
+    lower_bound,
+    solve_reference,
+)
+
+
+def small_train(regen: bool = True) -> Train:
+    traction = EffortCurve.power_limited(1.5e6, force_cap_n=150e3)
+    return Train(
+        name="reference test train",
+        mass_kg=150e3,
+        rotating_mass_factor=1.08,
+        length_m=1.0,
+        max_speed_mps=100 * KMH,
+        traction=traction,
+        braking=Braking(
+            service_force=EffortCurve.constant(150e3), regenerative=traction.scaled(1.0) if regen else None
+        ),
+        resistance=(ResistanceTerm("Davis", Quadratic(2000.0, 30.0, 4.0)),),
+        electrical=Electrical(line_voltage_v=1500.0, traction_efficiency=0.9, regenerative_efficiency=0.8),
+    )
+
+
+def line(length: float, gradients: tuple = ()) -> Route:
+    return Route(
+        name="test line",
+        start_m=0.0,
+        end_m=length,
+        stations=(Station("A", 0.0), Station("B", length)),
+        speed_limits=(SpeedLimit(0.0, length, 80 * KMH),),
+        gradients=tuple(GradientSection(*g) for g in gradients),
+    )
+
+
+def test_concave_hull_bounds_a_curve_from_above_and_is_exact_for_force_and_power_caps():
+    curve = EffortCurve.power_limited(1.5e6, force_cap_n=150e3)
+    lines = concave_hull_in_slowness(curve, 30.0)
+    v = np.linspace(1e-3, 30.0, 50_001)
+    hull = np.min([a + b / v for a, b in lines], axis=0)
+    force = curve(v)
+    assert np.all(hull >= force)
+    assert np.max(hull - force) <= 1e-6 * 150e3  # min(F, P/v) is concave in 1/v: exact
+    table = EffortCurve.from_table([0.0, 5.0, 10.0, 20.0, 30.0], [200e3, 190e3, 120e3, 40e3, 35e3])
+    lines = concave_hull_in_slowness(table, 30.0, max_lines=4)
+    assert len(lines) <= 4
+    hull = np.min([a + b / v for a, b in lines], axis=0)
+    assert np.all(hull >= table(v))
+
+
+@pytest.mark.slow
+def test_reference_speeds_are_never_negative_and_the_bound_is_below_it():
+    train, route = small_train(), line(3000.0)
+    T = SectionSolver(train, route, 0.0, 3000.0).fastest_time_s * 1.2
+    ref = solve_reference(train, route, 0.0, 3000.0, T, intervals=300)
+    assert ref.status == "ok"
+    assert np.all(ref.v >= 0.0) and ref.v[0] == 0.0 and ref.v[-1] == 0.0
+    assert ref.running_time_s == pytest.approx(T, abs=1e-3)
+    low = lower_bound(train, route, 0.0, 3000.0, T, grid=ref.s, warm_start=ref)
+    assert low.status == "ok"
+    # a relaxation of the same transcription: below it, and tight (the only slack is c1 v)
+    assert low.energy_j <= ref.energy_j * (1 + 1e-7)
+    assert low.energy_j >= ref.energy_j * (1 - 2e-4)
+
+
+@pytest.mark.slow
+def test_certified_reference_refines_the_mesh_and_certifies_the_optimal_strategy():
+    train, route = small_train(), line(3000.0, ((1000.0, 2000.0, -25.0),))
+    solver = SectionSolver(train, route, 0.0, 3000.0)
+    T = solver.fastest_time_s * 1.2
+    plan = solver.solve(T)
+    ref = certified_reference(train, route, 0.0, 3000.0, T, intervals=250, warm_start=(plan.s, plan.v))
+    assert ref.status == "ok", ref.status
+    assert len(ref.mesh) >= 2
+    assert [m[0] for m in ref.mesh] == sorted(m[0] for m in ref.mesh)
+    (_, e1, _), (_, e2, _) = ref.mesh[-2:]
+    assert abs(e2 - e1) < 1e-4 * abs(e2)
+    assert ref.bound_status == "ok"
+    assert ref.lower_bound_j <= ref.energy_j
+    gap = ref.certified_gap(solver.energy_j(plan))
+    assert gap is not None and -1e-3 < gap < 0.01
+
+
+@pytest.mark.slow
+def test_time_limit_reports_the_last_iterate_and_says_so():
+    train, route = small_train(), line(3000.0)
+    T = SectionSolver(train, route, 0.0, 3000.0).fastest_time_s * 1.2
+    ref = solve_reference(train, route, 0.0, 3000.0, T, intervals=2000, time_limit_s=0.2)
+    assert ref.status.startswith("time limit")
+    assert np.all(ref.v >= 0.0) and np.all(np.isfinite(ref.v))
+
+
+@pytest.mark.slow
+def test_reference_meets_a_passing_window_and_an_impossible_one_is_infeasible():
+    train, route = small_train(), line(3000.0)
+    solver = SectionSolver(train, route, 0.0, 3000.0)
+    T = solver.fastest_time_s * 1.3
+    free = solve_reference(train, route, 0.0, 3000.0, T, intervals=300)
+    t_free = float(np.interp(1500.0, free.s, free.time_s))
+    # ask for the passing 10 s earlier than the free optimum passes
+    window = TimingPoint(1500.0, earliest_s=None, latest_s=t_free - 10.0, name="P")
+    ref = solve_reference(train, route, 0.0, 3000.0, T, intervals=300, timing_points=(window,))
+    assert ref.status == "ok"
+    assert float(np.interp(1500.0, ref.s, ref.time_s)) <= t_free - 10.0 + 1e-3
+    assert ref.energy_j > free.energy_j
+    low = lower_bound(train, route, 0.0, 3000.0, T, grid=ref.s, warm_start=ref, timing_points=(window,))
+    assert free.energy_j * (1 - 1e-6) <= low.energy_j * (1 + 1e-6) <= ref.energy_j * (1 + 1e-6)
+    # 1500 m in 20 s from standstill: beyond what the train can do
+    impossible = TimingPoint(1500.0, latest_s=20.0, name="Q")
+    bad = solve_reference(
+        train, route, 0.0, 3000.0, T, intervals=300, timing_points=(impossible,), time_limit_s=20.0
+    )
+    assert bad.status != "ok"
