@@ -141,3 +141,25 @@ def test_bad_timetables_are_input_errors(train) -> None:
     text = str(e.value)
     assert "not connected" in text and "unique" in text and "unknown station" in text
     assert any(p.field == "trains[2].stops[0].track" for p in e.value.problems)
+
+
+@pytest.mark.parametrize(("rule", "lookahead_s"), [("fcfs", 0.0), ("priority", 150.0)])
+def test_priority_with_lookahead_holds_the_slow_train_for_the_fast_one(train, rule, lookahead_s) -> None:
+    length = 6000.0
+    geometry = Route("geo", 0, length, (), (SpeedLimit(0, length, 80 / 3.6),))
+    stations = (StationLayout("A", 500), StationLayout("B", 3000, tracks=2), StationLayout("C", 5500))
+    line = build_line("loop", length, "double_track", stations, Signalling(), block_length_m=600)
+    svcs = [
+        TrainService(
+            "slow", train, "up", "A", "C", 0.0, (ScheduledStop("B", 30, departure_s=170.0, track=2),)
+        ),
+        TrainService("fast", train, "up", "A", "C", 120.0, priority=5),
+    ]
+    res = simulate(line, geometry, svcs, SETTINGS, rule=rule, lookahead_s=lookahead_s)
+    slow, fast = res.trains
+    assert res.status == "conflicts"  # the plan lets the slow train leave B before the fast one passes
+    if rule == "fcfs":
+        assert fast.delay_s > 0 and slow.delay_s == 0  # the fast train follows the slow one to C
+    else:
+        assert fast.delay_s == pytest.approx(0.0, abs=1e-9)  # overtakes at B
+        assert slow.delay_s > 0 and slow.hindrances[0].where == "B"

@@ -488,33 +488,57 @@ class _Dispatcher:
         for choice in self._choices(st):
             routes = [r for _j, r in choice]
             if self._free(st, routes, t):
-                if standing and self._yields(st, routes, t):
+                if standing and self._yields(st, choice, t):
                     return False
                 self.grant(st, choice, t)
                 return True
         return False
 
-    def _yields(self, st: _TrainState, routes: Sequence[Route], t: float) -> bool:
-        """Priority rule with look-ahead: a train standing at a stop is held while a train of higher
-        priority, running (not waiting), will ask for one of the same resources within
-        ``lookahead_s``."""
+    def _yields(self, st: _TrainState, choice: list[tuple[int, Route]], t: float) -> bool:
+        """Priority rule with look-ahead: a train standing at a stop is held when, leaving now and
+        running to its next stop, it would still hold a resource when a running train of higher
+        priority needs it within ``lookahead_s`` (both judged from their present trajectories)."""
         if self.rule != "priority" or self.lookahead_s <= 0:
             return False
-        mine = {res.name for r in routes for res in r.resources}
+        sig = self.line.signalling
+        here = (
+            st.waiting_stop if st.waiting_stop is not None else st.request_point(self.approach[st.index])[1]
+        )
+        later = [
+            s.position_m for s in st.stops if s.position_m > (here if here is not None else -np.inf) + 1e-9
+        ]
+        next_stop = min(later) if later else np.inf
+        steps = list(choice)
+        k = st.next + len(choice)
+        while k < len(st.steps) and st.path.steps[st.steps[k]].start_m < next_stop:
+            j = st.steps[k]
+            steps.append((j, self._alternatives(st, j, st.path.steps[j])[0]))
+            k += 1
+        mine = {res.name for _j, r in steps for res in r.resources}
+        low: dict[str, tuple[float, float]] | None = None
         for other in self.states:
             if other.done or other.svc.priority <= st.svc.priority or other.waiting_since is not None:
                 continue
-            for k in range(other.next, len(other.steps)):
-                step = other.path.steps[other.steps[k]]
-                if any(res.name in mine for r in step.alternatives for res in r.resources):
-                    if k == other.next:
-                        t_req = other.request_point(self.approach[other.index])[0]
-                    else:
-                        # a later route of the other train: when its head passes the route's signal
-                        t_req = float(other.trajectory.first_time_at(step.start_m)[0])
-                    if t - 1e-9 <= t_req <= t + self.lookahead_s:
+            ahead = [
+                (j, self._alternatives(other, j, other.path.steps[j])[0]) for j in other.steps[other.next :]
+            ]
+            if not any(res.name in mine for _j, r in ahead for res in r.resources):
+                continue
+            if low is None:
+                mine_bt = blocking_times(
+                    st.svc.id, st.trajectory, st.path, steps, list(st.stop_positions()), sig,
+                    float, self.approach[st.index],
+                )  # fmt: skip
+                low = {b.resource: (b.start_s, b.end_s) for b in mine_bt}
+            high = blocking_times(
+                other.svc.id, other.trajectory, other.path, ahead, list(other.stop_positions()), sig,
+                float, self.approach[other.index],
+            )  # fmt: skip
+            for b in high:
+                if b.resource in low and t - 1e-9 <= b.start_s <= t + self.lookahead_s:
+                    start, end = low[b.resource]
+                    if start <= b.start_s and end > b.start_s + TIME_TOLERANCE_S:
                         return True
-                    break
         return False
 
     def grant(self, st: _TrainState, choice: list[tuple[int, Route]], t: float) -> None:
