@@ -127,6 +127,7 @@ class Seed:
     relative: str  # path in the scratch tree
     role: str  # train, route, scenario, study
     strict_numbers: bool = False  # trainsim's own files: every number is validated
+    weight: int = 3  # visits per round (workbooks are slow to write: fewer)
 
 
 def seeds() -> list[Seed]:
@@ -151,7 +152,7 @@ def seeds() -> list[Seed]:
         Seed("xml", "interchange/testline_railml2.xml", "scenario"),
         Seed("xml", "interchange/testline_railml3.xml", "scenario"),
         Seed("csv", "interchange/testline_csv", "scenario"),
-        Seed("xlsx", "interchange/testline.xlsx", "scenario"),
+        Seed("xlsx", "interchange/testline.xlsx", "scenario", weight=1),
     ]
     if (SHARED / "data" / "ttobench" / "trains").is_dir():
         out += [
@@ -481,6 +482,8 @@ class Tally:
     by_origin: Counter[str] = dataclasses.field(default_factory=Counter)
     #: timeouts by seed file
     timeouts_by_seed: Counter[str] = dataclasses.field(default_factory=Counter)
+    #: seconds spent per kind (mutating, reading, restoring)
+    seconds_by_kind: Counter[str] = dataclasses.field(default_factory=Counter)
     samples: list[str] = dataclasses.field(default_factory=list)
     signatures: set[str] = dataclasses.field(default_factory=set)
 
@@ -552,6 +555,7 @@ def run_chunk(args: tuple[int, int, int, str]) -> Tally:
     root = Path(root_text)
     tally = Tally()
     all_seeds = seeds()
+    schedule = [s for s in all_seeds for _ in range(s.weight)]
     originals: dict[str, bytes] = {}
     for s in all_seeds:
         p = root / s.relative
@@ -562,7 +566,8 @@ def run_chunk(args: tuple[int, int, int, str]) -> Tally:
     try:
         for case in range(first, first + count):
             rng = random.Random(seed_value * 1_000_003 + case)
-            seed = all_seeds[case % len(all_seeds)]
+            seed = schedule[case % len(schedule)]
+            started = time.perf_counter()
             path = root / seed.relative
             backup: Path | None = None
             must = False
@@ -643,6 +648,7 @@ def run_chunk(args: tuple[int, int, int, str]) -> Tally:
                         tally.wrongly_accepted += 1
                         tally.note(f"{label}: an invalid number was accepted")
             _restore(seed, path, originals, backup)
+            tally.seconds_by_kind[seed.kind] += time.perf_counter() - started
     finally:
         signal.signal(signal.SIGALRM, previous)
     tally.peak_rss_mb = _peak_rss_mb()
@@ -669,7 +675,7 @@ def _dump(doc: Any, kind: str) -> str:
         return json.dumps(doc)
     import yaml
 
-    return yaml.safe_dump(doc, sort_keys=False, allow_unicode=True)
+    return yaml.dump(doc, Dumper=yaml.CSafeDumper, sort_keys=False, allow_unicode=True)
 
 
 def _restore(seed: Seed, path: Path, originals: dict[str, bytes], backup: Path | None) -> None:
@@ -724,5 +730,6 @@ if __name__ == "__main__":
     print(summary(result, time.perf_counter() - t0))
     print("tracebacks by origin:", dict(result.by_origin.most_common()))
     print("timeouts by seed:", dict(result.timeouts_by_seed))
+    print("seconds by kind:", {k: round(v, 1) for k, v in result.seconds_by_kind.items()})
     for sample in result.samples:
         print("----", sample)

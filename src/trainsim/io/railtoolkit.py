@@ -205,6 +205,12 @@ def _schema(name: str) -> dict[str, Any]:
     return json.loads(text)
 
 
+@cache
+def _validator(name: str) -> jsonschema.Draft202012Validator:
+    """The JSON Schema validator of a schema file (built once)."""
+    return jsonschema.Draft202012Validator(_schema(name))
+
+
 def _path_text(parts: Sequence[str | int]) -> str:
     text = ""
     for part in parts:
@@ -359,8 +365,7 @@ def _check(data: Any, file: str, expected_url: str, kind: str) -> str:
             file=file,
             field="paths",
         )
-    schema = _schema(_SCHEMA_FILES[expected_url][version])
-    validator = jsonschema.Draft202012Validator(schema)
+    validator = _validator(_SCHEMA_FILES[expected_url][version])
     errors = sorted(validator.iter_errors(data), key=lambda e: (list(map(str, e.absolute_path)), e.validator))
     if errors:
         described = [_describe_schema_error(e) for e in errors]
