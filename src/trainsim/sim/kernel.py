@@ -625,8 +625,12 @@ def fastest_segment(
 
 @njit(cache=True)
 def _kinks_between(v0, v1, kinks):
+    """Number of kink speeds strictly between v0 and v1 (0, not -1, when v0 == v1 is a kink: that
+    miscount once sized the output of ``insert_kink_points`` too small, and the trace lost its
+    last points)."""
     lo, hi = min(v0, v1), max(v0, v1)
-    return np.searchsorted(kinks, hi, side="left") - np.searchsorted(kinks, lo, side="right")
+    n = np.searchsorted(kinks, hi, side="left") - np.searchsorted(kinks, lo, side="right")
+    return n if n > 0 else 0
 
 
 @njit(cache=True)
@@ -668,7 +672,8 @@ def insert_kink_points(x, a0, a1, b0, b1, tscale, P, curves, tk, bk, s, v, t, m)
         remaining = s[k + 1] - s[k]
         rising = v[k + 1] > v[k]
         vc = v[k]
-        for _ in range(len(kinks)):
+        # never more points than counted above (the output arrays are sized by that count)
+        for _ in range(_kinks_between(v[k], v[k + 1], kinks)):
             vk = _next_kink(vc, rising, v[k + 1], kinks)
             if vk < 0.0:
                 break

@@ -16,6 +16,18 @@ from trainsim.sim.energy import run_works
 from trainsim.sim.kernel import BRAKE, CRUISE, DWELL, FOLLOW, REGEN, REGIME_NAMES, TRACTION
 from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear
 
+#: What a run's ``status`` can say (``RunResult.status`` and ``summary()["status"]``); anything but
+#: ``ok`` comes with warnings saying where and why, and the result is the best feasible run.
+STATUSES: dict[str, str] = {
+    "ok": "the run went as asked: standstill at every stop, within every limit",
+    "stalled": "the tractive effort could not overcome the resistance; the run ends where it stopped",
+    "brake_limited": "the brakes cannot hold the train at a limit or stop it on a descent; the run ends "
+    "before that place",
+    "did_not_reach_stop": "the run does not end at standstill at its last stop",
+    "in progress": "a driving session that has not reached its destination yet",
+    "error": "an internal consistency check failed (a bug: please report it with the input)",
+}
+
 
 @dataclass(frozen=True)
 class Trace:
@@ -110,7 +122,9 @@ class RunResult:
     """Result of a run: status, warnings, trace, sections and totals.
 
     Attributes:
-        status: ``ok``, or ``stalled`` when the train could not go on (see ``warnings``).
+        status: ``ok``, or one of ``STATUSES`` (``stalled``, ``brake_limited``,
+            ``did_not_reach_stop``...) with the reason in ``warnings``.
+        warnings: sentences, each saying what is wrong or implausible and where.
         kind: what produced it (``fastest``, ``driven``...).
     """
 
@@ -233,6 +247,35 @@ def _invariant_violations(s: np.ndarray, v: np.ndarray, t: np.ndarray) -> list[s
     return problems
 
 
+#: A run ends at a stop when its head is this close [m] and its speed this low [m/s].
+STOP_POSITION_TOLERANCE_M = 1e-3
+STOP_SPEED_TOLERANCE_MPS = 1e-6
+
+
+def _check_stops(
+    route: Route,
+    s: np.ndarray,
+    v: np.ndarray,
+    regime: np.ndarray,
+    stop_names: list[str] | None,
+    warnings: list[str],
+) -> str:
+    """``ok`` when the run stands still at every dwell point and ends at standstill at its last stop;
+    otherwise ``did_not_reach_stop`` with a warning saying where it ended and how fast."""
+    moving_dwell = np.flatnonzero((regime == DWELL) & (v > STOP_SPEED_TOLERANCE_MPS))
+    last = route.stops[-1] if route.stops and stop_names is None else None
+    short = last is not None and abs(float(s[-1]) - last.position_m) > STOP_POSITION_TOLERANCE_M
+    if not (short or v[-1] > STOP_SPEED_TOLERANCE_MPS or len(moving_dwell)):
+        return "ok"
+    where = f"{last.position_m - float(s[-1]):.3f} m short of {last.name}, " if short and last else ""
+    warnings.append(
+        f"the run does not end at standstill at its last stop: it ends at {float(s[-1]):.3f} m "
+        f"({where}{float(v[-1]) / KMH:.3f} km/h)"
+        + (f"; {len(moving_dwell)} dwell point(s) are not at standstill" if len(moving_dwell) else "")
+    )
+    return "did_not_reach_stop"
+
+
 def _section_ends(regime: np.ndarray) -> list[int]:
     """Index of the arrival point of each section: the first point of each run of DWELL points,
     and the last point if the run ends without a stop."""
@@ -285,6 +328,8 @@ def build_result(
         # never hand out a broken trace as if it were fine
         status = "error"
         warnings.append("internal consistency check failed: " + "; ".join(problems))
+    if status == "ok" and kind != "driven" and len(s):
+        status = _check_stops(route, s, v, regime, stop_names, warnings)
     m = train.mass_kg
     n = len(s)
     elec = train.electrical
