@@ -20,7 +20,7 @@ import numpy as np
 from trainsim.constants import KWH
 from trainsim.errors import InputError
 from trainsim.power.network import Network
-from trainsim.power.solver import StepLoads, solve_step
+from trainsim.power.solver import StepGuess, StepLoads, solve_step
 from trainsim.sim.result import RunResult
 
 __all__ = ["PowerResult", "TrainLoad", "simulate", "train_load_from_run"]
@@ -400,6 +400,9 @@ def simulate(
     converged = np.ones(n_steps, dtype=bool)
     iterations = np.zeros(n_steps, dtype=np.int64)
     on = np.ones(ns, dtype=bool)
+    fixed_v = None
+    prev_c = np.full(nt, np.nan)
+    prev_r = np.full(nt, np.nan)
     for j in range(n_steps):
         sel = np.flatnonzero(supplied[j])
         # present but off the wire (neutral section): no supply, demands unmet
@@ -411,7 +414,12 @@ def simulate(
         power[j, off] = 0.0
         current[j, off] = 0.0
         loads = StepLoads(tracks[sel], xs[j, sel], pt[j, sel], pr[j, sel], aux[sel], tan_phi[sel])
-        sol = solve_step(network, loads, on)
+        guess = None if fixed_v is None else StepGuess(fixed_v, prev_c[sel], prev_r[sel])
+        sol = solve_step(network, loads, on, guess)
+        if sol.guess is not None and sol.converged:
+            fixed_v = sol.guess.fixed_v
+            prev_c[sel] = sol.guess.train_contact_v
+            prev_r[sel] = sol.guess.train_rail_v
         on = sol.substation_on
         converged[j] = sol.converged
         iterations[j] = sol.iterations

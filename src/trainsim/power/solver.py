@@ -101,6 +101,7 @@ class StepSolution:
         line_loss_w: losses in contact lines, rails and leakages [W].
         substation_loss_w: losses in the substations' internal resistances [W].
         rail_potential_v: rail-to-earth potentials of the rail nodes (DC), or empty.
+        guess: this step's potentials, to start the next step from (DC), or None.
     """
 
     converged: bool
@@ -117,6 +118,40 @@ class StepSolution:
     line_loss_w: float
     substation_loss_w: float
     rail_potential_v: np.ndarray
+    guess: StepGuess | None = None
+
+
+@dataclass
+class StepGuess:
+    """Potentials of a previous step to start Newton from [V] (DC).
+
+    Attributes:
+        fixed_v: potential of each fixed node of the topology (substations, connections, track
+            ends), NaN where unknown.
+        train_contact_v, train_rail_v: contact and rail potential of each train, in the order of
+            the step's loads, NaN where unknown (a train that just entered).
+    """
+
+    fixed_v: np.ndarray
+    train_contact_v: np.ndarray
+    train_rail_v: np.ndarray
+
+
+def _start_from_guess(asm: _Assembly, guess: StepGuess, contact_default: float) -> np.ndarray:
+    v = np.zeros(asm.n)
+    v[:] = np.nan
+    ok = asm.fixed_index >= 0
+    v[asm.fixed_index[ok]] = guess.fixed_v[ok]
+    for nodes, values in ((asm.train_c, guess.train_contact_v), (asm.train_r, guess.train_rail_v)):
+        m = nodes >= 0
+        v[nodes[m]] = values[m]
+    # nodes without a guess: contact nodes at the mean no-load voltage, rails at 0
+    missing = np.isnan(v)
+    if missing.any():
+        v[missing] = contact_default
+        rails = asm.rail_nodes[missing[asm.rail_nodes]]
+        v[rails] = 0.0
+    return v
 
 
 @dataclass
@@ -128,6 +163,7 @@ class _Assembly:
     train_c: np.ndarray  # train contact / rail nodes
     train_r: np.ndarray
     rail_nodes: np.ndarray
+    fixed_index: np.ndarray  # unknown index of each fixed node of the topology (-1 earthed)
 
 
 def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assembly:
@@ -213,6 +249,7 @@ def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assemb
         train_c=new_index[train_c],
         train_r=new_index[train_r],
         rail_nodes=np.unique(new_index[rail][new_index[rail] >= 0]),
+        fixed_index=new_index[: topo.n_fixed],
     )
 
 
@@ -234,17 +271,68 @@ def _potential(v: np.ndarray, nodes: np.ndarray) -> np.ndarray:
 
 
 def _injection(n: int, nodes: np.ndarray, values: np.ndarray, dtype) -> np.ndarray:
-    out = np.zeros(n, dtype=dtype)
+    """Sum of ``values`` per node (entries at earth, -1, dropped)."""
     ok = nodes >= 0
-    np.add.at(out, nodes[ok], values[ok])
-    return out
+    if np.dtype(dtype).kind == "c":
+        vals = np.asarray(values, dtype=complex)[ok]
+        return np.bincount(nodes[ok], weights=vals.real, minlength=n) + 1j * np.bincount(
+            nodes[ok], weights=vals.imag, minlength=n
+        )
+    return np.bincount(nodes[ok], weights=np.asarray(values, dtype=float)[ok], minlength=n)
 
 
-def solve_step(net: Network, loads: StepLoads, substation_on: np.ndarray) -> StepSolution:
+class _Pattern:
+    """A fixed sparsity pattern in CSC order, assembled from two-terminal stamps: the matrix is
+    built once and only its values change between Newton iterations (no sparse-format
+    conversions inside the loop)."""
+
+    def __init__(self, n: int, pairs: list[tuple[np.ndarray, np.ndarray]]) -> None:
+        self.n = n
+        self.parts = []
+        rows_all, cols_all = [], []
+        for a, b in pairs:
+            ma, mb = a >= 0, b >= 0
+            both = ma & mb
+            ia, ib, iboth = np.flatnonzero(ma), np.flatnonzero(mb), np.flatnonzero(both)
+            rows = np.concatenate([a[ia], b[ib], a[iboth], b[iboth]])
+            cols = np.concatenate([a[ia], b[ib], b[iboth], a[iboth]])
+            take = np.concatenate([ia, ib, iboth, iboth])
+            sign = np.concatenate([np.ones(len(ia) + len(ib)), -np.ones(2 * len(iboth))])
+            self.parts.append((rows, cols, take, sign))
+            rows_all.append(rows)
+            cols_all.append(cols)
+        rows = np.concatenate(rows_all)
+        cols = np.concatenate(cols_all)
+        key = cols.astype(np.int64) * n + rows
+        uniq, inv = np.unique(key, return_inverse=True)
+        self.nnz = len(uniq)
+        bounds = np.cumsum([0] + [len(p[0]) for p in self.parts])
+        self.slots = [inv[bounds[k] : bounds[k + 1]] for k in range(len(self.parts))]
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(uniq // n, minlength=n))])
+        self.matrix = sp.csc_matrix(
+            (np.zeros(self.nnz), (uniq % n).astype(np.int32), indptr.astype(np.int32)), shape=(n, n)
+        )
+
+    def values(self, k: int, y: np.ndarray) -> np.ndarray:
+        """The CSC data contributed by part k with element admittances y."""
+        _, _, take, sign = self.parts[k]
+        return np.bincount(self.slots[k], weights=y[take] * sign, minlength=self.nnz)
+
+    def matvec(self, k: int, y: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """(Part k's matrix) @ v, without building it."""
+        rows, cols, take, sign = self.parts[k]
+        return np.bincount(rows, weights=y[take] * sign * v[cols], minlength=self.n)
+
+
+def solve_step(
+    net: Network, loads: StepLoads, substation_on: np.ndarray | None = None, guess: StepGuess | None = None
+) -> StepSolution:
     """Solve one instant: node potentials, trains' accepted powers, substation powers.
 
-    ``substation_on`` is the rectifier state to start from (e.g. the previous step's); it is not
-    modified.
+    ``substation_on`` is informative only (kept for callers; rectifier states are solved from
+    scratch every step). ``guess`` (DC) starts Newton from a previous step's potentials (fixed
+    nodes, and each train's contact and rail potentials in the order of ``loads``); without it, or
+    if Newton fails from it, the flat start and the fallbacks below are used.
     """
     asm = assemble(net, loads.track, loads.position_m)
     topo = net.topology
@@ -272,9 +360,16 @@ def solve_step(net: Network, loads: StepLoads, substation_on: np.ndarray) -> Ste
     if ac:
         v, iterations, converged = _fixed_point_ac(net, asm, loads, sub_p, sub_n, e, ys, tol, None)
     else:
-        v, iterations, converged = _newton_dc(
-            net, asm, loads, sub_p, sub_n, e, ys, reversible.copy(), tol, None
-        )
+        iterations = 0
+        converged = False
+        if guess is not None:
+            v0 = _start_from_guess(asm, guess, float(np.mean(e)))
+            v, iterations, converged = _newton_dc(
+                net, asm, loads, sub_p, sub_n, e, ys, reversible.copy(), tol, v0
+            )
+        if not converged:
+            v, its, converged = _newton_dc(net, asm, loads, sub_p, sub_n, e, ys, reversible.copy(), tol, None)
+            iterations += its
         if not converged and not reversible.all():
             # Newton from the no-load voltage may stall before a hump of the residual: when every
             # rectifier of a section blocks and the regenerated power exceeds what the other trains
@@ -355,7 +450,12 @@ def solve_step(net: Network, loads: StepLoads, substation_on: np.ndarray) -> Ste
     rail = (
         np.real(v[asm.rail_nodes]) if (not net.ideal_return and topo.rail_potential_defined) else np.empty(0)
     )
+    guess_out = None
+    if not ac:
+        fixed_v = np.where(asm.fixed_index >= 0, v[np.maximum(asm.fixed_index, 0)], 0.0)
+        guess_out = StepGuess(fixed_v, _potential(v, asm.train_c), _potential(v, asm.train_r))
     return StepSolution(
+        guess=guess_out,
         converged=converged,
         iterations=iterations,
         train_voltage_v=umag,
@@ -401,12 +501,17 @@ def _newton_dc(
     # reversible substations are linear (in the matrix); diode rectifiers (``on`` False here) are
     # nonlinear elements I_s = max(E - U_s, 0) / R_i inside the residual (semismooth Newton), so
     # that I_s >= 0 and I_s (U_s - E) = 0 hold by construction
-    rows, cols, vals = _base_matrix(asm, sub_p, sub_n, ys, on, float)
-    g = sp.csc_matrix((vals, (rows, cols)), shape=(n, n))
+    ys = np.asarray(ys, dtype=float)
+    dio = ~on
+    pattern = _Pattern(
+        n, [(asm.a, asm.b), (sub_p[on], sub_n[on]), (asm.train_c, asm.train_r), (sub_p[dio], sub_n[dio])]
+    )
+    g_data = pattern.values(0, asm.y) + pattern.values(1, ys[on])
+    ys_on = ys[on]
     j_src = _injection(n, sub_p[on], (e * ys)[on], float) - _injection(n, sub_n[on], (e * ys)[on], float)
     dio = ~on
     delta = DIODE_SMOOTHING_SHARE * un
-    dp_, dn_, de, dy = sub_p[dio], sub_n[dio], e[dio], np.asarray(ys, dtype=float)[dio]
+    dp_, dn_, de, dy = sub_p[dio], sub_n[dio], e[dio], ys[dio]
     if v0 is None:
         # flat start: contact nodes at the mean no-load voltage, rails at 0
         v = np.zeros(n)
@@ -427,7 +532,13 @@ def _newton_dc(
         r_s = regen_acceptance(uu, lim.regen_full_v, lim.regen_zero_v)
         p = loads.traction_w * a_s + loads.auxiliary_w - loads.regen_w * r_s
         i_t = p / uu
-        f = g @ v - j_src + _injection(n, tc, i_t, float) - _injection(n, tr, i_t, float)
+        f = (
+            pattern.matvec(0, asm.y, v)
+            + pattern.matvec(1, ys_on, v)
+            - j_src
+            + _injection(n, tc, i_t, float)
+            - _injection(n, tr, i_t, float)
+        )
         if len(de):
             x = de - (_potential(v, dp_) - _potential(v, dn_))
             forward = _smooth_max(x, delta)
@@ -445,13 +556,12 @@ def _newton_dc(
             loads.regen_w * regen_acceptance_slope(uu, lim.regen_full_v, lim.regen_zero_v)
         )
         di = np.where(uu > u_floor, dp / uu - p / uu**2, 0.0)
-        jr, jc, jv = _stamp(tc, tr, di)
+        data = g_data + pattern.values(2, di)
         if len(de):
             slope = _smooth_max_slope(de - (_potential(v, dp_) - _potential(v, dn_)), delta)
-            sr, sc, sv = _stamp(dp_, dn_, dy * (slope + reverse_share * (1.0 - slope)))
-            jr, jc, jv = np.concatenate([jr, sr]), np.concatenate([jc, sc]), np.concatenate([jv, sv])
-        jac = g + sp.csc_matrix((jv, (jr, jc)), shape=(n, n))
-        dv = -splu(jac.tocsc()).solve(f)
+            data = data + pattern.values(3, dy * (slope + reverse_share * (1.0 - slope)))
+        pattern.matrix.data[:] = data
+        dv = -splu(pattern.matrix).solve(f)
         step = float(np.max(np.abs(dv)))
         if step > MAX_STEP_SHARE * un:
             dv *= MAX_STEP_SHARE * un / step

@@ -1,0 +1,131 @@
+"""Wall time of the power-supply simulation: a 20 km metro line, 30 trains, one hour at 1 s steps.
+
+Issue 18's target: at most 10 s on the 2-core development machine. The line: two tracks, 750 V DC,
+substations every 2.5 km (9, diode rectifiers), paralleling posts half way between them; source
+002's type B metro (regenerative braking at 0.8 of traction, 50 kW auxiliaries) stopping every
+1.25 km (30 s dwell), 15 trains per direction on the line at any time. The trains' runs are computed
+once (one fastest run per direction); the benchmark times the network solution over the hour.
+
+Because the machine is shared, every figure is also printed as a ratio to a baseline timed in the
+same run: one fastest run of the train over the 20 km (the single-train simulation trainsim already
+had), both in CPU time (process_time), which other processes on a shared machine disturb much less
+than the wall time. Prints the load average too.
+
+Run: python benchmarks/bench_power.py [--repeat N] [--reversible]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+import trainsim
+from trainsim.constants import KMH
+from trainsim.model import Route, SpeedLimit, Station
+from trainsim.power import (
+    Connection,
+    Network,
+    Substation,
+    Track,
+    simulate,
+    standard_limits,
+    train_load_from_run,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+LENGTH_M = 20_000.0
+
+
+def line_and_trains(reversible: bool):
+    scenario = trainsim.load_scenario(ROOT / "examples" / "metro_b" / "scenario.yaml")
+    train = scenario.train
+    train = dataclasses.replace(
+        train, braking=dataclasses.replace(train.braking, regenerative=train.traction.scaled(0.8))
+    )
+    stations = tuple(Station(f"S{k}", k * 1250.0, 30.0 if 0 < k < 16 else 0.0) for k in range(17))
+    route = Route("20 km metro", 0.0, LENGTH_M, stations, (SpeedLimit(0.0, LENGTH_M, 80 * KMH),))
+    settings = trainsim.RunSettings(max_step_m=10.0)
+    run = trainsim.run_fastest(train, route, settings)
+    tracks = tuple(Track(t, 0.0, LENGTH_M, 0.02e-3, 0.015e-3, 0.1e-6) for t in ("up", "down"))
+    subs = tuple(
+        Substation(
+            f"SS{k}", k * 2500.0, ("up", "down"), 850.0, 0.03, rated_power_w=4e6, reversible=reversible
+        )
+        for k in range(9)
+    )
+    posts = tuple(Connection(f"PP{k}", k * 2500.0 + 1250.0, ("up", "down")) for k in range(8))
+    net = Network("20 km metro", "dc", standard_limits("dc_750"), tracks, subs, posts)
+    trip = run.trace.time_s[-1] - run.trace.time_s[0]
+    headway = trip / 15
+    loads = []
+    for k in range(-16, int(3600 / headway) + 1):
+        dep = k * headway
+        if dep + trip < 0 or dep > 3600:
+            continue
+        common = {"traction_efficiency": 0.98, "regenerative_efficiency": 0.98, "auxiliary_power_w": 50e3}
+        loads.append(train_load_from_run(run, id=f"up{k}", track="up", departure_s=dep, **common))
+        loads.append(
+            train_load_from_run(
+                run,
+                id=f"down{k}",
+                track="down",
+                departure_s=dep + headway / 2,
+                origin_m=LENGTH_M,
+                direction=-1,
+                **common,
+            )
+        )
+    return net, loads, (train, route, settings), trip
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--reversible", action="store_true", help="inverter substations")
+    args = parser.parse_args()
+    net, loads, (train, route, settings), trip = line_and_trains(args.reversible)
+    baseline = []
+    for _ in range(5):
+        c0 = time.process_time()
+        trainsim.run_fastest(train, route, settings)
+        baseline.append(time.process_time() - c0)
+    base = statistics.median(baseline)
+    times, cpu = [], []
+    for _ in range(args.repeat):
+        t0, c0 = time.perf_counter(), time.process_time()
+        res = simulate(net, loads, dt_s=1.0, start_s=0.0, end_s=3599.0)
+        times.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    on_line = np.sum(np.isfinite(res.train_position_m), axis=1)
+    s = res.summary()
+    med = statistics.median(times)
+    print(
+        f"20 km line, {len(net.substations)} substations ({'reversible' if args.reversible else 'diode'}), "
+        f"trip {trip:.0f} s, trains on the line {on_line.min()}..{on_line.max()} (mean {on_line.mean():.1f}), "
+        f"{len(res.time_s)} steps of 1 s"
+    )
+    print(f"baseline (one fastest run over 20 km, CPU time): {base * 1e3:.1f} ms")
+    print(
+        f"network over the hour: median {med:.2f} s, best {min(times):.2f} s "
+        f"({med / len(res.time_s) * 1e3:.2f} ms per step); CPU time {statistics.median(cpu):.2f} s "
+        f"(= {statistics.median(cpu) / base:.0f} x the baseline); target 10 s"
+    )
+    print(
+        f"status {s['status']}, Newton iterations {s['solver']['iterations_total']} "
+        f"(max {s['solver']['iterations_max']} per step), energy balance {s['energy_balance_error']:.1e}, "
+        f"substations {s['substations_energy_kwh']:.0f} kWh, losses {s['losses_kwh']:.0f} kWh, "
+        f"regen dissipated {s['regen_kwh']['dissipated']:.0f} kWh"
+    )
+    print(f"load average: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
