@@ -154,3 +154,10 @@ def test_etcs_l2_headway_uses_the_indication_distance() -> None:
     brake = braking_distance_table(lambda v: np.full_like(v, 0.7), 44.0)
     h_moving, _ = _headway(_line(moving), moving, brake, plain_line_only=True)
     assert h_fixed.min_headway_s > h.min_headway_s > h_moving.min_headway_s
+
+
+def test_too_many_sections_is_an_input_error() -> None:
+    sig = Signalling(system="moving_block", moving_block_step_m=1.0)
+    with pytest.raises(InputError, match="more than") as e:
+        build_line("x", 100_000, "double_track", (StationLayout("A", 500), StationLayout("B", 99_000)), sig)
+    assert e.value.problems[0].field == "signalling.moving_block_step_m"

@@ -14,17 +14,22 @@ from trainsim.operations.blocking import (
     minimum_headway,
 )
 from trainsim.operations.line import Line, Signalling, StationLayout, build_line
+from trainsim.operations.simulate import OperationResult, ScheduledStop, TrainService, simulate
 
 __all__ = [
     "BlockingTime",
     "CapacityConsumption",
     "Headway",
     "Line",
+    "OperationResult",
+    "ScheduledStop",
     "Signalling",
     "StationLayout",
+    "TrainService",
     "Trajectory",
     "blocking_times",
     "build_line",
     "compression",
     "minimum_headway",
+    "simulate",
 ]

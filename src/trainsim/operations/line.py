@@ -42,6 +42,8 @@ Direction = Literal["up", "down"]
 Separation = Literal["fixed_block", "etcs_l2", "moving_block"]
 Release = Literal["sectional", "whole_route"]
 Layout = Literal["double_track", "single_track"]
+#: Most block sections (or moving-block sections) per direction: bounds memory and run time.
+MAX_SECTIONS = 20_000
 
 
 @dataclass(frozen=True)
@@ -380,6 +382,17 @@ def build_line(
         )
     if problems:
         raise InputError.from_problems(problems)
+    step = signalling.moving_block_step_m if signalling.system == "moving_block" else block_length_m
+    if length_m / step > MAX_SECTIONS:
+        field_name = (
+            "signalling.moving_block_step_m" if signalling.system == "moving_block" else "line.block_length_m"
+        )
+        raise InputError(
+            f"the line would be cut into more than {MAX_SECTIONS} sections per direction",
+            field=field_name,
+            value=step,
+            allowed=f">= {length_m / MAX_SECTIONS:g} m on this {length_m:g} m line",
+        )
     line = Line(name, float(length_m), layout, stations, signalling)
     paths = {}
     for direction in ("up", "down"):
