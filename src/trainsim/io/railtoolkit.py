@@ -66,7 +66,7 @@ import jsonschema
 
 from trainsim.constants import KMH, TONNE, TRAINRUNS_GRAVITY
 from trainsim.errors import InputError, Problem
-from trainsim.io.trainsim_yaml import read_yaml
+from trainsim.io.documents import read_document as read_yaml
 from trainsim.model import (
     Braking,
     EffortCurve,

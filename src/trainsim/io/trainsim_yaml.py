@@ -72,10 +72,12 @@ __all__ = [
     "SCHEMAS",
     "RouteSpec",
     "ScenarioSpec",
+    "Spec",
     "TrainSpec",
     "driving_from_spec",
     "driving_spec_from_dict",
     "dump_yaml",
+    "fail",
     "load_route_yaml",
     "load_scenario_yaml",
     "load_train_yaml",
@@ -90,6 +92,7 @@ __all__ = [
     "settings_from_dict",
     "train_from_dict",
     "train_spec_from_dict",
+    "validation_error",
 ]
 
 #: The schema identifiers of this module and the versions it reads.
@@ -125,10 +128,12 @@ def _yaml_lines(path: str | Path, locs: Sequence[Sequence[str | int]]) -> list[i
 
 
 # ====================================================================== validation errors
-def _fail(
-    reason: str, *, field: str | None = None, value: Any = None, allowed: str | None = None
-) -> NoReturn:
-    """Raise a validation error inside a spec validator; ``field`` is relative to the model."""
+def fail(reason: str, *, field: str | None = None, value: Any = None, allowed: str | None = None) -> NoReturn:
+    """Raise a validation error inside a spec validator (a ``model_validator`` of a :class:`Spec`).
+
+    ``field`` is relative to the model (``"speed_kmh[3]"``); :func:`validation_error` turns the
+    error into a :class:`~trainsim.errors.Problem` with the full path, the file and the line.
+    """
     raise PydanticCustomError(
         "trainsim", "{reason}", {"reason": reason, "field": field, "value": value, "allowed": allowed}
     )
@@ -241,10 +246,17 @@ def _describe(err: Any) -> tuple[str, Any, str | None]:
     return err["msg"], value, None
 
 
-def _validation_error(
+def validation_error(
     exc: ValidationError, file: str, path: str | Path | None, prefix: str = ""
 ) -> InputError:
-    """One InputError (one paragraph) for all problems of a pydantic ValidationError."""
+    """One InputError for all problems of a pydantic ValidationError of a :class:`Spec`.
+
+    Args:
+        exc: the error of ``SomeSpec.model_validate(data)``.
+        file: the file name the problems name.
+        path: the file, to find the YAML line of each problem (None: no lines).
+        prefix: a field path put before every problem's field (e.g. ``multi_point``).
+    """
     problems: list[tuple[list[str | int], str, Any, str | None]] = []
     errors = exc.errors(include_url=False)
     # A misspelt required field gives "unknown field" and "missing": report the typo only.
@@ -336,8 +348,15 @@ class _UnknownField:
     allowed: str
 
 
-class _Spec(BaseModel):
-    """Base of every spec: unknown fields are errors; generic fields take quantities with units."""
+class Spec(BaseModel):
+    """Base of every spec (the pydantic model of a block of a trainsim file).
+
+    Unknown fields are errors (with the closest known name); a field named with its unit suffix
+    (``mass_t``) takes a plain number, and the same name without the suffix a text with a unit
+    (``mass: "49.8 t"``); every number is checked against :mod:`trainsim.model.bounds` (no
+    true/false, no quoted numbers, finite, plausible). Subclasses raise their own problems with
+    :func:`fail`.
+    """
 
     model_config = ConfigDict(extra="forbid", populate_by_name=True, allow_inf_nan=False)
 
@@ -385,11 +404,11 @@ class _Spec(BaseModel):
         unknown: list[str] = []
         for key, value in data.items():
             if not isinstance(key, str):
-                _fail("field names must be text", value=key)
+                fail("field names must be text", value=key)
             if key in names:
                 split = suffixed.get(key)
                 if split and isinstance(value, str) and not _is_number_text(value):
-                    _fail(
+                    fail(
                         f"'{key}' takes a plain number in {split[1]}; to give a unit, write "
                         f"'{split[0]}: {shown_value(value, 40)[1:-1]}' instead",
                         field=key,
@@ -401,7 +420,7 @@ class _Spec(BaseModel):
             elif key in generic:
                 target, unit = generic[key]
                 if target in data:
-                    _fail(f"give either '{key}' or '{target}', not both", field=key)
+                    fail(f"give either '{key}' or '{target}', not both", field=key)
                 try:
                     if isinstance(value, list):
                         out[target] = [to_unit(v, unit, require_unit=True, field=key) for v in value]
@@ -413,7 +432,7 @@ class _Spec(BaseModel):
                         shown = shown_value(value, 40)
                         reason = f"'{key}' needs a unit, e.g. '{key}: {shown} {unit}'"
                         reason += f"; or write '{target}: {shown}'"
-                    _fail(reason, field=key, value=value, allowed=exc.allowed)
+                    fail(reason, field=key, value=value, allowed=exc.allowed)
                 if target in numeric:
                     _check_numbers(out[target], numeric[target], key, written=value)
             else:
@@ -480,9 +499,9 @@ def _check_numbers(value: Any, numeric: _Numeric, field: str, written: Any = Non
     shown = written if written is not None else value
     allowed = numeric.bound.allowed(numeric.unit, numeric.factor)
     if isinstance(value, bool):
-        _fail("must be a number, not true/false", field=field, value=value, allowed=allowed)
+        fail("must be a number, not true/false", field=field, value=value, allowed=allowed)
     if isinstance(value, str):
-        _fail(
+        fail(
             "must be a number, not text (write it without quotes)", field=field, value=value, allowed=allowed
         )
     if isinstance(value, int | float):
@@ -492,7 +511,7 @@ def _check_numbers(value: Any, numeric: _Numeric, field: str, written: Any = Non
         try:
             bounds.check(value, bound, unit=numeric.unit, factor=numeric.factor)
         except InputError as exc:
-            _fail(exc.reason, field=field, value=shown, allowed=exc.allowed)
+            fail(exc.reason, field=field, value=shown, allowed=exc.allowed)
 
 
 def _check_increasing(
@@ -500,7 +519,7 @@ def _check_increasing(
 ) -> None:
     for i in range(1, len(values)):
         if values[i] < values[i - 1] or (strict and values[i] == values[i - 1]):
-            _fail(
+            fail(
                 f"{what} must {'increase strictly' if strict else 'not decrease'}",
                 field=f"{field}[{i}]",
                 value=values[i],
@@ -514,7 +533,7 @@ Fraction = Annotated[float, Field(gt=0, le=1)]
 
 
 # ====================================================================== force tables
-class _ForceTable(_Spec):
+class _ForceTable(Spec):
     """A table of speeds [km/h] and forces [kN or N], interpolated linearly (source 002 eq. 1, 8)."""
 
     speed_kmh: list[float] = Field(min_length=1)
@@ -526,21 +545,21 @@ class _ForceTable(_Spec):
     @model_validator(mode="after")
     def _check_table(self) -> _ForceTable:
         if (self.force_kn is None) == (self.force_n is None):
-            _fail("give the forces as exactly one of 'force_kn' or 'force_n'", field="force_kn")
+            fail("give the forces as exactly one of 'force_kn' or 'force_n'", field="force_kn")
         forces = self.forces_n_signed()
         name = "force_kn" if self.force_kn is not None else "force_n"
         if len(forces) != len(self.speed_kmh):
-            _fail(
+            fail(
                 f"'speed_kmh' has {len(self.speed_kmh)} values but '{name}' has {len(forces)}",
                 field=name,
                 allowed="as many forces as speeds",
             )
         if self.speed_kmh[0] < 0:
-            _fail("speeds must be >= 0", field="speed_kmh[0]", value=self.speed_kmh[0], allowed=">= 0")
+            fail("speeds must be >= 0", field="speed_kmh[0]", value=self.speed_kmh[0], allowed=">= 0")
         _check_increasing(self.speed_kmh, "speed_kmh", what="table speeds")
         if self.signed:
             if any(f > 0 for f in forces) and any(f < 0 for f in forces):
-                _fail(
+                fail(
                     "braking forces must all have the same sign (positive magnitudes, or all negative "
                     "as in source 002)",
                     field=name,
@@ -549,7 +568,7 @@ class _ForceTable(_Spec):
         else:
             for i, f in enumerate(forces):
                 if f < 0:
-                    _fail("forces must be >= 0", field=f"{name}[{i}]", value=self._shown(f), allowed=">= 0")
+                    fail("forces must be >= 0", field=f"{name}[{i}]", value=self._shown(f), allowed=">= 0")
         return self
 
     def _shown(self, force_n: float) -> float:
@@ -569,7 +588,7 @@ class _ForceTable(_Spec):
 
 
 # ====================================================================== traction
-class _Caps(_Spec):
+class _Caps(Spec):
     max_force_kn: Positive | None = None
     max_power_kw: Positive | None = None
 
@@ -591,9 +610,9 @@ class TableTraction(_ForceTable, _Caps):
     @model_validator(mode="after")
     def _check_motors(self) -> TableTraction:
         if self.per_motor and self.motors is None:
-            _fail("a per-motor table needs 'motors' (the number of motors or motor cars)", field="motors")
+            fail("a per-motor table needs 'motors' (the number of motors or motor cars)", field="motors")
         if not self.per_motor and self.motors is not None:
-            _fail("'motors' only applies with 'per_motor: true'", field="motors", value=self.motors)
+            fail("'motors' only applies with 'per_motor: true'", field="motors", value=self.motors)
         return self
 
     def build(self, train: TrainSpec) -> EffortCurve:
@@ -603,7 +622,7 @@ class TableTraction(_ForceTable, _Caps):
         return self._capped(curve)
 
 
-class PiecewiseInterval(_Spec):
+class PiecewiseInterval(Spec):
     """One interval of a piecewise law from ``from_kmh`` to the next interval's start (source 000):
     ``F = c0 + c1 V + c2 V^2 + ch / v`` with V in km/h and F in kN; ``ch_kw`` is the constant power
     P of a hyperbolic law ``F = P / v``."""
@@ -633,7 +652,7 @@ class PiecewiseTraction(_Caps):
     @model_validator(mode="after")
     def _check_intervals(self) -> PiecewiseTraction:
         if self.intervals[0].from_kmh != 0:
-            _fail(
+            fail(
                 "the first interval must start at 0 km/h",
                 field="intervals[0].from_kmh",
                 value=self.intervals[0].from_kmh,
@@ -642,14 +661,14 @@ class PiecewiseTraction(_Caps):
         starts = [i.from_kmh for i in self.intervals]
         for i in range(1, len(starts)):
             if starts[i] <= starts[i - 1]:
-                _fail(
+                fail(
                     "interval starts must increase strictly",
                     field=f"intervals[{i}].from_kmh",
                     value=starts[i],
                     allowed=f"> {starts[i - 1]:g}",
                 )
         if self.intervals[0].ch_kw != 0 and self.max_force_kn is None:
-            _fail(
+            fail(
                 "a hyperbolic law (ch_kw) from 0 km/h is infinite at standstill: give 'max_force_kn' "
                 "(e.g. the adhesion limit) or start it at a speed above 0",
                 field="max_force_kn",
@@ -666,7 +685,7 @@ class PiecewiseTraction(_Caps):
         return self._capped(curve)
 
 
-class PowerLimitedTraction(_Spec):
+class PowerLimitedTraction(Spec):
     """``model: power_limited``: ``F = min(F_cap, eta P / v)`` (source 001: P_available = eta P_nom).
 
     The force cap is ``max_force_kn`` and/or the adhesion limit ``mu m_adh g`` (the smaller if both).
@@ -683,13 +702,13 @@ class PowerLimitedTraction(_Spec):
     @model_validator(mode="after")
     def _check_cap(self) -> PowerLimitedTraction:
         if self.max_force_kn is None and self.adhesion_coefficient is None:
-            _fail(
+            fail(
                 "power-limited traction needs a force limit at low speed: 'max_force_kn' and/or "
                 "'adhesion_coefficient'",
                 field="max_force_kn",
             )
         if self.adhesion_mass_t is not None and self.adhesion_coefficient is None:
-            _fail("'adhesion_mass_t' needs 'adhesion_coefficient'", field="adhesion_mass_t")
+            fail("'adhesion_mass_t' needs 'adhesion_coefficient'", field="adhesion_mass_t")
         return self
 
     def build(self, train: TrainSpec) -> EffortCurve:
@@ -724,7 +743,7 @@ TractionSpec = Annotated[
 
 
 # ====================================================================== braking
-class RegenerativeFraction(_Spec):
+class RegenerativeFraction(Spec):
     """``model: fraction_of_traction``: regenerative force = fraction x maximum traction
     (source 004: f_ru = 0.8 f_u(V))."""
 
@@ -765,7 +784,7 @@ RegenerativeSpec = Annotated[
 ]
 
 
-class _BrakingBase(_Spec):
+class _BrakingBase(Spec):
     regenerative: RegenerativeSpec | None = None
 
     def _regen(self, traction: EffortCurve) -> EffortCurve | None:
@@ -789,14 +808,14 @@ class TableBraking(_ForceTable, _BrakingBase):
     @model_validator(mode="after")
     def _check_kind(self) -> TableBraking:
         if self.model == "table" and self.table_is is None:
-            _fail(
+            fail(
                 "say what the braking table is: 'table_is: service' (the force the train brakes with) or "
                 "'table_is: full' (full/emergency force; service = 0.75 x full unless 'service_fraction')",
                 field="table_is",
                 allowed="service, full",
             )
         if self.model == "fraction_of_full" and self.table_is == "service":
-            _fail(
+            fail(
                 "'fraction_of_full' scales a table of the full braking force",
                 field="table_is",
                 value=self.table_is,
@@ -833,7 +852,7 @@ class DecelerationBraking(_BrakingBase):
     @model_validator(mode="after")
     def _check_value(self) -> DecelerationBraking:
         if not 0 < abs(self.deceleration_mps2) <= 5:
-            _fail(
+            fail(
                 "the deceleration must be non-zero and realistic",
                 field="deceleration_mps2",
                 value=self.deceleration_mps2,
@@ -849,7 +868,7 @@ BrakingSpec = Annotated[TableBraking | DecelerationBraking, Field(discriminator=
 
 
 # ====================================================================== resistance
-class _Term(_Spec):
+class _Term(Spec):
     """A running-resistance term; ``applies_to`` is ``train`` or the name of a vehicle of the
     formation (the term is then evaluated with that vehicle's mass, empty + load, and multiplied by
     its count)."""
@@ -1043,7 +1062,7 @@ ResistanceSpec = Annotated[
 
 
 # ====================================================================== train
-class VehicleSpec(_Spec):
+class VehicleSpec(Spec):
     """One vehicle type of the formation, ``count`` times."""
 
     name: str = Field(min_length=1)
@@ -1061,7 +1080,7 @@ class VehicleSpec(_Spec):
     def _check_terms(self) -> VehicleSpec:
         for i, term in enumerate(self.resistance or []):
             if term.applies_to not in (None, self.name):
-                _fail(
+                fail(
                     "a term inside a vehicle applies to that vehicle; leave 'applies_to' out",
                     field=f"resistance[{i}].applies_to",
                     value=term.applies_to,
@@ -1074,7 +1093,7 @@ class VehicleSpec(_Spec):
         return (self.mass_t + self.load_t) * TONNE
 
 
-class ElectricalSpec(_Spec):
+class ElectricalSpec(Spec):
     """Electrical data; ``regenerative_efficiency`` defaults to ``traction_efficiency``."""
 
     line_voltage_v: Positive
@@ -1099,7 +1118,7 @@ class ElectricalSpec(_Spec):
         )
 
 
-class TrainSpec(_Spec):
+class TrainSpec(Spec):
     """A ``trainsim/train`` file (see docs/FORMAT.md)."""
 
     schema_id: Literal["trainsim/train"] = Field(default="trainsim/train", alias="schema")
@@ -1122,21 +1141,21 @@ class TrainSpec(_Spec):
     @model_validator(mode="after")
     def _check_train(self) -> TrainSpec:
         if not self.resistance and not any(v.resistance for v in self.formation or []):
-            _fail(
+            fail(
                 "the train needs running resistance: a 'resistance' list (or 'resistance' in its vehicles)",
                 field="resistance",
                 allowed=", ".join(RESISTANCE_FAMILY_NAMES),
             )
         if self.formation is None:
             if self.mass_t is None:
-                _fail("give the train's 'formation' (list of vehicles) or its 'mass_t'", field="formation")
+                fail("give the train's 'formation' (list of vehicles) or its 'mass_t'", field="formation")
             if self.length_m is None:
-                _fail("a train given by 'mass_t' needs 'length_m'", field="length_m")
+                fail("a train given by 'mass_t' needs 'length_m'", field="length_m")
             vehicles: list[VehicleSpec] = []
         else:
             for key in ("mass_t", "load_t", "length_m"):
                 if getattr(self, key) is not None:
-                    _fail(
+                    fail(
                         f"'{key}' comes from the formation; give it per vehicle, not for the train",
                         field=key,
                         value=getattr(self, key),
@@ -1145,44 +1164,44 @@ class TrainSpec(_Spec):
             seen: dict[str, int] = {}
             for i, v in enumerate(vehicles):
                 if v.name == "train":
-                    _fail(
+                    fail(
                         "'train' is reserved ('applies_to: train' means the whole train)",
                         field=f"formation[{i}].name",
                         value=v.name,
                     )
                 if v.name in seen:
-                    _fail(
+                    fail(
                         f"vehicle name already used by formation[{seen[v.name]}]",
                         field=f"formation[{i}].name",
                         value=v.name,
                     )
                 seen[v.name] = i
         if self.rotating_mass_factor is not None and self.gamma is not None:
-            _fail("give 'rotating_mass_factor' or 'gamma' (= factor - 1), not both", field="gamma")
+            fail("give 'rotating_mass_factor' or 'gamma' (= factor - 1), not both", field="gamma")
         if self.rotating_mass_factor is None and self.gamma is None:
             missing = [f"formation[{i}]" for i, v in enumerate(vehicles) if v.rotating_mass_factor is None]
             if not vehicles or missing:
-                _fail(
+                fail(
                     "the rotating mass factor is needed: give the train's 'rotating_mass_factor' "
                     "(rho >= 1) or 'gamma' (= rho - 1, source 002), or 'rotating_mass_factor' for every "
                     "vehicle" + (f" (missing in {', '.join(missing)})" if vehicles else ""),
                     field="rotating_mass_factor",
                 )
         if self.max_speed_kmh is None and (not vehicles or any(v.max_speed_kmh is None for v in vehicles)):
-            _fail(
+            fail(
                 "give the train's 'max_speed_kmh' (or 'max_speed_kmh' for every vehicle)",
                 field="max_speed_kmh",
             )
         names = [v.name for v in vehicles]
         for i, term in enumerate(self.resistance):
             if term.applies_to is None:
-                _fail(
+                fail(
                     "say what the term applies to: 'train' or a vehicle name",
                     field=f"resistance[{i}].applies_to",
                     allowed=", ".join(["train", *names]),
                 )
             if term.applies_to != "train" and term.applies_to not in names:
-                _fail(
+                fail(
                     "no vehicle of that name in the formation",
                     field=f"resistance[{i}].applies_to",
                     value=term.applies_to,
@@ -1348,14 +1367,14 @@ class TrainSpec(_Spec):
 
 
 # ====================================================================== route
-class StationSpec(_Spec):
+class StationSpec(Spec):
     name: str = Field(min_length=1)
     position_m: float
     dwell_s: NonNegative = 0.0
     stop: bool = True
 
 
-class _Section(_Spec):
+class _Section(Spec):
     """A section from ``from_m`` to ``to_m`` (or ``from_m + length_m``)."""
 
     from_m: float
@@ -1377,10 +1396,10 @@ class _Section(_Spec):
     def _check_extent(self) -> _Section:
         length = self.__dict__.get("length_m")
         if self.to_m is not None and length is not None:
-            _fail("give 'to_m' or 'length_m', not both", field="length_m")
+            fail("give 'to_m' or 'length_m', not both", field="length_m")
         end = self.end()
         if end is not None and not end > self.from_m:
-            _fail("a section must end after it starts", field="to_m", value=end, allowed=f"> {self.from_m:g}")
+            fail("a section must end after it starts", field="to_m", value=end, allowed=f"> {self.from_m:g}")
         return self
 
 
@@ -1392,7 +1411,7 @@ class GradientSpec(_Section):
     gradient_permille: Annotated[float, Field(gt=-200, lt=200)]
 
 
-class ElevationPointSpec(_Spec):
+class ElevationPointSpec(Spec):
     position_m: float
     elevation_m: float
 
@@ -1408,9 +1427,9 @@ class CurveSpec(_Section):
     @model_validator(mode="after")
     def _check_curve(self) -> CurveSpec:
         if self.end() is None:
-            _fail("a curve needs 'to_m' or 'length_m'", field="to_m")
+            fail("a curve needs 'to_m' or 'length_m'", field="to_m")
         if (self.radius_m is None) == (self.central_angle_deg is None):
-            _fail("give exactly one of 'radius_m' or 'central_angle_deg'", field="radius_m")
+            fail("give exactly one of 'radius_m' or 'central_angle_deg'", field="radius_m")
         return self
 
     def radius(self) -> float:
@@ -1428,7 +1447,7 @@ class TunnelSpec(_Section):
     @model_validator(mode="after")
     def _check_tunnel(self) -> TunnelSpec:
         if self.end() is None:
-            _fail("a tunnel needs 'to_m' or 'length_m'", field="length_m")
+            fail("a tunnel needs 'to_m' or 'length_m'", field="length_m")
         return self
 
 
@@ -1436,7 +1455,7 @@ class ElectrificationSpec(_Section):
     voltage_v: NonNegative
 
 
-class LineResistanceSpec(_Spec):
+class LineResistanceSpec(Spec):
     """Formula choices; ``curve_formula`` and ``tunnel_formula`` are required (they change the result
     and no choice is neutral); ``gradient_formula`` defaults to ``small_angle`` (differs from ``exact``
     by < 0.01 % below 10 per mille) and ``apply_over`` to ``head`` (mass-point train)."""
@@ -1455,7 +1474,7 @@ class LineResistanceSpec(_Spec):
         )
 
 
-class RouteSpec(_Spec):
+class RouteSpec(Spec):
     """A ``trainsim/route`` file (see docs/FORMAT.md)."""
 
     schema_id: Literal["trainsim/route"] = Field(default="trainsim/route", alias="schema")
@@ -1480,14 +1499,14 @@ class RouteSpec(_Spec):
     @model_validator(mode="after")
     def _check_route(self) -> RouteSpec:
         if (self.length_m is None) == (self.end_m is None):
-            _fail("give exactly one of 'length_m' or 'end_m'", field="length_m")
+            fail("give exactly one of 'length_m' or 'end_m'", field="length_m")
         end = self.end()
         if not end > self.start_m:
-            _fail(
+            fail(
                 "the route must end after it starts", field="end_m", value=end, allowed=f"> {self.start_m:g}"
             )
         if self.gradients is not None and self.elevation is not None:
-            _fail("give 'gradients' or 'elevation', not both", field="elevation")
+            fail("give 'gradients' or 'elevation', not both", field="elevation")
         self._check_stations(end)
         self._check_changes("speed_limits", self.speed_limits, end, cover=True)
         self._check_changes("gradients", self.gradients or [], end, cover=False)
@@ -1496,7 +1515,7 @@ class RouteSpec(_Spec):
         self._check_spans("tunnels", self.tunnels, end)
         if self.elevation is not None:
             if len(self.elevation) < 2:
-                _fail("an elevation profile needs at least 2 points", field="elevation")
+                fail("an elevation profile needs at least 2 points", field="elevation")
             _check_increasing([p.position_m for p in self.elevation], "elevation", what="positions")
         return self
 
@@ -1507,14 +1526,14 @@ class RouteSpec(_Spec):
         names: dict[str, int] = {}
         for i, s in enumerate(self.stations):
             if not self.start_m <= s.position_m <= end:
-                _fail(
+                fail(
                     "station outside the route",
                     field=f"stations[{i}].position_m",
                     value=s.position_m,
                     allowed=f"{self.start_m:g} .. {end:g} m",
                 )
             if s.name in names:
-                _fail(
+                fail(
                     f"station name already used by stations[{names[s.name]}]",
                     field=f"stations[{i}].name",
                     value=s.name,
@@ -1526,7 +1545,7 @@ class RouteSpec(_Spec):
         """Lists of changes: each entry runs to its own ``to_m`` or to the next entry's start."""
         for i, item in enumerate(items):
             if not self.start_m <= item.from_m < end:
-                _fail(
+                fail(
                     "section starts outside the route",
                     field=f"{name}[{i}].from_m",
                     value=item.from_m,
@@ -1534,7 +1553,7 @@ class RouteSpec(_Spec):
                 )
         _check_increasing([x.from_m for x in items], name, what="'from_m' positions")
         if cover and items and items[0].from_m != self.start_m:
-            _fail(
+            fail(
                 f"{name} must start at the route start",
                 field=f"{name}[0].from_m",
                 value=items[0].from_m,
@@ -1545,7 +1564,7 @@ class RouteSpec(_Spec):
             if item.to_m is None:
                 continue
             if item.to_m > nxt + 1e-9:
-                _fail(
+                fail(
                     "section runs into the next one"
                     if i + 1 < len(items)
                     else "section runs past the route end",
@@ -1554,7 +1573,7 @@ class RouteSpec(_Spec):
                     allowed=f"<= {nxt:g}",
                 )
             if cover and item.to_m < nxt - 1e-9:
-                _fail(
+                fail(
                     f"gap in {name}: every position needs a value (leave 'to_m' out to run to the next one)",
                     field=f"{name}[{i}].to_m",
                     value=item.to_m,
@@ -1565,7 +1584,7 @@ class RouteSpec(_Spec):
         for i, item in enumerate(items):
             stop = item.stop()
             if item.from_m < self.start_m or stop > end + 1e-9:
-                _fail(
+                fail(
                     "section outside the route",
                     field=f"{name}[{i}]",
                     value=(item.from_m, stop),
@@ -1574,7 +1593,7 @@ class RouteSpec(_Spec):
             if i > 0:
                 prev_end = items[i - 1].stop()
                 if item.from_m < prev_end - 1e-9:
-                    _fail(
+                    fail(
                         f"{name} must be listed in order and must not overlap",
                         field=f"{name}[{i}].from_m",
                         value=item.from_m,
@@ -1645,7 +1664,7 @@ class RouteSpec(_Spec):
 
 
 # ====================================================================== scenario
-class SettingsSpec(_Spec):
+class SettingsSpec(Spec):
     max_step_m: Annotated[float, Field(ge=0.01, le=1000)] = 10.0
     braking_fraction: Fraction = 1.0
     record_dwell: bool = True
@@ -1664,7 +1683,7 @@ def _file_or_inline(value: Any) -> str | None:
     return None
 
 
-class DrivingSpec(_Spec):
+class DrivingSpec(Spec):
     """How the scenario is driven: the fastest run, or a strategy to a timetable (docs/OPTIMIZATION.md)."""
 
     strategy: Literal["fastest", "optimal", "lesov", "reference"] = "fastest"
@@ -1672,7 +1691,7 @@ class DrivingSpec(_Spec):
     timetable: str | None = None
 
 
-class ScenarioSpec(_Spec):
+class ScenarioSpec(Spec):
     """A ``trainsim/scenario`` file (see docs/FORMAT.md)."""
 
     schema_id: Literal["trainsim/scenario"] = Field(default="trainsim/scenario", alias="schema")
@@ -1725,7 +1744,7 @@ def driving_spec_from_dict(data: Any, source: str = "<scenario>") -> DrivingSpec
     try:
         return DrivingSpec.model_validate(data)
     except ValidationError as exc:
-        raise _validation_error(exc, source, None, prefix="driving") from None
+        raise validation_error(exc, source, None, prefix="driving") from None
 
 
 def driving_from_spec(
@@ -1853,13 +1872,13 @@ def _check_header(data: Any, schema: str, file: str, *, required: bool = True) -
 
 
 def _validate(
-    cls: type[_Spec], data: Any, schema: str, source: str, path: str | Path | None, *, header: bool
+    cls: type[Spec], data: Any, schema: str, source: str, path: str | Path | None, *, header: bool
 ) -> Any:
     _check_header(data, schema, source, required=header)
     try:
         return cls.model_validate(data)
     except ValidationError as exc:
-        raise _validation_error(exc, source, path) from None
+        raise validation_error(exc, source, path) from None
 
 
 def train_spec_from_dict(data: Any, source: str = "<train>", *, path: str | Path | None = None) -> TrainSpec:
@@ -1884,7 +1903,7 @@ def settings_from_dict(data: Any, source: str = "<settings>") -> RunSettings:
     try:
         return SettingsSpec.model_validate(data).build()
     except ValidationError as exc:
-        raise _validation_error(exc, source, None, prefix="settings") from None
+        raise validation_error(exc, source, None, prefix="settings") from None
 
 
 def train_from_dict(data: Any, source: str = "<train>") -> Train:
@@ -1949,3 +1968,10 @@ def dump_yaml(spec: BaseModel) -> str:
     order = ["schema", "version", "name"]
     data = {**{k: data[k] for k in order if k in data}, **{k: v for k, v in data.items() if k not in order}}
     return yaml.safe_dump(data, sort_keys=False, allow_unicode=True)
+
+
+# Former private names, kept for modules that used them (multipoint/spec.py): use Spec, fail and
+# validation_error instead.
+_Spec = Spec
+_fail = fail
+_validation_error = validation_error
