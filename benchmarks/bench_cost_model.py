@@ -11,7 +11,8 @@ of a real main line (a gradient change every km, a curve every 2.5 km, a speed-l
 * effort-curve points: the traction curve resampled as a table of 5 .. 200 points, 50 km line;
 * trace points: max_step 40 m .. 1 m on the 50 km line (the dimension is the trace length);
 * vehicles: the heavy-haul example (``examples/heavy_haul``, all power at the head) with 25 .. 200
-  wagons on a 5 km line with a 4 per mille bank, multi-point model.
+  wagons on a 5 km line with a 4 per mille bank, multi-point model; a heavier train with the same
+  locomotives runs longer, so the time per integrator step is fitted as well.
 
 Every point is timed pair by pair with the baseline of ``_timing.py`` (a fixed-step RK4 of a 100 km
 line in numba); the CPU time per run is quoted (the machine is shared: wall times are inflated by
@@ -129,9 +130,15 @@ def fit(x: list[float], t: list[float]) -> tuple[float, float, float, float]:
 
 
 def measure(
-    dimension: str, unit: str, runs: list[tuple[float, Callable[[], object], str]], repeat: int
+    dimension: str,
+    unit: str,
+    runs: list[tuple[float, Callable[[], object], str]],
+    repeat: int,
+    per: list[float] | None = None,
+    per_name: str = "",
 ) -> tuple[list[float], list[float]]:
-    """Time each run (paired with the baseline) and print one row per point; returns x and CPU times."""
+    """Time each run (paired with the baseline) and print one row per point; returns x and CPU times.
+    ``per``: a count per run (integrator steps) by which the time is also divided and fitted."""
     print(f"\n{dimension} [{unit}]")
     print(f"{'x':>9s} {'cpu ms':>10s} {'x base':>8s} {'wall ms':>10s} {'ms per unit':>11s}  detail")
     xs, ts = [], []
@@ -150,6 +157,17 @@ def measure(
         f"growth: log-log slope {slope:.2f}; t = a + b x^p: a = {a * 1e3:.2f} ms, p = {p:.2f} ({note}); "
         f"marginal {marginal:.4f} ms per {unit}"
     )
+    if per:
+        tn = [t / k for t, k in zip(ts, per, strict=True)]
+        slope, a, _b, p = fit(xs, tn)
+        print(
+            f"per {per_name}: "
+            + ", ".join(f"{t * 1e6:.2f}" for t in tn)
+            + f" us; log-log slope {slope:.2f}; "
+            f"t = a + b x^p: p = {p:.2f}; per {per_name} and {unit}: "
+            + ", ".join(f"{t / x * 1e9:.0f}" for t, x in zip(tn, xs, strict=True))
+            + " ns"
+        )
     return xs, ts
 
 
@@ -174,8 +192,9 @@ def single_point_runs(
     return runs
 
 
-def multipoint_runs(values, tmp: Path) -> list[tuple[float, Callable[[], object], str]]:
-    """Copies of the heavy-haul example with ``n`` wagons on a 5 km line."""
+def multipoint_runs(values, tmp: Path) -> tuple[list[tuple[float, Callable[[], object], str]], list[float]]:
+    """Copies of the heavy-haul example with ``n`` wagons on a 5 km line, and the integrator steps of
+    each (a heavier train runs longer on the same line: more steps)."""
     src = ROOT / "examples" / "heavy_haul"
     (tmp / "route.yaml").write_text(
         "schema: trainsim/route\nversion: 1\nname: 5 km bank\nlength_m: 5000\n"
@@ -188,7 +207,7 @@ def multipoint_runs(values, tmp: Path) -> list[tuple[float, Callable[[], object]
     )
     shutil.copy(src / "scenario_head.yaml", tmp / "scenario.yaml")
     text = (src / "train.yaml").read_text()
-    runs = []
+    runs, steps = [], []
     for n in values:
         folder = tmp / f"w{n}"
         folder.mkdir()
@@ -203,7 +222,8 @@ def multipoint_runs(values, tmp: Path) -> list[tuple[float, Callable[[], object]
             f"{st['newton_iterations'] / st['steps']:.2f} Newton it./step"
         )
         runs.append((float(n), lambda sc=scenario: trainsim.run(sc), detail))
-    return runs
+        steps.append(float(st["steps"]))
+    return runs, steps
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -231,12 +251,8 @@ def main(argv: list[str] | None = None) -> None:
     for dimension in only:
         if dimension == "vehicles":
             with tempfile.TemporaryDirectory() as tmp:
-                measure(
-                    dimension,
-                    units[dimension],
-                    multipoint_runs(grid[dimension], Path(tmp)),
-                    max(1, repeat // 2),
-                )
+                runs, steps = multipoint_runs(grid[dimension], Path(tmp))
+                measure(dimension, units[dimension], runs, max(1, repeat // 2), steps, "integrator step")
         else:
             measure(
                 dimension,
