@@ -124,3 +124,23 @@ def test_impossible_timetable_is_an_explained_result(tmp_path: Path) -> None:
     assert any("earlier than the train can make it" in w for w in train["warnings"])
     assert summary["warnings"]
     assert train["stops"][1]["delay_s"] is not None
+
+
+def test_monte_carlo_samples_are_seeded_and_summarised(tmp_path: Path) -> None:
+    from trainsim.operations.operate import monte_carlo
+
+    p = _write(tmp_path, delays={"seed": 3, "probability": 0.5, "mean_s": 90.0})
+    doc = yaml.safe_load(p.read_text())
+    doc["trains"][0]["repeat"] = {"count": 4, "every_s": 180}
+    p.write_text(yaml.safe_dump(doc))
+    op = read_operation(p)
+    assert [s.entry_delay_s for s in op.given_services] == [0.0] * 4
+    assert any(s.entry_delay_s > 0 for s in op.services)  # the file's own sample
+    a, b = monte_carlo(op, 6), monte_carlo(op, 6)
+    assert a == b and a["samples"] == 6 and sum(a["statuses"].values()) == 6
+    first = a["trains"][0]["delay_s"]
+    assert 0 <= first["p50"] <= first["p95"] <= first["max"]
+    assert a["runs"]["computed"] < a["runs"]["reused"]
+    assert monte_carlo(op, 6, seed=4) != a
+    with pytest.raises(InputError, match="samples"):
+        monte_carlo(op, 0)

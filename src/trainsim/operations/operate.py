@@ -13,17 +13,75 @@ from typing import Any
 from trainsim.errors import InputError
 from trainsim.operations.blocking import compression
 from trainsim.operations.reader import Operation, read_operation
-from trainsim.operations.simulate import OperationResult, simulate
+from trainsim.operations.runs import RunCache
+from trainsim.operations.simulate import OperationResult, TrainService, simulate
 
 
-def run_operation(op: Operation) -> OperationResult:
-    """Simulate an operation read by ``read_operation``."""
+def run_operation(
+    op: Operation, services: list[TrainService] | None = None, cache: RunCache | None = None, **options: Any
+) -> OperationResult:
+    """Simulate an operation read by ``read_operation`` (its services, or ``services``)."""
     try:
         return simulate(
-            op.line, op.geometry, op.services, op.settings, op.rule, etcs=op.etcs, lookahead_s=op.lookahead_s
-        )
+            op.line, op.geometry, op.services if services is None else services, op.settings, op.rule,
+            etcs=op.etcs, lookahead_s=op.lookahead_s, cache=cache, **options,
+        )  # fmt: skip
     except InputError as e:
         raise e.located(op.file) from None
+
+
+def monte_carlo(op: Operation, samples: int, seed: int | None = None) -> dict[str, Any]:
+    """Simulate ``samples`` days with entry delays sampled from the file's ``delays`` block (seeded by
+    ``seed``, default the file's seed; sample ``k`` uses the generator's ``k``-th spawned stream), and
+    summarise the delays: per train and in total, mean, median, 95th percentile and maximum [s], and
+    how often each status came out. The single-train runs are shared between the samples."""
+    import numpy as np
+
+    if op.delays is None:
+        raise InputError(
+            "Monte Carlo samples need a 'delays' block (probability, mean_s, seed)",
+            file=op.file,
+            field="delays",
+        )
+    if not 1 <= samples <= 10_000:
+        raise InputError("invalid number of samples", field="--samples", value=samples, allowed="1 .. 10000")
+    streams = np.random.SeedSequence(op.delays.seed if seed is None else seed).spawn(samples)
+    cache = RunCache(op.settings)
+    delays: dict[str, list[float]] = {s.id: [] for s in op.given_services}
+    totals, statuses = [], {}
+    for stream in streams:
+        services = op.delays.sample(op.given_services, np.random.default_rng(stream))
+        res = run_operation(op, services, cache, conflicts=False, headways=False)
+        statuses[res.status] = statuses.get(res.status, 0) + 1
+        for t in res.trains:
+            delays[t.id].append(t.delay_s)
+        totals.append(sum(t.delay_s for t in res.trains))
+
+    def stats(x: list[float]) -> dict[str, float | None]:
+        a = np.asarray(x, dtype=float)
+        if not np.all(np.isfinite(a)):
+            return {
+                "mean": None,
+                "p50": None,
+                "p95": None,
+                "max": None,
+                "unfinished": int(np.sum(~np.isfinite(a))),
+            }
+        return {
+            "mean": round(float(a.mean()), 3),
+            "p50": round(float(np.percentile(a, 50)), 3),
+            "p95": round(float(np.percentile(a, 95)), 3),
+            "max": round(float(a.max()), 3),
+        }
+
+    return {
+        "samples": samples,
+        "seed": op.delays.seed if seed is None else seed,
+        "statuses": statuses,
+        "total_delay_s": stats(totals),
+        "trains": [{"id": k, "delay_s": stats(v)} for k, v in delays.items()],
+        "runs": {"computed": cache.computed, "reused": cache.hits},
+    }
 
 
 def capacity(result: OperationResult, period_s: float) -> dict[str, Any]:
@@ -62,13 +120,19 @@ def compare_systems(op: Operation, systems: list[str]) -> dict[str, Any]:
 
 
 def run_operation_file(
-    path: str | Path, out_dir: str | Path | None = None, parquet: bool = False, plots: bool = True
+    path: str | Path,
+    out_dir: str | Path | None = None,
+    parquet: bool = False,
+    plots: bool = True,
+    samples: int = 0,
+    seed: int | None = None,
 ) -> tuple[dict[str, Any], str]:
     """Read, simulate and report an operation file.
 
     Returns the summary (``status``, ``trains`` with per-stop scheduled and simulated times and delay,
     ``energy_kwh``, ``conflicts``, ``headways``, ``capacity`` and ``separation`` when asked for) and the
-    status. With ``out_dir``: ``summary.json``, ``trains.csv`` (stop times), ``blocking_times.csv``
+    status. With ``samples`` > 0 also ``monte_carlo`` (delay statistics over that many sampled days).
+    With ``out_dir``: ``summary.json``, ``trains.csv`` (stop times), ``blocking_times.csv``
     (operated and planned), ``traces.csv`` (every train's position and speed over time), Parquet copies
     with ``parquet``, and the plots (``train_graph.png``, ``delays.png``, ``headways.png``).
     """
@@ -80,6 +144,8 @@ def run_operation_file(
         summary["capacity"] = capacity(result, op.pattern_period_s)
     if op.compare_systems:
         summary["separation"] = compare_systems(op, op.compare_systems)
+    if samples:
+        summary["monte_carlo"] = monte_carlo(op, samples, seed)
     if out_dir is not None:
         write_outputs(op, result, summary, Path(out_dir), parquet, plots)
     return summary, result.status

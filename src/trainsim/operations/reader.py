@@ -153,6 +153,26 @@ class _Operation(_Spec):
     pattern_period_s: float | None = None
 
 
+@dataclass(frozen=True)
+class DelayModel:
+    """Sampled entry delays: each train is late at its origin with ``probability`` [-], by an
+    exponentially distributed time of mean ``mean_s`` [s], from a generator seeded with ``seed``."""
+
+    probability: float
+    mean_s: float
+    seed: int
+
+    def sample(self, services: list[TrainService], rng: np.random.Generator) -> list[TrainService]:
+        """The services with a sampled delay added to their given entry delay (two draws per train,
+        in order, so a seed gives the same delays whatever the outcome)."""
+        out = []
+        for svc in services:
+            late, size = rng.random(), rng.exponential(self.mean_s)
+            extra = float(size) if late < self.probability else 0.0
+            out.append(replace(svc, entry_delay_s=svc.entry_delay_s + extra))
+        return out
+
+
 @dataclass
 class Operation:
     """An operation file, read: the line, its geometry, the trains and the run options."""
@@ -169,6 +189,9 @@ class Operation:
     pattern_period_s: float | None = None
     lookahead_s: float = 0.0
     line_args: dict[str, Any] = field(default_factory=dict)
+    delays: DelayModel | None = None
+    #: the services before delays were sampled (for Monte Carlo samples)
+    given_services: list[TrainService] = field(default_factory=list)
 
     def with_system(self, system: str) -> Line:
         """The same line with another train separation."""
@@ -373,9 +396,18 @@ def read_operation(path: str | Path) -> Operation:
     services = _services(spec, trains, file, problems)
     if problems:
         raise InputError.from_problems(problems)
+    delays = (
+        None
+        if spec.delays is None
+        else DelayModel(spec.delays.probability, spec.delays.mean_s, spec.delays.seed)
+    )
+    given = list(services)
+    if delays is not None:
+        services = delays.sample(services, np.random.default_rng(delays.seed))
     return Operation(
         spec.name, file, line, geometry, services, settings, spec.dispatching.rule, etcs,
-        list(spec.compare_systems), spec.pattern_period_s, spec.dispatching.lookahead_s, line_args,
+        list(spec.compare_systems), spec.pattern_period_s, spec.dispatching.lookahead_s, line_args, delays,
+        given,
     )  # fmt: skip
 
 
@@ -388,18 +420,16 @@ def _services(
             Problem("too many trains", file=file, field="trains", value=total, allowed=f"<= {MAX_TRAINS}")
         )
         return []
-    rng = np.random.default_rng(spec.delays.seed) if spec.delays else None
-    if spec.delays and not (0 <= spec.delays.probability <= 1 and spec.delays.mean_s >= 0):
+    if spec.delays and not (0 <= spec.delays.probability <= 1 and 0 <= spec.delays.mean_s <= 86400):
         problems.append(
             Problem(
                 "invalid delay distribution",
                 file=file,
                 field="delays",
                 value=spec.delays.model_dump(),
-                allowed="0 <= probability <= 1, mean_s >= 0",
+                allowed="0 <= probability <= 1, 0 <= mean_s <= 86400",
             )
         )
-        rng = None
     out = []
     for i, t in enumerate(spec.trains):
         where = f"trains[{i}]"
@@ -444,8 +474,6 @@ def _services(
         for r in range(count):
             shift = r * every
             delay = t.entry_delay_s
-            if rng is not None and rng.random() < spec.delays.probability:
-                delay += float(rng.exponential(spec.delays.mean_s))
             out.append(
                 TrainService(
                     t.id if count == 1 else f"{t.id}.{r + 1}",

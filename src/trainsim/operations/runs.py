@@ -154,8 +154,19 @@ class RunCache:
         self.settings = settings
         self._runs: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray, RunResult]] = {}
         self._keep: list[object] = []
+        self._routes: dict[tuple, Route] = {}
         self.computed = 0
         self.hits = 0
+
+    def directed(self, geometry: Route, length_m: float, direction: str) -> Route:
+        """``direction_route(geometry, length_m, direction)``, one object per geometry and direction (the
+        runs are cached by it)."""
+        key = ("directed", id(geometry), float(length_m), direction)
+        found = self._routes.get(key)
+        if found is None:
+            self._keep.append(geometry)
+            found = self._routes[key] = direction_route(geometry, length_m, direction)
+        return found
 
     def stretch(self, train: Train, directed: Route, a: tuple[str, float], b: tuple[str, float]):
         """The fastest run from stop ``a`` to stop ``b`` (names and running positions): (position, speed,

@@ -53,7 +53,7 @@ from trainsim.operations.blocking import (
     route_release_points,
 )
 from trainsim.operations.line import Direction, Line, Route, RouteStep
-from trainsim.operations.runs import Movement, RunCache, auxiliary_power_w, direction_route
+from trainsim.operations.runs import Movement, RunCache, auxiliary_power_w
 from trainsim.operations.separation import EtcsBraking, etcs_approach_distance
 
 Rule = Literal["fcfs", "priority"]
@@ -782,6 +782,7 @@ def simulate(
     headways: bool = True,
     etcs: EtcsBraking | None = None,
     lookahead_s: float = 0.0,
+    cache: RunCache | None = None,
 ) -> OperationResult:
     """Simulate ``services`` on ``line`` together in time, and compare with their planned runs.
 
@@ -795,6 +796,7 @@ def simulate(
         conflicts: list the conflicts of the planned timetable.
         headways: compute the minimum headway of consecutive trains of each direction.
         etcs: the trains' ETCS braking data (needed for ``etcs_l2``).
+        cache: single-train runs to share with other simulations of the same line and settings.
         lookahead_s: ``priority`` rule: a train standing at a stop is held while a train of higher
             priority will ask for the same resources within this time [s]; 0: no look-ahead.
     """
@@ -815,8 +817,9 @@ def simulate(
             allowed=f"0 .. {line.length_m:g} m",
         )
     _check_services(line, services)
-    directed = {d: direction_route(geometry, line.length_m, d) for d in ("up", "down")}
-    cache = RunCache(settings)
+    if cache is None or cache.settings != settings:
+        cache = RunCache(settings)
+    directed = {d: cache.directed(geometry, line.length_m, d) for d in ("up", "down")}
     approach: dict[int, Callable | None] = {}
     states = []
     for i, svc in enumerate(services):
