@@ -32,10 +32,11 @@ __all__ = [
     "traction_availability_slope",
 ]
 
-#: Share of ``Un`` above which traction is not limited, when a file does not say (a trainsim
-#: default, not a value of the standard: EN 50388 leaves the start of the reduction to the
-#: rolling stock within its limits).
-DEFAULT_TRACTION_FULL_SHARE_OF_UN = 0.9
+#: Where the traction limitation starts when a file does not say, as a share of the way from Umin1
+#: to Un (0.5: half way, 625 V on a 750 V line, 1250 V on 1500 V, 22 kV on 25 kV). A trainsim
+#: default, not a value of the standard: EN 50388 asks for a limitation between a voltage U and
+#: Umin1 that the rolling stock sets within its limits; give ``traction_full_v`` when it is known.
+DEFAULT_TRACTION_FULL_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -50,7 +51,8 @@ class VoltageLimits:
             unless ``regen_full_v`` says otherwise.
         max2_v: Umax2, highest non-permanent voltage; no regeneration above it unless
             ``regen_zero_v`` says otherwise.
-        traction_full_v: full traction above this voltage (default 0.9 Un, see module doc).
+        traction_full_v: full traction above this voltage (default half way from Umin1 to Un, see
+            DEFAULT_TRACTION_FULL_SHARE).
         regen_full_v: full regeneration below this voltage (default Umax1).
         regen_zero_v: no regeneration above this voltage (default Umax2).
     """
@@ -66,7 +68,11 @@ class VoltageLimits:
 
     def __post_init__(self) -> None:
         if self.traction_full_v is None:
-            object.__setattr__(self, "traction_full_v", DEFAULT_TRACTION_FULL_SHARE_OF_UN * self.nominal_v)
+            object.__setattr__(
+                self,
+                "traction_full_v",
+                self.min1_v + DEFAULT_TRACTION_FULL_SHARE * (self.nominal_v - self.min1_v),
+            )
         if self.regen_full_v is None:
             object.__setattr__(self, "regen_full_v", self.max1_v)
         if self.regen_zero_v is None:

@@ -185,7 +185,8 @@ class PowerResult:
 
     def problems(self) -> tuple[str, list[str]]:
         """(status, warnings): ``not_converged`` if any step failed, ``voltage_out_of_limits`` if a
-        pantograph voltage left [Umin2, Umax2], else ``ok``; overloads are warnings."""
+        pantograph voltage left [Umin2, Umax2], ``feedback_not_converged`` if the runs fed back
+        with limited traction did not become consistent, else ``ok``; overloads are warnings."""
         lim = self.network.limits
         warnings: list[str] = []
         status = "ok"
@@ -215,6 +216,14 @@ class PowerResult:
         if shortfall > 1e-6 * max(np.nansum(self.traction_demand_w) * self.dt_s, 1.0):
             warnings.append(
                 f"traction limited by the line voltage: {shortfall / KWH:.3f} kWh not delivered (EN 50388)"
+            )
+        fb = self.extra.get("feedback")
+        if fb and fb.get("enabled") and not fb.get("consistent"):
+            if status == "ok":
+                status = "feedback_not_converged"
+            warnings.append(
+                f"voltage-limited traction fed back into the runs {fb['iterations']} times without "
+                "becoming consistent"
             )
         err = self.energy_balance_error()
         if err > 1e-6:

@@ -42,6 +42,9 @@ VOLTAGE_TOLERANCE_SHARE = 1e-10
 #: jumping to the non-physical low-voltage branch of a constant-power load.
 MAX_STEP_SHARE = 0.3
 MAX_NEWTON_ITERATIONS = 60
+#: Newton iterations allowed from the previous step's potentials before the flat start is tried
+#: (a warm start that has not converged by then is usually on the wrong rectifier branch).
+WARM_START_ITERATIONS = 12
 #: A diode rectifier blocks when its busbar is above E by more than this share of Un and conducts
 #: again when below E by as much (7.5e-4 V at 750 V; the power at stake is this times a current
 #: that is zero at the switching point).
@@ -493,6 +496,7 @@ def _newton_dc(
     start_v: float | None = None,
     reverse_share: float = 0.0,
     keep_curtailed: bool = False,
+    max_iterations: int = MAX_NEWTON_ITERATIONS,
 ):
     """Newton's method on the DC nodal equations; returns (V, iterations, converged)."""
     lim = net.limits
@@ -549,7 +553,7 @@ def _newton_dc(
     f, uu, p = residual(v)
     norm = float(np.max(np.abs(f))) if n else 0.0
     stalls = 0
-    for it in range(1, MAX_NEWTON_ITERATIONS + 1):
+    for it in range(1, max_iterations + 1):
         if norm < ftol:
             return v, it - 1, True
         dp = loads.traction_w * traction_availability_slope(uu, lim.min1_v, lim.traction_full_v) - (
@@ -607,7 +611,7 @@ def _newton_dc(
         v, f, uu, p, norm = v_try, f_try, uu_try, p_try, norm_try
         if lam * step < tol and norm < max(ftol, 1e3 * ftol * lam):
             return v, it, True
-    return v, MAX_NEWTON_ITERATIONS, norm < ftol
+    return v, max_iterations, norm < ftol
 
 
 def _smooth_max(x: np.ndarray, delta: float) -> np.ndarray:

@@ -1,0 +1,318 @@
+"""The power-supply file (``schema: trainsim/power``, version 1) and running it.
+
+This is the file layer of the power package (it reads YAML and other trainsim files); the power
+core (limits, network, solver, simulation, study) never imports it. Every problem is an
+:class:`~trainsim.errors.InputError` naming the file, the field, the value and what is allowed.
+The format is described field by field in docs/POWER.md.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from trainsim.errors import InputError, Problem
+from trainsim.power.limits import EN50163, standard_limits
+from trainsim.power.network import Connection, Gap, Network, Substation, Track
+from trainsim.power.study import FeedbackSettings, TrainService, run_study
+
+__all__ = ["PowerFile", "load_power_file", "run_power_file"]
+
+SCHEMA = "trainsim/power"
+VERSIONS = (1,)
+Positive = Annotated[float, Field(gt=0)]
+NonNegative = Annotated[float, Field(ge=0)]
+
+
+class _Spec(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class LimitsSpec(_Spec):
+    """Overrides of the EN 50163 limits and the trains' limitation thresholds [V]."""
+
+    min2_v: Positive | None = None
+    min1_v: Positive | None = None
+    max1_v: Positive | None = None
+    max2_v: Positive | None = None
+    traction_full_v: Positive | None = None
+    regen_full_v: Positive | None = None
+    regen_zero_v: Positive | None = None
+
+
+class TrackSpec(_Spec):
+    id: str
+    start_km: float
+    end_km: float
+    contact_resistance_ohm_per_km: NonNegative
+    rail_resistance_ohm_per_km: NonNegative = 0.0
+    rail_to_earth_conductance_s_per_km: NonNegative = 0.0
+    contact_reactance_ohm_per_km: NonNegative = 0.0
+
+
+class SubstationSpec(_Spec):
+    id: str
+    position_km: float
+    tracks: list[str] = Field(min_length=1)
+    no_load_voltage_v: Positive
+    internal_resistance_ohm: NonNegative
+    internal_reactance_ohm: NonNegative = 0.0
+    rated_power_kw: Positive | None = None
+    overload_power_kw: Positive | None = None
+    reversible: bool
+
+
+class ConnectionSpec(_Spec):
+    id: str
+    position_km: float
+    tracks: list[str] = Field(min_length=2)
+    kind: Literal["paralleling_post", "cross_bond"]
+
+
+class GapSpec(_Spec):
+    id: str
+    track: str
+    start_km: float
+    end_km: float
+
+
+class NetworkSpec(_Spec):
+    name: str = "network"
+    system: Literal[tuple(EN50163)]  # type: ignore[valid-type]
+    limits: LimitsSpec = Field(default_factory=LimitsSpec)
+    negative_earthed: bool = False
+    tracks: list[TrackSpec] = Field(min_length=1)
+    substations: list[SubstationSpec] = Field(min_length=1)
+    connections: list[ConnectionSpec] = Field(default_factory=list)
+    gaps: list[GapSpec] = Field(default_factory=list)
+
+
+class HeadwaySpec(_Spec):
+    first_s: float = 0.0
+    every_s: Positive
+    count: Annotated[int, Field(ge=1, le=10_000)]
+
+
+class TrainSpec(_Spec):
+    id: str
+    scenario: str
+    track: str
+    origin_km: float = 0.0
+    direction: Literal[1, -1] = 1
+    departures_s: list[float] | None = None
+    headway: HeadwaySpec | None = None
+
+    @model_validator(mode="after")
+    def _one_timetable(self) -> TrainSpec:
+        if (self.departures_s is None) == (self.headway is None):
+            raise ValueError(
+                "give either departures_s (a list of times) or headway (first_s, every_s, count)"
+            )
+        if self.departures_s is not None and not self.departures_s:
+            raise ValueError("departures_s is empty")
+        return self
+
+
+class FeedbackSpec(_Spec):
+    enabled: bool = True
+    max_iterations: Annotated[int, Field(ge=1, le=50)] = 10
+    tolerance: Annotated[float, Field(gt=0, lt=0.5)] = 1e-3
+
+
+class SimulationSpec(_Spec):
+    step_s: Annotated[float, Field(gt=0, le=60)] = 1.0
+    start_s: float | None = None
+    end_s: float | None = None
+    feedback: FeedbackSpec = Field(default_factory=FeedbackSpec)
+
+
+class PowerFile(_Spec):
+    """The whole file."""
+
+    schema_: Literal["trainsim/power"] = Field(alias="schema")
+    version: Literal[1]
+    name: str = "power supply"
+    description: str | None = None
+    network: NetworkSpec
+    trains: list[TrainSpec] = Field(min_length=1)
+    simulation: SimulationSpec = Field(default_factory=SimulationSpec)
+
+
+def _field(loc: tuple) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        elif part in ("function-after[_one_timetable(), TrainSpec]",):
+            continue
+        else:
+            out += ("." if out else "") + str(part).replace("schema_", "schema")
+    return out
+
+
+def _validation_problems(exc: ValidationError, file: str) -> list[Problem]:
+    problems = []
+    for err in exc.errors(include_url=False):
+        loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-")))
+        value = err.get("input")
+        if isinstance(value, dict | list):
+            value = None
+        reason = err["msg"].removeprefix("Value error, ")
+        if err["type"] == "extra_forbidden":
+            reason = "unknown field"
+        problems.append(Problem(reason, file=file, field=_field(loc) or None, value=value))
+    return problems
+
+
+def _network(spec: NetworkSpec, file: str) -> Network:
+    base = standard_limits(spec.system)
+    try:
+        limits = base.with_overrides(**spec.limits.model_dump())
+        return Network(
+            name=spec.name,
+            system="ac" if spec.system.startswith("ac") else "dc",
+            limits=limits,
+            tracks=tuple(
+                Track(
+                    t.id,
+                    t.start_km * 1000,
+                    t.end_km * 1000,
+                    t.contact_resistance_ohm_per_km / 1000,
+                    t.rail_resistance_ohm_per_km / 1000,
+                    t.rail_to_earth_conductance_s_per_km / 1000,
+                    t.contact_reactance_ohm_per_km / 1000,
+                )
+                for t in spec.tracks
+            ),
+            substations=tuple(
+                Substation(
+                    s.id,
+                    s.position_km * 1000,
+                    tuple(s.tracks),
+                    s.no_load_voltage_v,
+                    s.internal_resistance_ohm,
+                    s.internal_reactance_ohm,
+                    None if s.rated_power_kw is None else s.rated_power_kw * 1000,
+                    None if s.overload_power_kw is None else s.overload_power_kw * 1000,
+                    s.reversible,
+                )
+                for s in spec.substations
+            ),
+            connections=tuple(
+                Connection(c.id, c.position_km * 1000, tuple(c.tracks), c.kind) for c in spec.connections
+            ),
+            gaps=tuple(Gap(g.id, g.track, g.start_km * 1000, g.end_km * 1000) for g in spec.gaps),
+            negative_earthed=spec.negative_earthed,
+            frequency_hz=50.0 if spec.system == "ac_25000" else (16.7 if spec.system == "ac_15000" else 0.0),
+        )
+    except InputError as exc:
+        raise InputError.from_problems(
+            [
+                Problem(
+                    p.reason,
+                    file=file,
+                    line=p.line,
+                    field=("network." + p.field) if p.field else "network",
+                    value=p.value,
+                    allowed=p.allowed,
+                )
+                for p in exc.problems
+            ]
+        ) from exc
+
+
+def load_power_file(path: str | Path) -> tuple[PowerFile, Network, list[TrainService]]:
+    """Read and check a power-supply file: its spec, the network and the train services (each
+    scenario file read relative to the power file)."""
+    from trainsim.io.loader import load_scenario
+    from trainsim.io.trainsim_yaml import read_yaml
+
+    path = Path(path)
+    file = str(path)
+    data = read_yaml(path)
+    if not isinstance(data, dict):
+        raise InputError("a power-supply file is a mapping", file=file, value=type(data).__name__)
+    if data.get("schema") != SCHEMA:
+        raise InputError(
+            "not a power-supply file", file=file, field="schema", value=data.get("schema"), allowed=SCHEMA
+        )
+    try:
+        spec = PowerFile.model_validate(data)
+    except ValidationError as exc:
+        raise InputError.from_problems(_validation_problems(exc, file)) from None
+    network = _network(spec.network, file)
+    services = []
+    scenarios: dict[str, Any] = {}
+    for k, t in enumerate(spec.trains):
+        where = path.parent / t.scenario
+        if not where.is_file():
+            raise InputError(
+                "scenario file not found",
+                file=file,
+                field=f"trains[{k}].scenario",
+                value=t.scenario,
+                allowed="a trainsim scenario file, relative to this file",
+            )
+        if t.scenario not in scenarios:
+            scenarios[t.scenario] = load_scenario(where)
+        scenario = scenarios[t.scenario]
+        if scenario.model != "single_point":
+            raise InputError(
+                "the power simulation takes single-point scenarios",
+                file=file,
+                field=f"trains[{k}].scenario",
+                value=t.scenario,
+                allowed="model: single_point",
+            )
+        if t.track not in {tr.id for tr in network.tracks}:
+            raise InputError(
+                "unknown track",
+                file=file,
+                field=f"trains[{k}].track",
+                value=t.track,
+                allowed=", ".join(tr.id for tr in network.tracks),
+            )
+        track = network.tracks[network.track_index(t.track)]
+        origin = t.origin_km * 1000
+        end = origin + t.direction * (scenario.route.end_m - scenario.route.start_m)
+        lo, hi = min(origin, end), max(origin, end)
+        if lo < track.start_m - 1e-6 or hi > track.end_m + 1e-6:
+            raise InputError(
+                f"train {t.id} runs off the wire: its route covers {lo / 1000:g} .. {hi / 1000:g} km",
+                file=file,
+                field=f"trains[{k}].origin_km",
+                value=t.origin_km,
+                allowed=f"a route within track {track.id}'s {track.start_m / 1000:g} .. {track.end_m / 1000:g} km",
+            )
+        if t.departures_s is not None:
+            deps = tuple(float(x) for x in t.departures_s)
+        else:
+            h = t.headway
+            deps = tuple(h.first_s + h.every_s * j for j in range(h.count))
+        services.append(TrainService(t.id, scenario, t.track, origin, t.direction, deps))
+    return spec, network, services
+
+
+def run_power_file(
+    path: str | Path, out_dir: str | Path | None = None, *, plots: bool = True
+) -> tuple[dict[str, Any], str]:
+    """Run a power-supply file: (summary, status). With ``out_dir``: ``summary.json``, the time
+    series as CSV (``trains.csv``, ``substations.csv``, ``network.csv``) and, with ``plots``, PNG
+    plots (see :mod:`trainsim.power.plots`)."""
+    spec, network, services = load_power_file(path)
+    sim = spec.simulation
+    fb = FeedbackSettings(sim.feedback.enabled, sim.feedback.max_iterations, sim.feedback.tolerance)
+    result = run_study(network, services, dt_s=sim.step_s, start_s=sim.start_s, end_s=sim.end_s, feedback=fb)
+    summary = result.summary()
+    summary["name"] = spec.name
+    if out_dir is not None:
+        from trainsim.power.output import write_outputs
+
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False))
+        write_outputs(result, out, plots=plots)
+    return summary, summary["status"]
