@@ -73,3 +73,95 @@ def test_stall_on_a_grade_gives_the_best_feasible_run():
 def test_zero_speed_limit_is_refused_by_the_route():
     with pytest.raises(trainsim.InputError):
         make_route(limit_kmh=0.0)
+
+
+def _metro():
+    import dataclasses
+
+    from trainsim.model import Braking, EffortCurve, GradientSection
+
+    sc = trainsim.load_scenario(Path(__file__).resolve().parents[2] / "examples/metro_b/scenario.yaml")
+    weak = dataclasses.replace(sc.train, braking=Braking(service_force=EffortCurve.constant(20e3)))
+    return sc, weak, dataclasses, GradientSection
+
+
+def test_metro_with_20_kn_of_brakes_on_a_40_permille_descent_is_brake_limited():
+    """Gravity pulls 113 kN on the 288 t metro; its 20 kN of brakes cannot hold it. The run used to
+    'move' at 0.0 km/h for thousands of seconds with status ok; now it stops before the descent and
+    says where and by how much."""
+    sc, weak, dataclasses, GradientSection = _metro()
+    route = dataclasses.replace(sc.route, gradients=(GradientSection(1000.0, 3000.0, -40.0),))
+    r = trainsim.run_fastest(weak, route, sc.settings)
+    assert r.status == "brake_limited"
+    msg = r.warnings[0]
+    assert "cannot hold the train" in msg and "from 1000.0 m" in msg and "-40.0 per mille" in msg
+    assert "20.0 kN" in msg and "by 90.6 kN" in msg
+    assert any("implausible brakes" in w for w in r.warnings)
+    # the best feasible run: to a standstill at the start of the descent
+    assert r.trace.position_m[-1] == pytest.approx(1000.0) and r.trace.speed_mps[-1] == 0.0
+    assert r.max_speed_kmh > 30.0 and r.sections[-1].to_station == "(brake-limited at 1000 m)"
+    assert abs(r.energy_balance["relative_error"]) < 1e-6
+    assert r.summary()["status"] == "brake_limited"
+    # on a descent everywhere it cannot even stand: the result stays at the first stop
+    everywhere = dataclasses.replace(sc.route, gradients=(GradientSection(0.0, sc.route.end_m, -40.0),))
+    r = trainsim.run_fastest(weak, everywhere, sc.settings)
+    assert r.status == "brake_limited" and "at standstill from 0.0 m" in r.warnings[0]
+    assert r.distance_m == 0.0 and r.running_time_s == 0.0
+
+
+def test_a_traction_table_of_zeros_stalls_and_says_why():
+    import dataclasses
+
+    from trainsim.model import EffortCurve, Electrical
+
+    train = make_train(traction=EffortCurve.from_table([0.0, 10.0, 20.0], [0.0, 0.0, 0.0]))
+    train = dataclasses.replace(train, electrical=Electrical(line_voltage_v=1500.0))
+    r = trainsim.run_fastest(train, make_route(length_m=5000.0))
+    assert r.status == "stalled"
+    assert "no tractive effort at any speed" in r.warnings[0] and "not electrified" not in r.warnings[0]
+
+
+@pytest.mark.parametrize("efficiency", [1e-308, 1e-12])
+def test_a_powerless_train_stalls_at_standstill(efficiency):
+    """Power-limited traction with an absurd efficiency: the power cap eta P / v is below the
+    resistance at any speed it could reach; it used to creep on the force cap of the first step."""
+    from trainsim.model import EffortCurve, Quadratic
+
+    traction = EffortCurve.power_limited(1e6, 200e3, efficiency=efficiency)
+    train = make_train(traction=traction, resistance=Quadratic(3000.0, 30.0, 5.0))
+    r = trainsim.run_fastest(train, make_route(length_m=5000.0))
+    assert r.status == "stalled"
+    assert "0.0 kN, is below the 3.0 kN" in r.warnings[0]
+    assert not any("internal consistency" in w for w in r.warnings)
+
+
+def test_a_weak_power_creeps_with_a_plausibility_warning():
+    """eta = 0.001 of 1 MW is 1 kW at the wheel: against 3 kN the train creeps at about 0.33 m/s, a
+    real (if absurd) run: status ok, with a warning, and no consistency failure."""
+    from trainsim.model import EffortCurve, Quadratic
+
+    traction = EffortCurve.power_limited(1e6, 200e3, efficiency=0.001)
+    train = make_train(traction=traction, resistance=Quadratic(3000.0, 30.0, 5.0))
+    r = trainsim.run_fastest(train, make_route(length_m=5000.0))
+    assert r.status == "ok"
+    assert any(w.startswith("implausibly slow run: A - B averages 1.19 km/h") for w in r.warnings)
+    assert r.running_time_s == pytest.approx(15071, rel=1e-3)
+
+
+def test_a_train_without_brakes_and_a_creeping_limit_get_plausibility_warnings():
+    from trainsim.model import Braking, EffortCurve, Quadratic
+
+    no_brakes = make_train(
+        braking=Braking(service_force=EffortCurve.constant(0.0)), resistance=Quadratic(3e3)
+    )
+    r = trainsim.run_fastest(no_brakes, make_route(length_m=3000.0))
+    assert any("implausible brakes" in w and "0 m/s^2" in w for w in r.warnings)
+    r = trainsim.run_fastest(make_train(), make_route(length_m=500.0, limit_kmh=0.001))
+    assert any("implausible speed limit: 0.001 km/h" in w for w in r.warnings)
+    assert any("implausibly slow run" in w for w in r.warnings)
+
+
+def test_an_absurd_dwell_is_refused_with_the_allowed_range():
+    with pytest.raises(trainsim.InputError) as err:
+        make_route(stations=[("A", 0.0, 0.0), ("B", 5000.0, 1e308), ("C", 10000.0, 0.0)])
+    assert "stations.dwell" in str(err.value.field) and "<= 1e+06 s" in str(err.value.allowed)

@@ -24,6 +24,13 @@ from numpy.typing import ArrayLike
 from trainsim.constants import STANDARD_GRAVITY
 from trainsim.errors import InputError
 
+#: The power cap P / v is evaluated at no less than this speed [m/s]. At standstill P / v is
+#: infinite and the force cap binds, but with an absurdly small power (an efficiency of 1e-308) that
+#: force would hold only below 1e-308 m/s, and a first integration step from rest would see it in
+#: full: a train with no usable power would creep along instead of stalling. Real curves reach their
+#: power cap above 1 m/s, so 1 mm/s changes none of them.
+POWER_CAP_MIN_SPEED_MPS = 1e-3
+
 
 @dataclass(frozen=True, eq=False)
 class EffortCurve:
@@ -214,7 +221,7 @@ class EffortCurve:
         with np.errstate(divide="ignore", invalid="ignore"):
             law = c[..., 0] + c[..., 1] * v + c[..., 2] * v * v
             law = law + np.where(c[..., 3] != 0.0, c[..., 3] / v, 0.0)
-            power = np.where(v > 0, self.power_cap_w / v, np.inf)
+            power = self.power_cap_w / np.maximum(v, POWER_CAP_MIN_SPEED_MPS)
         out = np.maximum(np.minimum(np.minimum(law, self._force_cap), power), 0.0)
         return float(out) if out.ndim == 0 else out
 

@@ -10,11 +10,16 @@ import numpy as np
 
 from trainsim.constants import GRAVITY_RANGE_MPS2, STANDARD_GRAVITY
 from trainsim.errors import InputError
+from trainsim.model import bounds
 
 CurveFormula = Literal["roeckl", "wang", "tbt1407", "french800", "none"]
 TunnelFormula = Literal["wang", "tbt1407", "none"]
 ApplyOver = Literal["head", "train_length"]
 GradientFormula = Literal["small_angle", "exact"]
+
+
+#: Dwell times: a stop of up to the "time" bound (about 11.6 days), never negative.
+_DWELL_BOUND = bounds.Bound("time", "s", 0.0, bounds.BOUNDS["time"].high, why="dwell times")
 
 
 @dataclass(frozen=True)
@@ -157,6 +162,8 @@ class Route:
             )
         for name in ("stations", "speed_limits", "gradients", "curves", "tunnels", "electrification"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
+        bounds.check(self.start_m, "length", field="route start_m", unit="m")
+        bounds.check(self.end_m, "length", field="route end_m", unit="m")
         if not (np.isfinite(self.start_m) and np.isfinite(self.end_m) and self.end_m > self.start_m):
             raise InputError(
                 "the route must end after it starts",
@@ -181,6 +188,8 @@ class Route:
                     value=s.dwell_s,
                     allowed=">= 0 s",
                 )
+            # a dwell of 1e308 s once gave a run of 0 s that said ok: bound it like every time
+            bounds.check(s.dwell_s, _DWELL_BOUND, field=f"stations.dwell ('{s.name}')", unit="s")
         self._check_cover("speed_limits", [(x.start_m, x.end_m) for x in self.speed_limits], full=True)
         for x in self.speed_limits:
             if not 0 < x.limit_mps < 200:

@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from trainsim.errors import InputError
+from trainsim.model import bounds
 from trainsim.model.effort import EffortCurve
 from trainsim.model.laws import Quadratic
 
@@ -178,6 +179,8 @@ class Train:
         for name, (value, ok, allowed) in checks.items():
             if not (ok and np.isfinite(value)):
                 raise InputError("invalid train data", field=name, value=value, allowed=allowed)
+        bounds.check(self.mass_kg, "mass", field="mass", unit="kg")
+        bounds.check(self.length_m, "length", field="length", unit="m")
         object.__setattr__(self, "resistance", tuple(self.resistance))
         object.__setattr__(self, "vehicles", tuple(self.vehicles))
 

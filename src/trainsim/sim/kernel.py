@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from trainsim.model.effort import POWER_CAP_MIN_SPEED_MPS
+
 TRACTION = 0
 CRUISE = 1
 COAST = 2
@@ -57,8 +59,9 @@ def effort(v, starts, coefs, fcap, pcap):
         f += coefs[j, 3] / v if v > 0.0 else np.inf
     if f > fcap:
         f = fcap
-    if v > 0.0 and f * v > pcap:
-        f = pcap / v
+    vp = v if v > POWER_CAP_MIN_SPEED_MPS else POWER_CAP_MIN_SPEED_MPS
+    if f * vp > pcap:
+        f = pcap / vp
     return f if f > 0.0 else 0.0
 
 
@@ -90,14 +93,15 @@ def effort_branch(v, vref, starts, coefs, fcap, pcap):
     branch = 0
     if fcap < best:
         best, branch = fcap, 1
-    if vref > 0.0 and pcap / vref < best:
-        best, branch = pcap / vref, 2
+    vp = vref if vref > POWER_CAP_MIN_SPEED_MPS else POWER_CAP_MIN_SPEED_MPS
+    if pcap / vp < best:
+        best, branch = pcap / vp, 2
     if not best > 0.0:
         return 0.0
     if branch == 1:
         return fcap
     if branch == 2:
-        return pcap / v if v > 0.0 else fcap
+        return pcap / (v if v > POWER_CAP_MIN_SPEED_MPS else POWER_CAP_MIN_SPEED_MPS)
     f = _law(v, j, coefs)
     return f if f > 0.0 else 0.0
 

@@ -276,6 +276,47 @@ def _check_stops(
     return "did_not_reach_stop"
 
 
+#: Below these the inputs are probably wrong (units, a missing block): a warning, not an error.
+PLAUSIBLE_MIN_LIMIT_KMH = 5.0  # a speed limit [km/h] (shunting speeds are 5-25 km/h)
+PLAUSIBLE_MIN_AVERAGE_KMH = 5.0  # a section's average running speed [km/h]
+PLAUSIBLE_MIN_BRAKING_MPS2 = 0.1  # service deceleration on the level [m/s^2] (freight: 0.2-0.4, metro: ~1)
+
+
+def plausibility_warnings(
+    train: Train, route: Route, settings: RunSettings, sections: list[SectionSummary]
+) -> list[str]:
+    """Sentences about inputs that are possible but implausible: a speed limit below 5 km/h, a
+    section averaging below 5 km/h, service brakes that decelerate the train by less than
+    0.1 m/s^2 on the level (none at all, or a unit mistake)."""
+    out = []
+    low = [lim for lim in route.speed_limits if lim.limit_mps / KMH < PLAUSIBLE_MIN_LIMIT_KMH]
+    if low:
+        lim = min(low, key=lambda x: x.limit_mps)
+        out.append(
+            f"implausible speed limit: {lim.limit_mps / KMH:.3g} km/h on {lim.start_m:.0f}-{lim.end_m:.0f} m "
+            f"({len(low)} limit(s) below {PLAUSIBLE_MIN_LIMIT_KMH:g} km/h); check the limits' units"
+        )
+    slow = [sec for sec in sections if 0 < sec.average_speed_kmh < PLAUSIBLE_MIN_AVERAGE_KMH]
+    if slow:
+        sec = min(slow, key=lambda x: x.average_speed_kmh)
+        out.append(
+            f"implausibly slow run: {sec.from_station} - {sec.to_station} averages {sec.average_speed_kmh:.3g} "
+            f"km/h over {sec.running_time_s:.4g} s; check the traction, the limits and their units"
+        )
+    b = train.braking
+    if b.deceleration_mps2 is not None:
+        decel = b.deceleration_mps2 * settings.braking_fraction
+    else:
+        speeds = np.linspace(0.0, train.max_speed_mps, 201)
+        decel = settings.braking_fraction * float(np.min(b.service_force(speeds))) / train.inertial_mass_kg
+    if decel < PLAUSIBLE_MIN_BRAKING_MPS2:
+        out.append(
+            f"implausible brakes: the service brakes decelerate the train by only {decel:.3g} m/s^2 on the "
+            f"level at their weakest (usual: 0.3 to 1.2 m/s^2); check the braking data and its units"
+        )
+    return out
+
+
 def _section_ends(regime: np.ndarray) -> list[int]:
     """Index of the arrival point of each section: the first point of each run of DWELL points,
     and the last point if the run ends without a stop."""
@@ -494,15 +535,20 @@ def build_result(
         a = d
     if status == "stalled":
         at = np.array([min(stall_position_m + 1e-7, route.end_m)])
-        effort_kn = float(availability(at)[0] * train.traction(0.0)) / 1e3
+        share = float(availability(at)[0])
+        effort_kn = float(train.traction(0.0)) / 1e3
+        probe = np.linspace(0.0, max(train.max_speed_mps, 1.0), 201)
         g_n, c_n, t_n = (float(x[0]) for x in _line_forces(profile, m, at, np.zeros(1)))
         resist_kn = (float(train.running_resistance_n(0.0)) + g_n + c_n + t_n) / 1e3
-        why = (
-            "the line there is not electrified"
-            if effort_kn == 0.0 and train.electrical is not None
-            else f"its maximum tractive effort at standstill, {effort_kn:.1f} kN, is below the "
-            f"{resist_kn:.1f} kN of running and line resistance"
-        )
+        if share == 0.0:
+            why = "the line there is not electrified and the train is electric"
+        elif not np.any(np.asarray(train.traction(probe)) > 0.0):
+            why = "the train has no tractive effort at any speed (its traction curve is zero)"
+        else:
+            why = (
+                f"its maximum tractive effort at standstill, {share * effort_kn:.1f} kN, is below the "
+                f"{resist_kn:.1f} kN of running and line resistance"
+            )
         warnings.append(
             f"the train stalls at {stall_position_m:.1f} m: {why}; the result ends there (the best "
             "feasible run); a stronger train, a lighter load or a lower grade is needed"
@@ -512,6 +558,12 @@ def build_result(
             sections[-1] = SectionSummary(
                 **{**last.__dict__, "to_station": f"(stalled at {stall_position_m:.0f} m)"}
             )
+    if status == "brake_limited" and sections:
+        last = sections[-1]
+        sections[-1] = SectionSummary(
+            **{**last.__dict__, "to_station": f"(brake-limited at {stall_position_m:.0f} m)"}
+        )
+    warnings.extend(plausibility_warnings(train, route, settings, sections))
     total_time = float(t[-1] - t[0]) if n else 0.0
     dwell_total = float(sum(sec.dwell_s for sec in sections))
     running_time = total_time - dwell_total
