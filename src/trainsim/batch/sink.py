@@ -97,7 +97,8 @@ def result_schema(expansion: Expansion) -> tuple[pa.Schema, dict[str, Any]]:
     if expansion.multi_point:
         # only studies with multi-point runs have them, as the driving columns
         fields += [
-            pa.field(n, pa.int64() if n.endswith("_coupler") else pa.float64()) for n in MULTI_POINT_COLUMNS
+            pa.field(n, pa.int64() if n.endswith(("_coupler", "_capacity")) else pa.float64())
+            for n in MULTI_POINT_COLUMNS
         ]
     fields.append(pa.field("sections", pa.list_(SECTION_TYPE)))
     meta = {"trainsim.study": expansion.study_name, "trainsim.fingerprint": expansion.fingerprint}

@@ -650,9 +650,7 @@ class Study:
                 try:
                     _validate_scenario(trial, "trial", self.base_dir)
                 except InputError as exc:
-                    problems = [
-                        (p.field, p.reason) if isinstance(p, Problem) else p for p in exc.problems
-                    ]
+                    problems = [(p.field, p.reason) if isinstance(p, Problem) else p for p in exc.problems]
                     for field, reason in problems:
                         if str(reason).startswith(("unknown field", "no station of that name")):
                             raise fail(

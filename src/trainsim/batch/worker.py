@@ -117,11 +117,15 @@ DRIVING_COLUMNS = ("strategy", *DRIVING_METRICS)
 #: Columns of studies with multi-point runs (docs/BATCH.md; empty in single-point rows): the largest
 #: draft (tension, > 0) and buff (compression, < 0) coupler force of the run [N], the coupling (0 =
 #: between vehicles 0 and 1), when [s], where the head was and where the coupling was on the route [m]
-#: (``MultiPointResult.max_draft`` / ``max_buff``).
-MULTI_POINT_COLUMNS = tuple(
-    f"max_{kind}_{name}"
-    for kind in ("draft", "buff")
-    for name in ("force_n", "coupler", "time_s", "head_position_m", "coupler_position_m")
+#: (``MultiPointResult.max_draft`` / ``max_buff``); and how many couplings passed their rated draft or
+#: buff capacity (``MultiPointResult.capacity_exceedances``, each also in the warnings).
+MULTI_POINT_COLUMNS = (
+    *(
+        f"max_{kind}_{name}"
+        for kind in ("draft", "buff")
+        for name in ("force_n", "coupler", "time_s", "head_position_m", "coupler_position_m")
+    ),
+    "couplings_over_capacity",
 )
 
 
@@ -467,6 +471,7 @@ def multipoint_figures(result) -> dict[str, Any]:
         row[f"max_{kind}_time_s"] = _num(ext.time_s)
         row[f"max_{kind}_head_position_m"] = _num(ext.head_position_m)
         row[f"max_{kind}_coupler_position_m"] = _num(ext.coupler_position_m)
+    row["couplings_over_capacity"] = len({e.coupler for e in result.capacity_exceedances})
     return row
 
 

@@ -133,8 +133,13 @@ R_SPRING = 15  # energy stored in the coupler springs [J]
 R_W0 = 16  # first cumulative work column: the accumulators A_TRACTION .. A_HELD follow
 N_R = R_W0 + N_WORKS
 
-# extremes EXT
+# extremes EXT: the train's largest draft and buff force, then (when EXT is long enough) per coupling
+# k, at N_E + N_EK k: its largest draft force, when, where the head was, its largest buff force, when,
+# where the head was
 E_DRAFT, E_DRAFT_K, E_DRAFT_T, E_DRAFT_HEAD, E_BUFF, E_BUFF_K, E_BUFF_T, E_BUFF_HEAD = range(8)
+N_E = 8
+EK_DRAFT, EK_DRAFT_T, EK_DRAFT_HEAD, EK_BUFF, EK_BUFF_T, EK_BUFF_HEAD = range(6)
+N_EK = 6
 
 # status codes
 ST_TIME = 0  # reached the end time
@@ -914,6 +919,16 @@ def run(
                 ext[E_BUFF_K] = k
                 ext[E_BUFF_T] = t
                 ext[E_BUFF_HEAD] = x[0]
+            if len(ext) >= N_E + N_EK * (n - 1):
+                j = N_E + N_EK * k
+                if tension > ext[j + EK_DRAFT]:
+                    ext[j + EK_DRAFT] = tension
+                    ext[j + EK_DRAFT_T] = t
+                    ext[j + EK_DRAFT_HEAD] = x[0]
+                if tension < ext[j + EK_BUFF]:
+                    ext[j + EK_BUFF] = tension
+                    ext[j + EK_BUFF_T] = t
+                    ext[j + EK_BUFF_HEAD] = x[0]
         # ---- events
         # at rest: the mean speed below the rest speed and no vehicle faster than 10 x that (vehicles
         # still creep while compressed couplers relax against the regularised brakes)

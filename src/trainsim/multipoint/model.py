@@ -53,6 +53,11 @@ FREIGHT_SOLID_STIFFNESS_N_PER_M = 1.4e8
 #: 40 t) on 1.4e7 N/m, c = 2 zeta sqrt(k m_red) = 3.7e5 N s/m. A viscous damper cannot reproduce the
 #: hysteresis of a friction gear; this only sets the right order of magnitude of the losses.
 FREIGHT_DAMPING_N_S_PER_M = 3.7e5
+#: Capacity of one freight connection in draft and in buff [N]: the MT-2 gear's rated impedance (the
+#: force at the end of its 83 mm travel, TB/T 2915), the force the default stiffness above is the secant
+#: of. Forces beyond it mean the gears have gone solid and the coupler and underframe take the rest: a
+#: run that passes it gets a warning (see docs/MULTIPOINT.md, "Coupler capacities").
+FREIGHT_CAPACITY_N = 2.27e6
 #: Width over which the kinks of the piecewise-linear spring law are rounded [m]; keeps the force
 #: continuously differentiable so that the Newton iterations of the implicit integrator converge.
 COUPLER_SMOOTHING_M = 1.0e-3
@@ -83,6 +88,10 @@ class CouplerModel:
         buff_travel_m: idem in compression [m].
         solid_stiffness_n_per_m: stiffness beyond the travel [N/m].
         smoothing_m: rounding width of the kinks [m].
+        draft_capacity_n: largest tension the coupling is rated for [N]; a run whose force passes it
+            gets a warning naming the coupling, the force, the time and the place; None: not checked.
+        buff_capacity_n: largest compression it is rated for, as a positive force [N]; None: not
+            checked.
     """
 
     draft_stiffness_n_per_m: float = FREIGHT_STIFFNESS_N_PER_M
@@ -94,8 +103,18 @@ class CouplerModel:
     buff_travel_m: float = FREIGHT_TRAVEL_M
     solid_stiffness_n_per_m: float = FREIGHT_SOLID_STIFFNESS_N_PER_M
     smoothing_m: float = COUPLER_SMOOTHING_M
+    draft_capacity_n: float | None = FREIGHT_CAPACITY_N
+    buff_capacity_n: float | None = FREIGHT_CAPACITY_N
 
     def __post_init__(self) -> None:
+        for name in ("draft_capacity_n", "buff_capacity_n"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise InputError(
+                    "a coupler capacity must be a force > 0 (or none: not checked)",
+                    field=f"couplers.{name}",
+                    value=value,
+                )
         for name in ("draft_stiffness_n_per_m", "buff_stiffness_n_per_m", "solid_stiffness_n_per_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -135,6 +154,8 @@ class CouplerModel:
             buff_damping_n_s_per_m=damping_n_s_per_m,
             slack_m=0.0,
             solid_stiffness_n_per_m=stiffness_n_per_m,
+            draft_capacity_n=None,
+            buff_capacity_n=None,
         )
 
     def as_row(self) -> np.ndarray:

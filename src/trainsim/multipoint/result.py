@@ -45,6 +45,89 @@ class CouplerExtreme:
 
 
 @dataclass(frozen=True)
+class CapacityExceedance:
+    """A coupling whose force passed its rated capacity during a run (its peak in that direction).
+
+    Attributes:
+        coupler: index of the coupling (0 = between vehicles 0 and 1).
+        behind_vehicle: name of the vehicle in front of the coupling.
+        mode: ``draft`` (tension) or ``buff`` (compression).
+        force_n: the coupling's peak force in that direction [N] (positive in draft, negative in buff).
+        capacity_n: its rated capacity [N] (positive).
+        time_s: when the peak occurred [s].
+        head_position_m: where the head was [m].
+        coupler_position_m: where the coupling was on the route [m].
+    """
+
+    coupler: int
+    behind_vehicle: str
+    mode: str
+    force_n: float
+    capacity_n: float
+    time_s: float
+    head_position_m: float
+    coupler_position_m: float
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["force_kn"] = self.force_n / 1e3
+        d["capacity_kn"] = self.capacity_n / 1e3
+        return d
+
+
+def capacity_exceedances(mptrain: MultiPointTrain, ext: np.ndarray) -> tuple[CapacityExceedance, ...]:
+    """Every coupling whose peak draft or buff force (taken at every integration step by the kernel)
+    passed its capacity (``CouplerModel.draft_capacity_n`` / ``buff_capacity_n``), worst first."""
+    nc = mptrain.n_vehicles - 1
+    if len(ext) < mpk.N_E + mpk.N_EK * nc:
+        return ()
+    per = ext[mpk.N_E : mpk.N_E + mpk.N_EK * nc].reshape(nc, mpk.N_EK)
+    offsets = np.cumsum(mptrain.length_m[:-1])
+    out = []
+    for k, coupler in enumerate(mptrain.couplers):
+        for mode, cap, f, t, head in (
+            ("draft", coupler.draft_capacity_n, per[k, mpk.EK_DRAFT], per[k, mpk.EK_DRAFT_T],
+             per[k, mpk.EK_DRAFT_HEAD]),
+            ("buff", coupler.buff_capacity_n, -per[k, mpk.EK_BUFF], per[k, mpk.EK_BUFF_T],
+             per[k, mpk.EK_BUFF_HEAD]),
+        ):  # fmt: skip
+            if cap is not None and np.isfinite(f) and f > cap:
+                out.append(
+                    CapacityExceedance(
+                        coupler=k,
+                        behind_vehicle=mptrain.vehicles[k].name,
+                        mode=mode,
+                        force_n=float(f if mode == "draft" else -f),
+                        capacity_n=float(cap),
+                        time_s=float(t),
+                        head_position_m=float(head),
+                        coupler_position_m=float(head - offsets[k]),
+                    )
+                )
+    out.sort(key=lambda e: -abs(e.force_n) / e.capacity_n)
+    return tuple(out)
+
+
+def capacity_warnings(exceedances: tuple[CapacityExceedance, ...]) -> list[str]:
+    """One warning per direction: how many couplings passed their capacity, and the worst of them with
+    its vehicle, force, time and place."""
+    out = []
+    for mode in ("buff", "draft"):
+        these = [e for e in exceedances if e.mode == mode]
+        if not these:
+            continue
+        e = these[0]
+        others = f" (and {len(these) - 1} other couplings)" if len(these) > 1 else ""
+        out.append(
+            f"{mode} force above the coupler capacity: {abs(e.force_n) / 1e6:.2f} MN at coupling {e.coupler} "
+            f"(behind vehicle {e.coupler} '{e.behind_vehicle}') at t = {e.time_s:.1f} s, coupling at "
+            f"{e.coupler_position_m:.0f} m (head at {e.head_position_m:.0f} m); capacity "
+            f"{e.capacity_n / 1e6:.2f} MN{others}"
+        )
+    return out
+
+
+@dataclass(frozen=True)
 class EnergyAccount:
     """Energy of a multi-point run at the wheels [J].
 
@@ -114,6 +197,8 @@ class MultiPointResult:
         max_buff: largest compression (most negative force).
         energy: the energy account at the wheels.
         statistics: integrator figures (steps, Newton iterations, sub-steps, wall time).
+        capacity_exceedances: the couplings whose force passed their rated capacity (each with a
+            warning in ``warnings``), worst first.
     """
 
     mptrain: MultiPointTrain
@@ -131,6 +216,7 @@ class MultiPointResult:
     statistics: dict[str, float] = field(default_factory=dict)
     regime: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int8))
     command: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    capacity_exceedances: tuple[CapacityExceedance, ...] = ()
 
     # ---------------------------------------------------------------- convenience
     @property
@@ -167,6 +253,7 @@ class MultiPointResult:
             "locomotives": [int(i) for i in self.mptrain.locomotive_indices],
             "max_draft": self.max_draft.to_dict(),
             "max_buff": self.max_buff.to_dict(),
+            "capacity_exceedances": [e.to_dict() for e in self.capacity_exceedances],
             "energy_j": self.energy.to_dict(),
             "statistics": dict(self.statistics),
         }
@@ -249,6 +336,7 @@ def build_multipoint_result(
     warnings: list[str],
     statistics: dict[str, float],
     stop_names: list[str] | None = None,
+    rest_speed_mps: float = 5e-3,
 ) -> MultiPointResult:
     """Assemble the result; the single-point summary is built by ``build_result`` from the head position
     and the mean speed, then its forces, powers and energies are replaced by the multi-point ones."""
@@ -264,8 +352,16 @@ def build_multipoint_result(
         warnings.append(f"the train rolled back by up to {back:.1f} m")
     s = np.maximum.accumulate(head)
     v = np.maximum(speed, 0.0)
+    # at a stop the model declares the train at rest when its mean speed is below rest_speed_mps (the
+    # regularised dry friction, tanh(v / standstill_speed_mps), lets the vehicles creep by a fraction
+    # of that while the couplers relax); the summary trace shows those points at 0, the per-vehicle
+    # arrays keep the speeds
+    at_rest = dwell_mask & (np.abs(speed) < rest_speed_mps)
+    v[at_rest] = 0.0
     if np.min(speed, initial=0.0) < -0.05:
         warnings.append(f"the train moved backwards (mean speed down to {np.min(speed):.2f} m/s)")
+    exceedances = capacity_exceedances(mptrain, ext)
+    warnings += capacity_warnings(exceedances)
     u = agg[:, mpk.R_COMMAND]
     regime = np.where(u > 1e-9, TRACTION, np.where(u < -1e-9, BRAKE, COAST)).astype(np.int8)
     regime[dwell_mask] = DWELL
@@ -412,6 +508,7 @@ def build_multipoint_result(
         statistics=statistics,
         regime=regime,
         command=u,
+        capacity_exceedances=exceedances,
     )
 
 

@@ -316,7 +316,11 @@ class _Runner:
         self.rec_agg = np.zeros((cap, mpk.N_R))
         self.dwell = np.zeros(cap, dtype=bool)
         self.nrec = 0
-        self.ext = np.array([-np.inf, 0, 0, 0, np.inf, 0, 0, 0], dtype=float)
+        self.ext = np.zeros(mpk.N_E + mpk.N_EK * max(n - 1, 1))
+        self.ext[mpk.E_DRAFT] = -np.inf
+        self.ext[mpk.E_BUFF] = np.inf
+        self.ext[mpk.N_E + mpk.EK_DRAFT :: mpk.N_EK] = -np.inf
+        self.ext[mpk.N_E + mpk.EK_BUFF :: mpk.N_EK] = np.inf
         self.wall_s = 0.0
         self.record_now(COAST, 0.0)
 
@@ -430,6 +434,7 @@ class _Runner:
             warnings=warnings,
             statistics=self.statistics(),
             stop_names=stop_names,
+            rest_speed_mps=REST_SPEED_MPS,
         )
 
 
@@ -499,7 +504,11 @@ def follow_profile(
                 served.append(_station_name(route, seg.stop_m))
                 off = runner.x[0] - seg.stop_m
                 if abs(off) > mp.settings.stop_window_m:
-                    warnings.append(f"stopped {off:+.1f} m from the stop at {seg.stop_m:.0f} m")
+                    status = "did_not_reach_stop"
+                    warnings.append(
+                        f"stopped {off:+.1f} m from the stop at {seg.stop_m:.0f} m (more than the "
+                        f"stop window of {mp.settings.stop_window_m:g} m)"
+                    )
                 runner.mark_dwell()
                 if not last:
                     # brakes held during the dwell; released (with the propagation delay) on departure

@@ -7,7 +7,7 @@ A scenario chooses the model with ``model: multi_point`` and gives the model's s
     multi_point:
       locomotive_positions: [0, 53]        # head + middle (distributed power)
       time_step_s: 0.05
-      couplers: {draft_stiffness_n_per_m: 1.4e7, slack_m: 0.025}
+      couplers: {draft_stiffness_n_per_m: 1.4e7, slack_m: 0.025, buff_capacity_kn: 2270}
       coupler_overrides: [{coupler: 0, slack_m: 0}]
       brakes: {propagation_speed_mps: 250, propagation_from: locomotives, build_up_s: 3}
       strategy: fastest                    # or: follow (with profile: a CSV of position_m, speed_kmh)
@@ -27,6 +27,7 @@ from trainsim.errors import InputError
 from trainsim.io.trainsim_yaml import _fail, _Spec, _validation_error
 from trainsim.model.scenario import Scenario
 from trainsim.multipoint.model import (
+    FREIGHT_CAPACITY_N,
     BrakePropagation,
     CouplerModel,
     Locomotive,
@@ -46,6 +47,8 @@ __all__ = [
 
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
+#: a coupler's rated force [kN]: up to 100 MN (ten times the strongest couplers in service)
+Capacity = Annotated[float, Field(gt=0, le=1e5)]
 _DEFAULT = CouplerModel()
 
 
@@ -61,9 +64,22 @@ class CouplerSpec(_Spec):
     buff_travel_m: Positive = _DEFAULT.buff_travel_m
     solid_stiffness_n_per_m: Positive = _DEFAULT.solid_stiffness_n_per_m
     smoothing_m: Positive = _DEFAULT.smoothing_m
+    #: rated draft and buff force of the coupling [kN] (default: the MT-2 gear's 2,270 kN); null: not
+    #: checked. A run whose coupler force passes it gets a warning.
+    draft_capacity_kn: Capacity | None = FREIGHT_CAPACITY_N / 1e3
+    buff_capacity_kn: Capacity | None = FREIGHT_CAPACITY_N / 1e3
+
+    @staticmethod
+    def model_values(values: dict[str, Any]) -> dict[str, Any]:
+        """The :class:`CouplerModel` arguments (SI) of the file's values."""
+        out = dict(values)
+        for mode in ("draft", "buff"):
+            kn = out.pop(f"{mode}_capacity_kn")
+            out[f"{mode}_capacity_n"] = None if kn is None else kn * 1e3
+        return out
 
     def build(self) -> CouplerModel:
-        return CouplerModel(**{k: getattr(self, k) for k in CouplerSpec.model_fields})
+        return CouplerModel(**self.model_values({k: getattr(self, k) for k in CouplerSpec.model_fields}))
 
 
 class CouplerOverrideSpec(CouplerSpec):
@@ -75,7 +91,7 @@ class CouplerOverrideSpec(CouplerSpec):
     def build_over(self, base: CouplerSpec) -> CouplerModel:
         values = {k: getattr(base, k) for k in CouplerSpec.model_fields}
         values.update({k: getattr(self, k) for k in self.model_fields_set if k != "coupler"})
-        return CouplerModel(**values)
+        return CouplerModel(**self.model_values(values))
 
 
 class LocomotiveSpec(_Spec):
