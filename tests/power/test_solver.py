@@ -106,6 +106,11 @@ def test_voltage_limited_train_draws_less_than_asked():
     assert sol.traction_share[0] == pytest.approx(share, rel=1e-12)
     _, e_th, r_th = closed_form_voltage(835.0, 0.03, 825.0, 0.05, 0.3e-3, 4000.0, 2000.0, 0.0)
     assert u * (e_th - u) / r_th == pytest.approx(3e6 * share, rel=1e-8)
+    # closed form: U (E_th - U) / R_th = P (U - Umin1) / (U_full - Umin1), a quadratic in U
+    k = r_th * 3e6 / (lim.traction_full_v - lim.min1_v)
+    expected = (e_th - k + np.sqrt((e_th - k) ** 2 + 4 * k * lim.min1_v)) / 2
+    assert u == pytest.approx(expected, rel=1e-9)
+    assert e_th**2 / (4 * r_th) < 3e6  # the line could not give the 3 MW at any voltage
 
 
 def test_two_tracks_with_paralleling_post_and_section_insulator():

@@ -401,6 +401,15 @@ def solve_step(
                     keep_curtailed=True,
                 )
                 iterations += its
+        if not converged and np.any(loads.traction_w > 0):
+            # a train asking more than the line can give at full traction: the solution lies on the
+            # EN 50388 ramp, which Newton from the no-load voltage may not reach (the constant-power
+            # branch above it has no solution); start on the ramp
+            start = 0.5 * (lim.min1_v + lim.traction_full_v)
+            v, its, converged = _newton_dc(
+                net, asm, loads, sub_p, sub_n, e, ys, reversible.copy(), tol, None, start_v=start
+            )
+            iterations += its
         if not converged and not reversible.all():
             v = None
             for reverse_share in (*(10.0**-k for k in range(10)), 0.0):
