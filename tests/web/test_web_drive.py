@@ -186,3 +186,41 @@ def test_live_drives_are_bounded() -> None:
                 wb.send_json({"type": "start", "clock": "manual"})
                 assert "too many" in _until(wb, "ended")["reason"]
             assert _step(wa, 1, 1)["speed_kmh"] > 0
+
+
+def _full_power_speeds(client: TestClient, atp: bool, seconds: int = 120) -> list[dict]:
+    states = []
+    with client.websocket_connect("/api/drive") as ws:
+        ws.send_json({"type": "start", "clock": "manual", "atp": atp})
+        while ws.receive_json()["type"] != "state":
+            pass
+        for _ in range(seconds // 2):
+            ws.send_json({"type": "step", "dt_s": 2, "command": 1.0})
+            states.append(ws.receive_json())
+    return states
+
+
+def test_full_power_never_passes_the_design_speed_and_atp_holds_the_limit(metro: TestClient) -> None:
+    states = _full_power_speeds(metro, atp=False)
+    assert max(s["speed_kmh"] for s in states) <= 80.0 + 1.5  # the metro's design speed, 80 km/h
+    route = metro.get("/api/route").json()["spec"]
+    route["speed_limits"] = [{**route["speed_limits"][0], "limit_kmh": 40}]
+    assert metro.put("/api/route", json=route).status_code == 200
+    free = _full_power_speeds(metro, atp=False)
+    assert max(s["speed_kmh"] for s in free) > 60 and any(s["overspeed"] for s in free)
+    held = _full_power_speeds(metro, atp=True)
+    assert max(s["speed_kmh"] for s in held) <= 40 + 3.0
+    assert any(s["atp_braking"] for s in held) and any(s["lever_reset"] for s in held)
+    moving = [s for s in held if s["speed_kmh"] > 0]
+    assert moving[0]["clock_s"] >= 0 and moving[-1]["clock_s"] <= moving[-1]["time_s"]
+    assert {
+        "acceleration_mps2",
+        "traction_force_kn",
+        "braking_force_kn",
+        "gradient_permille",
+        "next_limit_distance_m",
+        "next_stop_distance_m",
+        "energy_kwh",
+        "location",
+    } <= set(held[-1])
+    assert held[-1]["location"].startswith(("between", "at", "before", "past"))

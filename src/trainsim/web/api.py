@@ -7,6 +7,7 @@ JSON ``{"message", "detail": [{"field", "loc", "msg"}...]}`` (see :mod:`trainsim
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import re
@@ -667,3 +668,70 @@ def run_summary_json(run_id: str, request: Request) -> Response:
         media_type="application/json",
         headers={"Content-Disposition": f'attachment; filename="{_slug(run.label)}.summary.json"'},
     )
+
+
+def route_prefix(route: Any, end_m: float) -> Any:
+    """The route cut at ``end_m`` [m] (a station's position): stations up to it, every section
+    clipped to it (a tunnel crossing ``end_m`` keeps its full length, which sets its resistance)."""
+
+    def clip(sections: tuple, keep_length: bool = False) -> tuple:
+        out = []
+        for x in sections:
+            if x.start_m >= end_m:
+                continue
+            out.append(x if keep_length or x.end_m <= end_m else dataclasses.replace(x, end_m=end_m))
+        return tuple(out)
+
+    return dataclasses.replace(
+        route,
+        end_m=end_m,
+        stations=tuple(s for s in route.stations if s.position_m <= end_m + 1e-9),
+        speed_limits=clip(route.speed_limits),
+        gradients=clip(route.gradients),
+        curves=clip(route.curves),
+        tunnels=clip(route.tunnels, keep_length=True),
+        electrification=clip(route.electrification),
+    )
+
+
+@router.post(
+    "/runs/{run_id}/fastest",
+    tags=["runs"],
+    status_code=201,
+    responses={**_ERRORS, 404: {"description": "no such run"}},
+    summary="The fastest run of a run's own train and line, over the same distance (to compare a drive with)",
+)
+async def fastest_for(run_id: str, request: Request) -> Response:
+    limits = settings_of(request)
+    session = session_of(request)
+    with session.lock:
+        base = _run(session, run_id)
+        settings = session.settings
+    route = base.route
+    trace = base.result.trace
+    reached = float(trace.position_m[-1]) if len(trace) else route.start_m
+    stops = [s for s in route.stations if s.position_m <= reached + 5.0]
+    note = ""
+    if reached < route.end_m - 5.0 and len(stops) >= 2:
+        route = route_prefix(route, stops[-1].position_m)
+        note = f" to {stops[-1].name}"
+    elif reached < route.end_m - 5.0:
+        raise ApiError(422, f"run '{run_id}' did not reach a second station: nothing to compare")
+    result, body_json = await work(
+        request, session, "run", "fastest", {}, base.train, route, settings, limits.max_plot_points
+    )
+    with session.lock:
+        new_id = session.next_run_id()
+        run = StoredRun(
+            id=new_id,
+            label=f"Fastest{note} ({base.label}'s train and line)"[:80],
+            strategy="fastest",
+            created=time.time(),
+            result=result,
+            route=route,
+            train=base.train,
+            params={"strategy": {}, "settings": _settings_dict(settings), "compared_with": run_id},
+        )
+        store_of(request).add_run(session, run)
+    head = json.dumps({**run_brief(run), "params": run.params}, separators=(",", ":")).encode()
+    return _raw(head[:-1] + b"," + body_json[1:], 201)

@@ -68,8 +68,26 @@ def _jsonable(value: Any) -> Any:
     return shown_value(value)
 
 
+#: file-format advice that means nothing in a table cell, and what the cell says instead
+_CELL_WORDING = [
+    (
+        re.compile(r"^'[\w.]+' takes a plain number in ([^;]+); to give a unit, write .* instead$"),
+        r"enter a number in \1",
+    ),
+    (re.compile(r"\bYAML\b"), "file"),
+    (re.compile(r"\bmapping\b"), "group of fields"),
+]
+
+
+def cell_wording(reason: str) -> str:
+    """A reader's reason as a table cell's message (no file syntax: units are in the column name)."""
+    for pattern, replacement in _CELL_WORDING:
+        reason = pattern.sub(replacement, reason)
+    return reason
+
+
 def _problem_msg(reason: str, value: Any, allowed: str | None) -> str:
-    msg = reason
+    msg = cell_wording(reason)
     if value is not None:
         msg += f" (got {shown_value(value)})"
     if allowed:

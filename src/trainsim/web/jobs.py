@@ -200,6 +200,12 @@ def _read_upload(
     from trainsim.io import convert as interchange
 
     source: Path = path
+    if suffix in (".xml", ".railml") and interchange.detect_interchange(path) is None:
+        raise InputError(
+            "not a railML file",
+            file=name,
+            allowed="an XML file whose root element is <railml> (railML 2.x) or <railML> (railML 3.x)",
+        )
     if suffix == ".zip":
         source = folder / "tables"
         source.mkdir()

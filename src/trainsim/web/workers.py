@@ -315,9 +315,11 @@ class WorkerPool:
         try:
             return worker.conn.recv()
         except (EOFError, OSError):
-            # the worker died (killed by the kernel for memory, or a crash)
+            # the worker died: killed (by the kernel's OOM killer: memory) or crashed
+            worker.process.join(timeout=1.0)
             code = worker.process.exitcode
-            return "memory" if code in (None, -signal.SIGKILL, -9) else "bug", f"worker exited ({code})"
+            kind = "memory" if code == -signal.SIGKILL else "bug"
+            return kind, f"the worker process exited with code {code}"
 
 
 def pid_of_workers(pool: WorkerPool) -> list[int]:

@@ -24,6 +24,41 @@ const el = (tag, attrs = {}, ...children) => {
 
 const join = (path, key) => (typeof key === "number" ? `${path}[${key}]` : path ? `${path}.${key}` : key);
 
+const isNum = (x) => typeof x === "number" && Number.isFinite(x);
+
+// A table with one more row that is valid where the last one is: a copy of the last row with a
+// unique name, placed where positions still increase (between the last two positions, or the last
+// from-to section split in two halves).
+export function withNewRow(rows, empty) {
+  const n = rows.length;
+  if (!n) return [structuredClone(empty)];
+  const out = rows.map((r) => r);
+  const row = structuredClone(rows[n - 1]);
+  if (typeof row.name === "string") {
+    const names = new Set(rows.map((r) => r.name));
+    let k = 2;
+    const base = row.name.replace(/ \(\d+\)$/, "");
+    while (names.has(`${base} (${k})`)) k++;
+    row.name = `${base} (${k})`;
+  }
+  if (isNum(row.from_m) && isNum(row.to_m) && row.to_m > row.from_m) {
+    const mid = Math.round(((row.from_m + row.to_m) / 2) * 1000) / 1000;
+    out[n - 1] = { ...rows[n - 1], to_m: mid };
+    row.from_m = mid;
+    out.push(row);
+    return out;
+  }
+  const pos = ["position_m", "from_m"].find((k) => isNum(row[k]));
+  if (pos && n >= 2 && isNum(rows[n - 2][pos]) && rows[n - 2][pos] < row[pos]) {
+    row[pos] = Math.round(((rows[n - 2][pos] + row[pos]) / 2) * 1000) / 1000;
+    out.splice(n - 1, 0, row);
+    return out;
+  }
+  if (pos) row[pos] += 100;
+  out.push(row);
+  return out;
+}
+
 export class SpecEditor {
   constructor(root, schema, onChange) {
     this.root = root;
@@ -319,7 +354,7 @@ export class SpecEditor {
       }
       for (const k of nested) {
         const v = row[k];
-        tr.append(el("td", { class: "muted", "data-path": `${rp}.${k}`, text: Array.isArray(v) && v.length ? `${v.length} (in the YAML file)` : "—" }));
+        tr.append(el("td", { class: "muted", "data-path": `${rp}.${k}`, text: Array.isArray(v) && v.length ? `${v.length} (edit in the downloaded file)` : "—" }));
       }
       tr.append(this.rowButtons(() => {
         rows.splice(i, 1);
@@ -329,9 +364,7 @@ export class SpecEditor {
       table.append(tr);
     });
     const add = el("button", { type: "button", class: "add", text: "+ row", onclick: () => {
-      const last = rows.length ? structuredClone(rows[rows.length - 1]) : union ? { [tagKey]: variants[0].tag } : {};
-      if (typeof last.name === "string") last.name = `${last.name} (copy)`;
-      obj[key] = [...rows, last];
+      obj[key] = withNewRow(rows, union ? { [tagKey]: variants[0].tag } : {});
       this.changed(true);
     } });
     return this.section(key, path, table, add);

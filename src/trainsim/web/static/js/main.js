@@ -236,14 +236,27 @@ function changedInputs() {
 }
 
 let autoTimer = null;
+// what the last automatic run ran (train, track, request): an edit that changes nothing runs nothing
+let lastAutoKey = null;
+let lastAutoRun = null;
 function autoRun() {
   clearTimeout(autoTimer);
   autoTimer = setTimeout(async () => {
-    const previous = state.runA;
+    const key = JSON.stringify([state.train && state.train.spec, state.route && state.route.spec, runRequest("auto")]);
+    if (key === lastAutoKey) return;
+    // the baseline (B) is the run shown before this series of edits; it stays while edits follow
+    const baseline = state.runB && state.runB !== lastAutoRun ? state.runB : state.runA;
     const run = await doRun("auto");
-    if (run && previous) state.runB = previous; // the new run against the one before the change
-    state.runsDirty = true;
-    renderRuns();
+    if (!run) return;
+    lastAutoKey = key;
+    if (lastAutoRun && lastAutoRun !== baseline && lastAutoRun !== run.id) {
+      await del(`/api/runs/${lastAutoRun}`); // the previous automatic run: replaced, not piled up
+      state.cache.delete(lastAutoRun);
+    }
+    lastAutoRun = run.id;
+    state.runA = run.id;
+    state.runB = baseline && baseline !== run.id ? baseline : null;
+    await refreshRuns();
   }, 200);
 }
 
@@ -306,8 +319,8 @@ async function runPayload(id) {
 
 function renderRunsTable() {
   const table = $("#runs-table");
-  table.replaceChildren(h("tr", {}, ...["A", "B", "run", "strategy", "status", "running time [s]", "total time [s]",
-    "net energy [kWh]", "download", ""].map((t) => h("th", { text: t }))));
+  table.replaceChildren(h("tr", {}, ...["A", "B", "run", "strategy", "train", "line", "status", "running time [s]",
+    "total time [s]", "net energy [kWh]", "download", ""].map((t) => h("th", { text: t }))));
   for (const r of [...state.runs].reverse()) {
     const radio = (which) => {
       const input = h("input", { type: "radio", name: `run-${which}`, value: r.id, "aria-label": `${which} ${r.label}` });
@@ -324,7 +337,7 @@ function renderRunsTable() {
     const cls = r.id === state.runA ? "a" : r.id === state.runB ? "b" : "";
     table.append(h("tr", { class: cls, "data-run": r.id },
       h("td", {}, radio("a")), h("td", {}, radio("b")), h("td", { text: r.label }), h("td", { text: r.strategy }),
-      h("td", { text: r.status }), h("td", { class: "n", text: fmt(r.running_time_s, 1) }),
+      h("td", { text: r.train }), h("td", { text: r.route }), h("td", { text: r.status }), h("td", { class: "n", text: fmt(r.running_time_s, 1) }),
       h("td", { class: "n", text: fmt(r.total_time_s, 1) }), h("td", { class: "n", text: fmt(r.energy_net_kwh, 2) }),
       h("td", {}, h("a", { href: `/api/runs/${r.id}/trace.csv`, download: "", text: "trace CSV" }), " ",
         h("a", { href: `/api/runs/${r.id}/summary.json`, download: "", text: "summary JSON" })),
@@ -335,7 +348,7 @@ function renderRunsTable() {
       } }))));
   }
   if (state.runB) {
-    table.append(h("tr", {}, h("td", { colspan: 10 }, h("button", { type: "button", text: "stop comparing (clear B)",
+    table.append(h("tr", {}, h("td", { colspan: 12 }, h("button", { type: "button", text: "stop comparing (clear B)",
       onclick: () => { state.runB = null; state.runsDirty = true; renderRuns(); } }))));
   }
 }
@@ -432,14 +445,21 @@ function showDriveState(s) {
   $("#drive-speed").parentElement.classList.toggle("over", s.overspeed);
   $("#drive-limit").textContent = fmt(s.speed_limit_kmh, 0);
   $("#drive-next-limit").textContent = s.next_limit_kmh === null ? "–"
-    : `${fmt(s.next_limit_kmh, 0)} km/h in ${fmt(s.next_limit_position_m - s.position_m, 0)} m`;
+    : `${fmt(s.next_limit_kmh, 0)} km/h in ${fmt(s.next_limit_distance_m, 0)} m`;
   $("#drive-next-stop").textContent = s.next_stop_name === null ? "–" : `${s.next_stop_name} in ${fmt(s.next_stop_distance_m, 0)} m`;
   $("#drive-position").textContent = fmt(s.position_m / 1000, 3);
-  $("#drive-time").textContent = fmt(s.time_s, 0);
+  $("#drive-time").textContent = fmt(s.clock_s, 0);
+  $("#drive-accel-value").textContent = fmt(s.acceleration_mps2, 2);
+  $("#drive-effort").textContent = s.braking_force_kn > 0 ? `−${fmt(s.braking_force_kn, 0)}` : fmt(s.traction_force_kn, 0);
+  $("#drive-gradient").textContent = fmt(s.gradient_permille, 1);
   $("#drive-current").textContent = fmt(s.line_current_a, 0);
   $("#drive-energy").textContent = fmt(s.energy_kwh, 2);
   $("#drive-dwell").textContent = s.dwell_remaining_s > 0 ? fmt(s.dwell_remaining_s, 0) : "–";
-  $("#drive-message").textContent = `${s.overspeed ? "⚠ OVERSPEED — " : ""}${s.message} · ${s.regime}${s.paused ? " · paused" : ""} · ${s.time_scale}x`;
+  $("#drive-stop-error").textContent = s.stop_error_m === null ? "–"
+    : `${s.stop_error_m >= 0 ? "+" : ""}${fmt(s.stop_error_m, 1)}`;
+  if (s.lever_reset && drive.notch !== 0) setNotch(0);
+  const atp = s.atp_braking ? "ATP BRAKING — " : "";
+  $("#drive-message").textContent = `${atp}${s.overspeed ? "⚠ OVERSPEED — " : ""}${s.location} · ${s.message} · ${s.regime}${s.paused ? " · paused" : ""} · ${s.time_scale}x`;
   $("#drive-speed").dataset.value = s.speed_kmh;
   $("#drive-position").dataset.value = s.position_m;
   $("#drive-next-stop").dataset.distance = s.next_stop_distance_m ?? "";
@@ -456,7 +476,7 @@ function startDrive() {
   $("#drive-result").hidden = true;
   ws.addEventListener("open", () => {
     const scale = Number(document.querySelector("input[name=scale]:checked").value);
-    ws.send(JSON.stringify({ type: "start", time_scale: scale, clock: "realtime" }));
+    ws.send(JSON.stringify({ type: "start", time_scale: scale, clock: "realtime", atp: $("#drive-atp").checked }));
   });
   ws.addEventListener("message", (ev) => {
     const msg = JSON.parse(ev.data);
@@ -503,15 +523,16 @@ function showDriveResult(msg) {
 
 async function compareDrive() {
   if (!drive.lastRun) return;
-  await refreshRuns();
-  let fastest = [...state.runs].reverse().find((r) => r.strategy === "fastest");
-  if (!fastest) {
-    const answer = await busy(post("/api/runs", { strategy: "fastest" }));
-    if (answer.ok) fastest = answer.data;
-    await refreshRuns();
+  // the fastest run of the drive's own train and line over the same distance (not any run in the list)
+  const answer = await busy(post(`/api/runs/${drive.lastRun.id}/fastest`, {}));
+  if (!answer.ok) {
+    $("#drive-message").textContent = `✗ ${answer.data.message}`;
+    return;
   }
+  state.cache.set(answer.data.id, answer.data);
+  await refreshRuns();
   state.runA = drive.lastRun.id;
-  state.runB = fastest ? fastest.id : null;
+  state.runB = answer.data.id;
   state.runsDirty = true;
   switchTab("run");
 }

@@ -1,7 +1,17 @@
 // Plotly figures: effort/resistance over speed, line profile, run plots, live driving profile.
 // Plotly is served by the server from the installed plotly Python package (no CDN).
 
-const CONFIG = { responsive: true, displaylogo: false, modeBarButtonsToRemove: ["lasso2d", "select2d"] };
+// every plot downloads as PNG (the camera button) or SVG (the button beside it)
+const SVG_BUTTON = {
+  name: "downloadSvg",
+  title: "Download plot as SVG",
+  icon: window.Plotly ? window.Plotly.Icons.disk : undefined,
+  click: (gd) => window.Plotly.downloadImage(gd, { format: "svg", filename: "trainsim-plot" }),
+};
+const CONFIG = {
+  responsive: true, displaylogo: false, modeBarButtonsToRemove: ["lasso2d", "select2d"],
+  modeBarButtonsToAdd: [SVG_BUTTON], toImageButtonOptions: { format: "png", filename: "trainsim-plot", scale: 2 },
+};
 const COLORS = { a: "#1f77b4", b: "#ff7f0e", limit: "#d62728", grade: "#8c564b", ref: "#7f7f7f" };
 const BASE = {
   margin: { l: 60, r: 60, t: 36, b: 44 },
@@ -57,6 +67,11 @@ function profileTraces(profile, { withLimits = true } = {}) {
     traces.push({ x: lim.x, y: lim.y, name: "line speed limit", mode: "lines",
       line: { color: COLORS.limit, width: 1.5, dash: "dot" }, hovertemplate: "%{y:.0f} km/h" });
   }
+  // legend entries for the marks along the bottom (shapes have none of their own)
+  const mark = (name, color) => ({ x: [null], y: [null], name, mode: "markers", hoverinfo: "skip",
+    marker: { symbol: "square", size: 11, color, opacity: 0.6 } });
+  if (profile.curves.length) traces.push(mark("curve", "#2ca02c"));
+  if (profile.tunnels.length) traces.push(mark("tunnel", "#555"));
   return traces;
 }
 
