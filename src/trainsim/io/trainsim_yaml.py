@@ -85,6 +85,7 @@ __all__ = [
     "read_scenario_spec",
     "read_train_spec",
     "read_yaml",
+    "register_file_readers",
     "route_from_dict",
     "route_spec_from_dict",
     "scenario_from_dict",
@@ -1711,17 +1712,14 @@ class ScenarioSpec(Spec):
 
     def to_scenario(self, file: str = "<scenario>", base_dir: str | Path | None = None) -> Scenario:
         """The :class:`~trainsim.model.scenario.Scenario`; file names are relative to ``base_dir``."""
-        # Imported here: the loader detects formats and imports this module.
-        from trainsim.io import loader
-
         base = Path(base_dir) if base_dir is not None else Path(".")
         if isinstance(self.train, str):
-            train = loader.load_train(_resolve(base, self.train, file, "train"))
+            train = _load_referenced("train", _resolve(base, self.train, file, "train"), file)
         else:
             with _prefixed("train"):
                 train = self.train.to_train(file)
         if isinstance(self.route, str):
-            route = loader.load_route(_resolve(base, self.route, file, "route"))
+            route = _load_referenced("route", _resolve(base, self.route, file, "route"), file)
         else:
             with _prefixed("route"):
                 route = self.route.to_route(file)
@@ -1786,6 +1784,37 @@ def driving_from_spec(
             allowed="driving: {strategy: optimal, supplement: '10%'} or {timetable: FILE}",
         )
     return spec.strategy, timetable
+
+
+#: Readers of the train and route files a scenario names, of every format ("train", "route" ->
+#: function of the path): :mod:`trainsim.io.loader` installs its ``load_train`` and ``load_route``
+#: when it is imported (it reads every format, and imports this module: it cannot be imported here).
+_FILE_READERS: dict[str, Callable[[Path], Any]] = {}
+
+
+def register_file_readers(*, train: Callable[[Path], Train], route: Callable[[Path], Route]) -> None:
+    """Let scenarios name train and route files of any format (see :data:`_FILE_READERS`)."""
+    _FILE_READERS.update(train=train, route=route)
+
+
+def _load_referenced(kind: Literal["train", "route"], path: Path, file: str) -> Any:
+    """The train or route of a file a scenario names: by the installed readers (every format), else
+    a trainsim file read here."""
+    reader = _FILE_READERS.get(kind)
+    if reader is not None:
+        return reader(path)
+    data = read_yaml(path)
+    if isinstance(data, dict) and data.get("schema") == f"trainsim/{kind}":
+        if kind == "train":
+            return train_spec_from_dict(data, str(path), path=path).to_train(str(path))
+        return route_spec_from_dict(data, str(path), path=path).to_route(str(path))
+    raise InputError(
+        f"this {kind} file is not a trainsim file: files of other formats are read through "
+        "trainsim.io.loader (trainsim.load_scenario)",
+        file=file,
+        field=kind,
+        value=str(path),
+    )
 
 
 def _resolve(base: Path, name: str, file: str, field: str) -> Path:
