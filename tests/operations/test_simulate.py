@@ -163,3 +163,29 @@ def test_priority_with_lookahead_holds_the_slow_train_for_the_fast_one(train, ru
     else:
         assert fast.delay_s == pytest.approx(0.0, abs=1e-9)  # overtakes at B
         assert slow.delay_s > 0 and slow.hindrances[0].where == "B"
+
+
+def test_a_stalled_train_is_reported_and_blocks_the_one_behind(train) -> None:
+    from trainsim import GradientSection
+
+    geometry = Route(
+        "geo",
+        0,
+        12000,
+        (),
+        (SpeedLimit(0, 12000, 80 / 3.6),),
+        gradients=(GradientSection(3000, 9000, 180.0),),
+    )
+    line = build_line(
+        "steep", 12000, "double_track", (StationLayout("A", 1000), StationLayout("B", 11000)), Signalling()
+    )
+    svcs = [
+        TrainService("first", train, "up", "A", "B", 0.0),
+        TrainService("second", train, "up", "A", "B", 300.0),
+    ]
+    res = simulate(line, geometry, svcs, SETTINGS)
+    assert res.status == "stalled"
+    first = res.trains[0]
+    assert first.status == "stalled" and "stalls" in " ".join(first.warnings)
+    assert first.stops[-1].arrival_s is None and first.to_dict()["delay_s"] is None
+    assert any("held by first" in d for d in res.deadlock) or res.trains[1].status == "stalled"

@@ -304,6 +304,7 @@ class _TrainState:
         self.movement: Movement | None = None
         self.trajectory: Trajectory | None = None
         self._request_key: tuple | None = None
+        self.stalled_m: float | None = None
         self._request_value: tuple[float, float | None, float] = (0.0, None, 0.0)
         self.refresh_movement()
 
@@ -312,6 +313,12 @@ class _TrainState:
         self.movement = self.cache.movement(
             self.svc.train, self.directed, [(s.name, s.position_m) for s in self.stops]
         )
+        if self.movement.status != "ok" and self.stalled_m is None:
+            # the run stalls: the train stands where it stalled for good, keeping what it holds there;
+            # it asks for no route whose signal lies beyond
+            self.stalled_m = float(self.movement.position_m[-1])
+            self.steps = [j for j in self.steps if self.path.steps[j].start_m < self.stalled_m]
+            self.next = min(self.next, len(self.steps))
         self.refresh_trajectory()
 
     def departures(self) -> list[float]:
@@ -376,6 +383,8 @@ class _TrainState:
     def release_time(self, point_m: float) -> float:
         sig = self.line.signalling
         head = point_m + self.length_m
+        if self.stalled_m is not None and head > self.stalled_m - 1e-9:
+            return np.inf  # never: the train stands there
         if head > self.stops[-1].position_m + 1e-9:
             # the train leaves the line at its destination after its dwell there
             return float(self.trajectory.time_s[-1]) + sig.release_s
@@ -411,10 +420,10 @@ class _Dispatcher:
         for h in st.held:
             if h[3] is None and h[1] + st.length_m <= horizon + 1e-9:
                 h[3] = st.release_time(h[1])
-            if h[3] is not None and (best is None or (h[3], 0) < best):
+            if h[3] is not None and np.isfinite(h[3]) and (best is None or (h[3], 0) < best):
                 best = (max(h[3], self.now), 0)
         if best is None:
-            if st.pending_step() is None and not st.held:
+            if st.pending_step() is None and (not st.held or st.stalled_m is not None):
                 st.done = True
             return
         self.seq += 1
@@ -871,12 +880,12 @@ def simulate(
     planned_blocking, conflict_list = _planned_blocking(line, states, planned, approach, conflicts)
     headway_list = _headways(states, planned_blocking) if headways else []
     status = "ok"
-    if any(o.status == "stalled" for o in outcomes):
-        status = "stalled"
+    if conflict_list:
+        status = "conflicts"
     if stuck:
         status = "deadlock"
-    elif conflict_list and status == "ok":
-        status = "conflicts"
+    if any(o.status == "stalled" for o in outcomes):
+        status = "stalled"  # the trains behind it wait for good: listed under deadlock
     return OperationResult(
         status, warnings, outcomes, conflict_list, headway_list, blocking, planned_blocking,
         cache.computed, cache.hits, deadlock,
@@ -933,6 +942,8 @@ def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutc
         s = st.stops[k]
         arr = None if k == 0 or deps is None else deps[k - 1] + rt[k - 1]
         dep = None if deps is None or k == len(st.stops) - 1 else deps[k]
+        if st.stalled_m is not None and s.position_m > st.stalled_m + 1e-6:
+            arr = dep = None  # not reached
         p_arr = plan_arr[pk]
         p_dep = plan.departures[pk] if pk < len(plan.departures) else None
         sc = sched.get(s.name)
@@ -955,7 +966,7 @@ def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutc
             )
         track = next((r.track for _j, r in st.granted if r.station == s.name and r.track is not None), None)
         stop_times.append(StopTimes(s.name, s.kind, s_arr, s_dep, arr, dep, d, track))
-    if stuck:
+    if stuck or st.stalled_m is not None:
         delay = np.inf
     standing = _standing_s(st.movement, deps, st.dest_dwell_s) if deps is not None else 0.0
     energy = st.movement.energy_kwh(standing, auxiliary_power_w(svc.train)) if deps is not None else np.nan
