@@ -138,3 +138,33 @@ def test_reference_meets_a_passing_window_and_an_impossible_one_is_infeasible():
         train, route, 0.0, 3000.0, T, intervals=300, timing_points=(impossible,), time_limit_s=20.0
     )
     assert bad.status != "ok"
+
+
+@pytest.mark.slow
+def test_journey_windows_are_enforced_by_the_reference_and_reported_for_every_strategy():
+    from pathlib import Path
+
+    from trainsim.io.ttobench import read_ttobench_journey, read_ttobench_track, read_ttobench_train
+    from trainsim.optimize.api import optimize
+    from trainsim.optimize.timetable import timetable_from_journey
+
+    data = Path(__file__).resolve().parents[3] / "shared" / "data" / "ttobench"
+    if not data.exists():
+        pytest.skip("TTOBench data not found beside the checkout")
+    tt = read_ttobench_train(data / "trains" / "NL_Intercity_VIRM6.json")
+    route = read_ttobench_track(data / "tracks" / "CH_StGallen_Wil.json", tt)
+    journey = read_ttobench_journey(data / "journeys" / "CH_StGallen_Wil_Journey_01.json")
+    section_route, timetable = timetable_from_journey(journey, route)
+    # the window at 20 km is 400-450 s after the departure at 15 km: no run can then reach the stop
+    # in the 650 s the section has (the fastest run from 20 km takes 364 s)
+    assert [p.latest_s for p in timetable.timing_points] == [540.0, 450.0]
+    res = optimize(tt.train, section_route, timetable, strategy="optimal")
+    checks = {round(c["position_m"]): c for c in res.timing_points}
+    assert set(checks) == {12500, 20000}
+    summary = res.summary()
+    assert summary["status"] != "ok"
+    assert any("20000 m" in w for w in summary["warnings"])
+    ref = optimize(tt.train, section_route, timetable, strategy="reference")
+    first = {round(c["position_m"]): c for c in ref.timing_points}[12500]
+    assert first["met"] and first["time_s"] <= 540.0 + 0.5
+    assert ref.summary()["status"] != "ok"

@@ -48,8 +48,8 @@ class Timetable:
         sections: one schedule per section between consecutive stops, or empty.
         line: a supplement for the whole line, split optimally between sections.
         source: where it came from (file name), for messages.
-        timing_points: passing points with time and speed windows (times from the start of the
-            journey, the departure from the first stop) [m, s, m/s].
+        timing_points: passing points with time and speed windows [m, s, m/s]; their times are
+            from the departure of the section (between two stops) they lie in.
     """
 
     sections: tuple[SectionSchedule, ...] = ()

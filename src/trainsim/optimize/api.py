@@ -28,6 +28,7 @@ from trainsim.constants import KMH
 from trainsim.errors import InputError
 from trainsim.model.route import Route, Station
 from trainsim.model.scenario import RunSettings
+from trainsim.model.timetable import TimingPoint
 from trainsim.model.train import Train
 from trainsim.optimize.optimal import TIME_TOLERANCE_S, SectionPlan, SectionSolver
 from trainsim.optimize.timetable import Timetable
@@ -63,6 +64,9 @@ class OptimizationResult:
     switching_points: tuple[SwitchingPoint, ...]
     price_of_time_w: tuple[float, ...]
     warnings: tuple[str, ...] = field(default=())
+    #: how the run passes every timing point of the timetable: position_m, time_s (from its
+    #: section's departure), speed_mps, the window, met (bool)
+    timing_points: tuple[dict[str, Any], ...] = field(default=())
 
     @property
     def energy_saved_kwh(self) -> float:
@@ -75,12 +79,16 @@ class OptimizationResult:
         out["warnings"] = list(self.warnings) + out["warnings"]
         out["status"] = "ok" if not self.warnings and out["status"] == "ok" else out["status"]
         if self.warnings and out["status"] == "ok":
-            out["status"] = "infeasible schedule"
+            missed = any(not p["met"] for p in self.timing_points)
+            late = any("cannot be met" in w or "shorter than the fastest" in w for w in self.warnings)
+            out["status"] = "timing window missed" if missed and not late else "infeasible schedule"
         out["strategy"] = self.strategy
         out["scheduled_running_time_s"] = list(self.scheduled_running_time_s)
         out["schedule_deviation_s"] = list(self.schedule_deviation_s)
         out["switching_points"] = [dataclasses.asdict(p) for p in self.switching_points]
         out["price_of_time_w"] = [float(x) if np.isfinite(x) else None for x in self.price_of_time_w]
+        if self.timing_points:
+            out["timing_points"] = [dict(p) for p in self.timing_points]
         fastest_net = self.fastest.energy_kwh.net
         out["fastest"] = {
             "running_time_s": self.fastest.running_time_s,
@@ -258,6 +266,8 @@ def _result(
     plans: list[SectionPlan],
     targets: list[float],
     extra_warnings: list[str] | None = None,
+    timing_points: tuple[TimingPoint, ...] = (),
+    solvers: list[SectionSolver] | None = None,
 ) -> OptimizationResult:
     run = _assemble(train, route, settings, plans, kind=strategy)
     deviations = [sec.running_time_s - T for sec, T in zip(run.sections, targets, strict=True)]
@@ -271,6 +281,14 @@ def _result(
     pts = []
     for plan in plans:
         pts += switching_points(plan.s, plan.v, plan.t, plan.regime)
+    checks = []
+    for p in timing_points:
+        for k, plan in enumerate(plans):
+            if plan.s[0] < p.position_m < plan.s[-1]:
+                check, message = _window_check(p, plan, solvers[k] if solvers else None)
+                checks.append(check)
+                if message:
+                    warnings.append(message)
     return OptimizationResult(
         strategy=strategy,
         run=run,
@@ -280,7 +298,50 @@ def _result(
         switching_points=tuple(pts),
         price_of_time_w=tuple(p.price_of_time_w for p in plans),
         warnings=tuple(warnings),
+        timing_points=tuple(checks),
     )
+
+
+#: A timing window counts as met within this [s] (the schedule tolerance of a section).
+WINDOW_TOLERANCE_S = SCHEDULE_TOLERANCE_S
+
+
+def _window_check(
+    p: TimingPoint, plan: SectionPlan, solver: SectionSolver | None
+) -> tuple[dict[str, Any], str]:
+    """How a section's run passes a timing point, and what is wrong (empty when it is met); where
+    the window is missed, whether the fastest run could meet its latest time."""
+    t = float(np.interp(p.position_m, plan.s, plan.t))
+    v = float(np.interp(p.position_m, plan.s, plan.v))
+    problems = []
+    if p.latest_s is not None and t > p.latest_s + WINDOW_TOLERANCE_S:
+        text = f"passes {t - p.latest_s:.1f} s after its latest time ({t:.1f} s > {p.latest_s:.1f} s from the departure)"
+        if solver is not None:
+            t_fast = float(np.interp(p.position_m, solver.fastest[0], solver.fastest[2]))
+            if t_fast > p.latest_s + WINDOW_TOLERANCE_S:
+                text += f"; no run can meet it: the fastest passes {t_fast - p.latest_s:.1f} s late"
+        problems.append(text)
+    if p.earliest_s is not None and t < p.earliest_s - WINDOW_TOLERANCE_S:
+        problems.append(
+            f"passes {p.earliest_s - t:.1f} s before its earliest time ({t:.1f} s < {p.earliest_s:.1f} s)"
+        )
+    if p.min_speed_mps is not None and v < p.min_speed_mps - 1e-6:
+        problems.append(f"passes at {v / KMH:.1f} km/h, below its minimum {p.min_speed_mps / KMH:.1f} km/h")
+    if p.max_speed_mps is not None and v > p.max_speed_mps + 1e-6:
+        problems.append(f"passes at {v / KMH:.1f} km/h, above its maximum {p.max_speed_mps / KMH:.1f} km/h")
+    check = {
+        "name": p.label,
+        "position_m": p.position_m,
+        "time_s": t,
+        "speed_mps": v,
+        "earliest_s": p.earliest_s,
+        "latest_s": p.latest_s,
+        "min_speed_mps": p.min_speed_mps,
+        "max_speed_mps": p.max_speed_mps,
+        "met": not problems,
+    }
+    name = p.name or f"timing point at {p.position_m:.0f} m"
+    return check, (f"{name}: " + "; ".join(problems)) if problems else ""
 
 
 def _solvers(train: Train, route: Route, settings: RunSettings) -> list[SectionSolver]:
@@ -302,7 +363,9 @@ def _run_optimal(train, route, timetable, settings, fastest) -> OptimizationResu
                 f"the line schedule of {total:.1f} s is shorter than the fastest run "
                 f"({sum(fastest_s):.1f} s): the fastest run is returned"
             )
-    return _result("optimal", train, route, settings, fastest, plans, targets, warnings)
+    return _result(
+        "optimal", train, route, settings, fastest, plans, targets, warnings, timetable.timing_points, solvers
+    )
 
 
 def _run_lesov(train, route, timetable, settings, fastest) -> OptimizationResult:
@@ -313,7 +376,18 @@ def _run_lesov(train, route, timetable, settings, fastest) -> OptimizationResult
     targets = proportional_targets(timetable, fastest_s)
     plans, warnings = lesov_plans(train, route, solvers, targets, settings)
     # source 004 brakes recuperatively at 0.8 x the traction curve: account the run with that brake
-    return _result("lesov", lesov_train(train), route, settings, fastest, plans, targets, warnings)
+    return _result(
+        "lesov",
+        lesov_train(train),
+        route,
+        settings,
+        fastest,
+        plans,
+        targets,
+        warnings,
+        timetable.timing_points,
+        solvers,
+    )
 
 
 def _run_reference(train, route, timetable, settings, fastest) -> OptimizationResult:
@@ -331,7 +405,11 @@ def _run_reference(train, route, timetable, settings, fastest) -> OptimizationRe
         if sv.fastest_time_s >= T:
             plans.append(sv.solve(T))
             continue
-        ref = solve_reference(train, route, sv.s0, sv.s1, T)
+        windows = [p for p in timetable.timing_points if sv.s0 < p.position_m < sv.s1]
+        warm = sv.solve(T)
+        ref = solve_reference(
+            train, route, sv.s0, sv.s1, T, warm_start=(warm.s, warm.v), timing_points=windows
+        )
         if ref.status != "ok":
             warnings.append(f"reference optimum {sv.s0:.0f}-{sv.s1:.0f} m: IPOPT {ref.status}")
         t = np.concatenate([[0.0], np.cumsum(2 * np.diff(ref.s) / np.maximum(ref.v[:-1] + ref.v[1:], 1e-12))])
@@ -342,7 +420,18 @@ def _run_reference(train, route, timetable, settings, fastest) -> OptimizationRe
                 ref.s, ref.v, t, regime, float(t[-1]), np.nan, np.nan, np.nan, sv.fastest_time_s, True
             )
         )
-    return _result("reference", train, route, settings, fastest, plans, targets, warnings)
+    return _result(
+        "reference",
+        train,
+        route,
+        settings,
+        fastest,
+        plans,
+        targets,
+        warnings,
+        timetable.timing_points,
+        solvers,
+    )
 
 
 def _fastest_result(train, route, timetable, settings, fastest) -> OptimizationResult:
@@ -350,7 +439,9 @@ def _fastest_result(train, route, timetable, settings, fastest) -> OptimizationR
     fastest_s = [sv.fastest_time_s for sv in solvers]
     targets = proportional_targets(timetable, fastest_s)
     plans = [sv.solve(0.0) for sv in solvers]
-    return _result("fastest", train, route, settings, fastest, plans, targets, [])
+    return _result(
+        "fastest", train, route, settings, fastest, plans, targets, [], timetable.timing_points, solvers
+    )
 
 
 STRATEGIES: dict[str, Callable[..., OptimizationResult]] = {

@@ -129,7 +129,9 @@ def timetable_from_journey(journey, route):  # (Journey, Route) -> (Route, Timet
 
     Each section gets the longest time its windows allow (depart at the earliest, arrive at the
     latest), which is what saves most energy; an intermediate stop dwells from the latest arrival
-    to the earliest departure. Passing points are checked afterwards (``passing_point_warnings``).
+    to the earliest departure. The passing points go into the timetable's ``timing_points`` with
+    their times from the departure of their section: the reference enforces them, every strategy's
+    result reports the windows it misses (``OptimizationResult.timing_points``).
     """
     import dataclasses
 
@@ -159,7 +161,24 @@ def timetable_from_journey(journey, route):  # (Journey, Route) -> (Route, Timet
             )
         sections.append(SectionSchedule(running_time_s=float(arr - dep)))
     new_route = dataclasses.replace(route, stations=tuple(stations))
-    return new_route, Timetable(sections=tuple(sections), source=journey.name)
+    # passing points with their times from the departure of the section they lie in
+    points = []
+    for p in journey.passing_points:
+        k = max((i for i in range(len(merged) - 1) if merged[i][0] <= p.position_m), default=0)
+        dep = merged[k][2] if merged[k][2] is not None else (merged[k][1] or 0.0)
+        shift = [None if x is None else x - dep for x in (p.earliest_s, p.latest_s)]
+        if shift[0] is not None:
+            shift[0] = max(shift[0], 0.0)  # an earliest time before the departure constrains nothing
+        if shift[1] is not None and shift[1] < 0.0:
+            raise InputError(
+                "a passing point's window closes before its section departs",
+                file=journey.name,
+                field=f"timing point {p.label}",
+                value=(p.earliest_s, p.latest_s),
+                allowed=f">= the section's departure at {dep:g} s",
+            )
+        points.append(dataclasses.replace(p, earliest_s=shift[0], latest_s=shift[1]))
+    return new_route, Timetable(sections=tuple(sections), source=journey.name, timing_points=tuple(points))
 
 
 def passing_point_warnings(journey, run) -> list[str]:
