@@ -189,3 +189,23 @@ def test_a_stalled_train_is_reported_and_blocks_the_one_behind(train) -> None:
     assert first.status == "stalled" and "stalls" in " ".join(first.warnings)
     assert first.stops[-1].arrival_s is None and first.to_dict()["delay_s"] is None
     assert any("held by first" in d for d in res.deadlock) or res.trains[1].status == "stalled"
+
+
+def test_a_lone_train_matches_its_single_train_run(train) -> None:
+    """The stop-to-stop runs joined by the operations layer give the core's own run with dwell times."""
+    from trainsim import Station
+
+    line, geometry = _double()
+    res = simulate(
+        line, geometry, [TrainService("t", train, "up", "A", "C", 0.0, (ScheduledStop("B", 30),))], SETTINGS
+    )
+    limits = (SpeedLimit(500, 5500, 80 / 3.6),)
+    one = trainsim.run_fastest(
+        train,
+        Route("r", 500, 5500, (Station("A", 500), Station("B", 3000, 30.0), Station("C", 5500)), limits),
+        SETTINGS,
+    )
+    (t,) = res.trains
+    assert t.stops[-1].arrival_s == pytest.approx(one.total_time_s, abs=1e-6)
+    assert t.energy_kwh == pytest.approx(one.energy_kwh.net, rel=1e-9)
+    assert t.stops[1].departure_s - t.stops[1].arrival_s == pytest.approx(30.0)
