@@ -29,6 +29,7 @@ from __future__ import annotations
 from bisect import bisect_left
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -237,7 +238,8 @@ def approach_start_m(
     return p
 
 
-def route_release_points(route: Route, release: str) -> list[float]:
+@lru_cache(maxsize=65536)
+def route_release_points(route: Route, release: str) -> tuple[float, ...]:
     """Release point of each resource of ``route`` (running coordinate) [m]: its end, or the route's
     end plus overlap for the resource that reaches the route's end; with whole-route release, the
     farthest of them for all."""
@@ -246,7 +248,7 @@ def route_release_points(route: Route, release: str) -> list[float]:
     if release == "whole_route":
         far = max(points)
         points = [far] * len(points)
-    return points
+    return tuple(points)
 
 
 def blocking_times(
@@ -256,7 +258,7 @@ def blocking_times(
     steps: Sequence[tuple[int, Route]],
     stops_m: Sequence[float],
     signalling: Signalling,
-    line_position: Callable[[float], float] = float,
+    line_position: Callable[[np.ndarray], np.ndarray] | None = None,
     approach_distance_m: Callable[[float], float] | None = None,
 ) -> list[BlockingTime]:
     """The blocking times of every resource of every route a train takes.
@@ -269,7 +271,8 @@ def blocking_times(
         stops_m: where it stands (origin, stops, signal stops) [m]; a stop inside an approach moves the
             approach start to the departure from that stop.
         signalling: the times and distances of the model.
-        line_position: maps a running coordinate to the line position (for ``from_m``/``to_m``).
+        line_position: maps running coordinates (an array) to line positions (for ``from_m``/``to_m``);
+            None: the same.
         approach_distance_m: ETCS / moving block: approach distance over speed [m].
     """
     sig = signalling
@@ -295,20 +298,27 @@ def blocking_times(
     clears = trajectory.first_time_at(flat)
     # a train leaves the line at the end of its trajectory (its destination, after the dwell there)
     clears = np.where(np.isfinite(clears), clears, trajectory.time_s[-1])
+    starts = np.array([route.start_m for _j, route in steps])
+    ends = flat - length
+    if line_position is not None:
+        starts, ends = (
+            np.asarray(line_position(starts), dtype=float),
+            np.asarray(line_position(ends), dtype=float),
+        )
     out: list[BlockingTime] = []
     c = 0
     for k, (j, route) in enumerate(steps):
         start = float(t_see[k]) - sig.reaction_s - sig.setup_s
-        lo = float(line_position(route.start_m))
-        for res, point in zip(route.resources, points[k], strict=True):
+        lo = float(starts[k])
+        for res in route.resources:
             clear = float(clears[c])
-            c += 1
             out.append(
                 BlockingTime(
                     train_id, route.name, res.name, j, start, float(t_see[k]), float(entries[k]), clear,
-                    clear + sig.release_s, lo, float(line_position(point)),
+                    clear + sig.release_s, lo, float(ends[c]),
                 )
             )  # fmt: skip
+            c += 1
     return out
 
 

@@ -536,12 +536,12 @@ class _Dispatcher:
             if low is None:
                 mine_bt = blocking_times(
                     st.svc.id, st.trajectory, st.path, steps, list(st.stop_positions()), sig,
-                    float, self.approach[st.index],
+                    None, self.approach[st.index],
                 )  # fmt: skip
                 low = {b.resource: (b.start_s, b.end_s) for b in mine_bt}
             high = blocking_times(
                 other.svc.id, other.trajectory, other.path, ahead, list(other.stop_positions()), sig,
-                float, self.approach[other.index],
+                None, self.approach[other.index],
             )  # fmt: skip
             for b in high:
                 if b.resource in low and t - 1e-9 <= b.start_s <= t + self.lookahead_s:
@@ -892,8 +892,8 @@ def simulate(
     )  # fmt: skip
 
 
-def _line_pos(line: Line, direction: Direction) -> Callable[[float], float]:
-    return lambda x: float(line.line_position(direction, x))
+def _line_pos(line: Line, direction: Direction) -> Callable[[np.ndarray], np.ndarray]:
+    return lambda x: line.line_position(direction, x)
 
 
 @dataclass
