@@ -89,6 +89,7 @@ def test_unknown_fields_and_bad_values_are_named(tmp_path: Path) -> None:
     fields = {q.field for q in e.value.problems}
     assert "line.signalling.aspect" in fields and "line.layout" in fields
     assert all(q.file == str(p) for q in e.value.problems)
+    assert all(q.line is not None and q.line > 1 for q in e.value.problems)
 
 
 def test_signal_off_the_open_line_is_an_error(tmp_path: Path) -> None:

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
+import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 from trainsim.errors import InputError, Problem
@@ -249,7 +250,27 @@ def _time(
     return None
 
 
-def _validation_problems(err: ValidationError, file: str) -> list[Problem]:
+def _line_of(text: str, loc: list) -> int | None:
+    """The YAML line (1-based) of the node at ``loc`` (keys and indices), or of its nearest parent."""
+    try:
+        node = yaml.compose(text)
+    except yaml.YAMLError:
+        return None
+    line = None
+    for key in loc:
+        if node is None:
+            break
+        line = node.start_mark.line + 1
+        if isinstance(node, yaml.MappingNode):
+            node = next((v for k, v in node.value if getattr(k, "value", None) == key), None)
+        elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and key < len(node.value):
+            node = node.value[key]
+        else:
+            node = None
+    return node.start_mark.line + 1 if node is not None else line
+
+
+def _validation_problems(err: ValidationError, file: str, text: str = "") -> list[Problem]:
     out = []
     for e in err.errors():
         loc = [("schema" if x == "schema_" else x) for x in e["loc"]]
@@ -261,8 +282,11 @@ def _validation_problems(err: ValidationError, file: str) -> list[Problem]:
         if "expected" in ctx:
             allowed = str(ctx["expected"])
         reason = "unknown field" if e["type"] == "extra_forbidden" else e["msg"]
+        if e["type"] in ("dict_type", "model_type"):
+            reason = "a mapping is expected here"
         value = e.get("input") if e["type"] != "missing" else None
-        out.append(Problem(reason, file=file, field=path, value=value, allowed=allowed))
+        line = _line_of(text, ["schema" if x == "schema_" else x for x in e["loc"]]) if text else None
+        out.append(Problem(reason, file=file, line=line, field=path, value=value, allowed=allowed))
     return out
 
 
@@ -288,7 +312,7 @@ def read_operation(path: str | Path) -> Operation:
     try:
         spec = _Operation.model_validate(data)
     except ValidationError as err:
-        raise InputError.from_problems(_validation_problems(err, file)) from None
+        raise InputError.from_problems(_validation_problems(err, file, path.read_text())) from None
     base = path.parent
     problems: list[Problem] = []
 
