@@ -161,3 +161,22 @@ def test_too_many_sections_is_an_input_error() -> None:
     with pytest.raises(InputError, match="more than") as e:
         build_line("x", 100_000, "double_track", (StationLayout("A", 500), StationLayout("B", 99_000)), sig)
     assert e.value.problems[0].field == "signalling.moving_block_step_m"
+
+
+def test_sectional_release_frees_the_switch_zone_before_the_block() -> None:
+    ends = {}
+    for release in ("sectional", "whole_route"):
+        sig = Signalling(release=release, overlap_m=80.0, release_s=4.0)
+        line = _line(sig)
+        path = line.paths["up"]
+        steps = [(j, st.alternatives[0]) for j, st in enumerate(path.steps)]
+        bt = blocking_times("a", _constant_speed(line.length_m), path, steps, [], sig)
+        exit_route = [b for b in bt if b.route == "U:A-B block 1"]
+        ends[release] = {b.resource: b.end_s for b in exit_route}
+    zone, block = "A/U-exit-switch", "U:A-B block 1"
+    x_exit = 1020.0  # the exit signal, 20 m beyond the stopping point
+    block_end = x_exit + np.diff(_line(Signalling()).paths["up"].signal_positions())[1]
+    assert ends["sectional"][zone] == pytest.approx((x_exit + 100.0 + L) / V + 4.0, abs=1e-9)
+    assert ends["sectional"][block] == pytest.approx((block_end + 80.0 + L) / V + 4.0, abs=1e-9)
+    assert ends["whole_route"][zone] == pytest.approx(ends["whole_route"][block], abs=1e-12)
+    assert ends["whole_route"][block] == pytest.approx(ends["sectional"][block], abs=1e-9)
