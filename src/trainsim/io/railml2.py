@@ -207,9 +207,7 @@ class _Reader:
             container = child(part, "ocpsTT")
             self.usage.use(container)
             items = children(container, "ocpTT")
-            items.sort(
-                key=lambda o: int(o.get("sequence") or 0) if (o.get("sequence") or "").isdigit() else 0
-            )
+            items.sort(key=lambda o: rc.sort_number(o.get("sequence")))
             for o in items:
                 # a train part starting where the previous one ended: the junction once
                 if ocps and o.get("ocpRef") == ocps[-1].get("ocpRef"):
@@ -552,19 +550,7 @@ class _Reader:
         path = rc.route_path(net, stops, self.problems, origins.get)
         self.problems.raise_if_any()
         assert path is not None
-        stations: list[rc.StationAt] = []
-        after = -math.inf
-        for (_, dwell, stop, el), st in zip(entries, stops, strict=True):
-            pos = None
-            for edge, x in st.locations:
-                s = path.position(edge, x, after)
-                if s is not None and (pos is None or s < pos):
-                    pos = s
-            if pos is None:  # pragma: no cover - the path goes through every stop
-                self.problems.add(el, "operational point not on the route's path")
-                continue
-            after = pos
-            stations.append(rc.StationAt(st.name, pos, dwell, stop, el))
+        stations = rc.stations_on_path(path, entries, stops, self.problems)
         if stations:
             stations[0] = rc.StationAt(
                 stations[0].name, stations[0].position_m, stations[0].dwell_s, True, stations[0].element
@@ -634,15 +620,7 @@ class _Reader:
         self.usage.use(child(rs, "vehicles"))
         self.usage.use(child(rs, "formations"))
         if formation_id is not None:
-            if formation_id not in formations:
-                raise InputError(
-                    "no formation of that id",
-                    file=self.file,
-                    field="formation_id",
-                    value=formation_id,
-                    allowed=", ".join(str(f) for f in formations),
-                )
-            formation = formations[formation_id]
+            formation = rc.formation_by_id(formations, formation_id, self.file)
         elif len(formations) == 1:
             formation = next(iter(formations.values()))
         elif formations:
@@ -664,23 +642,9 @@ class _Reader:
             name = formation.get("name") or formation.get("id") or "train"
             refs = children(child(formation, "trainOrder"), "vehicleRef")
             self.usage.use(child(formation, "trainOrder"))
-            refs.sort(
-                key=lambda r: int(r.get("orderNumber") or 0) if (r.get("orderNumber") or "").isdigit() else 0
+            order: list[tuple[etree._Element, int, etree._Element | None]] = list(
+                rc.vehicle_order(refs, vehicles, self.usage, p, unknown="vehicleRef to an unknown vehicle")
             )
-            order = []
-            for r in refs:
-                self.usage.use(r)
-                v = vehicles.get(r.get("vehicleRef"))
-                if v is None:
-                    p.add(
-                        r,
-                        "vehicleRef to an unknown vehicle",
-                        attribute="vehicleRef",
-                        value=r.get("vehicleRef"),
-                    )
-                    continue
-                count = rc.attr_int(r, "vehicleCount", p, default=1, low=1)
-                order.append((v, count, r))
             if not order:
                 p.add(formation, "the formation lists no vehicle (trainOrder/vehicleRef)")
         p.raise_if_any()
@@ -832,11 +796,9 @@ class _Reader:
 
     def _electrical(self, form: rc.FormationSource) -> None:
         p = self.problems
-        powered = [v for v in form.vehicles if v.powered and v.propulsion is not None]
-        if not powered:
+        prop = rc.powered_propulsion(form)
+        if prop is None:
             return
-        prop = powered[0].propulsion
-        assert prop is not None
         voltage = attr_float(prop, "voltage", p, positive=True)
         eta = attr_float(prop, "totalTractEfficiency", p, positive=True)
         if voltage is None or eta is None:
@@ -845,10 +807,7 @@ class _Reader:
         regen = attr_float(prop, "totalBrakeEfficiency", p, minimum=0)
         if regen is not None:
             out["regenerative_efficiency"] = regen
-        for key, attr in (("power_factor", "powerFactor"), ("receptivity", "receptivity")):
-            value = rc.num(rc.ext(prop, attr))
-            if value is not None:
-                out[key] = value
+        rc.extension_numbers(prop, out, (("power_factor", "powerFactor"), ("receptivity", "receptivity")))
         form.electrical = out
 
 
@@ -1013,23 +972,16 @@ class _Writer(rc.ElementWriter):
     def rollingstock(self, root: etree._Element, train: Train) -> None:
         rs = self.el(root, "rollingstock")
         vehicles_el = self.el(rs, "vehicles")
-        groups = _vehicle_groups(train)
+        groups = rc.vehicle_groups(train)
         # the traction curve is the train's: shared equally by the powered vehicles (the first
         # vehicle when none is marked powered)
         powered_names = {v.name for v, _ in groups if v.powered} or {groups[0][0].name}
         n_powered = sum(n for v, n in groups if v.name in powered_names)
-        xi = rc.vehicle_factors_for(
-            train.rotating_mass_factor, [(v.mass_kg, v.load_kg, n) for v, n in groups]
-        )
-        speeds, forces, fcap, pcap, exact = rc.effort_table(train.traction, train.max_speed_mps)
-        if not exact:
-            self.notes.append(f"traction: the curve is not a table; written sampled at {len(speeds)} speeds")
+        tables = rc.written_tables(train, groups, self.notes)
+        xi, speeds, forces = tables.xi, tables.speeds, tables.forces
+        fcap, pcap = tables.force_cap_n, tables.power_cap_w
+        r_speeds, r_forces = tables.regen_speeds, tables.regen_forces
         regen = train.braking.regenerative
-        if regen is not None:
-            r_speeds, r_forces, _, _, r_exact = rc.effort_table(regen, train.max_speed_mps)
-            if not r_exact or len(r_speeds) == 0:
-                r_speeds, r_forces = _sampled(regen, train.max_speed_mps)
-                self.notes.append("regenerative braking: the curve is not a table; written sampled")
         n_total = sum(n for _, n in groups)
         elec = train.electrical
         ids: dict[str, str] = {}
@@ -1116,7 +1068,7 @@ class _Writer(rc.ElementWriter):
             assert braking.service_force is not None
             b_speeds, b_forces, _, _, b_exact = rc.effort_table(braking.service_force, train.max_speed_mps)
             if not b_exact or len(b_speeds) == 0:
-                b_speeds, b_forces = _sampled(braking.service_force, train.max_speed_mps)
+                b_speeds, b_forces = rc.sampled(braking.service_force, train.max_speed_mps)
                 self.notes.append("braking: written as a sampled table")
             op = self.el(form, "trainBrakeOperation", ts_tableIs="service")
             dt = self.el(op, "decelerationTable")
@@ -1181,25 +1133,9 @@ def _changes(
     return out
 
 
-def _sampled(curve: Any, max_speed_mps: float) -> tuple[np.ndarray, np.ndarray]:
-    speeds = np.arange(0.0, max_speed_mps * 1.05 + 0.25 * KMH, 0.25 * KMH)
-    return speeds, np.asarray(curve(speeds), dtype=float)
-
-
-def _vehicle_groups(train: Train) -> list[tuple[Any, int]]:
-    """The formation as (vehicle, count) groups of consecutive equal vehicles; a train given by
-    its mass alone as one vehicle."""
-    from trainsim.model import Vehicle
-
-    if not train.vehicles:
-        return [(Vehicle("train", train.mass_kg, train.length_m, powered=True), 1)]
-    groups: list[tuple[Any, int]] = []
-    for v in train.vehicles:
-        if groups and groups[-1][0] == v:
-            groups[-1] = (v, groups[-1][1] + 1)
-        else:
-            groups.append((v, 1))
-    return groups
+# Former names (the writers' helpers are in railml_common now).
+_sampled = rc.sampled
+_vehicle_groups = rc.vehicle_groups
 
 
 def write_railml2(

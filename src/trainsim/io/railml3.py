@@ -584,7 +584,7 @@ class _Reader:
                 self.usage.use(c)
             name = f"{tname} path" if tname else name
             bips = children(base, "baseItineraryPoint")
-            bips.sort(key=lambda b: int(b.get("sequence")) if (b.get("sequence") or "").isdigit() else 0)
+            bips.sort(key=lambda b: rc.sort_number(b.get("sequence")))
             for k, bip in enumerate(bips):
                 self.usage.use(bip)
                 ref = bip.get("locationRef")
@@ -627,19 +627,7 @@ class _Reader:
         path = rc.route_path(net, stops, p, origins.get)
         p.raise_if_any()
         assert path is not None
-        stations: list[rc.StationAt] = []
-        after = -math.inf
-        for (_, dwell, stop, el), st in zip(entries, stops, strict=True):
-            pos = None
-            for edge, x in st.locations:
-                s = path.position(edge, x, after)
-                if s is not None and (pos is None or s < pos):
-                    pos = s
-            if pos is None:  # pragma: no cover
-                p.add(el, "operational point not on the route's path")
-                continue
-            after = pos
-            stations.append(rc.StationAt(st.name, pos, dwell, stop, el))
+        stations = rc.stations_on_path(path, entries, stops, p)
         self.content.station_elements = [st.element for st in stations]
         data = self.line_data(net, measures)
         p.raise_if_any()
@@ -691,15 +679,7 @@ class _Reader:
         for el in (child(rs, "vehicles"), child(rs, "formations")):
             self.usage.use(el)
         if formation_id is not None:
-            if formation_id not in formations:
-                raise InputError(
-                    "no formation of that id",
-                    file=self.file,
-                    field="formation_id",
-                    value=formation_id,
-                    allowed=", ".join(str(f) for f in formations),
-                )
-            formation = formations[formation_id]
+            formation = rc.formation_by_id(formations, formation_id, self.file)
         elif formation is None and formations:
             formation = next(iter(formations.values()))
             if len(formations) > 1:
@@ -719,26 +699,9 @@ class _Reader:
             name = _name(formation, self.usage) or formation.get("id") or "train"
             refs = children(child(formation, "trainOrder"), "vehicleRef") or children(formation, "trainOrder")
             self.usage.use(child(formation, "trainOrder"))
-            refs.sort(
-                key=lambda r: int(r.get("orderNumber")) if (r.get("orderNumber") or "").isdigit() else 0
+            order = rc.vehicle_order(
+                refs, vehicles, self.usage, p, unknown="reference to an unknown vehicle", merge_repeats=True
             )
-            order = []
-            for r in refs:
-                self.usage.use(r)
-                v = vehicles.get(r.get("vehicleRef"))
-                if v is None:
-                    p.add(
-                        r,
-                        "reference to an unknown vehicle",
-                        attribute="vehicleRef",
-                        value=r.get("vehicleRef"),
-                    )
-                    continue
-                count = rc.attr_int(r, "vehicleCount", p, default=1, low=1)
-                if order and order[-1][0] is v and r.get("vehicleCount") is None:
-                    order[-1] = (v, order[-1][1] + 1, order[-1][2])
-                else:
-                    order.append((v, count, r))
             if not order:
                 p.add(formation, "the formation lists no vehicle (trainOrder)")
         p.raise_if_any()
@@ -843,24 +806,20 @@ class _Reader:
 
     def _electrical(self, form: rc.FormationSource) -> None:
         p = self.problems
-        powered = [v for v in form.vehicles if v.powered and v.propulsion is not None]
-        if not powered:
+        engine = rc.powered_propulsion(form)
+        if engine is None:
             return
-        engine = powered[0].propulsion
-        assert engine is not None
         voltage = _attr_below(engine, "voltage", p)
         eta = rc.num(rc.ext(engine, "tractionEfficiency"))
         if voltage is None or eta is None:
             return
         out: dict[str, Any] = {"line_voltage_v": voltage, "traction_efficiency": eta}
-        for key, attr in (
+        pairs = (
             ("regenerative_efficiency", "regenerativeEfficiency"),
             ("power_factor", "powerFactor"),
             ("receptivity", "receptivity"),
-        ):
-            value = rc.num(rc.ext(engine, attr))
-            if value is not None:
-                out[key] = value
+        )
+        rc.extension_numbers(engine, out, pairs)
         form.electrical = out
 
 
@@ -1071,31 +1030,22 @@ class _Writer(rc.ElementWriter):
             self.linear(sec, f"sps{k + 1}", lim.start_m - rel, lim.end_m - rel, length, "normal")
 
     def rollingstock(self, root: etree._Element, train: Train) -> None:
-        from trainsim.io.railml2 import _sampled, _vehicle_groups
-
         rs = self.el(root, "rollingstock", id="rs")
         vehicles_el = self.el(rs, "vehicles")
-        groups = _vehicle_groups(train)
+        groups = rc.vehicle_groups(train)
         powered_names = {v.name for v, _ in groups if v.powered} or {groups[0][0].name}
         n_powered = sum(n for v, n in groups if v.name in powered_names)
         n_total = sum(n for _, n in groups)
-        xi = rc.vehicle_factors_for(
-            train.rotating_mass_factor, [(v.mass_kg, v.load_kg, n) for v, n in groups]
-        )
-        speeds, forces, fcap, pcap, exact = rc.effort_table(train.traction, train.max_speed_mps)
-        if not exact:
-            self.notes.append(f"traction: the curve is not a table; written sampled at {len(speeds)} speeds")
+        tables = rc.written_tables(train, groups, self.notes)
+        xi, speeds, forces = tables.xi, tables.speeds, tables.forces
+        fcap, pcap = tables.force_cap_n, tables.power_cap_w
+        r_speeds, r_forces = tables.regen_speeds, tables.regen_forces
         regen = train.braking.regenerative
-        if regen is not None:
-            r_speeds, r_forces, _, _, r_exact = rc.effort_table(regen, train.max_speed_mps)
-            if not r_exact or len(r_speeds) == 0:
-                r_speeds, r_forces = _sampled(regen, train.max_speed_mps)
-                self.notes.append("regenerative braking: the curve is not a table; written sampled")
         braking = train.braking
         if braking.service_force is not None:
             b_speeds, b_forces, _, _, b_exact = rc.effort_table(braking.service_force, train.max_speed_mps)
             if not b_exact or len(b_speeds) == 0:
-                b_speeds, b_forces = _sampled(braking.service_force, train.max_speed_mps)
+                b_speeds, b_forces = rc.sampled(braking.service_force, train.max_speed_mps)
                 self.notes.append("braking: the curve is not a table; written sampled")
         elec = train.electrical
         for k, (v, _n) in enumerate(groups):

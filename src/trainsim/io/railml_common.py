@@ -289,6 +289,95 @@ def attr_int(
     return int(stripped)
 
 
+def sort_number(text: str | None) -> int:
+    """A whole number written in a ``sequence`` / ``orderNumber`` attribute to sort by (0 if it is
+    not one: the order then falls back on the document order)."""
+    if text is None or not re.fullmatch(r"\s*[0-9]{1,9}\s*", text):
+        return 0
+    return int(text)
+
+
+def powered_propulsion(form: FormationSource) -> etree._Element | None:
+    """The propulsion element of the first powered vehicle that has one (its electrical data)."""
+    powered = [v for v in form.vehicles if v.powered and v.propulsion is not None]
+    return powered[0].propulsion if powered else None
+
+
+def extension_numbers(el: etree._Element, out: dict[str, Any], pairs: Sequence[tuple[str, str]]) -> None:
+    """``out[key]`` = the number of trainsim's extension attribute ``attr`` of ``el``, where given."""
+    for key, attr in pairs:
+        value = num(ext(el, attr))
+        if value is not None:
+            out[key] = value
+
+
+def stations_on_path(
+    path: Any,
+    entries: Sequence[tuple[Any, float, bool, etree._Element]],
+    stops: Sequence[Stop],
+    problems: Problems,
+) -> list[StationAt]:
+    """The stations of a route at their positions along its path, in order: each operational point
+    at the first of its locations past the previous one."""
+    stations: list[StationAt] = []
+    after = -math.inf
+    for (_, dwell, stop, el), st in zip(entries, stops, strict=True):
+        pos = None
+        for edge, x in st.locations:
+            s = path.position(edge, x, after)
+            if s is not None and (pos is None or s < pos):
+                pos = s
+        if pos is None:  # pragma: no cover - the path goes through every stop
+            problems.add(el, "operational point not on the route's path")
+            continue
+        after = pos
+        stations.append(StationAt(st.name, pos, dwell, stop, el))
+    return stations
+
+
+def formation_by_id(
+    formations: dict[str | None, etree._Element], formation_id: str, file: str
+) -> etree._Element:
+    """The formation of the given id (``--formation-id``), or an InputError naming the ids there are."""
+    if formation_id not in formations:
+        raise InputError(
+            "no formation of that id",
+            file=file,
+            field="formation_id",
+            value=formation_id,
+            allowed=", ".join(str(f) for f in formations),
+        )
+    return formations[formation_id]
+
+
+def vehicle_order(
+    refs: list[etree._Element],
+    vehicles: dict[str | None, etree._Element],
+    usage: Usage,
+    problems: Problems,
+    *,
+    unknown: str,
+    merge_repeats: bool = False,
+) -> list[tuple[etree._Element, int, etree._Element]]:
+    """``(vehicle, count, reference)`` for the ``vehicleRef`` references of a formation's train order
+    (sorted by ``orderNumber``); a reference to an unknown vehicle is a problem (``unknown`` says it).
+    With ``merge_repeats``, consecutive references to one vehicle without a count add up (railML 3)."""
+    refs = sorted(refs, key=lambda r: sort_number(r.get("orderNumber")))
+    order: list[tuple[etree._Element, int, etree._Element]] = []
+    for r in refs:
+        usage.use(r)
+        v = vehicles.get(r.get("vehicleRef"))
+        if v is None:
+            problems.add(r, unknown, attribute="vehicleRef", value=r.get("vehicleRef"))
+            continue
+        count = attr_int(r, "vehicleCount", problems, default=1, low=1)
+        if merge_repeats and order and order[-1][0] is v and r.get("vehicleCount") is None:
+            order[-1] = (v, order[-1][1] + 1, order[-1][2])
+        else:
+            order.append((v, count, r))
+    return order
+
+
 def index_ids(root: etree._Element, problems: Problems) -> dict[str, etree._Element]:
     """The elements by ``id``; a duplicate id (railML ids are unique in a file) is a problem."""
     ids: dict[str, etree._Element] = {}
@@ -1591,3 +1680,62 @@ class ElementWriter:
         for x, y in zip(speeds_mps, values, strict=True):
             line = self.el(vt, "valueLine", xValue=float(x / KMH))
             self.el(line, self.value_tag, yValue=float(y))
+
+
+# ====================================================================== writing trains
+def sampled(curve: Any, max_speed_mps: float) -> tuple[np.ndarray, np.ndarray]:
+    """An effort curve sampled every 0.25 km/h up to 5 % above the maximum speed: (speeds [m/s],
+    forces [N])."""
+    speeds = np.arange(0.0, max_speed_mps * 1.05 + 0.25 * KMH, 0.25 * KMH)
+    return speeds, np.asarray(curve(speeds), dtype=float)
+
+
+def vehicle_groups(train: Any) -> list[tuple[Any, int]]:
+    """The formation as (vehicle, count) groups of consecutive equal vehicles; a train given by
+    its mass alone as one vehicle."""
+    from trainsim.model import Vehicle
+
+    if not train.vehicles:
+        return [(Vehicle("train", train.mass_kg, train.length_m, powered=True), 1)]
+    groups: list[tuple[Any, int]] = []
+    for v in train.vehicles:
+        if groups and groups[-1][0] == v:
+            groups[-1] = (v, groups[-1][1] + 1)
+        else:
+            groups.append((v, 1))
+    return groups
+
+
+@dataclass(frozen=True)
+class WrittenTables:
+    """What the railML writers write of a train's curves (tables, exact or sampled).
+
+    Attributes:
+        xi: rotating mass factor per vehicle group (they combine back to the train's).
+        speeds, forces, force_cap_n, power_cap_w: the traction table and its caps.
+        regen_speeds, regen_forces: the regenerative braking table (empty without one).
+    """
+
+    xi: Any
+    speeds: np.ndarray
+    forces: np.ndarray
+    force_cap_n: float
+    power_cap_w: float
+    regen_speeds: np.ndarray
+    regen_forces: np.ndarray
+
+
+def written_tables(train: Any, groups: list[tuple[Any, int]], notes: list[str]) -> WrittenTables:
+    """The traction and regenerative tables a railML writer writes (``notes`` says when sampled)."""
+    xi = vehicle_factors_for(train.rotating_mass_factor, [(v.mass_kg, v.load_kg, n) for v, n in groups])
+    speeds, forces, fcap, pcap, exact = effort_table(train.traction, train.max_speed_mps)
+    if not exact:
+        notes.append(f"traction: the curve is not a table; written sampled at {len(speeds)} speeds")
+    r_speeds, r_forces = np.zeros(0), np.zeros(0)
+    regen = train.braking.regenerative
+    if regen is not None:
+        r_speeds, r_forces, _, _, r_exact = effort_table(regen, train.max_speed_mps)
+        if not r_exact or len(r_speeds) == 0:
+            r_speeds, r_forces = sampled(regen, train.max_speed_mps)
+            notes.append("regenerative braking: the curve is not a table; written sampled")
+    return WrittenTables(xi, speeds, forces, fcap, pcap, r_speeds, r_forces)

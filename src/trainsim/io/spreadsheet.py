@@ -842,10 +842,8 @@ def _rows_train(train: Train) -> dict[str, list[list[Any]]]:
         ["davis C (N/(km/h)^2)", law.c2 * KMH**2],
     ]
     if train.vehicles:
-        from trainsim.io.railml2 import _vehicle_groups
-
         rows: list[list[Any]] = [["name", "count", "mass (t)", "load (t)", "length (m)", "axles", "powered"]]
-        for v, n in _vehicle_groups(train):
+        for v, n in rc.vehicle_groups(train):
             rows.append(
                 [
                     v.name,
