@@ -145,3 +145,11 @@ def test_monte_carlo_samples_are_seeded_and_summarised(tmp_path: Path) -> None:
     assert monte_carlo(op, 6, seed=4) != a
     with pytest.raises(InputError, match="samples"):
         monte_carlo(op, 0)
+
+
+def test_check_report_of_an_operation_file() -> None:
+    from trainsim.operations.reader import check_operation
+
+    report = check_operation(ROOT / "examples/operations/metro_fixed_block.yaml")
+    assert report.kind == "operation" and report.figures["trains"] == "14"
+    assert "fixed_block, 3 aspects" in report.to_text()

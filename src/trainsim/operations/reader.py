@@ -520,3 +520,29 @@ def _services(
                 )
             )
     return out
+
+
+def check_operation(path: str | Path):  # -> trainsim.io.report.CheckReport
+    """What ``trainsim check`` shows for an operation file (register with
+    ``trainsim.io.loader.register_checker(SCHEMA, check_operation)``); InputError if it is not valid."""
+    from trainsim.io.report import CheckReport
+
+    op = read_operation(path)
+    sig = op.line.signalling
+    deps = [s.departure_s for s in op.services]
+    figures = {
+        "line": f"{op.line.length_m / 1000:.3f} km, {op.line.layout.replace('_', ' ')}",
+        "stations": ", ".join(f"{s.name} ({s.tracks})" for s in op.line.stations),
+        "signalling": sig.system + (f", {sig.aspects} aspects" if sig.system == "fixed_block" else ""),
+        "routes per direction": str(len(op.line.paths["up"].steps)),
+        "trains": str(len(op.services)),
+        "departures": f"{min(deps):.0f} .. {max(deps):.0f} s" if deps else "-",
+        "dispatching": op.rule + (f", look-ahead {op.lookahead_s:g} s" if op.lookahead_s else ""),
+    }
+    notes = []
+    if op.delays is not None:
+        notes.append(
+            f"entry delays sampled: probability {op.delays.probability:g}, mean {op.delays.mean_s:g} s, "
+            f"seed {op.delays.seed}"
+        )
+    return CheckReport(str(path), "operation", f"{SCHEMA} v1", op.name, figures, notes)
