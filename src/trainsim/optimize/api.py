@@ -30,6 +30,7 @@ from trainsim.model.route import Route, Station
 from trainsim.model.scenario import RunSettings
 from trainsim.model.timetable import TimingPoint
 from trainsim.model.train import Train
+from trainsim.optimize.constraints import DrivingConstraints, constrained_route, constrained_train
 from trainsim.optimize.optimal import TIME_TOLERANCE_S, SectionPlan, SectionSolver
 from trainsim.optimize.timetable import Timetable
 from trainsim.sim import kernel
@@ -244,9 +245,16 @@ def optimize(
     timetable: Timetable,
     strategy: str = "optimal",
     settings: RunSettings | None = None,
+    constraints: DrivingConstraints | None = None,
 ) -> OptimizationResult:
-    """The run of ``strategy`` that meets ``timetable`` with least energy (see module doc)."""
+    """The run of ``strategy`` that meets ``timetable`` with least energy (see module doc).
+
+    ``constraints`` (comfort acceleration and deceleration, jerk, a margin below the speed limits,
+    ``trainsim.optimize.constraints``) apply to every strategy through the train's force caps and
+    the route's limits; the reference also bounds the kinematic acceleration and the jerk."""
     settings = settings or RunSettings()
+    if constraints is not None:
+        train, route = constrained_train(train, constraints), constrained_route(route, constraints)
     if strategy not in STRATEGIES:
         raise InputError("unknown strategy", field="strategy", value=strategy, allowed=", ".join(STRATEGIES))
     fastest = run_fastest(train, route, settings)
@@ -254,6 +262,8 @@ def optimize(
         raise InputError(
             "the fastest run is not possible: " + "; ".join(fastest.warnings), field="route", value=route.name
         )
+    if strategy == "reference":
+        return _run_reference(train, route, timetable, settings, fastest, constraints)
     return STRATEGIES[strategy](train, route, timetable, settings, fastest)
 
 
@@ -390,7 +400,7 @@ def _run_lesov(train, route, timetable, settings, fastest) -> OptimizationResult
     )
 
 
-def _run_reference(train, route, timetable, settings, fastest) -> OptimizationResult:
+def _run_reference(train, route, timetable, settings, fastest, constraints=None) -> OptimizationResult:
     from trainsim.optimize.reference import solve_reference
 
     solvers = _solvers(train, route, settings)
@@ -408,7 +418,14 @@ def _run_reference(train, route, timetable, settings, fastest) -> OptimizationRe
         windows = [p for p in timetable.timing_points if sv.s0 < p.position_m < sv.s1]
         warm = sv.solve(T)
         ref = solve_reference(
-            train, route, sv.s0, sv.s1, T, warm_start=(warm.s, warm.v), timing_points=windows
+            train,
+            route,
+            sv.s0,
+            sv.s1,
+            T,
+            warm_start=(warm.s, warm.v),
+            timing_points=windows,
+            constraints=constraints,
         )
         if ref.status != "ok":
             warnings.append(f"reference optimum {sv.s0:.0f}-{sv.s1:.0f} m: IPOPT {ref.status}")

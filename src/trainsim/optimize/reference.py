@@ -49,6 +49,7 @@ from trainsim.model.effort import EffortCurve
 from trainsim.model.route import Route
 from trainsim.model.timetable import TimingPoint
 from trainsim.model.train import Train
+from trainsim.optimize.constraints import DrivingConstraints
 from trainsim.sim.profile import line_resistance_profile, speed_ceiling
 
 #: Unit of the force variables in the NLP [N].
@@ -364,6 +365,7 @@ def solve_reference(
     time_limit_s: float = TIME_LIMIT_S,
     timing_points: Sequence[TimingPoint] = (),
     grid: np.ndarray | None = None,
+    constraints: DrivingConstraints | None = None,
 ) -> ReferenceSolution:
     """The minimum-energy run from standstill at s0 to standstill at s1 in ``running_time_s`` on one grid.
 
@@ -380,6 +382,9 @@ def solve_reference(
         timing_points: time windows (from the departure at s0) [s] and speed windows [m/s] at
             positions inside the section, enforced at a grid node placed on each.
         grid: node positions to use instead of building one [m].
+        constraints: comfort limits on the kinematic acceleration (v_{k+1}^2 - v_k^2) / (2 h) of
+            every interval and on the jerk (its change between intervals per second); apply
+            ``constrained_train``/``constrained_route`` for the force caps and the speed margin.
     """
     ca = _casadi()
     prob = _problem(train, route, s0, s1, intervals, timing_points, grid)
@@ -404,6 +409,18 @@ def solve_reference(
     # at least as fast as scheduled: saving energy makes it exactly the scheduled time
     opti.subject_to(ca.sum1(dt) <= running_time_s)
     _window_constraints(opti, prob, lambda k: ca.sum1(dt[:k]), lambda k: 0.5 * v[k] ** 2)
+    if constraints is not None:
+        acc = (v[1:] ** 2 - v[:-1] ** 2) / (2 * h)
+        if constraints.max_acceleration_mps2 is not None:
+            opti.subject_to(acc <= constraints.max_acceleration_mps2)
+        if constraints.max_deceleration_mps2 is not None:
+            opti.subject_to(acc >= -constraints.max_deceleration_mps2)
+        if constraints.max_jerk_mps3 is not None and n > 1:
+            # change of acceleration between neighbouring intervals over the time between their middles
+            dt_mid = 0.5 * (dt[:-1] + dt[1:])
+            jerk = acc[1:] - acc[:-1]
+            opti.subject_to(jerk <= constraints.max_jerk_mps3 * dt_mid)
+            opti.subject_to(jerk >= -constraints.max_jerk_mps3 * dt_mid)
     vtop = prob.vmax * 1.05
     for u, curve in ((ut, train.traction), (ur, train.braking.regenerative)):
         if curve is None:
