@@ -46,6 +46,10 @@ LENGTH_SCALE_FRACTION = 0.02
 MIN_SUBSTEP_M = 1e-4
 MAX_SUBSTEPS = 20_000
 
+#: A kink speed this close to a stretch's recorded end speed (relative to 1 + v [m/s]) is taken as
+#: its end: traces place points at kinks, and their speeds are exact to about 1e-8 m/s.
+KINK_MARGIN_MPS = 1e-6
+
 #: Number of work quantities integrated per stretch (see ``WORK_NAMES``).
 N_WORKS = 6
 #: Traction, braking (regenerative + friction), regenerative braking at the wheel, running
@@ -237,12 +241,13 @@ def _dynamic_piece(E, u, h, mode, lw, level, P, curves, kinks, W, v_hint):
     remaining = h
     v0 = np.sqrt(2.0 * E) if E > 0.0 else 0.0
     rising = v_hint > v0
-    # a kink just beyond the end speed may still lie inside the stretch
-    v_far = v_hint + 0.5 * (v_hint - v0) + 1e-6 if rising else v_hint - 0.5 * (v0 - v_hint) - 1e-6
+    # the trace's end speed is exact to about 1e-8 m/s: a kink within KINK_MARGIN_MPS of it is the end
+    margin = KINK_MARGIN_MPS * (1.0 + v_hint)
+    v_far = v_hint + margin if rising else v_hint - margin
     for _ in range(len(kinks) + 2):
         vk = kernel._next_kink(v0, rising, v_far, kinks)
         hk = np.inf
-        if vk >= 0.0:
+        if vk >= 0.0 and abs(vk - v_hint) > margin:
             hk = _distance_to_speed(E, u, 0.5 * vk * vk, mode, lw, level, P, curves)
         if not (0.0 < hk < remaining - kernel.POSITION_TOLERANCE):
             # no kink inside: one smooth piece to the end (a kink at its very end is not crossed)
