@@ -132,6 +132,9 @@ class HostedDrive:
             self.departure_s = d["time_s"]
         location, stop_error = self._location(d["position_m"], d["speed_mps"])
         limit = d["speed_limit_mps"]
+        message = d["message"]
+        if message.startswith("at ") and not location.startswith("at "):
+            message = "departed " + message[3:]  # the core says where the drive began until an event
         out = {
             "type": "state",
             "time_s": d["time_s"],
@@ -166,7 +169,7 @@ class HostedDrive:
             "atp": self.atp,
             "atp_braking": self.atp_braking,
             "finished": d["finished"],
-            "message": d["message"],
+            "message": message,
         }
         return {k: _clean(v) for k, v in out.items()}
 
