@@ -7,12 +7,13 @@ departure on the network and solves it over time (:func:`trainsim.power.simulati
 
 Feedback: where the line voltage limits traction (EN 50388 reduction below ``traction_full_v``),
 a train gets less power than its run assumed, and would run slower. trainsim's single-train core
-cannot (yet) take a time-varying power cap, so each affected departure is re-simulated with its
-whole traction effort scaled by k <- k x (traction energy delivered / traction energy asked) and the
-network solved again, until every departure gets at least ``1 - tolerance`` of what it asks (or
-``max_iterations`` is reached). The time lost is the running time of the scaled run minus the
-nominal one. Scaling the whole run is conservative: the train is also slowed where the voltage
-would have been high enough.
+cannot (yet) take a time-varying power cap, so each affected departure is re-simulated with one
+constant cap on its traction power at the wheel (``EffortCurve.capped``): the least electrical
+power the line delivered to it at a limited step, times its traction efficiency (lowered again
+at each iteration where it is still limited). The network is solved again, until every departure
+gets at least ``1 - tolerance`` of the traction energy it asks (or ``max_iterations`` is reached).
+The time lost is the running time of the capped run minus the nominal one. One cap for the whole
+run is conservative: the train is also held back where the voltage would have allowed more.
 """
 
 from __future__ import annotations
@@ -85,11 +86,11 @@ class FeedbackSettings:
             )
 
 
-def _run(scenario: Scenario, traction_scale: float) -> RunResult:
-    """The scenario's run with its traction effort scaled (fastest or its driving strategy)."""
+def _run(scenario: Scenario, power_cap_w: float) -> RunResult:
+    """The scenario's run with its traction power at the wheel capped (fastest or its strategy)."""
     train = scenario.train
-    if traction_scale != 1.0:
-        train = dataclasses.replace(train, traction=train.traction.scaled(traction_scale))
+    if np.isfinite(power_cap_w):
+        train = dataclasses.replace(train, traction=train.traction.capped(power_cap_w=power_cap_w))
     if scenario.strategy != "fastest":
         from trainsim.optimize.api import optimize
 
@@ -97,6 +98,11 @@ def _run(scenario: Scenario, traction_scale: float) -> RunResult:
     from trainsim.sim.fastest import run_fastest
 
     return run_fastest(train, scenario.route, scenario.settings)
+
+
+def _efficiency(service: TrainService) -> float:
+    el = service.scenario.train.electrical
+    return 1.0 if el is None else el.traction_efficiency
 
 
 def _load(service: TrainService, run: RunResult, name: str, departure_s: float) -> TrainLoad:
@@ -133,16 +139,16 @@ def run_study(
 ) -> PowerResult:
     """Run every service, solve the network over time, feed limited traction back (see module doc).
 
-    The result's summary has per train ``running_time_s``, ``traction_scale``, ``time_lost_s`` and
-    a ``feedback`` block (iterations, consistent).
+    The result's summary has per train ``running_time_s``, ``traction_power_cap_kw`` (null when not
+    capped), ``time_lost_s`` and a ``feedback`` block (iterations, consistent).
     """
     feedback = feedback or FeedbackSettings()
     if not services:
         raise InputError("no trains", field="trains", allowed="one or more trains")
     runs: dict[tuple[int, float], RunResult] = {}
 
-    def run_of(k: int, scale: float) -> RunResult:
-        key = (k, round(scale, 6))
+    def run_of(k: int, cap: float) -> RunResult:
+        key = (k, round(cap, 3) if np.isfinite(cap) else np.inf)
         if key not in runs:
             run = _run(services[k].scenario, key[1])
             if run.status != "ok":
@@ -159,14 +165,15 @@ def run_study(
         for k, s in enumerate(services)
         for j, dep in enumerate(s.departures_s)
     ]
-    scales = np.ones(len(departures))
+    caps = np.full(len(departures), np.inf)
+    efficiency = np.array([_efficiency(services[k]) for k, _, _ in departures])
     iterations = 0
     result: PowerResult | None = None
     consistent = False
     while True:
         iterations += 1
         loads = [
-            _load(services[k], run_of(k, scales[i]), name, dep) for i, (k, name, dep) in enumerate(departures)
+            _load(services[k], run_of(k, caps[i]), name, dep) for i, (k, name, dep) in enumerate(departures)
         ]
         result = simulate(network, loads, dt_s=dt_s, start_s=start_s, end_s=end_s)
         asked = np.nansum(result.traction_demand_w, axis=0)
@@ -176,18 +183,21 @@ def run_study(
         consistent = not limited.any()
         if consistent or not feedback.enabled or iterations >= feedback.max_iterations:
             break
-        scales = np.where(limited, scales * ratio, scales)
+        short = result.traction_delivered_w < result.traction_demand_w * (1.0 - feedback.tolerance)
+        for i in np.flatnonzero(limited):
+            delivered = result.traction_delivered_w[short[:, i], i]
+            caps[i] = min(caps[i], float(np.min(delivered)) * efficiency[i])
     trains: list[dict[str, Any]] = []
     for i, (k, name, _) in enumerate(departures):
-        nominal = run_of(k, 1.0).running_time_s
-        actual = run_of(k, scales[i]).running_time_s
+        nominal = run_of(k, np.inf).running_time_s
+        actual = run_of(k, caps[i]).running_time_s
         trains.append(
             {
                 "id": name,
                 "running_time_s": actual,
                 "nominal_running_time_s": nominal,
                 "time_lost_s": actual - nominal,
-                "traction_scale": float(scales[i]),
+                "traction_power_cap_kw": float(caps[i]) / 1e3 if np.isfinite(caps[i]) else None,
             }
         )
     extra = {
@@ -196,7 +206,7 @@ def run_study(
             "enabled": feedback.enabled,
             "iterations": iterations,
             "consistent": bool(consistent),
-            "method": "whole-run traction effort scaled by delivered / asked traction energy",
+            "method": "constant cap on the traction power at the wheel: least power delivered at a limited step",
         },
     }
     return dataclasses.replace(result, extra=extra)

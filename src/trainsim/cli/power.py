@@ -1,0 +1,71 @@
+"""``trainsim power FILE``: many trains on a DC or AC traction power network (docs/POWER.md)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from trainsim.cli.context import exit_for_status, require_file, user_errors
+
+__all__ = ["power"]
+
+
+def _print_summary(summary: dict) -> None:
+    typer.echo(
+        f"{summary['name']}: {summary['system'].upper()}, {len(summary['trains'])} trains, "
+        f"{summary['duration_s']:.0f} s in steps of {summary['step_s']:g} s"
+    )
+    typer.echo(
+        f"{'substation':<14}{'energy kWh':>12}{'peak kW':>10}{'RMS A':>9}{'RMS 15 min A':>14}{'overloads':>11}"
+    )
+    for s in summary["substations"]:
+        rms15 = s["rms_current_max_a"]["900s"]
+        typer.echo(
+            f"{s['id']:<14}{s['energy_kwh']:>12.1f}{s['peak_power_kw']:>10.0f}{s['rms_current_a']:>9.0f}"
+            f"{'-' if rms15 is None else f'{rms15:.0f}':>14}{len(s['overload_events']):>11}"
+        )
+    vmin = min(
+        (t["min_voltage_v"] for t in summary["trains"] if t["min_voltage_v"] is not None), default=None
+    )
+    lost = max((t.get("time_lost_s", 0.0) for t in summary["trains"]), default=0.0)
+    r = summary["regen_kwh"]
+    typer.echo(
+        f"trains {summary['trains_energy_kwh']:.1f} kWh at the pantographs, losses {summary['losses_kwh']:.1f} kWh, "
+        f"lowest pantograph voltage {vmin:.0f} V, most time lost {lost:.1f} s"
+    )
+    typer.echo(
+        f"regenerated {r['offered']:.1f} kWh: used by trains {r['used_by_trains']:.1f}, returned {r['returned']:.1f}, "
+        f"dissipated {r['dissipated']:.1f}; energy balance {summary['energy_balance_error']:.1e}"
+    )
+    for w in summary["warnings"]:
+        typer.echo(f"warning: {w}", err=True)
+    if summary["status"] != "ok":
+        typer.echo(f"status: {summary['status']}")
+
+
+def power(
+    file: Annotated[Path, typer.Argument(help="Power-supply file (schema: trainsim/power).")],
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Directory for summary.json, CSV tables and plots.")
+    ] = None,
+    as_json: Annotated[
+        bool, typer.Option("--json/--no-json", help="Print only the summary as JSON.")
+    ] = False,
+    plots: Annotated[bool, typer.Option("--plots/--no-plots", help="Write PNG plots with --out.")] = True,
+) -> None:
+    """Solve a traction power network with many trains over time (substations, voltages, regeneration)."""
+    with user_errors():
+        require_file(file, "power-supply file")
+        from trainsim.power.file import run_power_file
+
+        summary, status = run_power_file(file, out, plots=plots)
+        if as_json:
+            typer.echo(json.dumps(summary, indent=2, allow_nan=False))
+        else:
+            _print_summary(summary)
+            if out is not None:
+                typer.echo(f"wrote {out}/")
+    exit_for_status(status)

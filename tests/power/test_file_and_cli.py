@@ -1,0 +1,178 @@
+"""The power-supply file, the examples and ``trainsim power``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from trainsim.cli import app
+from trainsim.errors import InputError
+from trainsim.power.file import load_power_file, run_power_file
+from trainsim.power.study import run_study
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = ROOT / "examples" / "power"
+METRO = (EXAMPLES / "metro_scenario.yaml").as_posix()
+
+
+def _small(tmp_path: Path, **changes) -> Path:
+    """A two-train version of the reversible metro example (scenario path absolute)."""
+    doc = yaml.safe_load((EXAMPLES / "metro_750v_reversible.yaml").read_text())
+    doc["trains"] = [
+        {"id": "up", "scenario": METRO, "track": "up", "origin_km": 0, "direction": 1, "departures_s": [0]},
+        {
+            "id": "down",
+            "scenario": METRO,
+            "track": "down",
+            "origin_km": 4.59097,
+            "direction": -1,
+            "departures_s": [30],
+        },
+    ]
+    for path, value in changes.items():
+        target = doc
+        keys = path.split(".")
+        for key in keys[:-1]:
+            target = target[int(key)] if isinstance(target, list) else target[key]
+        last = keys[-1]
+        if isinstance(target, list):
+            target[int(last)] = value
+        else:
+            target[last] = value
+    path = tmp_path / "power.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["metro_750v_diode", "metro_750v_reversible", "main_line_25kv"])
+def test_every_example_runs_ok_with_its_energy_balance(name):
+    spec, network, services = load_power_file(EXAMPLES / f"{name}.yaml")
+    result = run_study(network, services, dt_s=spec.simulation.step_s)
+    s = result.summary()
+    assert s["status"] == "ok", s["warnings"]
+    assert s["energy_balance_error"] < 1e-6
+    assert s["feedback"]["consistent"]
+    assert result.converged.all()
+    v = result.train_voltage_v
+    assert np.all(v[np.isfinite(v)] > network.limits.min2_v)
+    if name == "metro_750v_diode":
+        assert np.min(result.substation_power_w) >= 0.0  # rectifiers never take power
+        assert s["regen_kwh"]["returned"] == 0.0
+    if name == "main_line_25kv":
+        # trains coast through the neutral section: no traction asked and no supply there
+        x = result.train_position_m
+        inside = (x > 24800.0 + 1.0) & (x < 25200.0 - 1.0)
+        assert inside.any()
+        assert np.all(result.traction_demand_w[inside] == 0.0)
+        assert np.all(result.train_power_w[inside] == 0.0)
+        assert np.all(np.isnan(result.train_voltage_v[inside]))
+
+
+def test_cli_json_and_outputs(tmp_path):
+    path = _small(tmp_path)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["power", str(path), "--json", "--out", str(out), "--no-plots"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout)
+    assert summary["status"] == "ok"
+    for s in summary["substations"]:
+        assert {"id", "energy_kwh", "peak_power_kw", "rms_current_a"} <= set(s)
+    for t in summary["trains"]:
+        assert {"id", "min_voltage_v", "energy_kwh", "regen_dissipated_kwh", "time_lost_s"} <= set(t)
+    assert {"used_by_trains", "returned", "dissipated"} <= set(summary["regen_kwh"])
+    assert "losses_kwh" in summary
+    for name in ("summary.json", "trains.csv", "substations.csv", "network.csv", "substation_table.csv"):
+        assert (out / name).is_file()
+
+
+@pytest.mark.parametrize(
+    ("changes", "field", "words"),
+    [
+        (
+            {"network.tracks.0.contact_resistance_ohm_per_km": -0.02},
+            "network.tracks[0].contact_resistance_ohm_per_km",
+            "greater than or equal to 0",
+        ),
+        (
+            {
+                "network.gaps": [{"id": "SI", "track": "up", "start_km": 1.0, "end_km": 1.0}],
+                "network.connections": [],
+                "network.substations": [
+                    {
+                        "id": "S",
+                        "position_km": 0,
+                        "tracks": ["up", "down"],
+                        "no_load_voltage_v": 850,
+                        "internal_resistance_ohm": 0.012,
+                        "reversible": True,
+                    }
+                ],
+            },
+            "network.substations",
+            "disconnected network",
+        ),
+        ({"trains.0.origin_km": 3.0}, "trains[0].origin_km", "runs off the wire"),
+        ({"network.system": "dc_900"}, "network.system", "Input should be"),
+        ({"network.tracks.0.colour": "red"}, "network.tracks[0].colour", "unknown field"),
+        ({"trains.0.track": "middle"}, "trains[0].track", "unknown track"),
+    ],
+)
+def test_bad_files_are_input_errors_and_exit_2(tmp_path, changes, field, words):
+    path = _small(tmp_path, **changes)
+    with pytest.raises(InputError) as info:
+        load_power_file(path)
+    problem = info.value.problems[0]
+    assert problem.file == str(path)
+    assert problem.field == field
+    assert words in str(info.value)
+    result = CliRunner().invoke(app, ["power", str(path)])
+    assert result.exit_code == 2
+    assert "Traceback" not in result.output
+
+
+def test_weak_line_limits_traction_and_feedback_slows_the_train(tmp_path):
+    """A weak line (thin conductors, one substation at one end): traction is limited (EN 50388),
+    the train is re-run with its traction power capped until consistent, and loses time."""
+    path = _small(
+        tmp_path,
+        **{
+            "network.tracks.0.contact_resistance_ohm_per_km": 0.05,
+            "network.tracks.1.contact_resistance_ohm_per_km": 0.05,
+            "network.substations": [
+                {
+                    "id": "S",
+                    "position_km": 0,
+                    "tracks": ["up", "down"],
+                    "no_load_voltage_v": 850,
+                    "internal_resistance_ohm": 0.02,
+                    "reversible": False,
+                }
+            ],
+            "network.connections": [],
+            "trains": [
+                {
+                    "id": "up",
+                    "scenario": METRO,
+                    "track": "up",
+                    "origin_km": 0,
+                    "direction": 1,
+                    "departures_s": [0],
+                }
+            ],
+        },
+    )
+    summary, status = run_power_file(path)
+    train = summary["trains"][0]
+    assert train["traction_power_cap_kw"] is not None
+    assert train["time_lost_s"] > 0.0
+    assert summary["feedback"]["iterations"] >= 2
+    assert status == "ok" and summary["feedback"]["consistent"]
+    # consistent: the capped run gets what it asks within the tolerance
+    assert train["traction_delivered_kwh"] >= (1 - 1e-3) * train["traction_demand_kwh"]
+    assert train["min_voltage_v"] > 500.0
