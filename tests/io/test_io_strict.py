@@ -196,3 +196,8 @@ def test_route_gravity_is_a_bounded_setting(tmp_path: Path) -> None:
     trainruns = Path(__file__).resolve().parents[1] / "data" / "trainruns" / "paths" / "const.yaml"
     if trainruns.is_file():
         assert trainsim.load_route(trainruns).gravity_mps2 == TRAINRUNS_GRAVITY
+
+
+def test_version_true_is_not_version_1(tmp_path: Path) -> None:
+    error = _refused(tmp_path, "route", {**_doc("route.yaml"), "version": True})
+    assert error.field == "version" and error.allowed == "1"

@@ -380,8 +380,10 @@ class Spec(BaseModel):
                 split = split_suffix(key)
                 unit = UNITS[split[1]] if split else None
                 bound = bounds.bound_for(key, unit.dimension if unit else None)
+                literal = typing.get_origin(info.annotation) is Literal
+                choices = typing.get_args(info.annotation) if literal else ()
                 numeric[key] = _Numeric(
-                    depth, bound, unit.symbol if unit else None, unit.factor if unit else 1.0
+                    depth, bound, unit.symbol if unit else None, unit.factor if unit else 1.0, choices
                 )
         generic: dict[str, tuple[str, str]] = {}
         suffixed: dict[str, tuple[str, str]] = {}
@@ -463,6 +465,7 @@ class _Numeric:
     bound: bounds.Bound
     unit: str | None
     factor: float
+    choices: tuple[int, ...] = ()  # a Literal of whole numbers (version: 1)
 
 
 def _numeric_depth(annotation: Any) -> int | None:
@@ -473,6 +476,8 @@ def _numeric_depth(annotation: Any) -> int | None:
     args = typing.get_args(annotation)
     if origin is Annotated:
         return _numeric_depth(args[0])
+    if origin is Literal and args and all(type(a) is int for a in args):
+        return 0  # e.g. version: 1 (true is not 1)
     if origin is typing.Union or origin is types.UnionType:
         depths = {_numeric_depth(a) for a in args if a is not type(None)}
         return depths.pop() if len(depths) == 1 else None
@@ -498,7 +503,10 @@ def _check_numbers(value: Any, numeric: _Numeric, field: str, written: Any = Non
                     )
         return  # not a list: pydantic says "must be a list"
     shown = written if written is not None else value
-    allowed = numeric.bound.allowed(numeric.unit, numeric.factor)
+    if numeric.choices:
+        allowed = ", ".join(str(c) for c in numeric.choices)
+    else:
+        allowed = numeric.bound.allowed(numeric.unit, numeric.factor)
     if isinstance(value, bool):
         fail("must be a number, not true/false", field=field, value=value, allowed=allowed)
     if isinstance(value, str):
