@@ -1,26 +1,29 @@
-"""Wall time per fastest run after warm-up, where it goes, and how it converges (issue 14).
+"""Time per fastest run after warm-up, where it goes, and how it converges (issue 14).
 
 Cases: every shipped example's train on its route (fastest run, single-point model; the heavy-haul
 example's multi-point scenarios are run here as single-point fastest runs) and the TrainRuns.jl freight
 train on the 101.8 km ``realworld`` path (mass point and homogeneous strip).
 
-Three tables:
+Four tables:
 
 1. time: median and best wall time per run at the case's own step, and the median of the per-pair
    ratios to the baseline timed alternately with it (``_timing.rk4_line``: one plain fixed-step RK4 of a
    100 km line compiled by numba, about 0.7 ms on a quiet 2-core Xeon; see there why), in wall time and
    in CPU time (on a machine loaded beyond its cores the CPU-time ratio is the trustworthy one).
-2. stages (CPU time): one run split into what ``trainsim.sim.fastest.run_fastest`` calls: compile_track, the numba
-   segment kernel (summed over the stops), kink-point insertion, result building, and inside the latter
-   the exact energy integration (``run_works``). The run's own functions are timed where the run calls
-   them (each is wrapped by a timer for the instrumented runs only; nothing in src/ is edited), so the
-   split follows any change of the pipeline; "other" is the rest (Python glue, parameter packing).
-   "no trace" estimates a run that returns totals only: the whole run minus result building plus the
-   energy integration (trainsim has no such mode yet; this is its floor with today's stages).
-3. convergence: running time and net energy at steps h = 40 m ... h_min and the relative change from h
-   to h/2; the coarsest h from which every further halving changes both by <= 1e-6 is timed again
-   (paired): that is the "full trace, converged to 1e-6" figure of issue 14 (target <= 2 ms for
-   freight x realworld).
+2. stages (CPU time): one run split into what ``trainsim.sim.fastest.run_fastest`` calls:
+   compile_track, the numba segment kernel (summed over the stops), kink-point insertion, result
+   building, and inside the latter the exact energy integration (``run_works``). The run's own
+   functions are timed where the run calls them (each is wrapped by a timer for the instrumented runs
+   only; nothing in src/ is edited), so the split follows any change of the pipeline; "other" is the
+   rest (Python glue, parameter packing). "no trace" estimates a run that returns totals only: the
+   whole run minus result building plus the energy integration (trainsim has no such mode yet; this is
+   its floor with today's stages).
+3. convergence: running time and net energy at steps h = 40 m ... 0.625 m and the relative change
+   from h to h/2.
+4. the converged run: the coarsest h from which every further halving changes both by <= 1e-6, timed
+   again (paired): the "full trace, converged to 1e-6" figure of issue 14, then issue 14's two run
+   targets for freight x realworld (<= 2 ms with trace, <= 0.5 ms without) read as multiples of the
+   baseline.
 
 Run: python benchmarks/bench_fastest.py [--repeat N] [--quick] [--case SUBSTRING]
 """
