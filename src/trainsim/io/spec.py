@@ -1,0 +1,521 @@
+"""The base of trainsim's YAML readers: reading, the :class:`Spec` base model, problems in words.
+
+Every block of a trainsim file is a pydantic model derived from :class:`Spec` (unknown fields are
+errors, units in field names, every number checked against :mod:`trainsim.model.bounds`); a
+validator reports a problem with :func:`fail`; :func:`validation_error` turns pydantic's errors into
+one :class:`~trainsim.errors.InputError` with one :class:`~trainsim.errors.Problem` each (file, YAML
+line, field path, value, allowed). The document kinds are in :mod:`trainsim.io.yaml_train`,
+:mod:`trainsim.io.yaml_route` and :mod:`trainsim.io.yaml_scenario`; :mod:`trainsim.io.trainsim_yaml`
+gathers them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import types
+import typing
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any, Literal, NoReturn
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic_core import PydanticCustomError
+
+from trainsim.errors import InputError, Problem, shown_value
+from trainsim.io import documents
+from trainsim.io.units import UNITS, split_suffix, to_unit
+from trainsim.model import (
+    bounds,
+)
+
+if TYPE_CHECKING:  # trainsim.optimize is imported where a driving block is read, not by every reader
+    pass
+
+
+#: The schema identifiers of this module and the versions it reads.
+SCHEMAS: dict[str, tuple[int, ...]] = {
+    "trainsim/train": (1,),
+    "trainsim/route": (1,),
+    "trainsim/scenario": (1,),
+}
+
+
+# ====================================================================== YAML reading
+def read_yaml(path: str | Path) -> Any:
+    """The content of a YAML (or ``.json``) file; InputError for a missing, unreadable or malformed file.
+
+    Read once, within the bounds of :mod:`trainsim.io.documents` (size, nesting depth, alias
+    expansion); duplicate keys are errors; the error of a malformed file names its line.
+    """
+    return documents.read_document(path)
+
+
+def _yaml_line(path: str | Path, loc: Sequence[str | int]) -> int | None:
+    """Line (1-based) of the YAML node at ``loc`` in the file, or of its deepest existing parent."""
+    return _yaml_lines(path, [loc])[0]
+
+
+def _yaml_lines(path: str | Path, locs: Sequence[Sequence[str | int]]) -> list[int | None]:
+    """:func:`_yaml_line` of several locations (one pass over the file)."""
+    try:
+        text = documents.read_text(path)
+    except InputError:
+        return [None] * len(locs)
+    return documents.yaml_lines(text, locs)
+
+
+# ====================================================================== validation errors
+def fail(reason: str, *, field: str | None = None, value: Any = None, allowed: str | None = None) -> NoReturn:
+    """Raise a validation error inside a spec validator (a ``model_validator`` of a :class:`Spec`).
+
+    ``field`` is relative to the model (``"speed_kmh[3]"``); :func:`validation_error` turns the
+    error into a :class:`~trainsim.errors.Problem` with the full path, the file and the line.
+    """
+    raise PydanticCustomError(
+        "trainsim", "{reason}", {"reason": reason, "field": field, "value": value, "allowed": allowed}
+    )
+
+
+# Fields holding a tagged union: pydantic puts the tag into the error location, which we drop.
+_UNION_FIELDS: dict[str, tuple[str, str]] = {
+    "traction": ("model", "table, piecewise, power_limited"),
+    "braking": ("model", "table, fraction_of_full, deceleration"),
+    "regenerative": ("model", "none, or a mapping with model: fraction_of_traction | table"),
+    "resistance": ("family", ""),  # filled in below, once the families are known
+    "train": ("", "a file name, or a mapping with the train"),
+    "route": ("", "a file name, or a mapping with the route"),
+}
+
+
+def _parse_field(field: str) -> list[str | int]:
+    """``"speed_kmh[3]"`` -> ``["speed_kmh", 3]``; ``"a.b[1].c"`` -> ``["a", "b", 1, "c"]``."""
+    parts: list[str | int] = []
+    for piece in field.split("."):
+        name, *indices = piece.replace("]", "").split("[")
+        if name:
+            parts.append(name)
+        parts += [int(i) if i.isdigit() else i for i in indices]
+    return parts
+
+
+def _union_field(loc: Sequence[str | int]) -> str | None:
+    """The union field an error location ends at (``traction``, ``resistance[2]``...), or None."""
+    if loc and isinstance(loc[-1], str) and loc[-1] in _UNION_FIELDS:
+        return loc[-1]
+    if len(loc) > 1 and isinstance(loc[-1], int) and loc[-2] == "resistance":
+        return "resistance"
+    return None
+
+
+def _clean_loc(loc: Sequence[str | int]) -> list[str | int]:
+    out: list[str | int] = []
+    for i, part in enumerate(loc):
+        prev = loc[i - 1] if i > 0 else None
+        prev2 = loc[i - 2] if i > 1 else None
+        is_tag = isinstance(part, str) and (
+            prev in _UNION_FIELDS or (isinstance(prev, int) and prev2 == "resistance")
+        )
+        if not is_tag:
+            out.append(part)
+    return out
+
+
+def _format_loc(loc: Sequence[str | int]) -> str:
+    text = ""
+    for part in loc:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        else:
+            text += ("." if text else "") + str(part)
+    return text
+
+
+def _describe(err: Any) -> tuple[str, Any, str | None]:
+    """(reason, value shown or None, allowed) of one pydantic error."""
+    kind = err["type"]
+    ctx = err.get("ctx") or {}
+    value = err.get("input")
+    if isinstance(value, dict | list):
+        value = None
+    bounds = {
+        "greater_than": (">", "gt"),
+        "greater_than_equal": (">=", "ge"),
+        "less_than": ("<", "lt"),
+        "less_than_equal": ("<=", "le"),
+    }
+    if kind == "trainsim":
+        return ctx["reason"], ctx.get("value"), ctx.get("allowed")
+    if kind == "missing":
+        return "required field is missing", None, None
+    if kind == "extra_forbidden":
+        if isinstance(value, _UnknownField):
+            hint = f" (did you mean '{value.suggestion}'?)" if value.suggestion else ""
+            return f"unknown field{hint}", None, value.allowed
+        return "unknown field", value, None
+    if kind in bounds:
+        op, key = bounds[kind]
+        return "out of range", value, f"{op} {ctx[key]:g}"
+    if kind == "literal_error":
+        return "not an allowed value", value, str(ctx.get("expected", "")).replace("'", "")
+    if kind == "union_tag_invalid":
+        return (
+            f"unknown {ctx.get('discriminator', 'kind')}".replace("'", ""),
+            ctx.get("tag"),
+            str(ctx.get("expected_tags", "")).replace("'", ""),
+        )
+    if kind == "union_tag_not_found":
+        return "missing or wrong kind of entry", value, None
+    if kind in ("float_type", "float_parsing", "int_type", "int_parsing", "int_from_float", "finite_number"):
+        what = "a whole number" if kind.startswith("int") else "a finite number"
+        return f"must be {what}", value, None
+    if kind in ("bool_type", "bool_parsing"):
+        return "must be true or false", value, "true, false"
+    if kind in ("string_type",):
+        return "must be text", value, None
+    if kind in ("list_type", "tuple_type"):
+        return "must be a list", value, None
+    if kind in ("model_type", "dict_type", "model_attributes_type"):
+        return "must be a mapping (key: value lines)", value, None
+    if kind == "too_short":
+        return f"needs at least {ctx.get('min_length')} item(s)", None, None
+    if kind in ("value_error", "assertion_error"):
+        return err["msg"].removeprefix("Value error, ").removeprefix("Assertion failed, "), value, None
+    return err["msg"], value, None
+
+
+def validation_error(
+    exc: ValidationError, file: str, path: str | Path | None, prefix: str = ""
+) -> InputError:
+    """One InputError for all problems of a pydantic ValidationError of a :class:`Spec`.
+
+    Args:
+        exc: the error of ``SomeSpec.model_validate(data)``.
+        file: the file name the problems name.
+        path: the file, to find the YAML line of each problem (None: no lines).
+        prefix: a field path put before every problem's field (e.g. ``multi_point``).
+    """
+    problems: list[tuple[list[str | int], str, Any, str | None]] = []
+    errors = exc.errors(include_url=False)
+    # A misspelt required field gives "unknown field" and "missing": report the typo only.
+    typos = {
+        (*_clean_loc(err["loc"])[:-1], err["input"].suggestion)
+        for err in errors
+        if err["type"] == "extra_forbidden" and isinstance(err["input"], _UnknownField)
+    }
+    for err in errors:
+        loc = _clean_loc(err["loc"])
+        if err["type"] == "missing" and tuple(loc) in typos:
+            continue
+        ctx = err.get("ctx") or {}
+        union = _union_field(loc)
+        if err["type"] == "trainsim" and ctx.get("field"):
+            loc += _parse_field(str(ctx["field"]))
+        elif err["type"] == "union_tag_not_found" and union:
+            key, allowed = _UNION_FIELDS[union]
+            shown = err.get("input") if not isinstance(err.get("input"), dict) else None
+            if key and isinstance(err.get("input"), dict):
+                loc += [key]
+                problems.append((loc, f"'{key}' is required", None, allowed))
+            else:
+                problems.append((loc, "wrong kind of entry", shown, allowed))
+            continue
+        elif err["type"] == "union_tag_invalid" and union:
+            loc += [_UNION_FIELDS[union][0]]
+        reason, value, allowed = _describe(err)
+        problems.append((loc, reason, value, allowed))
+    full = [[*([prefix] if prefix else []), *loc] for loc, *_ in problems]
+    paths = [_format_loc(loc) for loc in full]
+    lines = _yaml_lines(path, full[:_LINES_LOOKED_UP]) if path is not None and full else []
+    lines += [None] * (len(full) - len(lines))
+    structured = [
+        Problem(reason, file=file, line=line, field=p or None, value=value, allowed=allowed)
+        for p, line, (_, reason, value, allowed) in zip(paths, lines, problems, strict=True)
+    ]
+    return InputError.from_problems(structured)
+
+
+#: Problems of one file whose YAML line is looked up (each lookup is cheap, but files can be huge).
+_LINES_LOOKED_UP = 20
+
+
+@contextmanager
+def _located(file: str, field: str) -> Iterator[None]:
+    """Give InputErrors raised by the model classes the file and the spec field they come from."""
+    try:
+        yield
+    except InputError as exc:
+
+        def locate(p: Problem) -> Problem:
+            if p.field and p.field.startswith(field):
+                where, inner = p.field, ""  # already a spec path
+            else:
+                where, inner = field, f" ({p.field})" if p.field else ""
+            return dataclasses.replace(p, reason=p.reason + inner, file=p.file or file, field=where)
+
+        raise InputError.from_problems([locate(p) for p in exc.problems]) from exc
+
+
+@contextmanager
+def _prefixed(prefix: str) -> Iterator[None]:
+    """Put ``prefix.`` before the field of InputErrors raised inside (inline train / route)."""
+    try:
+        yield
+    except InputError as exc:
+        raise prefixed_error(exc, prefix) from exc
+
+
+def prefixed_error(exc: InputError, prefix: str, file: str | None = None) -> InputError:
+    """The error with ``prefix.`` put before the field of each of its problems (and ``file`` given
+    to problems that name none)."""
+    return InputError.from_problems(
+        [
+            dataclasses.replace(p, field=f"{prefix}.{p.field}" if p.field else prefix, file=p.file or file)
+            for p in exc.problems
+        ]
+    )
+
+
+# ====================================================================== base spec
+@dataclasses.dataclass(frozen=True)
+class _UnknownField:
+    """The value of an unknown field, with the closest known name and the known names."""
+
+    value: Any
+    suggestion: str | None
+    allowed: str
+
+
+class Spec(BaseModel):
+    """Base of every spec (the pydantic model of a block of a trainsim file).
+
+    Unknown fields are errors (with the closest known name); a field named with its unit suffix
+    (``mass_t``) takes a plain number, and the same name without the suffix a text with a unit
+    (``mass: "49.8 t"``); every number is checked against :mod:`trainsim.model.bounds` (no
+    true/false, no quoted numbers, finite, plausible). Subclasses raise their own problems with
+    :func:`fail`.
+    """
+
+    model_config = ConfigDict(extra="forbid", populate_by_name=True, allow_inf_nan=False)
+
+    @classmethod
+    def _field_names(
+        cls,
+    ) -> tuple[dict[str, str], dict[str, tuple[str, str]], dict[str, tuple[str, str]], dict[str, _Numeric]]:
+        """(names by key, generic name -> (field, unit), field -> its (name, unit) split, numeric
+        fields -> how to check them), per class."""
+        cached = cls.__dict__.get("_names_cache")
+        if cached is not None:
+            return cached
+        names: dict[str, str] = {}
+        numeric: dict[str, _Numeric] = {}
+        for name, info in cls.model_fields.items():
+            key = info.alias or name
+            names[key] = name
+            depth = _numeric_depth(info.annotation)
+            if depth is not None:
+                split = split_suffix(key)
+                unit = UNITS[split[1]] if split else None
+                bound = bounds.bound_for(key, unit.dimension if unit else None)
+                literal = typing.get_origin(info.annotation) is Literal
+                choices = typing.get_args(info.annotation) if literal else ()
+                numeric[key] = _Numeric(
+                    depth, bound, unit.symbol if unit else None, unit.factor if unit else 1.0, choices
+                )
+        generic: dict[str, tuple[str, str]] = {}
+        suffixed: dict[str, tuple[str, str]] = {}
+        for key in names:
+            split = split_suffix(key)
+            if split:
+                suffixed[key] = split
+                if split[0] not in names:
+                    generic.setdefault(split[0], (key, split[1]))
+        cached = (names, generic, suffixed, numeric)
+        type.__setattr__(cls, "_names_cache", cached)
+        return cached
+
+    @model_validator(mode="before")
+    @classmethod
+    def _fields_and_units(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        names, generic, suffixed, numeric = cls._field_names()
+        out: dict[str, Any] = {}
+        unknown: list[str] = []
+        for key, value in data.items():
+            if not isinstance(key, str):
+                fail("field names must be text", value=key)
+            if key in names:
+                split = suffixed.get(key)
+                if split and isinstance(value, str) and not _is_number_text(value):
+                    fail(
+                        f"'{key}' takes a plain number in {split[1]}; to give a unit, write "
+                        f"'{split[0]}: {shown_value(value, 40)[1:-1]}' instead",
+                        field=key,
+                        value=value,
+                    )
+                if key in numeric and value is not None:
+                    _check_numbers(value, numeric[key], key)
+                out[key] = value
+            elif key in generic:
+                target, unit = generic[key]
+                if target in data:
+                    fail(f"give either '{key}' or '{target}', not both", field=key)
+                try:
+                    if isinstance(value, list):
+                        out[target] = [to_unit(v, unit, require_unit=True, field=key) for v in value]
+                    else:
+                        out[target] = to_unit(value, unit, require_unit=True, field=key)
+                except InputError as exc:
+                    reason = exc.reason
+                    if "without unit" in reason:
+                        shown = shown_value(value, 40)
+                        reason = f"'{key}' needs a unit, e.g. '{key}: {shown} {unit}'"
+                        reason += f"; or write '{target}: {shown}'"
+                    fail(reason, field=key, value=value, allowed=exc.allowed)
+                if target in numeric:
+                    _check_numbers(out[target], numeric[target], key, written=value)
+            else:
+                unknown.append(key)
+        for key in unknown:
+            # Left in place for pydantic's extra="forbid", which reports each one at its own location
+            # without stopping the validation of the other fields; the wrapper carries the hint.
+            close = difflib.get_close_matches(key, [*names, *generic], n=1, cutoff=0.6)
+            out[key] = _UnknownField(data[key], close[0] if close else None, ", ".join(names))
+        return out
+
+
+def _is_number_text(text: str) -> bool:
+    """Whether a text is a plain number ("12", " 3.5 "), i.e. a quoted number."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+@dataclasses.dataclass(frozen=True)
+class _Numeric:
+    """How to check a numeric field: list nesting depth (0: a number), its bound and its unit."""
+
+    depth: int
+    bound: bounds.Bound
+    unit: str | None
+    factor: float
+    choices: tuple[int, ...] = ()  # a Literal of whole numbers (version: 1)
+
+
+def _numeric_depth(annotation: Any) -> int | None:
+    """0 for a number (float or int, optional, constrained), 1 for a list of numbers...; None otherwise."""
+    if annotation is float or annotation is int:
+        return 0
+    origin = typing.get_origin(annotation)
+    args = typing.get_args(annotation)
+    if origin is Annotated:
+        return _numeric_depth(args[0])
+    if origin is Literal and args and all(type(a) is int for a in args):
+        return 0  # e.g. version: 1 (true is not 1)
+    if origin is typing.Union or origin is types.UnionType:
+        depths = {_numeric_depth(a) for a in args if a is not type(None)}
+        return depths.pop() if len(depths) == 1 else None
+    if origin in (list, tuple) and args:
+        inner = {_numeric_depth(a) for a in args if a is not Ellipsis}
+        depth = inner.pop() if len(inner) == 1 else None
+        return None if depth is None else depth + 1
+    return None
+
+
+def _check_numbers(value: Any, numeric: _Numeric, field: str, written: Any = None) -> None:
+    """Refuse text, true/false, non-finite and implausible values in a numeric field (one rule for
+    every trainsim file: a number is written as a number, and inside :mod:`trainsim.model.bounds`)."""
+    if numeric.depth > 0:
+        if isinstance(value, list):
+            for i, item in enumerate(value):
+                if item is not None:
+                    _check_numbers(
+                        item,
+                        _Numeric(numeric.depth - 1, numeric.bound, numeric.unit, numeric.factor),
+                        f"{field}[{i}]",
+                        written[i] if isinstance(written, list) and i < len(written) else None,
+                    )
+        return  # not a list: pydantic says "must be a list"
+    shown = written if written is not None else value
+    if numeric.choices:
+        allowed = ", ".join(str(c) for c in numeric.choices)
+    else:
+        allowed = numeric.bound.allowed(numeric.unit, numeric.factor)
+    if isinstance(value, bool):
+        fail("must be a number, not true/false", field=field, value=value, allowed=allowed)
+    if isinstance(value, str):
+        fail(
+            "must be a number, not text (write it without quotes)", field=field, value=value, allowed=allowed
+        )
+    if isinstance(value, int | float):
+        bound = numeric.bound
+        if bound.low == 0 and -bound.high / numeric.factor <= value < 0:
+            return  # a sign error of a plausible magnitude: the field's own rule says what is allowed
+        try:
+            bounds.check(value, bound, unit=numeric.unit, factor=numeric.factor)
+        except InputError as exc:
+            fail(exc.reason, field=field, value=shown, allowed=exc.allowed)
+
+
+def _check_increasing(
+    values: Sequence[float], field: str, *, strict: bool = True, what: str = "values"
+) -> None:
+    for i in range(1, len(values)):
+        if values[i] < values[i - 1] or (strict and values[i] == values[i - 1]):
+            fail(
+                f"{what} must {'increase strictly' if strict else 'not decrease'}",
+                field=f"{field}[{i}]",
+                value=values[i],
+                allowed=f"{'>' if strict else '>='} {values[i - 1]:g}",
+            )
+
+
+NonNegative = Annotated[float, Field(ge=0)]
+Positive = Annotated[float, Field(gt=0)]
+Fraction = Annotated[float, Field(gt=0, le=1)]
+
+
+def _check_header(data: Any, schema: str, file: str, *, required: bool = True) -> None:
+    """Check ``schema`` / ``version`` before the rest, so that a wrong file gets one clear error."""
+    if not isinstance(data, dict):
+        raise InputError(
+            "expected a mapping of fields (key: value lines) at the top level",
+            file=file,
+            value=type(data).__name__,
+        )
+    if "schema" not in data:
+        if required:
+            raise InputError("missing 'schema' line", file=file, field="schema", allowed=", ".join(SCHEMAS))
+        return
+    if data["schema"] != schema:
+        raise InputError(
+            f"this reader expects a '{schema}' file",
+            file=file,
+            field="schema",
+            value=data["schema"],
+            allowed=schema,
+        )
+    if "version" not in data:
+        raise InputError("missing 'version' line", file=file, field="version", allowed="1")
+    if data["version"] not in SCHEMAS[schema]:
+        raise InputError(
+            f"unsupported version of '{schema}'",
+            file=file,
+            field="version",
+            value=data["version"],
+            allowed=", ".join(str(v) for v in SCHEMAS[schema]),
+        )
+
+
+def _validate(
+    cls: type[Spec], data: Any, schema: str, source: str, path: str | Path | None, *, header: bool
+) -> Any:
+    _check_header(data, schema, source, required=header)
+    try:
+        return cls.model_validate(data)
+    except ValidationError as exc:
+        raise validation_error(exc, source, path) from None
