@@ -31,9 +31,20 @@ def heavy_haul():
     return trainsim.load_train("examples/heavy_haul/train.yaml")
 
 
+#: the couplers of the issue's case: viscous dampers only (the model before the friction draft gears),
+#: which let the rear run into the braked front hardest
+VISCOUS = {
+    "draft_stiffness_n_per_m": 1.4e7,
+    "buff_stiffness_n_per_m": 1.4e7,
+    "draft_damping_n_s_per_m": 3.7e5,
+    "buff_damping_n_s_per_m": 3.7e5,
+    "friction_ratio": 0.0,
+}
+
+
 def settings(speed_mps: float | None, **couplers) -> MultiPointSettings:
     return MultiPointSettings(
-        couplers=CouplerModel(slack_m=0.025, **couplers),
+        couplers=CouplerModel(slack_m=0.025, **{**VISCOUS, **couplers}),
         locomotive_positions=(0, 1),
         traction_ramp_s=20,
         brake_propagation=BrakePropagation(speed_mps, "head", 3.0),
@@ -43,7 +54,8 @@ def settings(speed_mps: float | None, **couplers) -> MultiPointSettings:
 @pytest.fixture(scope="module")
 def slow_brakes(heavy_haul):
     """The heavy-haul train (10,700 t, 106 vehicles, all power at the head) braking from 100 km/h to a
-    stop with the brake command travelling at 100 m/s: the rear runs into the braked front."""
+    stop with the brake command travelling at 100 m/s: the rear runs into the braked front (viscous
+    couplers, as in the issue)."""
     return run_multipoint_fastest(heavy_haul, level(), settings(100.0))
 
 
@@ -104,6 +116,22 @@ def test_per_coupling_peaks_bound_the_recorded_forces(slow_brakes):
         assert f <= recorded_min[k] + 1e-6
     assert min(per_buff.values()) == pytest.approx(r.max_buff.force_n)
     assert len(recorded_min) == nc
+
+
+def test_friction_draft_gears_keep_the_same_case_below_the_capacity(heavy_haul):
+    # the default couplers (friction draft gears) absorb the run-in: no capacity warning
+    r = run_multipoint_fastest(
+        heavy_haul,
+        level(),
+        MultiPointSettings(
+            couplers=CouplerModel(slack_m=0.025),
+            locomotive_positions=(0, 1),
+            traction_ramp_s=20,
+            brake_propagation=BrakePropagation(100.0, "head", 3.0),
+        ),
+    )
+    assert r.status == "ok" and not r.capacity_exceedances
+    assert -FREIGHT_CAPACITY_N < r.max_buff.force_n < -1.0e6
 
 
 def test_no_warning_below_the_capacity_or_without_one(heavy_haul, slow_brakes):

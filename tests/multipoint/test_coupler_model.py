@@ -32,6 +32,7 @@ COUPLER = CouplerModel(
     buff_travel_m=0.05,
     solid_stiffness_n_per_m=2.0e8,
     smoothing_m=0.001,
+    friction_ratio=0.0,  # the viscous law alone (the gears' friction: test_draft_gear.py)
 )
 
 

@@ -246,6 +246,7 @@ def test_two_mass_oscillator_keeps_its_energy_and_frequency():
         draft_damping_n_s_per_m=0.0,
         buff_damping_n_s_per_m=0.0,
         solid_stiffness_n_per_m=k,
+        friction_ratio=0.0,
     )
     h = 0.005
     mp = build_multipoint_train(
@@ -282,7 +283,10 @@ def test_very_stiff_couplers_are_stable_with_large_steps(electric_freight, refer
     # omega_max h is about 30: any explicit method would blow up; the implicit one does not
     settings = MultiPointSettings(couplers=CouplerModel.stiff(1e10, 1e6), time_step_s=0.2)
     result = run_multipoint_fastest(electric_freight, hilly_route(), settings, reference=reference)
-    assert result.status == "ok"
+    # known gap: at 0.2 s steps the braking controller overshoots the final stop by about 2 m at
+    # 1.3 km/h, which the run now says (did_not_reach_stop) instead of reporting ok
+    assert result.status in ("ok", "did_not_reach_stop"), result.warnings
+    assert result.run.trace.position_m[-1] == pytest.approx(8000.0, abs=5.0)
     assert np.all(np.isfinite(result.coupler_force_n))
     assert result.running_time_s == pytest.approx(reference.running_time_s, rel=5e-3)
     assert abs(result.energy.balance_error) < 1e-4
@@ -292,7 +296,15 @@ def test_step_size_control_resolves_a_slack_impact_with_few_steps(electric_freig
     # full traction at once on a slack train: the slack runs out with an impact. Fixed steps of 0.05 s
     # overestimate its peak by several per cent; the step-size control gets within 2 % of a 2.5 ms run
     # with a fraction of the steps.
-    couplers = CouplerModel(slack_m=0.02)
+    # viscous couplers: the sharpest impacts (friction draft gears soften them)
+    couplers = CouplerModel(
+        slack_m=0.02,
+        friction_ratio=0.0,
+        draft_stiffness_n_per_m=1.4e7,
+        buff_stiffness_n_per_m=1.4e7,
+        draft_damping_n_s_per_m=3.7e5,
+        buff_damping_n_s_per_m=3.7e5,
+    )
 
     def run(**kw):
         return run_multipoint_fastest(

@@ -76,7 +76,9 @@ def test_the_example_scenarios_read_as_multi_point():
 def test_defaults_of_the_block_are_the_documented_freight_values():
     settings = multipoint_settings_from_dict({}).build()
     assert settings.couplers == CouplerModel()
-    assert settings.couplers.draft_stiffness_n_per_m == 1.4e7
+    # friction draft gears: mean stiffness 1.4e7 / (1 + 2/3), loading branch 1.4e7 N/m
+    assert settings.couplers.draft_stiffness_n_per_m == pytest.approx(8.4e6)
+    assert settings.couplers.friction_ratio == pytest.approx(2 / 3)
     assert settings.time_step_s == 0.05
     assert settings.brake_propagation.speed_mps is None
 

@@ -55,7 +55,9 @@ C_TD = 5  # draft travel [m]
 C_TB = 6  # buff travel [m]
 C_KS = 7  # solid stiffness [N/m]
 C_EPS = 8  # smoothing width [m]
-N_C = 9
+C_MU = 9  # friction ratio of the draft gears: loading (1 + mu) x, unloading (1 - mu) x the spring [-]
+C_VF = 10  # regularisation speed of the gears' friction [m/s]
+N_C = 11
 
 # scalar parameters SP
 S_STEP = 0  # largest time step [s]
@@ -215,13 +217,19 @@ def coupler_force(delta, rate, cp):
     hb = ramp_slope(zb, eps)
     c = cd * hd + cb * hb
     damper = c * rate
-    k = (
-        kd * hd
-        + (ks - kd) * ramp_slope(zd - td, eps)
-        + kb * hb
-        + (ks - kb) * ramp_slope(zb - tb, eps)
-        + rate * (cd * ramp_curvature(zd, eps) - cb * ramp_curvature(zb, eps))
-    )
+    k_spring = kd * hd + (ks - kd) * ramp_slope(zd - td, eps) + kb * hb + (ks - kb) * ramp_slope(zb - tb, eps)
+    k = k_spring + rate * (cd * ramp_curvature(zd, eps) - cb * ramp_curvature(zb, eps))
+    mu = cp[C_MU]
+    if mu > 0.0:
+        # wedge friction of the draft gears: mu |spring| tanh(rate / v_f), on the loading branch
+        # (|delta| growing) the spring force times (1 + mu), on the unloading branch times (1 - mu);
+        # its power mu |spring| rate tanh(rate / v_f) is never negative (a loss, as the dampers')
+        vf = cp[C_VF]
+        th = np.tanh(rate / vf)
+        size = np.sqrt(spring * spring + 1.0) - 1.0  # |spring| rounded within 1 N (C1 for Newton)
+        damper += mu * size * th
+        c += mu * size * (1.0 - th * th) / vf
+        k += mu * th * k_spring * spring / (size + 1.0)
     return spring, damper, k, c
 
 

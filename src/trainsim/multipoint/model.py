@@ -37,27 +37,38 @@ from trainsim.model.laws import Quadratic
 from trainsim.model.train import Train, Vehicle
 
 # ---------------------------------------------------------------------------------------------- defaults
-#: Stiffness of one freight wagon connection in draft and in buff [N/m]. Two friction draft gears in
-#: series (one at each wagon end), each of the MT-2 type (TB/T 2915, used with AAR type E/F couplers on
-#: Chinese 70-80 t heavy-haul wagons): impedance <= 2.27 MN at 83 mm travel, i.e. 2.27e6 / 0.083 =
-#: 2.7e7 N/m per gear and 1.4e7 N/m for the connection (secant stiffness of the loading curve).
-#: Miner's TF-880 (AAR M-901E) gives the same order: 2.5 MN at 74 mm rated travel.
-FREIGHT_STIFFNESS_N_PER_M = 1.4e7
+#: Friction ratio mu of the default friction draft gears [-] (wedge-type gears: the force is the spring
+#: force times 1 + mu while the gear is loaded, times 1 - mu while it unloads; Cole 2006, Wu et al.
+#: 2016, see docs/MULTIPOINT.md). A full loading-unloading cycle then absorbs 2 mu / (1 + mu) of the
+#: work of loading: the MT-2 gear's absorptivity of >= 80 % (TB/T 2915) gives mu = 2/3.
+FREIGHT_FRICTION_RATIO = 2.0 / 3.0
+#: Stiffness of one freight wagon connection in draft and in buff [N/m], the mean of the gears' loading
+#: and unloading branches. Two friction draft gears in series (one at each wagon end), each of the MT-2
+#: type (TB/T 2915, used with AAR type E/F couplers on Chinese 70-80 t heavy-haul wagons): impedance
+#: <= 2.27 MN at 83 mm travel, i.e. 2.27e6 / 0.083 = 2.7e7 N/m per gear and 1.4e7 N/m for the
+#: connection, the secant stiffness of the loading branch = (1 + mu) x this; Miner's TF-880 (AAR
+#: M-901E) gives the same order: 2.5 MN at 74 mm rated travel. 1.4e7 / (1 + 2/3) = 8.4e6 N/m.
+FREIGHT_LOADING_STIFFNESS_N_PER_M = 1.4e7
+FREIGHT_STIFFNESS_N_PER_M = FREIGHT_LOADING_STIFFNESS_N_PER_M / (1.0 + FREIGHT_FRICTION_RATIO)
 #: Travel of one connection before the gears go solid [m]: 2 x 83 mm (MT-2 stroke).
 FREIGHT_TRAVEL_M = 0.166
-#: Stiffness once the gears are solid (coupler body and underframe) [N/m]: ASSUMPTION, 10 x the gear.
+#: Stiffness once the gears are solid (coupler body and underframe) [N/m]: ASSUMPTION, 10 x the loading
+#: branch of the gears.
 FREIGHT_SOLID_STIFFNESS_N_PER_M = 1.4e8
-#: Viscous damping of one connection [N s/m]. Friction draft gears absorb >= 80 % of an impact's energy
-#: (MT-2 absorptivity, TB/T 2915). A linear damper dissipates that share in one impact half-cycle
-#: (restitution e = sqrt(0.2) = 0.447) at a damping ratio zeta = 0.25; for two 80 t wagons (reduced mass
-#: 40 t) on 1.4e7 N/m, c = 2 zeta sqrt(k m_red) = 3.7e5 N s/m. A viscous damper cannot reproduce the
-#: hysteresis of a friction gear; this only sets the right order of magnitude of the losses.
-FREIGHT_DAMPING_N_S_PER_M = 3.7e5
+#: Viscous damping of one connection [N s/m]: none by default, the gears' friction takes the losses.
+#: (Before the friction model, 3.7e5 N s/m stood in for them: a linear damper dissipating the MT-2's
+#: 80 % of an impact's energy in one half-cycle, damping ratio 0.25 for two 80 t wagons on 1.4e7 N/m;
+#: it left the slowest coupler mode of a long train almost undamped, zeta about 0.005.)
+FREIGHT_DAMPING_N_S_PER_M = 0.0
 #: Capacity of one freight connection in draft and in buff [N]: the MT-2 gear's rated impedance (the
-#: force at the end of its 83 mm travel, TB/T 2915), the force the default stiffness above is the secant
+#: force at the end of its 83 mm travel, TB/T 2915), the force the loading branch above is the secant
 #: of. Forces beyond it mean the gears have gone solid and the coupler and underframe take the rest: a
 #: run that passes it gets a warning (see docs/MULTIPOINT.md, "Coupler capacities").
 FREIGHT_CAPACITY_N = 2.27e6
+#: Relative speed of the draft gears' wedges over which their friction turns from the unloading to the
+#: loading branch [m/s] (regularised dry friction, tanh(rate / this)): small against the speeds of
+#: coupler impacts and oscillations (0.01-0.5 m/s), large enough for Newton's method at 0.05 s steps.
+FRICTION_VELOCITY_MPS = 0.005
 #: Width over which the kinks of the piecewise-linear spring law are rounded [m]; keeps the force
 #: continuously differentiable so that the Newton iterations of the implicit integrator converge.
 COUPLER_SMOOTHING_M = 1.0e-3
@@ -92,6 +103,11 @@ class CouplerModel:
             gets a warning naming the coupling, the force, the time and the place; None: not checked.
         buff_capacity_n: largest compression it is rated for, as a positive force [N]; None: not
             checked.
+        friction_ratio: wedge friction of friction draft gears, mu [-]: the force is the spring force
+            times (1 + mu) while the gear is loaded (its travel growing) and times (1 - mu) while it
+            unloads, blended by tanh(rate / friction_velocity_mps); 0: no friction (viscous damping
+            only). See docs/MULTIPOINT.md, "Draft-gear friction".
+        friction_velocity_mps: regularisation speed of that friction [m/s].
     """
 
     draft_stiffness_n_per_m: float = FREIGHT_STIFFNESS_N_PER_M
@@ -105,8 +121,24 @@ class CouplerModel:
     smoothing_m: float = COUPLER_SMOOTHING_M
     draft_capacity_n: float | None = FREIGHT_CAPACITY_N
     buff_capacity_n: float | None = FREIGHT_CAPACITY_N
+    friction_ratio: float = FREIGHT_FRICTION_RATIO
+    friction_velocity_mps: float = FRICTION_VELOCITY_MPS
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.friction_ratio) and 0.0 <= self.friction_ratio < 1.0):
+            raise InputError(
+                "the draft gears' friction ratio must be >= 0 and below 1",
+                field="couplers.friction_ratio",
+                value=self.friction_ratio,
+                allowed="0 <= friction_ratio < 1 (0: no friction)",
+            )
+        if not (math.isfinite(self.friction_velocity_mps) and 1e-5 <= self.friction_velocity_mps <= 1.0):
+            raise InputError(
+                "invalid friction regularisation speed",
+                field="couplers.friction_velocity_mps",
+                value=self.friction_velocity_mps,
+                allowed="1e-5 .. 1 m/s",
+            )
         for name in ("draft_capacity_n", "buff_capacity_n"):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
@@ -156,6 +188,7 @@ class CouplerModel:
             solid_stiffness_n_per_m=stiffness_n_per_m,
             draft_capacity_n=None,
             buff_capacity_n=None,
+            friction_ratio=0.0,
         )
 
     def as_row(self) -> np.ndarray:
@@ -171,6 +204,8 @@ class CouplerModel:
                 self.buff_travel_m,
                 self.solid_stiffness_n_per_m,
                 self.smoothing_m,
+                self.friction_ratio,
+                self.friction_velocity_mps,
             ]
         )
 

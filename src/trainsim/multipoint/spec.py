@@ -64,6 +64,8 @@ class CouplerSpec(_Spec):
     buff_travel_m: Positive = _DEFAULT.buff_travel_m
     solid_stiffness_n_per_m: Positive = _DEFAULT.solid_stiffness_n_per_m
     smoothing_m: Positive = _DEFAULT.smoothing_m
+    friction_ratio: Annotated[float, Field(ge=0, lt=1)] = _DEFAULT.friction_ratio
+    friction_velocity_mps: Annotated[float, Field(ge=1e-5, le=1.0)] = _DEFAULT.friction_velocity_mps
     #: rated draft and buff force of the coupling [kN] (default: the MT-2 gear's 2,270 kN); null: not
     #: checked. A run whose coupler force passes it gets a warning.
     draft_capacity_kn: Capacity | None = FREIGHT_CAPACITY_N / 1e3
