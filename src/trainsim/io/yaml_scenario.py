@@ -29,8 +29,8 @@ from trainsim.model import (
 )
 from trainsim.model.scenario import RunSettings, Scenario
 
-if TYPE_CHECKING:  # trainsim.optimize is imported where a driving block is read, not by every reader
-    from trainsim.optimize.timetable import Timetable
+if TYPE_CHECKING:
+    from trainsim.model.timetable import Timetable
 
 
 # ====================================================================== scenario
