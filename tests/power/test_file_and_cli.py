@@ -176,3 +176,22 @@ def test_weak_line_limits_traction_and_feedback_slows_the_train(tmp_path):
     # consistent: the capped run gets what it asks within the tolerance
     assert train["traction_delivered_kwh"] >= (1 - 1e-3) * train["traction_demand_kwh"]
     assert train["min_voltage_v"] > 500.0
+
+
+def test_synchronise_picks_the_least_substation_energy_of_its_grid(tmp_path):
+    from trainsim.power.study import FeedbackSettings
+    from trainsim.power.synchronise import _shifted, synchronise
+
+    _, network, services = load_power_file(_small(tmp_path))
+    sync = synchronise(network, services, {"down": (-30.0, 30.0)}, grid_s=30.0, rounds=1)
+    assert sync.evaluations == 3
+    energies = {
+        x: run_study(
+            network, _shifted(services, {"down": x}), feedback=FeedbackSettings(enabled=False)
+        ).summary()["substations_energy_kwh"]
+        for x in (-30.0, 0.0, 30.0)
+    }
+    assert sync.baseline_kwh == pytest.approx(energies[0.0], rel=1e-12)
+    assert sync.best_kwh == pytest.approx(min(energies.values()), rel=1e-12)
+    assert sync.offsets_s["down"] == min(energies, key=energies.get) or sync.best_kwh == sync.baseline_kwh
+    assert 0.0 <= sync.saving < 1.0
