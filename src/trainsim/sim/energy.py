@@ -191,8 +191,11 @@ def _distance_to_speed(E, u, Et, mode, lw, level, P, curves):
     v_from = np.sqrt(2.0 * E) if E > 0.0 else 0.0
     v_to = np.sqrt(2.0 * Et) if Et > 0.0 else 0.0
     vref = 0.5 * (v_from + v_to)
-    n = min(
-        max(int(np.ceil(abs(v_to - v_from) / kernel.SPEED_DOMAIN_STEP)), kernel.SPEED_DOMAIN_MIN_STEPS), 128
+    n = kernel.speed_domain_steps(
+        v_from,
+        v_to,
+        _forces(mode, E, u, lw, level, P, curves, vref)[0],
+        _forces(mode, Et, u, lw, level, P, curves, vref)[0],
     )
     dv = (v_to - v_from) / n
     v = v_from

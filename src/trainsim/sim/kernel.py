@@ -147,9 +147,10 @@ MAX_SUBSTEPS = 64
 
 
 @njit(cache=True)
-def _substeps(E, u, h, mode, line, P, curves, vref):
-    """Number of RK4 sub-steps for a step h [m] from (u, E) (see ``LENGTH_SCALE_FRACTION``)."""
-    a = abs(acceleration(mode, E, u, line, P, curves, vref))
+def _substeps(E, h, a):
+    """Number of RK4 sub-steps for a step h [m] from E with acceleration a [m/s^2] there (see
+    ``LENGTH_SCALE_FRACTION``)."""
+    a = abs(a)
     if not (a > 0.0 and E > 0.0):
         return 1
     n = int(np.ceil(abs(h) * a / (LENGTH_SCALE_FRACTION * 2.0 * E)))
@@ -160,18 +161,20 @@ def _substeps(E, u, h, mode, line, P, curves, vref):
 def rk4_energy(E, u, h, mode, line, P, curves, vref=-1.0):
     """E after a step h [m] (negative: backwards) from offset u; not clipped at 0. Slow steps are
     divided into sub-steps (``LENGTH_SCALE_FRACTION``)."""
-    n = _substeps(E, u, h, mode, line, P, curves, vref)
+    k1 = acceleration(mode, E, u, line, P, curves, vref)
+    n = _substeps(E, h, k1)
     d = h / n
-    for _ in range(n):
-        E = _rk4_energy_1(E, u, d, mode, line, P, curves, vref)
+    for j in range(n):
+        if j > 0:
+            k1 = acceleration(mode, E, u, line, P, curves, vref)
+        E = _rk4_energy_1(E, u, d, mode, line, P, curves, vref, k1)
         u += d
     return E
 
 
 @njit(cache=True)
-def _rk4_energy_1(E, u, h, mode, line, P, curves, vref):
-    """One RK4 step of E over h [m] from offset u."""
-    k1 = acceleration(mode, E, u, line, P, curves, vref)
+def _rk4_energy_1(E, u, h, mode, line, P, curves, vref, k1):
+    """One RK4 step of E over h [m] from offset u, with k1 the acceleration there."""
     k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, line, P, curves, vref)
     k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, line, P, curves, vref)
     k4 = acceleration(mode, E + h * k3, u + h, line, P, curves, vref)
@@ -186,25 +189,28 @@ TIME_SUBSTEPS = 4
 def rk4_energy_time(E, u, h, mode, line, P, curves, vref=-1.0):
     """(E, elapsed time) after a forward step h [m] from offset u; slow steps are divided into
     sub-steps (``LENGTH_SCALE_FRACTION``), each as ``_rk4_energy_time_1``."""
-    n = _substeps(E, u, h, mode, line, P, curves, vref)
+    k1 = acceleration(mode, E, u, line, P, curves, vref)
+    n = _substeps(E, h, k1)
     d = h / n
     total = 0.0
-    for _ in range(n):
-        E, dt = _rk4_energy_time_1(E if E > 0.0 else 0.0, u, d, mode, line, P, curves, vref)
+    for j in range(n):
+        E = E if E > 0.0 else 0.0
+        if j > 0:
+            k1 = acceleration(mode, E, u, line, P, curves, vref)
+        E, dt = _rk4_energy_time_1(E, u, d, mode, line, P, curves, vref, k1)
         total += dt
         u += d
     return E, total
 
 
 @njit(cache=True)
-def _rk4_energy_time_1(E, u, h, mode, line, P, curves, vref):
+def _rk4_energy_time_1(E, u, h, mode, line, P, curves, vref, k1):
     """(E, elapsed time) after one forward RK4 step h [m] from offset u.
 
     Time is the integral of ds / v, singular at standstill. E(s) over the step is taken as the
     cubic Hermite interpolant of its end values and slopes, and on each sub-interval, where E is
     nearly linear, dt = 2 ds / (v_a + v_b), exact for linear E (constant acceleration).
     """
-    k1 = acceleration(mode, E, u, line, P, curves, vref)
     k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, line, P, curves, vref)
     k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, line, P, curves, vref)
     k4 = acceleration(mode, E + h * k3, u + h, line, P, curves, vref)
@@ -225,11 +231,23 @@ def _rk4_energy_time_1(E, u, h, mode, line, P, curves, vref):
     return E1, dt
 
 
-#: Speed change covered by one RK4 step of a speed-domain integration [m/s], and the fewest steps:
-#: a table force that changes steeply with speed (source 002's braking force, 150 to 335 kN between
-#: 5 and 6 km/h) puts a pole of ds/dv = v / a(v) close to the interval.
+#: Speed change covered by one RK4 step of a speed-domain integration [m/s], and the fewest steps.
 SPEED_DOMAIN_STEP = 0.05
-SPEED_DOMAIN_MIN_STEPS = 8
+SPEED_DOMAIN_MIN_STEPS = 3
+#: Extra steps per unit of |ln(a_end / a_start)|: a force that changes steeply with speed (source
+#: 002's braking force, 150 to 335 kN between 5 and 6 km/h) puts a pole of ds/dv = v / a(v) close to
+#: the interval, where a nearly constant one (most tables) needs only the fewest steps.
+SPEED_DOMAIN_STEPS_PER_LOG = 12.0
+
+
+@njit(cache=True)
+def speed_domain_steps(v_from, v_to, a_from, a_to):
+    """RK4 steps for a speed-domain integration from v_from to v_to [m/s] with accelerations a_from,
+    a_to [m/s^2] at its ends (same sign): more where the acceleration changes by a large factor."""
+    n = abs(v_to - v_from) / SPEED_DOMAIN_STEP
+    if a_from * a_to > 0.0:
+        n = min(n, 8.0) + SPEED_DOMAIN_STEPS_PER_LOG * abs(np.log(a_to / a_from))
+    return min(max(int(np.ceil(n)), SPEED_DOMAIN_MIN_STEPS), 128)
 
 
 @njit(cache=True)
@@ -242,8 +260,12 @@ def distance_to_speed(E, u, Et, mode, line, P, curves):
     v_from = np.sqrt(2.0 * E) if E > 0.0 else 0.0
     v_to = np.sqrt(2.0 * Et) if Et > 0.0 else 0.0
     vref = 0.5 * (v_from + v_to)  # the law is smooth in between: evaluate it on that branch
-    # one RK4 step per SPEED_DOMAIN_STEP of speed change keeps the local error far below 1 mm
-    n = min(max(int(np.ceil(abs(v_to - v_from) / SPEED_DOMAIN_STEP)), SPEED_DOMAIN_MIN_STEPS), 128)
+    n = speed_domain_steps(
+        v_from,
+        v_to,
+        acceleration(mode, E, u, line, P, curves, vref),
+        acceleration(mode, Et, u, line, P, curves, vref),
+    )
     dv = (v_to - v_from) / n
     v = v_from
     s = 0.0
