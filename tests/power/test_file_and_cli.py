@@ -195,3 +195,39 @@ def test_synchronise_picks_the_least_substation_energy_of_its_grid(tmp_path):
     assert sync.best_kwh == pytest.approx(min(energies.values()), rel=1e-12)
     assert sync.offsets_s["down"] == min(energies, key=energies.get) or sync.best_kwh == sync.baseline_kwh
     assert 0.0 <= sync.saving < 1.0
+
+
+def test_status_not_ok_exits_3(tmp_path):
+    """Feedback allowed one iteration on a weak line: the runs and the network disagree, the status
+    says so and the command exits with 3 after printing the summary."""
+    path = _small(
+        tmp_path,
+        **{
+            "network.tracks.0.contact_resistance_ohm_per_km": 0.05,
+            "network.substations": [
+                {
+                    "id": "S",
+                    "position_km": 0,
+                    "tracks": ["up", "down"],
+                    "no_load_voltage_v": 850,
+                    "internal_resistance_ohm": 0.02,
+                    "reversible": False,
+                }
+            ],
+            "network.connections": [],
+            "trains": [
+                {
+                    "id": "up",
+                    "scenario": METRO,
+                    "track": "up",
+                    "origin_km": 0,
+                    "direction": 1,
+                    "departures_s": [0],
+                }
+            ],
+            "simulation": {"step_s": 1, "feedback": {"enabled": True, "max_iterations": 1}},
+        },
+    )
+    result = CliRunner().invoke(app, ["power", str(path), "--json"])
+    assert result.exit_code == 3
+    assert json.loads(result.stdout)["status"] == "feedback_not_converged"

@@ -169,3 +169,52 @@ def test_bad_networks_are_input_errors():
         _bad(substations=(Substation("S1", 0, ("A",), 850, 0.0),))
     with pytest.raises(InputError, match="unknown supply system"):
         standard_limits("dc_900")
+
+
+def test_ac_train_between_two_substations_against_an_independent_solve():
+    """AC: one train (P, Q) between two substations with complex impedances; the pantograph voltage
+    from the fixed-point iteration equals the root of U = E_th - Z_th conj(S / U) found by scipy's
+    fsolve on its real and imaginary parts (the Thevenin equivalent built by hand)."""
+    from scipy.optimize import fsolve
+
+    from trainsim.power import VoltageLimits
+
+    lim = VoltageLimits(
+        nominal_v=25e3, min2_v=1e3, min1_v=1e3, max1_v=4e4, max2_v=4.1e4, traction_full_v=1001.0
+    )
+    z_line = complex(0.19e-3, 0.41e-3)  # ohm/m
+    z1, z2 = complex(0.25, 3.0), complex(0.3, 2.5)
+    e1, e2 = 27500.0, 27000.0
+    net = Network(
+        "ac",
+        "ac",
+        lim,
+        (Track("A", 0.0, 40000.0, z_line.real, 0.0, 0.0, z_line.imag),),
+        (
+            Substation("S1", 0.0, ("A",), e1, z1.real, z1.imag),
+            Substation("S2", 40000.0, ("A",), e2, z2.real, z2.imag),
+        ),
+        contact_leakage_s=1e-15,
+    )
+    x, p, pf = 15000.0, 8e6, 0.95
+    tan_phi = np.sqrt(1 - pf**2) / pf
+    loads = StepLoads(
+        np.array([0]), np.array([x]), np.array([p]), np.zeros(1), np.zeros(1), np.array([tan_phi])
+    )
+    sol = solve_step(net, loads)
+    za, zb = z1 + z_line * x, z2 + z_line * (40000.0 - x)
+    e_th = (e1 * zb + e2 * za) / (za + zb)
+    z_th = za * zb / (za + zb)
+    s = p * (1 + 1j * tan_phi)
+
+    def residual(w):
+        u = complex(w[0], w[1])
+        r = u - (e_th - z_th * np.conj(s / u))
+        return [r.real, r.imag]
+
+    root = fsolve(residual, [e_th.real, e_th.imag], xtol=1e-14)
+    assert sol.converged
+    assert sol.train_voltage_v[0] == pytest.approx(abs(complex(*root)), rel=1e-9)
+    assert np.sum(sol.substation_source_w) == pytest.approx(
+        p + sol.line_loss_w + sol.substation_loss_w, rel=1e-8
+    )
