@@ -23,7 +23,7 @@ import trainsim
 from trainsim.errors import InputError, TrainsimError
 from trainsim.io import trainsim_yaml as tsy
 from trainsim.model.scenario import RunSettings
-from trainsim.web import strategies
+from trainsim.web import guard, strategies
 from trainsim.web.cache import identity
 from trainsim.web.config import WebSettings
 from trainsim.web.convert import spec_dict
@@ -321,6 +321,10 @@ def get_train(request: Request) -> Any:
 @router.put("/train", tags=["train"], responses=_ERRORS, summary="Replace the session's train (validated)")
 async def put_train(request: Request, spec: Annotated[dict[str, Any], _TRAIN_BODY]) -> Any:
     session = session_of(request)
+    try:  # size bounds first, here: most hostile documents never cost a worker round trip
+        guard.check_document(spec, settings_of(request))
+    except InputError as exc:
+        raise input_error(exc) from exc
     with session.lock:
         source = session.train.source if session.train else "edited"
     shown = source if source.endswith("(edited)") else f"{source} (edited)"
@@ -411,6 +415,10 @@ def get_route(request: Request) -> Any:
 @router.put("/route", tags=["route"], responses=_ERRORS, summary="Replace the session's route (validated)")
 async def put_route(request: Request, spec: Annotated[dict[str, Any], _ROUTE_BODY]) -> Any:
     session = session_of(request)
+    try:  # size bounds first, here: most hostile documents never cost a worker round trip
+        guard.check_document(spec, settings_of(request))
+    except InputError as exc:
+        raise input_error(exc) from exc
     with session.lock:
         source = session.route.source if session.route else "edited"
     shown = source if source.endswith("(edited)") else f"{source} (edited)"
