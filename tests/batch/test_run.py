@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from batchcases import METRO, metro_study
+from batchcases import METRO, REPO, metro_study
 
 import trainsim
 from trainsim.batch import run_study, study_from_dict
@@ -100,6 +100,39 @@ def test_chunk_sizes_shrink_towards_the_end():
     assert auto_chunk_size(100_000, 2) == 200
     assert auto_chunk_size(400, 2) == 50
     assert auto_chunk_size(5, 2) == 10
+
+
+def test_chunks_hold_at_most_half_a_second_of_work():
+    # runs of a few seconds (multi-point) go one per chunk, 0.05 s runs ten per chunk
+    assert auto_chunk_size(12, 2, run_s=3.0) == 1
+    assert auto_chunk_size(100, 2, run_s=0.3) == 1
+    assert auto_chunk_size(1000, 2, run_s=0.05) == 10
+    assert auto_chunk_size(100_000, 2, run_s=0.0025) == 200
+
+
+def test_a_multi_point_study_is_cut_into_one_run_chunks():
+    """The heavy-haul coupler study (12 multi-point runs of seconds each) was split [10, 2]: one worker
+    of two did almost everything. Predicted from the kind of run, then measured, every chunk is one run."""
+    from trainsim.batch import load_study
+    from trainsim.batch.runner import PREDICTED_RUN_S, _chunks, _Cost
+
+    study = load_study(REPO / "examples" / "studies" / "heavy_haul_couplers.yaml")
+    expansion = study.expand()
+    cost = _Cost(expansion)
+    assert cost.run_s == PREDICTED_RUN_S["multi_point"]
+    assert [len(c) for c in _chunks(expansion, list(range(12)), None, 2, cost)] == [1] * 12
+    # measured costs take over: cheap runs after all -> larger chunks
+    metro = study_from_dict(
+        metro_study(
+            axes=[{"field": "train.formation[0].load_t", "range": {"from": 0, "to": 10, "count": 1000}}]
+        ),
+        "m.yaml",
+    ).expand()
+    cost = _Cost(metro)
+    assert cost.run_s == PREDICTED_RUN_S["fastest"]
+    cost.run_s = 0.05  # as if measured
+    sizes = [len(c) for c in _chunks(metro, list(range(1000)), None, 2, cost)]
+    assert set(sizes) == {10} and sum(sizes) == 1000
 
 
 def test_bad_arguments():

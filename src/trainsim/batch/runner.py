@@ -33,6 +33,7 @@ class StudyOutcome:
         stalled: runs computed by this call whose train stalled.
         elapsed_s: wall time of the computation (after the study was read and expanded) [s].
         chunks: chunks computed; chunk_size: runs per chunk (the largest, when automatic);
+        chunk_sizes: runs of each chunk computed, in the order they completed;
         executor, workers: where.
     """
 
@@ -48,6 +49,7 @@ class StudyOutcome:
     chunk_size: int
     executor: str
     workers: int
+    chunk_sizes: tuple[int, ...] = ()
     _table: Any = field(default=None, repr=False)
 
     @property
@@ -75,26 +77,58 @@ class StudyOutcome:
         return read_results(self.out, as_table=True)
 
 
-#: Smallest and largest automatic chunk [runs].
+#: Smallest and largest automatic chunk of cheap runs [runs].
 MIN_CHUNK, MAX_CHUNK = 10, 200
+#: Compute time aimed at for one chunk [s]: long against the cost of a chunk (scheduling, pickling, one
+#: Parquet file: about 10 ms), short enough that a killed study loses little and the last chunks end
+#: together. Runs costing more than this go one per chunk.
+CHUNK_TARGET_S = 0.5
+#: Cost of one run predicted before any is measured [s] (2-core development machine): a metro fastest
+#: run, an energy-efficient run of the optimiser, a multi-point run of the heavy-haul example.
+PREDICTED_RUN_S = {"fastest": 0.0025, "driving": 0.3, "multi_point": 3.0}
 
 
-def auto_chunk_size(remaining: int, workers: int) -> int:
-    """Runs of the next chunk when ``remaining`` runs are left: a quarter of each worker's share,
-    between 10 and 200 runs.
+def auto_chunk_size(remaining: int, workers: int, run_s: float = PREDICTED_RUN_S["fastest"]) -> int:
+    """Runs of the next chunk when ``remaining`` runs are left, each costing about ``run_s`` seconds.
 
-    Chunks of up to 200 metro runs (about half a second) keep the per-chunk cost (scheduling,
-    pickling, one Parquet file) below 1 % while a killed study loses little work; chunks shrink
-    towards the end of the study ("guided" scheduling) so that no worker waits long for the last
-    one to finish.
+    Cheap runs: a quarter of each worker's share, between 10 and 200 runs ("guided" scheduling: the
+    chunks shrink towards the end of the study so that no worker waits long for the last one). The
+    chunk never holds more than :data:`CHUNK_TARGET_S` of work: multi-point and energy-efficient runs
+    (seconds each) go one or a few per chunk, so that 12 runs on 2 workers are split 6 / 6, not 10 / 2,
+    and a killed worker loses one run's work, not a chunk's.
     """
-    return max(MIN_CHUNK, min(MAX_CHUNK, math.ceil(remaining / max(1, 4 * workers))))
+    by_cost = max(1, int(CHUNK_TARGET_S / max(run_s, 1e-9)))
+    guided = max(MIN_CHUNK, min(MAX_CHUNK, math.ceil(remaining / max(1, 4 * workers))))
+    return max(1, min(guided, by_cost))
 
 
-def _chunks(expansion: Expansion, todo: list[int], size: int | None, workers: int) -> Iterator[list[RunTask]]:
+class _Cost:
+    """The cost of a run [s of one worker]: predicted from the kind of study, then measured from the
+    rate at which chunks complete after the first one (so that the workers' start-up does not count):
+    wall time x workers / runs."""
+
+    def __init__(self, expansion: Expansion) -> None:
+        kind = "multi_point" if expansion.multi_point else "driving" if expansion.driving else "fastest"
+        self.run_s = PREDICTED_RUN_S[kind]
+        self.first: tuple[float, int] | None = None
+        self.done = 0
+
+    def update(self, runs: int, workers: int) -> None:
+        self.done += runs
+        now = time.perf_counter()
+        if self.first is None:
+            self.first = (now, self.done)
+        elif self.done > self.first[1]:
+            self.run_s = (now - self.first[0]) * max(workers, 1) / (self.done - self.first[1])
+
+
+def _chunks(
+    expansion: Expansion, todo: list[int], size: int | None, workers: int, cost: _Cost | None = None
+) -> Iterator[list[RunTask]]:
     k = 0
     while k < len(todo):
-        n = size or auto_chunk_size(len(todo) - k, workers)
+        run_s = cost.run_s if cost is not None else PREDICTED_RUN_S["fastest"]
+        n = size or auto_chunk_size(len(todo) - k, workers, run_s)
         yield [expansion.task(i) for i in todo[k : k + n]]
         k += n
 
@@ -215,6 +249,7 @@ def run_study(
     )
     already = len(expansion) - len(todo)
     computed = failed = stalled = chunks = 0
+    sizes: list[int] = []
     t0 = time.perf_counter()
     if todo:
         with executor_for(
@@ -223,8 +258,11 @@ def run_study(
             n_workers = ex.workers
             # the bar (a thread) starts once the workers are running
             bar = _Progress(study.name, len(expansion), already, progress)
+            cost = _Cost(expansion)
             try:
-                for rows in ex.results(_chunks(expansion, todo, size, n_workers)):
+                for rows in ex.results(_chunks(expansion, todo, size, n_workers, cost)):
+                    cost.update(len(rows), n_workers)
+                    sizes.append(len(rows))
                     sink.write(rows)
                     n_failed = sum(1 for _, r in rows if r["status"] == "failed")
                     computed += len(rows)
@@ -245,8 +283,9 @@ def run_study(
         stalled=stalled,
         elapsed_s=elapsed,
         chunks=chunks,
-        chunk_size=size or auto_chunk_size(len(todo), n_workers),
+        chunk_size=size or max(sizes, default=auto_chunk_size(len(todo), n_workers)),
         executor=executor,
         workers=n_workers,
+        chunk_sizes=tuple(sizes),
         _table=sink.table() if isinstance(sink, MemorySink) else None,
     )
