@@ -1,7 +1,8 @@
 """Wall time of the power-supply simulation: a 20 km metro line, 30 trains, one hour at 1 s steps.
 
 Issue 18's target: at most 10 s on the 2-core development machine. The line: two tracks, 750 V DC,
-substations every 2.5 km (9, diode rectifiers), paralleling posts half way between them; source
+substations every 2.5 km (9 diode rectifiers, 850 V, 0.012 ohm), paralleling posts half way between them
+(the network data of examples/power/metro_750v_diode.yaml); source
 002's type B metro (regenerative braking at 0.8 of traction, 50 kW auxiliaries) stopping every
 1.25 km (30 s dwell), 15 trains per direction on the line at any time. The trains' runs are computed
 once (one fastest run per direction); the benchmark times the network solution over the hour.
@@ -52,10 +53,10 @@ def line_and_trains(reversible: bool):
     route = Route("20 km metro", 0.0, LENGTH_M, stations, (SpeedLimit(0.0, LENGTH_M, 80 * KMH),))
     settings = trainsim.RunSettings(max_step_m=10.0)
     run = trainsim.run_fastest(train, route, settings)
-    tracks = tuple(Track(t, 0.0, LENGTH_M, 0.02e-3, 0.015e-3, 0.1e-6) for t in ("up", "down"))
+    tracks = tuple(Track(t, 0.0, LENGTH_M, 0.018e-3, 0.012e-3, 0.1e-6) for t in ("up", "down"))
     subs = tuple(
         Substation(
-            f"SS{k}", k * 2500.0, ("up", "down"), 850.0, 0.03, rated_power_w=4e6, reversible=reversible
+            f"SS{k}", k * 2500.0, ("up", "down"), 850.0, 0.012, rated_power_w=3e6, reversible=reversible
         )
         for k in range(9)
     )
