@@ -98,7 +98,7 @@ def ceiling_at(u, w, k, Cr, US, vcap, line, P, curves, bk):
 def final_phase(
     x, a0, a1, b0, b1, vcap, tscale, i_start, u_start, v_start, t_start, i_end,
     P, curves, tk, bk, Cr, US, mu, inv_eta_t, eta_r, has_regen, h_max,
-    out_s, out_v, out_t, out_m, n, force_mode=-1, v_hold=np.inf, phi_start=-1.0,
+    out_s, out_v, out_t, out_m, n, force_mode, v_hold, phi_start, stop_mode, sk,
 ):  # fmt: skip
     """From (x[i_start] + u_start, v_start), leaving the holding arc (phi just below 1/eta_t), drive
     by the adjoint to the stop at x[i_end], holding the speed limit ``vcap`` if the train reaches
@@ -107,7 +107,9 @@ def final_phase(
     to rest before (the last point is where it stopped); and the position of that event.
     ``force_mode`` >= 0 replaces the adjoint's choice by a fixed regime (source 004's braking).
     The adjoint starts at ``phi_start``, by default (< 0) just below 1/eta_t: leaving a holding
-    arc; leaving an arc held by braking on a descent it starts just below eta_r (or 0)."""
+    arc; leaving an arc held by braking on a descent it starts just below eta_r (or 0).
+    ``Cr``/``US`` are the braking curves of ``stop_mode`` (BRAKE: service braking; REGEN:
+    regenerative braking only), ``sk`` their kinks; the run follows them where it meets them."""
     phi = inv_eta_t * (1.0 - 1e-9) if phi_start < 0.0 else phi_start
     E = 0.5 * v_start * v_start
     t = t_start
@@ -191,15 +193,15 @@ def final_phase(
                     v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
                     phi1 = thr - 1e-12 if phi1 < phi else thr + 1e-12
             # the braking curve to the stop (and to lower limits) must not be crossed
-            if mode != BRAKE and u + h > US[kk]:
-                c1 = _brake_curve_speed(u + h, w, Cr[kk], line, P, curves, bk)
+            if mode != stop_mode and u + h > US[kk]:
+                c1 = _curve_speed(u + h, w, Cr[kk], stop_mode, line, P, curves, sk)
                 if v1 > c1 + 1e-9:
-                    hm = _meet_brake_curve(E, u, u + h, mode, w, Cr[kk], line, P, curves, kinks, bk)
+                    hm = _meet_curve(E, u, u + h, mode, w, Cr[kk], stop_mode, line, P, curves, kinks, sk)
                     Em, dtm = step_energy_time(E, u, hm - u, mode, line, P, curves, kinks)
                     n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
                     n, j, uj, tj, found = _brake_to_plateau(
-                        x, a0, a1, b0, b1, i, hm, Em, t + dtm, i_end, P, curves, bk, Cr, US, kk,
-                        out_s, out_v, out_t, out_m, n,
+                        x, a0, a1, b0, b1, i, hm, Em, t + dtm, i_end, P, curves, sk, Cr, US, kk,
+                        out_s, out_v, out_t, out_m, n, stop_mode,
                     )  # fmt: skip
                     if not found:
                         return n, HIT_CEILING, x[i] + hm
@@ -213,15 +215,15 @@ def final_phase(
         if not jumped:
             u = 0.0
             i += 1
-    n = _emit(out_s, out_v, out_t, out_m, n, x[i_end], np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, BRAKE)
+    n = _emit(out_s, out_v, out_t, out_m, n, x[i_end], np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, stop_mode)
     return n, HIT_CEILING, x[i_end]
 
 
 @njit(cache=True)
 def _brake_to_plateau(
-    x, a0, a1, b0, b1, i, u, E, t, i_end, P, curves, bk, Cr, US, kk, out_s, out_v, out_t, out_m, n
+    x, a0, a1, b0, b1, i, u, E, t, i_end, P, curves, bk, Cr, US, kk, out_s, out_v, out_t, out_m, n, mode
 ):  # fmt: skip
-    """Maximum service braking along the speed ceiling from (x[i] + u) until it reaches the plateau
+    """Maximum braking of ``mode`` (service or regenerative) along the speed ceiling from (x[i] + u) until it reaches the plateau
     of a lower limit. Returns (n, j, u_j, t_j, found): the plateau's start at offset u_j of interval
     j, or (found False) the stop at x[i_end], where the run then ends."""
     k = kk
@@ -231,13 +233,13 @@ def _brake_to_plateau(
         if j > i and u < US[k] - 1e-9:  # (in the first interval the run is on the curve already)
             return n, j, u, t, True
         if u < w:
-            n = _emit(out_s, out_v, out_t, out_m, n, x[j] + u, np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, BRAKE)
-            _, dt = step_energy_time(E, u, w - u, BRAKE, line, P, curves, bk)
+            n = _emit(out_s, out_v, out_t, out_m, n, x[j] + u, np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, mode)
+            _, dt = step_energy_time(E, u, w - u, mode, line, P, curves, bk)
             t += dt
         E = 0.5 * Cr[k] * Cr[k]
         u = 0.0
         k += 1
-    n = _emit(out_s, out_v, out_t, out_m, n, x[i_end], 0.0, t, BRAKE)
+    n = _emit(out_s, out_v, out_t, out_m, n, x[i_end], 0.0, t, mode)
     return n, i_end, 0.0, t, False
 
 
