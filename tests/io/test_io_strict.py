@@ -201,3 +201,37 @@ def test_route_gravity_is_a_bounded_setting(tmp_path: Path) -> None:
 def test_version_true_is_not_version_1(tmp_path: Path) -> None:
     error = _refused(tmp_path, "route", {**_doc("route.yaml"), "version": True})
     assert error.field == "version" and error.allowed == "1"
+
+
+# ====================================================================== bounded tables
+def test_csv_cell_beyond_the_field_limit(tmp_path: Path) -> None:
+    folder = _csv_folder(tmp_path)
+    stations = folder / "stations.csv"
+    stations.write_text(
+        stations.read_text(encoding="utf-8") + '"' + "x" * 200_000 + '",1,0,yes\n', encoding="utf-8"
+    )
+    with pytest.raises(InputError, match="not a readable CSV table") as err:
+        trainsim.load_route(folder)
+    assert err.value.file == str(stations) and err.value.line is not None and len(str(err.value)) < 400
+
+
+def test_workbooks_bounded(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from trainsim.io import spreadsheet
+
+    folder = DATA / "testline_csv"
+    book = spreadsheet.write_spreadsheet(
+        tmp_path / "line.xlsx", train=trainsim.load_train(folder), route=trainsim.load_route(folder)
+    )
+    assert trainsim.load_route(book).length_m > 0
+    monkeypatch.setattr(spreadsheet, "MAX_WORKBOOK_UNPACKED_BYTES", 1000)
+    with pytest.raises(InputError, match="unpacks to too much") as err:
+        trainsim.load_route(book)
+    assert err.value.file == str(book)
+    monkeypatch.setattr(spreadsheet, "MAX_WORKBOOK_UNPACKED_BYTES", 10**9)
+    monkeypatch.setattr(spreadsheet, "MAX_TABLE_ROWS", 3)
+    with pytest.raises(InputError, match="table too long"):
+        trainsim.load_route(book)
+    fake = tmp_path / "fake.xlsx"
+    fake.write_bytes(b"not a zip archive")
+    with pytest.raises(InputError, match="not an Excel workbook"):
+        trainsim.load_route(fake)

@@ -41,6 +41,8 @@ sheet and the cell.
 
 from __future__ import annotations
 
+import csv
+import io
 import itertools
 import math
 import re
@@ -52,7 +54,8 @@ from typing import Any
 import numpy as np
 
 from trainsim.constants import KMH
-from trainsim.errors import InputError
+from trainsim.errors import InputError, shown_value
+from trainsim.io import documents
 from trainsim.io import railml_common as rc
 from trainsim.io.units import UNITS, Unit, format_units
 from trainsim.model import Route, Train, bounds
@@ -137,20 +140,22 @@ def read_sheets(path: str | Path) -> dict[str, Sheet]:
             raise InputError(
                 "no CSV file in this folder", file=file, allowed=", ".join(TRAIN_SHEETS + ROUTE_SHEETS)
             )
-        import csv
-
         for f in files:
+            text = documents.read_text(f)  # bounded size, UTF-8 (an optional BOM dropped)
             try:
-                with f.open(newline="", encoding="utf-8-sig") as fh:
-                    sample = fh.read(4096)
-                    fh.seek(0)
-                    try:
-                        dialect = csv.Sniffer().sniff(sample, delimiters=",;\t")
-                    except csv.Error:
-                        dialect = csv.excel
-                    rows = [[c.strip() for c in r] for r in csv.reader(fh, dialect)]
-            except (OSError, UnicodeDecodeError) as exc:
-                raise InputError(f"cannot read the file ({exc})", file=str(f)) from exc
+                dialect = csv.Sniffer().sniff(text[:4096], delimiters=",;\t")
+            except csv.Error:
+                dialect = csv.excel
+            reader = csv.reader(io.StringIO(text, newline=""), dialect)
+            rows = []
+            try:
+                for r in reader:
+                    rows.append([c.strip() for c in r[: MAX_TABLE_COLUMNS + 1]])
+                    _check_table_size(len(rows), len(r), str(f), reader.line_num)
+            except csv.Error as exc:
+                raise InputError(
+                    f"not a readable CSV table ({exc})", file=str(f), line=reader.line_num
+                ) from exc
             rows = _trim(rows)
             if rows:
                 out[f.stem.lower()] = Sheet(f.stem.lower(), str(f), str(f), rows[0], rows[1:])
@@ -163,17 +168,71 @@ def read_sheets(path: str | Path) -> dict[str, Sheet]:
         import openpyxl
     except ImportError as exc:  # pragma: no cover - a declared dependency
         raise InputError("reading Excel files needs the openpyxl package", file=file) from exc
+    _check_workbook_size(p, file)
     try:
         book = openpyxl.load_workbook(p, read_only=True, data_only=True)
     except Exception as exc:  # openpyxl raises many kinds for a damaged file
-        raise InputError(f"cannot read the workbook ({exc})", file=file) from exc
+        raise InputError(f"cannot read the workbook ({shown_value(str(exc))[1:-1]})", file=file) from exc
     for ws in book.worksheets:
-        rows = _trim([[_text(c) for c in row] for row in ws.iter_rows(values_only=True)])
+        read: list[list[str]] = []
+        try:
+            for row in ws.iter_rows(max_col=MAX_TABLE_COLUMNS, values_only=True):
+                read.append([_text(c) for c in row])
+                _check_table_size(len(read), len(row), f"{file}, sheet '{ws.title}'", len(read))
+        except InputError:
+            book.close()
+            raise
+        except Exception as exc:  # a damaged sheet
+            book.close()
+            raise InputError(f"cannot read the sheet ({shown_value(str(exc))[1:-1]})", file=file) from exc
+        rows = _trim(read)
         if rows:
             name = ws.title.strip().lower()
             out[name] = Sheet(name, f"{file}, sheet '{ws.title}'", file, rows[0], rows[1:])
     book.close()
     return out
+
+
+#: Largest table read [rows, columns]: route tables of a long line have some thousands of rows.
+MAX_TABLE_ROWS = 1_000_000
+MAX_TABLE_COLUMNS = 200
+#: Largest uncompressed content of a workbook [bytes] (a workbook is a zip archive: a small file can
+#: unpack to gigabytes).
+MAX_WORKBOOK_UNPACKED_BYTES = 256 * 1024 * 1024
+
+
+def _check_table_size(rows: int, columns: int, where: str, line: int) -> None:
+    if rows > MAX_TABLE_ROWS:
+        raise InputError("table too long", file=where, line=line, allowed=f"at most {MAX_TABLE_ROWS} rows")
+    if columns > MAX_TABLE_COLUMNS:
+        raise InputError(
+            "table too wide",
+            file=where,
+            line=line,
+            value=columns,
+            allowed=f"at most {MAX_TABLE_COLUMNS} columns",
+        )
+
+
+def _check_workbook_size(p: Path, file: str) -> None:
+    """Refuse a workbook too large, or unpacking to too much (a zip bomb), before openpyxl reads it."""
+    import zipfile
+
+    documents.read_bytes(p)  # the size limit of every file
+    try:
+        with zipfile.ZipFile(p) as archive:
+            unpacked = sum(info.file_size for info in archive.infolist())
+    except (zipfile.BadZipFile, OSError, ValueError) as exc:
+        raise InputError(
+            "not an Excel workbook (not a zip archive)", file=file, allowed=".xlsx files"
+        ) from exc
+    if unpacked > MAX_WORKBOOK_UNPACKED_BYTES:
+        raise InputError(
+            "the workbook unpacks to too much data",
+            file=file,
+            value=f"{unpacked} bytes",
+            allowed=f"at most {MAX_WORKBOOK_UNPACKED_BYTES} bytes",
+        )
 
 
 def is_spreadsheet(path: str | Path) -> bool:
