@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import json
 import zipfile
 from pathlib import Path
 
@@ -106,3 +107,17 @@ def test_compare_a_drive_with_the_fastest_run_of_its_own_train_line_and_distance
     assert (fastest["train"], fastest["route"]) == (drive["train"], drive["route"])
     assert f"to {s2['name']}" in fastest["label"]
     assert fastest["plot"]["position_m"][-1] == pytest.approx(s2["position_m"])
+
+
+@pytest.mark.filterwarnings("ignore")
+def test_energy_time_curve(metro: TestClient) -> None:
+    r = metro.post("/api/curves/energy-time", json={"supplements_percent": [10, 0, 20]})
+    assert r.status_code == 200, r.text
+    points = r.json()["points"]
+    assert [p["supplement_percent"] for p in points] == [0, 10, 20]
+    times = [p["running_time_s"] for p in points]
+    energies = [p["energy_kwh"] for p in points]
+    assert times == sorted(times) and energies == sorted(energies, reverse=True)
+    body = json.dumps({"supplements_percent": [float("inf")] * 20})
+    bad = metro.post("/api/curves/energy-time", content=body, headers={"content-type": "application/json"})
+    assert bad.status_code == 422

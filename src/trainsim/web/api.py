@@ -743,3 +743,35 @@ async def fastest_for(run_id: str, request: Request) -> Response:
         store_of(request).add_run(session, run)
     head = json.dumps({**run_brief(run), "params": run.params}, separators=(",", ":")).encode()
     return _raw(head[:-1] + b"," + body_json[1:], 201)
+
+
+class CurveRequest(BaseModel):
+    """Line supplements of an energy-time curve."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    supplements_percent: list[Annotated[float, Field(ge=0, le=100, allow_inf_nan=False)]] = Field(
+        default_factory=lambda: [0.0, 2.0, 5.0, 10.0, 15.0, 20.0, 30.0],
+        min_length=1,
+        max_length=12,
+        description="running-time supplements over the fastest run [%]",
+    )
+
+
+@router.post(
+    "/curves/energy-time",
+    tags=["runs"],
+    responses={**_ERRORS, 409: {"description": "no train or route"}},
+    summary="Energy against running time of the energy-efficient strategy for line supplements",
+)
+async def energy_time_curve(request: Request, body: CurveRequest) -> Response:
+    session = session_of(request)
+    with session.lock:
+        if session.train is None or session.route is None:
+            raise ApiError(409, "load a train and a route first")
+        train, route, settings = session.train.model, session.route.model, session.settings
+        run_settings_for(session, None, settings_of(request))
+    body_json = await work(
+        request, session, "energy_time", train, route, settings, sorted(body.supplements_percent)
+    )
+    return _raw(body_json)

@@ -286,3 +286,16 @@ def warm() -> None:
         run_fastest(train, route, RunSettings(max_step_m=50.0))
     except Exception:  # warming up is an optimisation only
         pass
+
+
+def energy_time(train: Train, route: Route, settings: RunSettings, supplements_percent: list[float]) -> bytes:
+    """The optimal strategy's net energy against running time for line supplements [%], as the
+    answer body ``{"points": [{supplement_percent, running_time_s, energy_kwh, energy_traction_kwh}]}``."""
+    try:
+        from trainsim.optimize.api import energy_time_curve
+    except ImportError as exc:
+        raise InputError(
+            "the optimizer is not installed", allowed="pip install 'trainsim[optimize]'"
+        ) from exc
+    frame = energy_time_curve(train, route, [x / 100.0 for x in supplements_percent], settings)
+    return _dumps({"points": frame.to_dict(orient="records")}, "energy-time curve")

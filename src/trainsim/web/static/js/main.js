@@ -1,7 +1,7 @@
 // The page: four views (train, track, run, live driving) over the JSON API and the drive WebSocket.
 import { del, get, post, put, upload } from "./api.js";
 import { SpecEditor } from "./editor.js";
-import { DrivePlot, plotProfile, plotRuns, plotTrainCurves } from "./plots.js";
+import { DrivePlot, plotEnergyTime, plotProfile, plotRuns, plotTrainCurves } from "./plots.js";
 
 const $ = (sel) => document.querySelector(sel);
 const h = (tag, attrs = {}, ...children) => {
@@ -537,6 +537,18 @@ async function compareDrive() {
   switchTab("run");
 }
 
+async function energyTimeCurve() {
+  const answer = await busy(post("/api/curves/energy-time", {}));
+  if (!answer.ok) {
+    showErrors($("#run-errors"), answer.data, answer.data.detail);
+    return;
+  }
+  showErrors($("#run-errors"), null);
+  const div = $("#plot-energy-time");
+  div.hidden = false;
+  plotEnergyTime(div, answer.data.points);
+}
+
 function driveKeys(ev) {
   if (state.tab !== "drive" || !drive.running) return;
   if (["INPUT", "SELECT", "TEXTAREA"].includes(document.activeElement?.tagName) && document.activeElement.type !== "range"
@@ -600,6 +612,7 @@ async function main() {
   });
   $("#drive-finish").addEventListener("click", () => driveSend({ type: "finish" }));
   $("#drive-compare").addEventListener("click", compareDrive);
+  $("#curve-button").addEventListener("click", energyTimeCurve);
   for (const r of document.querySelectorAll("input[name=scale]")) r.addEventListener("change", () => setScale(Number(r.value)));
   document.addEventListener("keydown", driveKeys);
   document.body.dataset.ready = "true";

@@ -192,3 +192,16 @@ export class DrivePlot {
     Plotly.restyle(this.div, { x: [[x]], y: [[state.speed_kmh]] }, [this.driveIndex + 1]);
   }
 }
+
+// Net energy from the line against running time (the energy-efficient strategy, line supplements)
+export function plotEnergyTime(div, points) {
+  const x = points.map((p) => p.running_time_s);
+  Plotly.react(div, [
+    { x, y: points.map((p) => p.energy_kwh), name: "net energy from line", mode: "lines+markers",
+      text: points.map((p) => `+${p.supplement_percent} %`), hovertemplate: "%{x:.1f} s, %{y:.2f} kWh (%{text})",
+      line: { color: COLORS.a } },
+    { x, y: points.map((p) => p.energy_traction_kwh), name: "traction energy (wheel)", mode: "lines+markers",
+      line: { color: COLORS.b, dash: "dot" } },
+  ], { ...BASE, hovermode: "closest", title: { text: "Energy against running time (energy-efficient)", font: { size: 14 } },
+    xaxis: { title: { text: "running time [s]" } }, yaxis: { title: { text: "energy [kWh]" } } }, CONFIG);
+}
