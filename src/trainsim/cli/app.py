@@ -47,6 +47,9 @@ COMMANDS: dict[str, CommandEntry] = {
         "trainsim.cli.analysis", "analyze_acceleration", "Power-limited acceleration analysis (source 001)."
     ),
     "power": CommandEntry("trainsim.cli.power", "power", "Many trains on a DC or AC power supply network."),
+    "operate": CommandEntry(
+        "trainsim.cli.operate", "operate", "Many trains on a signalled line: delays, conflicts, headways."
+    ),
     "serve": CommandEntry("trainsim.cli.web", "serve", "Start the web application."),
     # `trainsim run` runs multi-point scenarios too; the old name stays for scripts that use it
     "multipoint": CommandEntry(
