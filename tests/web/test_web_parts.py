@@ -125,3 +125,25 @@ def test_serve_prints_the_address_and_runs_uvicorn(monkeypatch, capsys) -> None:
     assert seen["host"] == "127.0.0.1" and seen["port"] == 8000
     serve(host="::1", port=9001)
     assert "http://[::1]:9001/" in capsys.readouterr().out
+
+
+def test_serve_options_reach_the_application(monkeypatch, capsys) -> None:
+    import uvicorn
+
+    from trainsim.cli.web import serve
+
+    seen = {}
+    monkeypatch.setattr(uvicorn, "run", lambda app, **kw: seen.update(kw, app=app))
+    serve(
+        host="0.0.0.0",
+        allowed_host=["trains.example"],
+        workers=3,
+        drive_hosts=1,
+        time_limit_s=5,
+        memory_limit_mb=256,
+    )
+    settings = seen["app"].state.web_settings
+    assert {"127.0.0.1", "localhost", "0.0.0.0", "trains.example"} <= set(settings.allowed_hosts)
+    assert (settings.workers, settings.drive_hosts, settings.job_time_limit_s) == (3, 1, 5)
+    assert settings.job_memory_limit_bytes == 256 * 2**20
+    assert "no login" in capsys.readouterr().err
