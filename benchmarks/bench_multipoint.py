@@ -7,7 +7,12 @@ process is pinned to one core and numba to one thread. Prints per case the media
 the CPU time, integrator steps, Newton iterations per step, the simulated running time, and the
 machine's load average (other processes on the machine slow the wall time down).
 
-Run: python benchmarks/bench_multipoint.py [--repeat N]
+With ``--scaling`` it also runs the example's train with 50, 100 and 200 wagons (the wagons repeated or
+cut, locomotives at the head and in the middle) over the same line and prints each wall time as a ratio
+to the 100-wagon run of the same process, and the growth exponent of the wall time in the number of
+vehicles (log-log slope; 1 = linear).
+
+Run: python benchmarks/bench_multipoint.py [--repeat N] [--scaling]
 """
 
 from __future__ import annotations
@@ -47,6 +52,7 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--scaling", action="store_true", help="time 50, 100, 200 wagons as well")
     args = parser.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
@@ -79,6 +85,53 @@ def main() -> None:
             f"{name:32s} {statistics.median(walls):9.2f} {min(walls):7.2f} {min(cpus):6.2f} {st['steps']:7.0f} "
             f"{st['newton_iterations'] / st['steps']:7.2f} {result.running_time_s:7.0f} {load:5.1f}"
         )
+    if args.scaling:
+        scaling(scenario, args.repeat)
+
+
+def with_wagons(train, wagons: int):
+    """The train with ``wagons`` wagons (the first wagon repeated), its locomotives kept."""
+    locos = [v for v in train.vehicles if v.powered]
+    wagon = next(v for v in train.vehicles if not v.powered)
+    vehicles = (*locos, *([wagon] * wagons))
+    k = wagons / sum(1 for v in train.vehicles if not v.powered)
+    resistance = tuple(
+        dataclasses.replace(t, law=t.law.scaled(k)) if "Wagon" in t.label else t for t in train.resistance
+    )
+    return dataclasses.replace(
+        train,
+        vehicles=vehicles,
+        mass_kg=sum(v.total_mass_kg for v in vehicles),
+        length_m=sum(v.length_m for v in vehicles),
+        resistance=resistance,
+    )
+
+
+def scaling(scenario, repeat: int) -> None:
+    """Wall time against the number of vehicles, as ratios to the 100-wagon run, and the exponent."""
+    import math
+
+    rows = []
+    for wagons in (100, 50, 200):
+        train = with_wagons(scenario.train, wagons)
+        settings = MultiPointSettings(locomotive_positions=(0, (wagons + 2) // 2))
+        reference = trainsim.run_fastest(train, scenario.route, scenario.settings)
+        run_multipoint_fastest(train, scenario.route, settings, scenario.settings, reference=reference)
+        walls, its = [], 0.0
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            r = run_multipoint_fastest(
+                train, scenario.route, settings, scenario.settings, reference=reference
+            )
+            walls.append(time.perf_counter() - t0)
+            its = r.statistics["newton_iterations"] / r.statistics["steps"]
+        rows.append((len(train.vehicles), min(walls), its))
+    base = rows[0][1]
+    print(f"{'vehicles':>8s} {'best s':>7s} {'ratio to 102':>12s} {'it/step':>7s}")
+    for n, wall, its in sorted(rows):
+        print(f"{n:8d} {wall:7.2f} {wall / base:12.2f} {its:7.2f}")
+    (n0, w0, _), (n1, w1, _) = min(rows), max(rows)
+    print(f"growth exponent (log-log, {n0} -> {n1} vehicles): {math.log(w1 / w0) / math.log(n1 / n0):.2f}")
 
 
 if __name__ == "__main__":
