@@ -247,11 +247,11 @@ def mutate_tree(doc: Any, rng: random.Random) -> tuple[Any, bool]:
         if target and rng.random() < 0.5:
             key = rng.choice(list(target))
             target[f"{key}_x" if isinstance(key, str) else "k"] = target.pop(key)
-        else:
-            target[rng.choice(["colour", "mass_t", "count", "model", "schema", "x" * 300])] = rng.choice(
-                HOSTILE[:16]
-            )
-        return doc, False
+            return doc, isinstance(key, str)  # a field name nobody knows (or a station that is not there)
+        new_key = rng.choice(["colour", "mass_t", "count", "model", "schema", "x" * 300])
+        known = new_key in target
+        target[new_key] = rng.choice(HOSTILE[:16])
+        return doc, new_key in ("colour", "x" * 300) and not known
     if op < 0.82 and isinstance(target, list):  # empty / repeat / reverse / cut a list
         choice = rng.randrange(4)
         if choice == 0:
@@ -482,6 +482,8 @@ class Tally:
     by_origin: Counter[str] = dataclasses.field(default_factory=Counter)
     #: timeouts by seed file
     timeouts_by_seed: Counter[str] = dataclasses.field(default_factory=Counter)
+    #: unclear messages by seed file
+    unclear_by_seed: Counter[str] = dataclasses.field(default_factory=Counter)
     #: seconds spent per kind (mutating, reading, restoring)
     seconds_by_kind: Counter[str] = dataclasses.field(default_factory=Counter)
     samples: list[str] = dataclasses.field(default_factory=list)
@@ -635,7 +637,8 @@ def run_chunk(args: tuple[int, int, int, str]) -> Tally:
                     tally.accepted += 1
                 else:
                     tally.refused += 1
-                    _judge_message(tally, exc, label)
+                    if not _judge_message(tally, exc, label):
+                        tally.unclear_by_seed[seed.relative] += 1
                 if _disagree(seed.role, outcome, check_outcome, check_exc):
                     tally.disagreements += 1
                     tally.note(
@@ -655,19 +658,22 @@ def run_chunk(args: tuple[int, int, int, str]) -> Tally:
     return tally
 
 
-def _judge_message(tally: Tally, exc: BaseException | None, label: str) -> None:
+def _judge_message(tally: Tally, exc: BaseException | None, label: str) -> bool:
+    """Count a refusal; whether its message is clear (names the file, one readable paragraph)."""
     from trainsim.errors import InputError
 
     assert isinstance(exc, InputError)
     text = str(exc)
     names_file = bool(exc.file) and all(p.file for p in exc.problems)
-    if not names_file or len(text) > 2000 or not text.strip():
+    clear = names_file and len(text) <= 2000 and bool(text.strip())
+    if not clear:
         tally.unclear_messages += 1
-        tally.note(f"{label}: unclear message: {text[:300]}")
+        tally.note(f"{label}: unclear message: {text[:300]}", f"unclear {exc.field}")
     if exc.field:
         tally.with_field += 1
     if exc.allowed:
         tally.with_allowed += 1
+    return clear
 
 
 def _dump(doc: Any, kind: str) -> str:
@@ -716,7 +722,7 @@ def summary(tally: Tally, seconds: float) -> str:
         f"{tally.cases} mutated inputs ({kinds}) in {seconds:.0f} s: {tally.accepted} accepted, "
         f"{tally.refused} refused ({tally.with_field} naming a field, {tally.with_allowed} saying what is "
         f"allowed), {tally.tracebacks} tracebacks, {tally.timeouts} timeouts over {CASE_TIMEOUT_S:g} s "
-        f"(slowest case {tally.slowest_s:.2f} s); {tally.must_refuse} known-invalid numbers, "
+        f"(slowest case {tally.slowest_s:.2f} s); {tally.must_refuse} known-invalid inputs, "
         f"{tally.wrongly_accepted} of them accepted; {tally.unclear_messages} unclear messages; "
         f"{tally.disagreements} check/run disagreements; peak memory of a worker {tally.peak_rss_mb:.0f} MB"
     )
