@@ -24,7 +24,9 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, ValidationError, model_validator
 
 from trainsim.errors import InputError
-from trainsim.io.trainsim_yaml import _fail, _Spec, _validation_error
+from trainsim.io.spec import Spec as _Spec
+from trainsim.io.spec import fail as _fail
+from trainsim.io.spec import validation_error as _validation_error
 from trainsim.model.scenario import Scenario
 from trainsim.multipoint.model import (
     FREIGHT_CAPACITY_N,
