@@ -50,7 +50,16 @@ def _small(tmp_path: Path, **changes) -> Path:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["metro_750v_diode", "metro_750v_reversible", "main_line_25kv"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "metro_750v_diode",
+        "metro_750v_reversible",
+        "metro_750v_diode_storage",
+        "metro_750v_diode_eco",
+        "main_line_25kv",
+    ],
+)
 def test_every_example_runs_ok_with_its_energy_balance(name):
     spec, network, services = load_power_file(EXAMPLES / f"{name}.yaml")
     result = run_study(network, services, dt_s=spec.simulation.step_s)
@@ -61,7 +70,7 @@ def test_every_example_runs_ok_with_its_energy_balance(name):
     assert result.converged.all()
     v = result.train_voltage_v
     assert np.all(v[np.isfinite(v)] > network.limits.min2_v)
-    if name == "metro_750v_diode":
+    if name.startswith("metro_750v_diode"):
         assert np.min(result.substation_power_w) >= 0.0  # rectifiers never take power
         assert s["regen_kwh"]["returned"] == 0.0
     if name == "main_line_25kv":

@@ -87,3 +87,34 @@ def test_train_off_the_wire_is_an_input_error():
 
 def test_energy_units():
     assert KWH == 3.6e6
+
+
+def test_wayside_storage_takes_regenerated_energy_and_keeps_its_books():
+    """A 20 kWh / 2 MW storage beside the middle diode substation: it charges only above 870 V and
+    discharges below 830 V, never beyond its power or capacity; its stored energy follows
+    E_end = E_0 + sqrt(eta) charged - discharged / sqrt(eta); the balance includes it; less
+    regenerated energy is burnt and the substations deliver less."""
+    import dataclasses
+
+    from trainsim.power import Storage
+
+    net = metro_network(False)
+    storage = Storage("ESS", 2295.0, ("up", "down"), 20 * KWH, 2e6, 0.9, 870.0, 830.0)
+    loads = metro_loads(n_per_direction=3)
+    without = simulate(net, loads).summary()
+    res = simulate(dataclasses.replace(net, storages=(storage,)), loads)
+    s = res.summary()
+    assert s["status"] == "ok" and s["energy_balance_error"] < 1e-6
+    p = res.storage_power_w[:, 0]
+    e = res.storage_energy_j[:, 0]
+    assert np.max(np.abs(p)) <= 2e6 * (1 + 1e-12)
+    assert np.all((e >= -1e-6) & (e <= 20 * KWH + 1e-6))
+    eta = np.sqrt(0.9)
+    books = 10 * KWH + (np.sum(np.maximum(p, 0)) * eta - np.sum(np.maximum(-p, 0)) / eta) * res.dt_s
+    assert e[-1] == pytest.approx(books, rel=1e-12)
+    assert s["regen_kwh"]["stored"] > 0
+    assert s["regen_kwh"]["dissipated"] < without["regen_kwh"]["dissipated"]
+    assert s["substations_energy_kwh"] < without["substations_energy_kwh"]
+    assert s["substations_energy_kwh"] == pytest.approx(
+        s["trains_energy_kwh"] + s["line_losses_kwh"] + s["storages_energy_kwh"], rel=1e-6
+    )

@@ -10,7 +10,7 @@ runs, voltage-limited traction fed back into the runs). The file reader (:mod:`f
 from __future__ import annotations
 
 from trainsim.power.limits import EN50163, VoltageLimits, standard_limits
-from trainsim.power.network import Connection, Gap, Network, Substation, Track
+from trainsim.power.network import Connection, Gap, Network, Storage, Substation, Track
 from trainsim.power.simulation import PowerResult, TrainLoad, simulate, train_load_from_run
 from trainsim.power.solver import StepLoads, StepSolution, solve_step
 
@@ -22,6 +22,7 @@ __all__ = [
     "PowerResult",
     "StepLoads",
     "StepSolution",
+    "Storage",
     "Substation",
     "Track",
     "TrainLoad",

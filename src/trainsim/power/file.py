@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from trainsim.errors import InputError, Problem
 from trainsim.power.limits import EN50163, standard_limits
-from trainsim.power.network import Connection, Gap, Network, Substation, Track
+from trainsim.power.network import Connection, Gap, Network, Storage, Substation, Track
 from trainsim.power.study import FeedbackSettings, TrainService, run_study
 
 __all__ = ["PowerFile", "load_power_file", "run_power_file"]
@@ -79,6 +79,19 @@ class GapSpec(_Spec):
     end_km: float
 
 
+class StorageSpec(_Spec):
+    id: str
+    position_km: float
+    tracks: list[str] = Field(min_length=1)
+    capacity_kwh: Positive
+    max_power_kw: Positive
+    efficiency: Annotated[float, Field(gt=0, le=1)]
+    charge_above_v: Positive
+    discharge_below_v: Positive
+    ramp_v: Positive = 20.0
+    initial_soc: Annotated[float, Field(ge=0, le=1)] = 0.5
+
+
 class NetworkSpec(_Spec):
     name: str = "network"
     system: Literal[tuple(EN50163)]  # type: ignore[valid-type]
@@ -88,6 +101,7 @@ class NetworkSpec(_Spec):
     substations: list[SubstationSpec] = Field(min_length=1)
     connections: list[ConnectionSpec] = Field(default_factory=list)
     gaps: list[GapSpec] = Field(default_factory=list)
+    storages: list[StorageSpec] = Field(default_factory=list)
 
 
 class HeadwaySpec(_Spec):
@@ -205,6 +219,21 @@ def _network(spec: NetworkSpec, file: str) -> Network:
                 Connection(c.id, c.position_km * 1000, tuple(c.tracks), c.kind) for c in spec.connections
             ),
             gaps=tuple(Gap(g.id, g.track, g.start_km * 1000, g.end_km * 1000) for g in spec.gaps),
+            storages=tuple(
+                Storage(
+                    w.id,
+                    w.position_km * 1000,
+                    tuple(w.tracks),
+                    w.capacity_kwh * 3.6e6,
+                    w.max_power_kw * 1000,
+                    w.efficiency,
+                    w.charge_above_v,
+                    w.discharge_below_v,
+                    w.ramp_v,
+                    w.initial_soc,
+                )
+                for w in spec.storages
+            ),
             negative_earthed=spec.negative_earthed,
             frequency_hz=50.0 if spec.system == "ac_25000" else (16.7 if spec.system == "ac_15000" else 0.0),
         )

@@ -23,7 +23,7 @@ import numpy as np
 from trainsim.errors import InputError, Problem
 from trainsim.power.limits import VoltageLimits
 
-__all__ = ["Connection", "Gap", "Network", "Substation", "Track"]
+__all__ = ["Connection", "Gap", "Network", "Storage", "Substation", "Track"]
 
 System = Literal["dc", "ac"]
 
@@ -116,6 +116,39 @@ class Gap:
 
 
 @dataclass(frozen=True)
+class Storage:
+    """Wayside energy storage (DC): a battery or supercapacitor bank with a converter, at one point.
+
+    It charges when its terminal voltage rises above ``charge_above_v`` (full power ``ramp_v``
+    higher) and discharges when the voltage falls below ``discharge_below_v`` (full power ``ramp_v``
+    lower), within its power and its state of charge. Its converter and cells lose
+    ``1 - efficiency`` of the energy on the way in and out (sqrt(efficiency) each way).
+
+    Attributes:
+        id: name.
+        position_m: where it is connected [m].
+        tracks: tracks whose contact line and rails it is connected to.
+        capacity_j: usable energy [J].
+        max_power_w: converter power, charging or discharging [W].
+        efficiency: round-trip efficiency [-].
+        charge_above_v, discharge_below_v: voltage thresholds [V] (discharge_below_v < charge_above_v).
+        ramp_v: width of the power ramps [V].
+        initial_soc: state of charge at the start [-].
+    """
+
+    id: str
+    position_m: float
+    tracks: tuple[str, ...]
+    capacity_j: float
+    max_power_w: float
+    efficiency: float
+    charge_above_v: float
+    discharge_below_v: float
+    ramp_v: float = 20.0
+    initial_soc: float = 0.5
+
+
+@dataclass(frozen=True)
 class Network:
     """A traction power network.
 
@@ -129,6 +162,7 @@ class Network:
             section whose substations all block (diode rectifiers, regenerating trains) solvable.
             Its losses are counted. Default 1e-9 S (0.75 uW at 750 V).
         frequency_hz: AC frequency (informative) [Hz].
+        storages: wayside energy storages (DC only).
     """
 
     name: str
@@ -141,6 +175,7 @@ class Network:
     negative_earthed: bool = False
     contact_leakage_s: float = 1e-9
     frequency_hz: float = 0.0
+    storages: tuple[Storage, ...] = ()
     _topology: Topology | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -353,6 +388,50 @@ def validate_network(net: Network) -> list[Problem]:
                         allowed="gaps away from connections",
                     )
                 )
+    for i, st in enumerate(net.storages):
+        f = f"storages[{i}]"
+        if net.system != "dc":
+            p.append(
+                Problem("wayside storage is modelled on DC networks only", field=f, value=st.id, allowed="dc")
+            )
+        check_on_tracks(f, st.tracks, st.position_m)
+        _nonneg(p, f"{f}.capacity_kwh", st.capacity_j / 3.6e6, strict=True)
+        _nonneg(p, f"{f}.max_power_kw", st.max_power_w / 1000, strict=True)
+        _nonneg(p, f"{f}.ramp_v", st.ramp_v, strict=True)
+        if not 0 < st.efficiency <= 1:
+            p.append(
+                Problem(
+                    "invalid efficiency", field=f"{f}.efficiency", value=st.efficiency, allowed="0 < x <= 1"
+                )
+            )
+        if not 0 <= st.initial_soc <= 1:
+            p.append(
+                Problem(
+                    "invalid state of charge",
+                    field=f"{f}.initial_soc",
+                    value=st.initial_soc,
+                    allowed="0 .. 1",
+                )
+            )
+        if not st.discharge_below_v < st.charge_above_v:
+            p.append(
+                Problem(
+                    "the storage must discharge below a lower voltage than it charges above",
+                    field=f"{f}.discharge_below_v",
+                    value=st.discharge_below_v,
+                    allowed=f"< charge_above_v = {st.charge_above_v} V",
+                )
+            )
+        for g in net.gaps:
+            if g.track in st.tracks and g.start_m <= st.position_m <= g.end_m:
+                p.append(
+                    Problem(
+                        f"storage {st.id} lies inside gap {g.id}",
+                        field=f"{f}.position_km",
+                        value=st.position_m / 1000,
+                        allowed="away from gaps",
+                    )
+                )
     _nonneg(p, "contact_leakage_s", net.contact_leakage_s, strict=True)
     if not p:
         p.extend(_connectivity_problems(net))
@@ -466,6 +545,9 @@ class Topology:
         for c in net.connections:
             for tid in c.tracks:
                 points[index[tid]].append(c.position_m)
+        for st in net.storages:
+            for tid in st.tracks:
+                points[index[tid]].append(st.position_m)
         self.fixed_positions = [np.unique(np.asarray(pts, dtype=float)) for pts in points]
         # union-find over (layer, track, point index)
         parent: dict = {}
@@ -492,6 +574,11 @@ class Topology:
             for ti in tis:
                 union(("c", tis[0], pidx(tis[0], s.position_m)), ("c", ti, pidx(ti, s.position_m)))
                 union(("r", tis[0], pidx(tis[0], s.position_m)), ("r", ti, pidx(ti, s.position_m)))
+        for st in net.storages:
+            tis = [index[tid] for tid in st.tracks]
+            for ti in tis:
+                union(("c", tis[0], pidx(tis[0], st.position_m)), ("c", ti, pidx(ti, st.position_m)))
+                union(("r", tis[0], pidx(tis[0], st.position_m)), ("r", ti, pidx(ti, st.position_m)))
         for c in net.connections:
             layer = "c" if c.kind == "paralleling_post" else "r"
             tis = [index[tid] for tid in c.tracks]
@@ -517,6 +604,11 @@ class Topology:
             ti = index[s.tracks[0]]
             k = pidx(ti, s.position_m)
             self.substation_nodes.append((int(self.contact_ids[ti][k]), int(self.rail_ids[ti][k])))
+        self.storage_nodes = []
+        for st in net.storages:
+            ti = index[st.tracks[0]]
+            k = pidx(ti, st.position_m)
+            self.storage_nodes.append((int(self.contact_ids[ti][k]), int(self.rail_ids[ti][k])))
         # earth: earthed negatives are the reference; floating rails without leakage get one reference
         # node per rail group (rail potentials are then not defined)
         self.earthed: set[int] = set()

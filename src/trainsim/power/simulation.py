@@ -90,6 +90,8 @@ class PowerResult:
 
     Train arrays are NaN where the train is not on the network (and its voltage NaN where it is
     off the wire, e.g. in a neutral section). Powers [W], voltages [V], currents [A], times [s].
+    ``storage_power_w`` [step, storage] is the power each wayside storage takes at its terminals
+    (negative: gives), ``storage_energy_j`` its stored energy at the end of each step.
     """
 
     network: Network
@@ -113,17 +115,27 @@ class PowerResult:
     rail_potential_max_v: np.ndarray
     converged: np.ndarray
     iterations: np.ndarray
+    storage_power_w: np.ndarray | None = None
+    storage_energy_j: np.ndarray | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     # ---- derived figures --------------------------------------------------------------------
     def _e(self, p: np.ndarray) -> np.ndarray:
         return np.nansum(p, axis=0) * self.dt_s
 
+    def _storage_net_w(self) -> float:
+        return 0.0 if self.storage_power_w is None else float(np.sum(self.storage_power_w))
+
     def energy_balance_error(self) -> float:
         """|sources - (trains + losses)| / sources over the whole run [-]."""
         src = float(np.sum(self.substation_source_w) * self.dt_s)
         out = float(
-            (np.nansum(self.train_power_w) + np.sum(self.line_loss_w) + np.sum(self.substation_loss_w))
+            (
+                np.nansum(self.train_power_w)
+                + np.sum(self.line_loss_w)
+                + np.sum(self.substation_loss_w)
+                + self._storage_net_w()
+            )
             * self.dt_s
         )
         scale = max(abs(src), float(np.sum(np.abs(self.substation_source_w)) * self.dt_s), 1e-30)
@@ -131,18 +143,25 @@ class PowerResult:
 
     def regen_kwh(self) -> dict[str, float]:
         """Regenerated energy [kWh]: offered by the trains' electric brakes, accepted by the line,
-        used_by_trains (accepted and not returned through reversible substations), returned,
-        dissipated (curtailed: burnt on board or taken by friction brakes)."""
+        used_by_trains (accepted and neither returned through reversible substations nor stored),
+        returned, dissipated (curtailed: burnt on board or taken by friction brakes), and with
+        wayside storage ``stored`` (all energy charged into storages, counted as regenerated: their
+        thresholds lie above the substations' no-load voltage)."""
         offered = float(np.nansum(self.regen_offered_w) * self.dt_s)
         accepted = float(np.nansum(self.regen_accepted_w) * self.dt_s)
         returned = float(np.sum(np.maximum(-self.substation_power_w, 0.0)) * self.dt_s)
-        return {
+        out = {
             "offered": offered / KWH,
             "accepted": accepted / KWH,
             "used_by_trains": (accepted - returned) / KWH,
             "returned": returned / KWH,
             "dissipated": (offered - accepted) / KWH,
         }
+        if self.storage_power_w is not None:
+            stored = float(np.sum(np.maximum(self.storage_power_w, 0.0)) * self.dt_s)
+            out["stored"] = stored / KWH
+            out["used_by_trains"] = (accepted - returned - stored) / KWH
+        return out
 
     def rms_current_a(self, window_s: float) -> np.ndarray:
         """Largest moving RMS current of each substation over a window [A] (NaN if the run is
@@ -308,6 +327,23 @@ class PowerResult:
                 "not_converged_steps": int(np.sum(~self.converged)),
             },
         }
+        if self.storage_power_w is not None:
+            storages = []
+            for i, st in enumerate(self.network.storages):
+                p = self.storage_power_w[:, i]
+                storages.append(
+                    {
+                        "id": st.id,
+                        "charged_kwh": float(np.sum(np.maximum(p, 0)) * self.dt_s) / KWH,
+                        "discharged_kwh": float(np.sum(np.maximum(-p, 0)) * self.dt_s) / KWH,
+                        "peak_power_kw": float(np.max(np.abs(p))) / 1000,
+                        "final_soc": float(self.storage_energy_j[-1, i] / st.capacity_j),
+                        "min_soc": float(np.min(self.storage_energy_j[:, i]) / st.capacity_j),
+                        "max_soc": float(np.max(self.storage_energy_j[:, i]) / st.capacity_j),
+                    }
+                )
+            out["storages"] = storages
+            out["storages_energy_kwh"] = self._storage_net_w() * self.dt_s / KWH
         out.update({k: v for k, v in self.extra.items() if k != "trains"})
         return out
 
@@ -409,6 +445,13 @@ def simulate(
     converged = np.ones(n_steps, dtype=bool)
     iterations = np.zeros(n_steps, dtype=np.int64)
     on = np.ones(ns, dtype=bool)
+    n_st = len(network.storages)
+    st_energy = np.array([st.initial_soc * st.capacity_j for st in network.storages])
+    st_cap = np.array([st.capacity_j for st in network.storages])
+    st_pmax = np.array([st.max_power_w for st in network.storages])
+    st_eta = np.sqrt(np.array([st.efficiency for st in network.storages]))
+    st_power = np.zeros((n_steps, n_st)) if n_st else None
+    st_record = np.zeros((n_steps, n_st)) if n_st else None
     fixed_v = None
     prev_c = np.full(nt, np.nan)
     prev_r = np.full(nt, np.nan)
@@ -423,6 +466,10 @@ def simulate(
         power[j, off] = 0.0
         current[j, off] = 0.0
         loads = StepLoads(tracks[sel], xs[j, sel], pt[j, sel], pr[j, sel], aux[sel], tan_phi[sel])
+        if n_st:
+            # what each storage can take / give during this step: its power, and its charge
+            loads.storage_charge_max_w = np.minimum(st_pmax, (st_cap - st_energy) / (st_eta * dt_s))
+            loads.storage_discharge_max_w = np.minimum(st_pmax, st_energy * st_eta / dt_s)
         guess = None if fixed_v is None else StepGuess(fixed_v, prev_c[sel], prev_r[sel])
         sol = solve_step(network, loads, on, guess)
         if sol.guess is not None and sol.converged:
@@ -430,6 +477,13 @@ def simulate(
             prev_c[sel] = sol.guess.train_contact_v
             prev_r[sel] = sol.guess.train_rail_v
         on = sol.substation_on
+        if n_st:
+            ps = sol.storage_power_w
+            st_power[j] = ps
+            st_energy = np.clip(
+                st_energy + (np.maximum(ps, 0.0) * st_eta - np.maximum(-ps, 0.0) / st_eta) * dt_s, 0.0, st_cap
+            )
+            st_record[j] = st_energy
         converged[j] = sol.converged
         iterations[j] = sol.iterations
         volt[j, sel] = sol.train_voltage_v
@@ -467,4 +521,6 @@ def simulate(
         rail_potential_max_v=rmax,
         converged=converged,
         iterations=iterations,
+        storage_power_w=st_power,
+        storage_energy_j=st_record,
     )

@@ -54,6 +54,9 @@ RECTIFIER_MARGIN_SHARE = 1e-6
 #: power), the blocked current is ys d^2 / (4 |x|) (about 5e-5 A at 10 V above E), and Newton no
 #: longer cycles when the solution sits at the switching point (a rectifier at exactly E).
 DIODE_SMOOTHING_SHARE = 1e-5
+#: Rounding of the corners of a wayside storage's power ramps, as a share of the ramp (0.2 V on a
+#: 20 V ramp); a storage takes at most C d / 2 (1 % of its power) below its charging threshold.
+STORAGE_ROUNDING = 1e-2
 MAX_FIXED_POINT_ITERATIONS = 200
 #: Positions are rounded to this [m] before nodes are built: two trains (or a train and a
 #: substation) closer than 0.1 m share a node. Segments shorter than that would have conductances
@@ -76,6 +79,8 @@ class StepLoads:
         regen_w: regenerated power offered to the line before curtailment [W] (>= 0).
         auxiliary_w: auxiliaries [W] (>= 0), drawn whatever the voltage.
         tan_phi: reactive / active power of each train (AC; 0 for DC) [-].
+        storage_charge_max_w, storage_discharge_max_w: what each wayside storage of the network can
+            take and give during this step (its power and its state of charge) [W]; None: nothing.
     """
 
     track: np.ndarray
@@ -84,6 +89,8 @@ class StepLoads:
     regen_w: np.ndarray
     auxiliary_w: np.ndarray
     tan_phi: np.ndarray
+    storage_charge_max_w: np.ndarray | None = None
+    storage_discharge_max_w: np.ndarray | None = None
 
 
 @dataclass
@@ -105,6 +112,7 @@ class StepSolution:
         substation_loss_w: losses in the substations' internal resistances [W].
         rail_potential_v: rail-to-earth potentials of the rail nodes (DC), or empty.
         guess: this step's potentials, to start the next step from (DC), or None.
+        storage_power_w: power taken by each wayside storage at its terminals (negative: given) [W].
     """
 
     converged: bool
@@ -122,6 +130,7 @@ class StepSolution:
     substation_loss_w: float
     rail_potential_v: np.ndarray
     guess: StepGuess | None = None
+    storage_power_w: np.ndarray | None = None
 
 
 @dataclass
@@ -167,6 +176,9 @@ class _Assembly:
     train_r: np.ndarray
     rail_nodes: np.ndarray
     fixed_index: np.ndarray  # unknown index of each fixed node of the topology (-1 earthed)
+    storage_c: np.ndarray | None = None  # wayside storages' contact / rail nodes
+    storage_r: np.ndarray | None = None
+    storage_limits: tuple | None = None  # (charge max, discharge max, charge above, discharge below, ramp)
 
 
 def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assembly:
@@ -354,6 +366,22 @@ def solve_step(
         used[list(topo.earthed)] = False
     remap[:-1][used] = np.arange(int(used.sum()))
     sub_p, sub_n = remap[sub_p], remap[sub_n]
+    n_st = len(net.storages)
+    if n_st:
+        st_c = np.array([c for c, _ in topo.storage_nodes], dtype=np.int64)
+        st_r = np.array([r for _, r in topo.storage_nodes], dtype=np.int64)
+        if topo.earthed:
+            st_r = np.where(np.isin(st_r, np.fromiter(topo.earthed, dtype=np.int64)), -1, st_r)
+        asm.storage_c, asm.storage_r = remap[st_c], remap[st_r]
+        cmax = np.zeros(n_st) if loads.storage_charge_max_w is None else loads.storage_charge_max_w
+        dmax = np.zeros(n_st) if loads.storage_discharge_max_w is None else loads.storage_discharge_max_w
+        asm.storage_limits = (
+            cmax,
+            dmax,
+            np.array([st.charge_above_v for st in net.storages]),
+            np.array([st.discharge_below_v for st in net.storages]),
+            np.array([st.ramp_v for st in net.storages]),
+        )
     e = np.array([s.no_load_voltage_v for s in subs])
     z = np.array([complex(s.internal_resistance_ohm, s.internal_reactance_ohm) for s in subs])
     ys = 1.0 / z if ac else 1.0 / z.real
@@ -384,8 +412,27 @@ def solve_step(
             # last stage is the true rectifier.
             # First try the branch where regeneration is curtailed (the usual cause): start every
             # contact node in the middle of the curtailment ramp and keep regenerating trains on it.
+            if n_st and np.any(loads.regen_w > 0):
+                # a wayside storage may be the one sink left: start in the middle of its charging ramp
+                for k, st in enumerate(net.storages):
+                    if converged or asm.storage_limits[0][k] <= 0:
+                        continue
+                    v, its, converged = _newton_dc(
+                        net,
+                        asm,
+                        loads,
+                        sub_p,
+                        sub_n,
+                        e,
+                        ys,
+                        reversible.copy(),
+                        tol,
+                        None,
+                        start_v=st.charge_above_v + 0.5 * st.ramp_v,
+                    )
+                    iterations += its
             start = 0.5 * (lim.regen_full_v + lim.regen_zero_v)
-            if np.any(loads.regen_w > 0):
+            if not converged and np.any(loads.regen_w > 0):
                 v, its, converged = _newton_dc(
                     net,
                     asm,
@@ -462,12 +509,17 @@ def solve_step(
     rail = (
         np.real(v[asm.rail_nodes]) if (not net.ideal_return and topo.rail_potential_defined) else np.empty(0)
     )
+    p_storage = None
+    if n_st:
+        u_st = _potential(v, asm.storage_c) - _potential(v, asm.storage_r)
+        p_storage, _ = storage_power_w(np.real(u_st), *asm.storage_limits)
     guess_out = None
     if not ac:
         fixed_v = np.where(asm.fixed_index >= 0, v[np.maximum(asm.fixed_index, 0)], 0.0)
         guess_out = StepGuess(fixed_v, _potential(v, asm.train_c), _potential(v, asm.train_r))
     return StepSolution(
         guess=guess_out,
+        storage_power_w=p_storage,
         converged=converged,
         iterations=iterations,
         train_voltage_v=umag,
@@ -516,8 +568,17 @@ def _newton_dc(
     # that I_s >= 0 and I_s (U_s - E) = 0 hold by construction
     ys = np.asarray(ys, dtype=float)
     dio = ~on
+    st_c = asm.storage_c if asm.storage_c is not None else np.empty(0, dtype=np.int64)
+    st_r = asm.storage_r if asm.storage_r is not None else np.empty(0, dtype=np.int64)
     pattern = _Pattern(
-        n, [(asm.a, asm.b), (sub_p[on], sub_n[on]), (asm.train_c, asm.train_r), (sub_p[dio], sub_n[dio])]
+        n,
+        [
+            (asm.a, asm.b),
+            (sub_p[on], sub_n[on]),
+            (asm.train_c, asm.train_r),
+            (sub_p[dio], sub_n[dio]),
+            (st_c, st_r),
+        ],
     )
     g_data = pattern.values(0, asm.y) + pattern.values(1, ys[on])
     ys_on = ys[on]
@@ -557,6 +618,11 @@ def _newton_dc(
             forward = _smooth_max(x, delta)
             i_d = (forward + reverse_share * (x - forward)) * dy
             f += _injection(n, dn_, i_d, float) - _injection(n, dp_, i_d, float)
+        if len(st_c):
+            us = np.maximum(_potential(v, st_c) - _potential(v, st_r), u_floor)
+            ps, _ = storage_power_w(us, *asm.storage_limits)
+            i_s = ps / us
+            f += _injection(n, st_c, i_s, float) - _injection(n, st_r, i_s, float)
         return f, uu, p
 
     f, uu, p = residual(v)
@@ -573,6 +639,10 @@ def _newton_dc(
         if len(de):
             slope = _smooth_max_slope(de - (_potential(v, dp_) - _potential(v, dn_)), delta)
             data = data + pattern.values(3, dy * (slope + reverse_share * (1.0 - slope)))
+        if len(st_c):
+            us = np.maximum(_potential(v, st_c) - _potential(v, st_r), u_floor)
+            ps, dps = storage_power_w(us, *asm.storage_limits)
+            data = data + pattern.values(4, dps / us - ps / us**2)
         pattern.matrix.data[:] = data
         dv = -splu(pattern.matrix).solve(f)
         step = float(np.max(np.abs(dv)))
@@ -621,6 +691,25 @@ def _newton_dc(
         if lam * step < tol and norm < max(ftol, 1e3 * ftol * lam):
             return v, it, True
     return v, max_iterations, norm < ftol
+
+
+def storage_power_w(
+    u: np.ndarray, charge_max_w, discharge_max_w, charge_above_v, discharge_below_v, ramp_v
+) -> tuple[np.ndarray, np.ndarray]:
+    """Power taken by a wayside storage at terminal voltage U [W] (negative: given) and its
+    derivative [W/V]: C ramp((U - U_ch) / w) - D ramp((U_dis - U) / w), where ramp(x) is
+    clip(x, 0, 1) with its corners rounded over STORAGE_ROUNDING (Newton would otherwise stall when
+    the storage takes just a little, at the corner)."""
+    x_c = (u - charge_above_v) / ramp_v
+    x_d = (discharge_below_v - u) / ramp_v
+    d = STORAGE_ROUNDING
+    ramp_c = _smooth_max(x_c, d) - _smooth_max(x_c - 1.0, d)
+    ramp_d = _smooth_max(x_d, d) - _smooth_max(x_d - 1.0, d)
+    slope_c = _smooth_max_slope(x_c, d) - _smooth_max_slope(x_c - 1.0, d)
+    slope_d = _smooth_max_slope(x_d, d) - _smooth_max_slope(x_d - 1.0, d)
+    p = charge_max_w * ramp_c - discharge_max_w * ramp_d
+    dp = (charge_max_w * slope_c + discharge_max_w * slope_d) / ramp_v
+    return p, dp
 
 
 def _smooth_max(x: np.ndarray, delta: float) -> np.ndarray:
