@@ -203,3 +203,18 @@ def test_driver_desk_readouts_atp_and_comparison(page) -> None:  # noqa: F811
     assert "Drive 1" in head and "Fastest to S2" in head
     assert pg.locator("#runs-table").inner_text().count("metro line") >= 2
     shot(pg, "drive-compare-same-line.png")
+
+
+def test_multipoint_heavy_haul_heat_map_and_extreme_couplers(page) -> None:  # noqa: F811
+    pg = page
+    pg.click("button[data-tab=run]")
+    pg.select_option("#mp-example", "heavy_haul_dp")
+    pg.click("#mp-run")
+    pg.wait_for_selector("#plot-couplers .main-svg", timeout=180_000)
+    extremes = pg.locator("#mp-extremes").inner_text()
+    # the largest forces sit behind the middle locomotive (vehicle 53), as the CLI's run says
+    assert "largest draft" in extremes and "largest buff" in extremes and "coupling 53" in extremes
+    assert "ok" in pg.locator("#mp-status").inner_text()
+    assert pg.locator("#plot-couplers .heatmaplayer, #plot-couplers .hm").count() >= 1
+    pg.locator("#plot-couplers").scroll_into_view_if_needed()
+    shot(pg, "multipoint.png")

@@ -147,3 +147,13 @@ def test_serve_options_reach_the_application(monkeypatch, capsys) -> None:
     assert (settings.workers, settings.drive_hosts, settings.job_time_limit_s) == (3, 1, 5)
     assert settings.job_memory_limit_bytes == 256 * 2**20
     assert "no login" in capsys.readouterr().err
+
+
+def test_shipped_multipoint_example_files_equal_the_repository_examples() -> None:
+    from trainsim.web.examples import EXAMPLES_DIR
+
+    from .conftest import REPO
+
+    for name in ("train.yaml", "route.yaml", "scenario_dp.yaml", "scenario_head.yaml"):
+        shipped = (EXAMPLES_DIR / "heavy_haul" / name).read_text()
+        assert shipped == (REPO / "examples" / "heavy_haul" / name).read_text(), name

@@ -62,7 +62,14 @@ def session_of(request: Request) -> WebSession:
     return request.app.state.session_for(request)
 
 
-async def work(request: Request, session: WebSession, name: str, *args: Any, local: bool = False) -> Any:
+async def work(
+    request: Request,
+    session: WebSession,
+    name: str,
+    *args: Any,
+    local: bool = False,
+    time_limit_s: float | None = None,
+) -> Any:
     """Run ``trainsim.web.jobs.<name>(*args)`` in a worker process, within the limits of the
     application; every failure becomes a 4xx or 503 answer (never a 500). ``local``: in a thread of
     the server process instead (strategies registered after start-up, which workers do not know)."""
@@ -79,7 +86,7 @@ async def work(request: Request, session: WebSession, name: str, *args: Any, loc
         pool: WorkerPool | None = request.app.state.pool
         if pool is None or local:
             return unwrap(await run_in_threadpool(run_job, name, args))
-        return await pool.call(name, *args, gone=request.is_disconnected)
+        return await pool.call(name, *args, gone=request.is_disconnected, time_limit_s=time_limit_s)
     except InputError as exc:
         raise input_error(exc) from exc
     except TrainsimError as exc:
@@ -774,4 +781,29 @@ async def energy_time_curve(request: Request, body: CurveRequest) -> Response:
     body_json = await work(
         request, session, "energy_time", train, route, settings, sorted(body.supplements_percent)
     )
+    return _raw(body_json)
+
+
+@router.post(
+    "/multipoint/{name}",
+    tags=["runs"],
+    responses={**_ERRORS, 404: {"description": "no such multi-point example"}},
+    summary="Run a shipped multi-point scenario: coupler-force heat map and extreme couplers",
+)
+async def multipoint_example(name: str, request: Request) -> Response:
+    from trainsim.web.jobs import MULTIPOINT_EXAMPLES
+
+    if name not in MULTIPOINT_EXAMPLES:
+        raise ApiError(
+            404, f"no multi-point example '{name[:80]}'; allowed: {', '.join(MULTIPOINT_EXAMPLES)}"
+        )
+    session = session_of(request)
+
+    async def compute() -> Any:
+        # a shipped scenario (trusted, fixed): a longer limit than a user's request
+        limit = max(settings_of(request).job_time_limit_s, 300.0)
+        return None, await work(request, session, "multipoint_example", name, time_limit_s=limit)
+
+    # the example never changes: computed once, shared by every session
+    _, body_json = await request.app.state.run_cache.get(f"multipoint:{name}", compute)
     return _raw(body_json)

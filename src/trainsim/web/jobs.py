@@ -299,3 +299,60 @@ def energy_time(train: Train, route: Route, settings: RunSettings, supplements_p
         ) from exc
     frame = energy_time_curve(train, route, [x / 100.0 for x in supplements_percent], settings)
     return _dumps({"points": frame.to_dict(orient="records")}, "energy-time curve")
+
+
+#: multi-point scenarios shipped with the web application (example_files/heavy_haul)
+MULTIPOINT_EXAMPLES: dict[str, str] = {
+    "heavy_haul_dp": "scenario_dp.yaml",
+    "heavy_haul_head": "scenario_head.yaml",
+}
+
+
+def multipoint_example(name: str, max_columns: int = 400) -> bytes:
+    """A shipped multi-point scenario run (per-vehicle masses and forces, couplers with slack):
+    the coupler-force heat map (at most ``max_columns`` instants), the extreme couplers, and the
+    run's figures, as the answer body."""
+    import numpy as np
+
+    import trainsim
+    from trainsim.web.examples import EXAMPLES_DIR
+
+    if name not in MULTIPOINT_EXAMPLES:
+        raise InputError(
+            "no such multi-point example", field="name", value=name, allowed=", ".join(MULTIPOINT_EXAMPLES)
+        )
+    result = trainsim.run(trainsim.load_scenario(EXAMPLES_DIR / "heavy_haul" / MULTIPOINT_EXAMPLES[name]))
+    forces = np.asarray(result.coupler_force_n)  # (instants, couplers) [N]
+    step = max(1, len(forces) // max_columns)
+    rows = slice(None, None, step)
+
+    def extreme(ext: Any) -> dict[str, Any]:
+        return {
+            "force_kn": ext.force_n / 1e3,
+            "coupler": int(ext.coupler),
+            "behind_vehicle": ext.behind_vehicle,
+            "time_s": ext.time_s,
+            "head_position_m": ext.head_position_m,
+        }
+
+    run = result.run
+    body = {
+        "name": name,
+        "scenario": MULTIPOINT_EXAMPLES[name],
+        "train": run.train_name,
+        "route": run.route_name,
+        "status": result.status,
+        "warnings": list(result.warnings),
+        "vehicles": int(forces.shape[1] + 1),
+        "locomotives": [int(i) for i in result.mptrain.locomotive_indices],
+        "running_time_s": run.running_time_s,
+        "energy_net_kwh": run.energy_kwh.net,
+        "max_draft": extreme(result.max_draft),
+        "max_buff": extreme(result.max_buff),
+        "heatmap": {
+            "time_s": np.round(np.asarray(result.time_s)[rows], 2).tolist(),
+            "head_position_m": np.round(np.asarray(result.head_position_m)[rows], 1).tolist(),
+            "force_kn": np.round(forces[rows].T / 1e3, 1).tolist(),  # (couplers, instants)
+        },
+    }
+    return _dumps(body, "multi-point run")

@@ -1,7 +1,7 @@
 // The page: four views (train, track, run, live driving) over the JSON API and the drive WebSocket.
 import { del, get, post, put, upload } from "./api.js";
 import { SpecEditor } from "./editor.js";
-import { DrivePlot, plotEnergyTime, plotProfile, plotRuns, plotTrainCurves } from "./plots.js";
+import { DrivePlot, plotCouplerHeatmap, plotEnergyTime, plotProfile, plotRuns, plotTrainCurves } from "./plots.js";
 
 const $ = (sel) => document.querySelector(sel);
 const h = (tag, attrs = {}, ...children) => {
@@ -549,6 +549,25 @@ async function energyTimeCurve() {
   plotEnergyTime(div, answer.data.points);
 }
 
+async function runMultipoint() {
+  const name = $("#mp-example").value;
+  setStatus($("#mp-status"), "running (the first run of an example takes a while)…", "");
+  const answer = await busy(post(`/api/multipoint/${encodeURIComponent(name)}`, {}));
+  if (!answer.ok) {
+    setStatus($("#mp-status"), `✗ ${answer.data.message}`, "bad");
+    return;
+  }
+  const mp = answer.data;
+  setStatus($("#mp-status"), `✓ ${mp.status}: running time ${fmt(mp.running_time_s, 1)} s, net energy ${fmt(mp.energy_net_kwh, 1)} kWh`, "ok");
+  const line = (e, what) => `${what}: ${fmt(Math.abs(e.force_kn), 0)} kN at coupling ${e.coupler} (behind ${e.behind_vehicle}), `
+    + `${fmt(e.time_s, 0)} s, head at ${fmt(e.head_position_m / 1000, 2)} km`;
+  $("#mp-extremes").replaceChildren(h("div", { text: line(mp.max_draft, "largest draft") }),
+    h("div", { text: line(mp.max_buff, "largest buff") }), ...mp.warnings.map((w) => h("div", { text: `⚠ ${w}` })));
+  const div = $("#plot-couplers");
+  div.hidden = false;
+  plotCouplerHeatmap(div, mp);
+}
+
 function driveKeys(ev) {
   if (state.tab !== "drive" || !drive.running) return;
   if (["INPUT", "SELECT", "TEXTAREA"].includes(document.activeElement?.tagName) && document.activeElement.type !== "range"
@@ -613,6 +632,7 @@ async function main() {
   $("#drive-finish").addEventListener("click", () => driveSend({ type: "finish" }));
   $("#drive-compare").addEventListener("click", compareDrive);
   $("#curve-button").addEventListener("click", energyTimeCurve);
+  $("#mp-run").addEventListener("click", runMultipoint);
   for (const r of document.querySelectorAll("input[name=scale]")) r.addEventListener("change", () => setScale(Number(r.value)));
   document.addEventListener("keydown", driveKeys);
   document.body.dataset.ready = "true";

@@ -205,3 +205,19 @@ export function plotEnergyTime(div, points) {
   ], { ...BASE, hovermode: "closest", title: { text: "Energy against running time (energy-efficient)", font: { size: 14 } },
     xaxis: { title: { text: "running time [s]" } }, yaxis: { title: { text: "energy [kWh]" } } }, CONFIG);
 }
+
+// Coupler force over time and coupling (head at the top): draft red, buff blue; extremes marked
+export function plotCouplerHeatmap(div, mp) {
+  const hm = mp.heatmap;
+  const lim = Math.max(1, ...hm.force_kn.map((row) => Math.max(...row.map(Math.abs))));
+  const ext = (e, label, symbol) => ({ x: [e.time_s], y: [e.coupler], mode: "markers", name: `${label} ${e.force_kn.toFixed(0)} kN`,
+    marker: { symbol, size: 12, color: "#000" }, hovertemplate: `${label}: %{x:.0f} s, coupler %{y}<extra></extra>` });
+  Plotly.react(div, [
+    { type: "heatmap", x: hm.time_s, y: hm.force_kn.map((_, i) => i), z: hm.force_kn, zmid: 0, zmin: -lim, zmax: lim,
+      colorscale: "RdBu", reversescale: false, colorbar: { title: { text: "kN" } }, name: "coupler force",
+      hovertemplate: "%{x:.0f} s, coupler %{y}: %{z:.0f} kN<extra></extra>" },
+    ext(mp.max_draft, "max draft", "triangle-down"),
+    ext(mp.max_buff, "max buff", "triangle-up"),
+  ], { ...BASE, hovermode: "closest", title: { text: `In-train forces (draft > 0, buff < 0): ${mp.train}`, font: { size: 14 } },
+    xaxis: { title: { text: "time [s]" } }, yaxis: { title: { text: "coupling (0 = behind the head vehicle)" }, autorange: "reversed" } }, CONFIG);
+}
