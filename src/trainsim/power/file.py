@@ -175,9 +175,19 @@ def _validation_problems(exc: ValidationError, file: str) -> list[Problem]:
         if isinstance(value, dict | list):
             value = None
         reason = err["msg"].removeprefix("Value error, ")
+        ctx = err.get("ctx") or {}
+        bounds = [
+            f"{sym} {ctx[key]}"
+            for key, sym in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<="))
+            if key in ctx
+        ]
+        allowed = " and ".join(bounds) or (str(ctx["expected"]) if "expected" in ctx else None)
         if err["type"] == "extra_forbidden":
             reason = "unknown field"
-        problems.append(Problem(reason, file=file, field=_field(loc) or None, value=value))
+            allowed = "the fields of docs/POWER.md"
+        elif err["type"] == "missing":
+            reason = "required field is missing"
+        problems.append(Problem(reason, file=file, field=_field(loc) or None, value=value, allowed=allowed))
     return problems
 
 
