@@ -121,3 +121,17 @@ def test_energy_time_curve(metro: TestClient) -> None:
     body = json.dumps({"supplements_percent": [float("inf")] * 20})
     bad = metro.post("/api/curves/energy-time", content=body, headers={"content-type": "application/json"})
     assert bad.status_code == 422
+
+
+@pytest.mark.filterwarnings("ignore")
+def test_energy_efficient_run_with_timing_point_windows(metro: TestClient) -> None:
+    def run(points: object) -> object:
+        body = {"strategy": "energy_efficient", "params": {"supplement_percent": 10, "timing_points": points}}
+        return metro.post("/api/runs", content=json.dumps(body), headers={"content-type": "application/json"})
+
+    met = run([{"position_m": 800, "earliest_s": 10, "latest_s": 200, "name": "P1"}])
+    assert met.status_code == 201 and not met.json()["summary"]["warnings"]
+    missed = run([{"position_m": 800, "latest_s": 5, "name": "P1"}])
+    assert missed.status_code == 201 and any("P1" in w for w in missed.json()["summary"]["warnings"])
+    bad = run([{"position_m": 800, "latest_s": float("nan")}])
+    assert bad.status_code == 422 and bad.json()["detail"][0]["field"] == "params.timing_points[0].latest_s"

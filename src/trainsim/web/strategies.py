@@ -39,7 +39,16 @@ from trainsim.model.train import Train
 from trainsim.sim.fastest import run_fastest
 from trainsim.sim.result import RunResult
 
-__all__ = ["EnergyParams", "NoParams", "Strategy", "available", "get", "register", "unregister"]
+__all__ = [
+    "EnergyParams",
+    "NoParams",
+    "Strategy",
+    "TimingPointParams",
+    "available",
+    "get",
+    "register",
+    "unregister",
+]
 
 
 class NoParams(BaseModel):
@@ -113,6 +122,29 @@ register(
 
 
 # ====================================================================== energy-efficient runs
+_Finite = Annotated[float, Field(ge=0, le=1e7, allow_inf_nan=False)]
+
+
+class TimingPointParams(BaseModel):
+    """A timing point: a position with a time window (from the departure of its section) and a
+    speed window; None where unconstrained."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    position_m: _Finite = Field(description="position on the line [m]")
+    earliest_s: _Finite | None = Field(
+        None, description="earliest passing time from the section's departure [s]"
+    )
+    latest_s: _Finite | None = Field(None, description="latest passing time from the section's departure [s]")
+    min_speed_kmh: Annotated[float, Field(ge=0, le=1000, allow_inf_nan=False)] | None = Field(
+        None, description="lowest speed at the point [km/h]"
+    )
+    max_speed_kmh: Annotated[float, Field(ge=0, le=1000, allow_inf_nan=False)] | None = Field(
+        None, description="highest speed at the point [km/h]"
+    )
+    name: str = Field("", max_length=80)
+
+
 class EnergyParams(BaseModel):
     """Schedule of an energy-efficient run: a line supplement, or a running time per section."""
 
@@ -131,6 +163,11 @@ class EnergyParams(BaseModel):
         max_length=1000,
         description="a timetable instead: the scheduled running time of each section between stops [s]",
     )
+    timing_points: list[TimingPointParams] | None = Field(
+        None,
+        max_length=200,
+        description="passing points with time and speed windows; the run reports each window met or missed",
+    )
 
 
 def _optimizer_run(name: str) -> Callable[[Train, Route, RunSettings, EnergyParams], RunResult]:
@@ -138,12 +175,30 @@ def _optimizer_run(name: str) -> Callable[[Train, Route, RunSettings, EnergyPara
     from trainsim.optimize.timetable import SectionSchedule, Timetable
 
     def run(train: Train, route: Route, settings: RunSettings, params: EnergyParams) -> RunResult:
+        from trainsim.constants import KMH
+        from trainsim.model.timetable import TimingPoint
+
+        points = tuple(
+            TimingPoint(
+                position_m=p.position_m,
+                earliest_s=p.earliest_s,
+                latest_s=p.latest_s,
+                min_speed_mps=None if p.min_speed_kmh is None else p.min_speed_kmh * KMH,
+                max_speed_mps=None if p.max_speed_kmh is None else p.max_speed_kmh * KMH,
+                name=p.name,
+            )
+            for p in params.timing_points or ()
+        )
         if params.section_running_times_s:
             timetable = Timetable(
-                sections=tuple(SectionSchedule(running_time_s=t) for t in params.section_running_times_s)
+                sections=tuple(SectionSchedule(running_time_s=t) for t in params.section_running_times_s),
+                timing_points=points,
             )
         else:
-            timetable = Timetable(line=SectionSchedule(supplement_fraction=params.supplement_percent / 100.0))
+            timetable = Timetable(
+                line=SectionSchedule(supplement_fraction=params.supplement_percent / 100.0),
+                timing_points=points,
+            )
         result = optimize(train, route, timetable, name, settings)
         # the optimizer's own warnings (a schedule that cannot be met) go with the run
         return dataclasses.replace(result.run, warnings=(*result.warnings, *result.run.warnings))

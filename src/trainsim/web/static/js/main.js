@@ -266,6 +266,19 @@ function runRequest(labelMode) {
   for (const input of document.querySelectorAll("#run-params [data-param]")) {
     if (input.value.trim() === "") continue;
     const num = (x) => (Number.isFinite(Number(x)) ? Number(x) : x);
+    if (input.dataset.points) {
+      // "position: earliest-latest" per point, points separated by ";" (an unreadable entry is sent
+      // as it is, and the server says what is wrong with it)
+      params.timing_points = input.value.split(";").map((x) => x.trim()).filter((x) => x !== "").map((x) => {
+        const m = x.match(/^([\d.]+)\s*m?\s*:\s*([\d.]*)\s*-\s*([\d.]*)\s*s?$/);
+        if (!m) return x;
+        const p = { position_m: Number(m[1]) };
+        if (m[2] !== "") p.earliest_s = Number(m[2]);
+        if (m[3] !== "") p.latest_s = Number(m[3]);
+        return p;
+      });
+      continue;
+    }
     params[input.dataset.param] = input.dataset.list
       ? input.value.split(/[,;\s]+/).filter((x) => x !== "").map(num)
       : num(input.value.trim());
@@ -405,9 +418,12 @@ function renderStrategyParams() {
   box.replaceChildren();
   for (const [key, prop] of Object.entries(chosen?.params_schema?.properties || {})) {
     const isList = prop.type === "array" || (prop.anyOf || []).some((x) => x.type === "array");
+    const isPoints = key === "timing_points";
     const input = h("input", { type: "text", class: isList ? "txt" : "num", "data-param": key, "data-path": `params.${key}`,
-      "data-list": isList ? "true" : undefined, title: prop.description || key,
-      placeholder: isList ? "e.g. 110, 100, 95" : prop.default !== undefined && prop.default !== null ? String(prop.default) : "" });
+      "data-list": isList && !isPoints ? "true" : undefined, "data-points": isPoints ? "true" : undefined,
+      title: isPoints ? "position: time window from the section's departure, e.g. 800: 60-120; 2400: -300" : prop.description || key,
+      placeholder: isPoints ? "e.g. 800: 60-120; 2400: -300" : isList ? "e.g. 110, 100, 95"
+        : prop.default !== undefined && prop.default !== null ? String(prop.default) : "" });
     box.append(h("label", { title: prop.description || key }, key, input));
   }
 }
