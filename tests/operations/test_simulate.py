@@ -209,3 +209,19 @@ def test_a_lone_train_matches_its_single_train_run(train) -> None:
     assert t.stops[-1].arrival_s == pytest.approx(one.total_time_s, abs=1e-6)
     assert t.energy_kwh == pytest.approx(one.energy_kwh.net, rel=1e-9)
     assert t.stops[1].departure_s - t.stops[1].arrival_s == pytest.approx(30.0)
+
+
+def test_a_train_held_at_its_origin_leaves_the_switches_behind_it_free(train) -> None:
+    """Regression (found by a seeded random search): the operated blocking times are the dispatcher's own,
+    so a train waiting on its origin platform does not seem to hold the switch zone behind it."""
+    line, geometry = _single(train)
+    svcs = [
+        TrainService("down", train, "down", "C", "A", 0.0),
+        TrainService("up", train, "up", "B", "C", 60.0),  # waits at B until 'down' has cleared B-C
+    ]
+    res = simulate(line, geometry, svcs, SETTINGS)
+    up = res.trains[1]
+    assert up.hindrances and up.hindrances[0].where == "B" and up.delay_s > 0
+    zone = sorted((b.start_s, b.end_s, b.train) for b in res.blocking if b.resource == "B/switchW")
+    assert [z[2] for z in zone] == ["up", "down"]
+    assert zone[0][1] <= zone[1][0] + 1e-3  # given and left behind before the other train came

@@ -1,7 +1,8 @@
 """A line in operation: signals, blocking times, headways, conflicts and delays for many trains.
 
 Built on the public single-train API (``trainsim.run_fastest``); the core knows nothing of it.
-See docs/OPERATIONS.md.
+See docs/OPERATIONS.md. The simulation itself is ``trainsim.operations.simulate.simulate`` (not
+re-exported here: the name would hide the module).
 """
 
 from trainsim.operations.blocking import (
@@ -14,7 +15,7 @@ from trainsim.operations.blocking import (
     minimum_headway,
 )
 from trainsim.operations.line import Line, Signalling, StationLayout, build_line
-from trainsim.operations.simulate import OperationResult, ScheduledStop, TrainService, simulate
+from trainsim.operations.simulate import OperationResult, ScheduledStop, TrainService
 
 __all__ = [
     "BlockingTime",
@@ -31,5 +32,4 @@ __all__ = [
     "build_line",
     "compression",
     "minimum_headway",
-    "simulate",
 ]

@@ -32,7 +32,7 @@ from __future__ import annotations
 import heapq
 from bisect import bisect_left, bisect_right
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from itertools import pairwise
 from typing import Literal
 
@@ -305,6 +305,8 @@ class _TrainState:
         self.trajectory: Trajectory | None = None
         self._request_key: tuple | None = None
         self.stalled_m: float | None = None
+        self.given_at: dict[str, float] = {}  # route name -> when the dispatcher gave it
+        self.released: dict[tuple[str, str], float] = {}  # (route, resource) -> when it was released
         self._request_value: tuple[float, float | None, float] = (0.0, None, 0.0)
         self.refresh_movement()
 
@@ -451,6 +453,7 @@ class _Dispatcher:
             if h[3] is not None and h[3] <= t + TIME_TOLERANCE_S:
                 if self.holder.get(h[0]) == st.index:
                     del self.holder[h[0]]
+                st.released[(h[2], h[0])] = h[3]
             else:
                 keep.append(h)
         st.held = keep
@@ -558,6 +561,7 @@ class _Dispatcher:
             for res, point in zip(r.resources, route_release_points(r, sig.release), strict=True):
                 st.held.append([res.name, point, r.name, None])
             st.granted.append((j, r))
+            st.given_at[r.name] = t
         st.next += len(choice)
         if st.waiting_since is not None:
             depart = t + sig.setup_s + sig.reaction_s
@@ -869,12 +873,16 @@ def simulate(
         outcome = _outcome(st, plan, line, stuck=st in stuck)
         outcomes.append(outcome)
         if st not in stuck:
-            blocking.extend(
-                blocking_times(
-                    st.svc.id, st.trajectory, st.path, st.granted, list(st.stop_positions()), sig,
-                    _line_pos(line, st.svc.direction), fn,
-                )
-            )  # fmt: skip
+            # the dispatcher's own times: when each route was given and each resource released (a
+            # train held at its origin got its platform, and left the switches behind it, before it
+            # knew when it would leave)
+            for b in blocking_times(
+                st.svc.id, st.trajectory, st.path, st.granted, list(st.stop_positions()), sig,
+                _line_pos(line, st.svc.direction), fn,
+            ):  # fmt: skip
+                start = min(b.start_s, st.given_at.get(b.route, b.start_s))
+                end = st.released.get((b.route, b.resource), b.end_s)
+                blocking.append(replace(b, start_s=start, end_s=end, clear_s=end - sig.release_s))
         warnings.extend(f"train {st.svc.id}: {w}" for w in outcome.warnings)
     _check_invariants(outcomes, blocking)
     planned_blocking, conflict_list = _planned_blocking(line, states, planned, approach, conflicts)
