@@ -1,6 +1,6 @@
 """Fastest runs per second of a batch study on the metro example, on 1 and 2 workers.
 
-Run: python benchmarks/bench_batch.py [--runs N] [--repeat K] [--dask] [--driving]
+Run: python benchmarks/bench_batch.py [--runs N] [--repeat K] [--dask] [--driving] [--multipoint]
 
 The study is a Monte Carlo over source 002's type B metro (examples/metro_b): passenger load per car
 uniform in [0, 18] t and traction efficiency normal(0.9, 0.02), so that every run has its own train
@@ -18,6 +18,11 @@ With --driving the runs are energy-efficient runs instead (examples/metro_b/scen
 optimal strategy, 10 m steps) with the line supplement drawn from 5, 10, 15 and 20 % as well, and the
 cost of the same run by trainsim.run alone is printed for comparison (the batch overhead per run);
 --runs defaults to 100 there.
+
+With --multipoint the study is examples/studies/heavy_haul_couplers.yaml (12 multi-point runs of
+seconds each) on 1 and 2 worker processes with the automatic chunks (one run per chunk: sized by the
+predicted cost of a run) and, as the baseline of the same run, on 2 workers with chunks of 10 runs (the
+[10, 2] split of the chunking that ignored the cost); prints the speed-ups (target x1.8).
 
 Wall-clock figures only mean something on an otherwise idle machine: the share of the cores used by
 other processes during each measurement (all CPU time counted by the kernel in /proc/stat, less this
@@ -96,14 +101,18 @@ def _machine_busy_s() -> float:
     return (user + nice + system + irq + softirq + steal) / os.sysconf("SC_CLK_TCK")
 
 
-def measure(study, executor: str, workers: int, repeat: int) -> dict[str, float]:
+def measure(
+    study, executor: str, workers: int, repeat: int, chunk_size: int | None = None
+) -> dict[str, float]:
     """Median wall time [s], rate [runs/s], CPU time per run [ms] and the share of the cores used by
     other processes over ``repeat`` fresh runs."""
     times, cpus, others = [], [], []
     for _ in range(repeat):
         with tempfile.TemporaryDirectory() as tmp:
             c0, m0, t0 = _cpu_s(), _machine_busy_s(), time.perf_counter()
-            outcome = run_study(study, Path(tmp) / "out", executor=executor, workers=workers)
+            outcome = run_study(
+                study, Path(tmp) / "out", executor=executor, workers=workers, chunk_size=chunk_size
+            )
             wall = time.perf_counter() - t0
             ours = _cpu_s() - c0  # the pool's processes have ended: their time is counted
             times.append(wall)
@@ -118,7 +127,33 @@ def measure(study, executor: str, workers: int, repeat: int) -> dict[str, float]
         "others": max(others),
         "chunk": outcome.chunk_size,
         "chunks": outcome.chunks,
+        "sizes": outcome.chunk_sizes,
     }
+
+
+def multipoint(repeat: int) -> None:
+    """heavy_haul_couplers on 1 and 2 workers: cost-sized chunks against chunks of 10 runs."""
+    from trainsim.batch import load_study
+
+    study = load_study(ROOT / "examples" / "studies" / "heavy_haul_couplers.yaml")
+    load = os.getloadavg()[0]
+    print(f"{study.name}: {len(study.expand())} multi-point runs; load average {load:.1f}")
+    print(f"{'case':34s} {'wall s':>8s} {'CPU s/run':>9s} {'chunks':>20s} {'others':>7s}")
+    rows = {}
+    for name, workers, chunk in (
+        ("baseline: 2 workers, chunks of 10", 2, 10),
+        ("1 worker, cost-sized chunks", 1, None),
+        ("2 workers, cost-sized chunks", 2, None),
+    ):
+        m = measure(study, "processes", workers, repeat, chunk)
+        rows[name] = m["wall"]
+        sizes = ",".join(str(n) for n in m["sizes"])
+        print(f"{name:34s} {m['wall']:8.1f} {m['cpu_ms'] / 1e3:9.2f} {sizes:>20s} {m['others']:7.0%}")
+    one = rows["1 worker, cost-sized chunks"]
+    print(
+        f"speed-up 1 -> 2 workers: x{one / rows['2 workers, cost-sized chunks']:.2f} with cost-sized chunks "
+        f"(target x1.8), x{one / rows['baseline: 2 workers, chunks of 10']:.2f} with chunks of 10"
+    )
 
 
 def main() -> None:
@@ -131,7 +166,13 @@ def main() -> None:
     parser.add_argument(
         "--driving", action="store_true", help="energy-efficient runs (optimal strategy, supplements)"
     )
+    parser.add_argument(
+        "--multipoint", action="store_true", help="the 12 multi-point runs of heavy_haul_couplers.yaml"
+    )
     args = parser.parse_args()
+    if args.multipoint:
+        multipoint(args.repeat)
+        return
     runs = args.runs or (100 if args.driving else 4000)
 
     study = make_study(runs, args.driving)
