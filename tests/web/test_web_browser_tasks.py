@@ -2,23 +2,25 @@
 other formats, valid new rows, cell messages, plot downloads and legends, auto re-run, and the
 driver's desk (readouts, ATP, comparison with the fastest run of the same train and line).
 
-The 1280 px screenshots of docs/WEB.md are written here (docs/screenshots/)."""
+The 1280 px screenshots of docs/WEB.md are taken here: into tests/web/artifacts/, or into
+docs/screenshots/ with ``TRAINSIM_UPDATE_SCREENSHOTS=1`` (so that a test run changes no tracked file)."""
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Iterator
 
 import pytest
 
-from .conftest import REPO
+from .conftest import ARTIFACTS, REPO
 from .test_web_browser import browser, load_metro, page, shot  # noqa: F401 (fixtures)
 
 pytestmark = pytest.mark.browser
 
 sync_api = pytest.importorskip("playwright.sync_api", reason="the playwright package is not installed")
 
-DOCS_SHOTS = REPO / "docs" / "screenshots"
+DOCS_SHOTS = REPO / "docs" / "screenshots" if os.environ.get("TRAINSIM_UPDATE_SCREENSHOTS") else ARTIFACTS
 DATA = REPO / "tests" / "interchange" / "data"
 
 
