@@ -20,12 +20,17 @@ import hashlib
 import itertools
 import json
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from trainsim.batch.study import MAX_RUNS, DistributionSpec, ParamColumn, SamplesSpec, Study
 from trainsim.errors import InputError
+
+if TYPE_CHECKING:
+    from trainsim.batch.study import DistributionSpec, ParamColumn, SamplesSpec, Study
+
+#: The most runs one study may have (a study names them all in its results).
+MAX_RUNS = 5_000_000
 
 __all__ = ["Expansion", "RunTask", "draw_samples", "expand", "field_stream", "run_id"]
 

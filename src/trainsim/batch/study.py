@@ -24,6 +24,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from trainsim.batch.expand import MAX_RUNS, Expansion, expand
 from trainsim.batch.paths import Path, get_values, parse_path, set_value
 from trainsim.errors import InputError, Problem
 
@@ -50,7 +51,6 @@ PARTS = ("train", "route", "settings", "stops", "dwell_s", "driving", "model", "
 #: Keys of a scenario file that choose the multi-point model and give its settings (docs/MULTIPOINT.md).
 MULTI_POINT_KEYS = ("model", "multi_point")
 #: Largest number of runs a study may expand to (its parameters are held in memory).
-MAX_RUNS = 5_000_000
 
 
 # ====================================================================== the file's model
@@ -786,10 +786,8 @@ class Study:
             blob["profiles"] = self._profile_digests
         return hashlib.sha256(_canonical(blob).encode()).hexdigest()[:32]
 
-    def expand(self):  # -> trainsim.batch.expand.Expansion
+    def expand(self) -> Expansion:
         """Every run of the study with its parameters and run id."""
-        from trainsim.batch.expand import expand
-
         return expand(self)
 
 
