@@ -157,3 +157,13 @@ def test_shipped_multipoint_example_files_equal_the_repository_examples() -> Non
     for name in ("train.yaml", "route.yaml", "scenario_dp.yaml", "scenario_head.yaml"):
         shipped = (EXAMPLES_DIR / "heavy_haul" / name).read_text()
         assert shipped == (REPO / "examples" / "heavy_haul" / name).read_text(), name
+
+
+def test_every_shipped_example_passes_the_bounds_of_put_and_upload() -> None:
+    from trainsim.web import WebSettings, guard
+    from trainsim.web.convert import spec_dict
+    from trainsim.web.examples import examples, route_spec, train_spec
+
+    for name in examples():
+        guard.check_document(spec_dict(train_spec(name)), WebSettings())
+        guard.check_document(spec_dict(route_spec(name)), WebSettings())
