@@ -244,3 +244,23 @@ def test_long_route_loads_in_less_cpu_than_pyyaml_alone(tmp_path: Path) -> None:
         base.append(time.process_time() - c0)
     assert len(route.gradients) == n - sum(1 for i in range(n) if i % 7 == 3)
     assert min(ours) < 0.8 * min(base), (ours, base)
+
+
+def test_timetable_named_by_a_scenario_is_read_within_bounds(tmp_path: Path) -> None:
+    import shutil
+
+    import trainsim
+
+    repo = Path(__file__).resolve().parents[2] / "examples" / "metro_b"
+    for name in ("train.yaml", "route.yaml"):
+        shutil.copy(repo / name, tmp_path / name)
+    scenario = (repo / "scenario.yaml").read_text(encoding="utf-8")
+    (tmp_path / "scenario.yaml").write_text(
+        scenario + "driving: {strategy: optimal, timetable: timetable.yaml}\n", encoding="utf-8"
+    )
+    # the timetable reader (optimize) parses with PyYAML alone: 5000 levels give it a RecursionError
+    nested = "sections: " + "[" * 5000 + "]" * 5000 + "\n"
+    _write(tmp_path, "schema: trainsim/timetable\nversion: 1\n" + nested, "timetable.yaml")
+    with pytest.raises(InputError, match="nested too deep") as err:
+        trainsim.load_scenario(tmp_path / "scenario.yaml")
+    assert err.value.file == str(tmp_path / "timetable.yaml")

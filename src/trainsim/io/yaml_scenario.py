@@ -100,6 +100,7 @@ class ScenarioSpec(Spec):
 
         def read_timetable(name: str) -> Timetable:
             path = _resolve(base, name, file, "driving.timetable")
+            read_yaml(path)  # the bounds of io.documents first: the timetable reader parses without them
             return read_timetable_yaml(path, len(route.stops) - 1)
 
         strategy, timetable = driving_from_spec(self.driving, file, read_timetable)
