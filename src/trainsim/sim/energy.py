@@ -119,7 +119,9 @@ def line_laws(profile: LineResistanceProfile, available: PiecewiseLinear, lo: fl
     )
 
 
-@njit(cache=True)
+# inlined into its callers: passing the 12 curve arrays to a separate function costs an atomic
+# reference count increment and decrement per array and call, more than the evaluation itself
+@njit(cache=True, inline="always")
 def _forces(mode, E, u, lw, level, P, curves, vref=-1.0):
     """(acceleration [m/s^2], traction, braking, regenerative, running, gradient, curve+tunnel [N])
     in ``mode`` at E = v^2/2 and offset u into a piece with laws ``lw`` = (g0, g1, c0, c1, k0, k1,
