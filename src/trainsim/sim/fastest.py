@@ -125,7 +125,9 @@ def stops_of(route: Route) -> list[float]:
     return stops
 
 
-def run_fastest(train: Train, route: Route, settings: RunSettings | None = None) -> RunResult:
+def run_fastest(
+    train: Train, route: Route, settings: RunSettings | None = None, *, trace: bool = True
+) -> RunResult:
     """Simulate the fastest run of ``train`` over ``route``, stopping at every station with
     ``stop`` set for its dwell time.
 
@@ -133,6 +135,9 @@ def run_fastest(train: Train, route: Route, settings: RunSettings | None = None)
     braking to every lower limit and stop and accelerates with maximum traction otherwise.
     A train that stalls on a grade gives a result with ``status == "stalled"`` that ends where
     it stopped, and a warning saying where and why.
+
+    ``trace=False`` (batch runs) leaves out the trace's force, power and current arrays
+    (``RunResult.trace`` is None); every summary figure is the same.
     """
     settings = settings or RunSettings()
     train = train.at_gravity(route.gravity_mps2)
@@ -201,6 +206,7 @@ def run_fastest(train: Train, route: Route, settings: RunSettings | None = None)
         stall_position_m=stall_at,
         kind="fastest",
         warnings=warnings,
+        with_trace=trace,
     )
 
 

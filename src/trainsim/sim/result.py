@@ -133,7 +133,7 @@ class RunResult:
     kind: str
     status: str
     warnings: tuple[str, ...]
-    trace: Trace
+    trace: Trace | None  # None for a summary-only run (``run_fastest(..., trace=False)``)
     sections: tuple[SectionSummary, ...]
     distance_m: float
     running_time_s: float
@@ -149,6 +149,8 @@ class RunResult:
 
     def to_dataframe(self):
         """The trace as a pandas DataFrame."""
+        if self.trace is None:
+            raise ValueError("this run was computed without its trace (trace=False)")
         return self.trace.to_dataframe()
 
     def summary(self) -> dict[str, Any]:
@@ -341,52 +343,43 @@ def _line_forces(
     )
 
 
-def build_result(
-    *,
+def _trace_and_peaks(
     train: Train,
-    route: Route,
     settings: RunSettings,
+    route: Route,
     profile: LineResistanceProfile,
     ceiling: PiecewiseLinear,
+    availability: PiecewiseLinear,
+    voltage: PiecewiseLinear,
     s: np.ndarray,
     v: np.ndarray,
     t: np.ndarray,
     regime: np.ndarray,
-    status: str,
-    stall_position_m: float = float("nan"),
-    kind: str = "fastest",
-    warnings: list[str] | None = None,
-    level: np.ndarray | None = None,
-    stop_names: list[str] | None = None,
-) -> RunResult:
-    from trainsim.sim.profile import line_voltage, traction_availability
-
-    """Evaluate forces, powers, currents and energies along a run given as points."""
-    warnings = list(warnings or [])
-    train = train.at_gravity(route.gravity_mps2)
-    problems = _invariant_violations(s, v, t)
-    if problems:
-        # never hand out a broken trace as if it were fine
-        status = "error"
-        warnings.append("internal consistency check failed: " + "; ".join(problems))
-    if status == "ok" and kind != "driven" and len(s):
-        status = _check_stops(route, s, v, regime, stop_names, warnings)
+    level: np.ndarray,
+    s_right: np.ndarray,
+    w_traction: np.ndarray,
+    w_braking: np.ndarray,
+    e_regen_line: np.ndarray,
+    e_net: np.ndarray,
+    eta_t: float,
+    eta_r: float,
+    aux_w: float,
+    with_trace: bool,
+) -> tuple[Trace | None, np.ndarray, np.ndarray]:
+    """Forces, powers and currents at every point of a run: its trace (None without ``with_trace``)
+    and the line current at each point and the stretch it starts, for the peaks [A]."""
     m = train.mass_kg
     n = len(s)
     elec = train.electrical
     # point values in each point's own regime, line resistance from the right of the point
-    s_right = np.minimum(s + 1e-7, route.end_m)
     running = np.asarray(train.running_resistance_n(v), dtype=float) * (v > 0)
     grad, curve, tunnel = _line_forces(profile, m, s_right, v)
     line = grad + curve + tunnel
-    level = np.ones(n) if level is None else np.asarray(level, dtype=float)
     # stretch accelerations for prescribed profiles (FOLLOW): constant over each stretch
     ds_all = np.diff(s)
     with np.errstate(divide="ignore", invalid="ignore"):
         acc_stretch = np.where(ds_all > 0, (v[1:] ** 2 - v[:-1] ** 2) / (2 * ds_all), 0.0)
     inertia_pts = train.inertial_mass_kg * np.concatenate([acc_stretch, [0.0]])
-    availability = traction_availability(route, train)
-    voltage = line_voltage(route, train)
     traction, braking = _regime_forces(
         train, settings, regime, v, running, line, level, availability(s_right), inertia_pts
     )
@@ -397,7 +390,6 @@ def build_result(
     accel[regime == DWELL] = 0.0
 
     # stretch integrals: both ends in the stretch's regime, line resistance at its middle
-    dt = np.diff(t)
     r = regime[:-1]
     v0, v1 = v[:-1], v[1:]
     mid = 0.5 * (s[:-1] + s[1:])
@@ -413,28 +405,6 @@ def build_result(
         rg1 = np.minimum(f1b, train.braking.regenerative(v1))
     else:
         rg0 = rg1 = np.zeros_like(v0)
-    # work integrals: exact between the events of each stretch's motion (trainsim.sim.energy)
-    works, v_end, off_regime = run_works(
-        train=train,
-        route=route,
-        settings=settings,
-        profile=profile,
-        available=availability,
-        s=s,
-        v=v,
-        regime=regime,
-        level=level,
-    )
-    w_traction, w_braking, w_regen, w_running, w_gradient, w_curve_tunnel = (works[:, q] for q in range(6))
-
-    eta_t = elec.traction_efficiency if elec else 1.0
-    eta_r = elec.regenerative_efficiency * elec.receptivity if elec else 0.0
-    aux_w = elec.auxiliary_power_w if elec else 0.0
-    e_traction_line = w_traction / eta_t
-    e_regen_line = w_regen * eta_r
-    e_aux = aux_w * dt
-    e_net = e_traction_line + e_aux - e_regen_line
-    e_paper = w_traction * (elec.traction_efficiency if elec else 1.0)
 
     mech_power = traction * v
     el_power = (
@@ -472,6 +442,8 @@ def build_result(
     def cumulative(x: np.ndarray) -> np.ndarray:
         return np.concatenate([[0.0], np.cumsum(x)])
 
+    if not with_trace:
+        return None, peak_current, peak_paper
     trace = Trace(
         time_s=t,
         position_m=s,
@@ -497,6 +469,82 @@ def build_result(
         regenerated_energy_j=cumulative(e_regen_line),
         electrical_energy_j=cumulative(e_net),
     )
+    return trace, peak_current, peak_paper
+
+
+def build_result(
+    *,
+    train: Train,
+    route: Route,
+    settings: RunSettings,
+    profile: LineResistanceProfile,
+    ceiling: PiecewiseLinear,
+    s: np.ndarray,
+    v: np.ndarray,
+    t: np.ndarray,
+    regime: np.ndarray,
+    status: str,
+    stall_position_m: float = float("nan"),
+    kind: str = "fastest",
+    warnings: list[str] | None = None,
+    level: np.ndarray | None = None,
+    stop_names: list[str] | None = None,
+    with_trace: bool = True,
+) -> RunResult:
+    from trainsim.sim.profile import line_voltage, traction_availability
+
+    """Evaluate forces, powers, currents and energies along a run given as points; without
+    ``with_trace`` only the summary figures (sections, totals, energy balance), the same numbers."""
+    warnings = list(warnings or [])
+    train = train.at_gravity(route.gravity_mps2)
+    problems = _invariant_violations(s, v, t)
+    if problems:
+        # never hand out a broken trace as if it were fine
+        status = "error"
+        warnings.append("internal consistency check failed: " + "; ".join(problems))
+    if status == "ok" and kind != "driven" and len(s):
+        status = _check_stops(route, s, v, regime, stop_names, warnings)
+    m = train.mass_kg
+    n = len(s)
+    elec = train.electrical
+    # point values in each point's own regime, line resistance from the right of the point
+    s_right = np.minimum(s + 1e-7, route.end_m)
+    level = np.ones(n) if level is None else np.asarray(level, dtype=float)
+    availability = traction_availability(route, train)
+    voltage = line_voltage(route, train)
+    dt = np.diff(t)
+
+    # work integrals: exact between the events of each stretch's motion (trainsim.sim.energy)
+    works, v_end, off_regime = run_works(
+        train=train,
+        route=route,
+        settings=settings,
+        profile=profile,
+        available=availability,
+        s=s,
+        v=v,
+        regime=regime,
+        level=level,
+    )
+    w_traction, w_braking, w_regen, w_running, w_gradient, w_curve_tunnel = (works[:, q] for q in range(6))
+
+    eta_t = elec.traction_efficiency if elec else 1.0
+    eta_r = elec.regenerative_efficiency * elec.receptivity if elec else 0.0
+    aux_w = elec.auxiliary_power_w if elec else 0.0
+    e_traction_line = w_traction / eta_t
+    e_regen_line = w_regen * eta_r
+    e_aux = aux_w * dt
+    e_net = e_traction_line + e_aux - e_regen_line
+    e_paper = w_traction * (elec.traction_efficiency if elec else 1.0)
+
+    if with_trace or elec:
+        trace, peak_current, peak_paper = _trace_and_peaks(
+            train, settings, route, profile, ceiling, availability, voltage, s, v, t, regime, level, s_right,
+            w_traction, w_braking, e_regen_line, e_net, eta_t, eta_r, aux_w, with_trace,
+        )  # fmt: skip
+    else:
+        # a summary without trace of a train without electrics: no point arrays needed at all
+        trace, peak_current, peak_paper = None, np.full(n, np.nan), np.full(n, np.nan)
 
     # sections: between consecutive stop points (a DWELL point ends a section)
     names = stop_names if stop_names is not None else [st.name for st in route.stops]
