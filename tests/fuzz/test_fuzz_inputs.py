@@ -31,9 +31,6 @@ UNCLEAR_ELSEWHERE = (
 OPEN_ORIGINS = {
     "study.py": "batch/study.py: departures every_min unbounded (OverflowError at study.py:528) and a "
     "'base' file name too long for the system (OSError from Path.exists at study.py:429)",
-    # TTOBench's reader was being rewritten by another engineer when this suite was written; its one
-    # remaining crash: a JSON integer beyond the range of a float (int(1e400)) at ttobench.py:152
-    "ttobench.py": "io/ttobench.py: OverflowError for integers beyond the range of a float",
 }
 
 

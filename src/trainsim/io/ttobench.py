@@ -16,7 +16,6 @@ Conventions and choices (reported in the ``notes`` of what is read, never applie
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from itertools import pairwise
@@ -102,15 +101,9 @@ class TTOBenchTrain:
 
 
 def _read(path: str | Path) -> dict[str, Any]:
-    p = Path(path)
-    if not p.is_file():
-        raise InputError("file not found", file=str(path))
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON: {exc.msg}", file=str(path), line=exc.lineno) from None
-    except (UnicodeDecodeError, RecursionError, ValueError) as exc:
-        raise InputError(f"cannot read the file as JSON: {type(exc).__name__}", file=str(path)) from None
+    from trainsim.io.documents import read_json
+
+    data = read_json(path)  # bounded size and depth; NaN, Infinity and duplicate keys refused
     if not isinstance(data, dict):
         raise InputError("a TTOBench file is a JSON object", file=str(path), value=type(data).__name__)
     return data
@@ -149,7 +142,11 @@ def _number(
     allowed: str = "a finite number",
 ) -> float:
     """A finite JSON number (never a bool, text, null, list or mapping), optionally >= minimum or > 0."""
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+    try:  # an integer beyond the range of a float is not a finite number either
+        finite = not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value)
+    except OverflowError:
+        finite = False
+    if not finite:
         raise InputError("expected a finite number", file=file, field=field, value=value, allowed=allowed)
     x = float(value)
     if positive and not x > 0.0:
