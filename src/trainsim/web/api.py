@@ -32,6 +32,7 @@ from trainsim.web.examples import examples, route_spec, train_spec
 from trainsim.web.payloads import route_payload, run_brief, run_payload, train_payload
 from trainsim.web.sessions import Loaded, SessionStore, StoredRun, WebSession
 from trainsim.web.workers import (
+    STARTING,
     ClientGoneError,
     JobFailedError,
     JobLimitError,
@@ -94,10 +95,8 @@ async def work(
     except JobLimitError as exc:
         raise ApiError(422, exc.message, [{"field": None, "loc": [], "msg": exc.message}]) from exc
     except PoolBusyError as exc:
-        raise ApiError(
-            503,
-            "the server is busy: every worker is in use and the queue is full; try again in a few seconds",
-        ) from exc
+        reason = str(exc) if str(exc) == STARTING else "every worker is in use and the queue is full"
+        raise ApiError(503, f"the server is busy: {reason}; try again shortly") from exc
     except ClientGoneError as exc:
         raise ApiError(499, "the client closed the request; its work was stopped") from exc
     except JobFailedError as exc:

@@ -217,12 +217,13 @@ def create_app(settings: WebSettings | None = None) -> FastAPI:
             settings.job_time_limit_s,
             settings.job_memory_limit_bytes,
             settings.max_queued_jobs,
+            settings.start_timeout_s,
         )
         if settings.workers > 0
         else None
     )
 
-    hosts = DriveHosts(settings.drive_hosts)
+    hosts = DriveHosts(settings.drive_hosts, settings.start_timeout_s)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:

@@ -36,6 +36,8 @@ class WebSettings:
             worker is stopped and the request gets 422.
         job_memory_limit_bytes: memory a worker may take on top of what it holds when it starts
             [bytes]; past it the request gets 422.
+        start_timeout_s: longest a request waits for the worker processes to start [s]; the first
+            start after an install compiles trainsim's kernels (minutes); past it the answer is 503.
         drive_hosts: processes that host the live drives (0: in the server process).
         max_queued_jobs: requests waiting for a worker; past that the answer is 503.
         max_jobs_per_session: requests of one session in the workers at once; past that 429.
@@ -64,6 +66,7 @@ class WebSettings:
     job_time_limit_s: float = 30.0
     job_memory_limit_bytes: int = 1024 * 1024 * 1024
     drive_hosts: int = 2
+    start_timeout_s: float = 600.0
     max_queued_jobs: int = 64
     max_jobs_per_session: int = 2
     allowed_hosts: tuple[str, ...] = ("127.0.0.1", "localhost", "::1", "testserver")

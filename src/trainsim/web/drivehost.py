@@ -241,8 +241,9 @@ class _Host:
 class DriveHosts:
     """Drive host processes (``processes``; 0: drives in the server process)."""
 
-    def __init__(self, processes: int) -> None:
+    def __init__(self, processes: int, start_timeout_s: float = 600.0) -> None:
         self.processes = processes
+        self.start_timeout_s = start_timeout_s
         self._hosts: list[_Host] = []
         self._local = _Drives()
         self._ids = itertools.count(1)
@@ -259,7 +260,9 @@ class DriveHosts:
         await asyncio.shield(self._starting)
 
     async def _start(self) -> None:
-        self._hosts = await asyncio.to_thread(lambda: [_Host(self._ctx) for _ in range(self.processes)])
+        from trainsim.web.workers import in_daemon_thread
+
+        self._hosts = await in_daemon_thread(lambda: [_Host(self._ctx) for _ in range(self.processes)])
 
     def close(self) -> None:
         for host in self._hosts:
@@ -308,7 +311,12 @@ class DriveHosts:
         self, train: Train, route: Route, settings: RunSettings, atp: bool
     ) -> tuple[int, dict[str, Any] | None, dict[str, Any]]:
         """A new drive on the least busy host: (drive id, fastest-run reference, first view)."""
-        await self.start()
+        try:
+            await asyncio.wait_for(self.start(), timeout=self.start_timeout_s)
+        except TimeoutError:
+            from trainsim.web.workers import STARTING
+
+            raise DriveHostError(STARTING) from None
         drive_id = next(self._ids)
         host = min(self._hosts, key=lambda h: h.drives) if self._hosts else None
         self._where[drive_id] = host

@@ -45,8 +45,15 @@ log = logging.getLogger("trainsim.web")
 GONE_POLL_S = 0.25
 
 
+#: why a request could not start: the workers are still being started
+STARTING = (
+    "the server is still starting its worker processes (the first start after an install or an "
+    "update compiles trainsim's kernels once: up to a few minutes)"
+)
+
+
 class PoolBusyError(Exception):
-    """Every worker is busy and the waiting queue is full."""
+    """Every worker is busy and the waiting queue is full (or the workers are still starting)."""
 
 
 class JobLimitError(Exception):
@@ -75,6 +82,35 @@ def _vm_size_bytes() -> int:
     except OSError:
         pass
     return 0
+
+
+def in_daemon_thread(fn: Callable[[], Any]) -> asyncio.Future:
+    """``fn()`` in a daemon thread, as a future of the running loop. Starting processes waits for the
+    fork server, which compiles trainsim's kernels on its first start; a daemon thread never keeps
+    the server from exiting while it waits (the default executor's threads would)."""
+    import threading
+
+    loop = asyncio.get_running_loop()
+    future: asyncio.Future = loop.create_future()
+
+    def settle(value: Any, error: BaseException | None) -> None:
+        if future.done():
+            return
+        if error is not None:
+            future.set_exception(error)
+        else:
+            future.set_result(value)
+
+    def work() -> None:
+        try:
+            value = fn()
+        except BaseException as exc:  # handed to the awaiting coroutine
+            loop.call_soon_threadsafe(settle, None, exc)
+        else:
+            loop.call_soon_threadsafe(settle, value, None)
+
+    threading.Thread(target=work, daemon=True, name="trainsim-web-spawn").start()
+    return future
 
 
 def run_job(name: str, args: tuple[Any, ...]) -> tuple[str, Any]:
@@ -159,8 +195,10 @@ class WorkerPool:
         time_limit_s: float,
         memory_limit_bytes: int,
         max_queued: int,
+        start_timeout_s: float = 600.0,
     ) -> None:
         self.processes = processes
+        self.start_timeout_s = start_timeout_s
         self.time_limit_s = time_limit_s
         self.memory_limit_bytes = memory_limit_bytes
         self.max_queued = max_queued
@@ -207,7 +245,7 @@ class WorkerPool:
 
     async def _start(self) -> None:
         idle: asyncio.Queue[_Worker] = asyncio.Queue()
-        workers = await asyncio.to_thread(lambda: [self._spawn() for _ in range(self.processes)])
+        workers = await in_daemon_thread(lambda: [self._spawn() for _ in range(self.processes)])
         for w in workers:
             idle.put_nowait(w)
         self._idle = idle
@@ -243,7 +281,13 @@ class WorkerPool:
         :class:`PoolBusyError`, :class:`ClientGoneError` or :class:`JobFailedError`.
         """
         if self._idle is None:
-            await self.start()
+            # the first start imports trainsim and compiles its kernels in the fork server: seconds
+            # with numba's cache, minutes without it; a request waits at most start_timeout_s
+            try:
+                await asyncio.wait_for(self.start(), timeout=self.start_timeout_s)
+            except TimeoutError:
+                self.stats["busy"] += 1
+                raise PoolBusyError(STARTING) from None
         assert self._idle is not None
         if self._closed:
             raise PoolBusyError("the server is shutting down")
@@ -267,7 +311,7 @@ class WorkerPool:
                 self._kill(worker)
                 self.stats["replaced"] += 1
                 if not self._closed:
-                    self._idle.put_nowait(await asyncio.to_thread(self._spawn))
+                    self._idle.put_nowait(await in_daemon_thread(self._spawn))
         self.stats["jobs"] += 1
         if outcome[0] == "memory":
             self.stats["memory"] += 1
