@@ -28,8 +28,8 @@ import time
 from pathlib import Path
 
 import trainsim
+from trainsim.io.multipoint_spec import load_multipoint_scenario
 from trainsim.multipoint import MultiPointSettings, run_multipoint_fastest
-from trainsim.multipoint.spec import load_multipoint_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 HEAVY = ROOT / "examples" / "heavy_haul"

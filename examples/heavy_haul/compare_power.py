@@ -16,8 +16,8 @@ import time
 from pathlib import Path
 
 import trainsim
+from trainsim.io.multipoint_spec import load_multipoint_scenario, run_multipoint_scenario
 from trainsim.multipoint.plots import save_multipoint_plots
-from trainsim.multipoint.spec import load_multipoint_scenario, run_multipoint_scenario
 
 HERE = Path(__file__).resolve().parent
 

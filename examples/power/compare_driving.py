@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from trainsim.power.file import run_power_file
+from trainsim.io.power_file import run_power_file
 
 HERE = Path(__file__).resolve().parent
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from trainsim.power.file import load_power_file
+from trainsim.io.power_file import load_power_file
 from trainsim.power.synchronise import synchronise
 
 HERE = Path(__file__).resolve().parent

@@ -55,7 +55,7 @@ def run(scenario: Scenario) -> RunResult | MultiPointResult:
     ``driving`` block (strategy and supplement or timetable) is driven by that strategy.
     """
     if scenario.model == "multi_point":
-        from trainsim.multipoint.spec import run_multipoint_scenario
+        from trainsim.io.multipoint_spec import run_multipoint_scenario
 
         return run_multipoint_scenario(scenario, scenario.multi_point)
     if scenario.strategy != "fastest":

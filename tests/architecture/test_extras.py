@@ -71,5 +71,5 @@ def test_a_command_names_the_extra_it_needs(extra, args):
     hidden = {module for module, name in MODULE_EXTRAS.items() if name == extra}
     proc = run_without(hidden, *args)
     assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
-    assert f"pip install" in proc.stderr and f"trainsim[{extra}]" in proc.stderr
+    assert "pip install" in proc.stderr and f"trainsim[{extra}]" in proc.stderr
     assert "Traceback" not in proc.stderr

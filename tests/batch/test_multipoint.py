@@ -17,7 +17,7 @@ from trainsim.batch import run_study, study_from_dict
 from trainsim.batch.worker import METRICS, MULTI_POINT_COLUMNS
 from trainsim.errors import InputError
 from trainsim.io import trainsim_yaml as tsy
-from trainsim.multipoint.spec import multipoint_settings_from_dict
+from trainsim.io.multipoint_spec import multipoint_settings_from_dict
 
 HEAVY = REPO / "examples" / "heavy_haul"
 BLOCK = {

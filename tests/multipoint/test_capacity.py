@@ -9,10 +9,10 @@ import pytest
 import trainsim
 from trainsim.constants import KMH
 from trainsim.errors import InputError
+from trainsim.io.multipoint_spec import multipoint_settings_from_dict
 from trainsim.model import LineResistanceSettings, Route, SpeedLimit, Station
 from trainsim.multipoint import BrakePropagation, CouplerModel, MultiPointSettings, run_multipoint_fastest
 from trainsim.multipoint.model import FREIGHT_CAPACITY_N
-from trainsim.multipoint.spec import multipoint_settings_from_dict
 
 
 def level(length_m: float = 5_000.0, limit_kmh: float = 100.0) -> Route:

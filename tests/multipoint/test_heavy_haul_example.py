@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 import trainsim
-from trainsim.multipoint.spec import load_multipoint_scenario, run_multipoint_scenario
+from trainsim.io.multipoint_spec import load_multipoint_scenario, run_multipoint_scenario
 
 HEAVY = Path(__file__).resolve().parents[2] / "examples" / "heavy_haul"
 

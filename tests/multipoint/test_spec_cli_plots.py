@@ -10,13 +10,13 @@ import yaml
 from typer.testing import CliRunner
 
 from trainsim.errors import InputError
-from trainsim.multipoint import CouplerModel
-from trainsim.multipoint.spec import (
+from trainsim.io.multipoint_spec import (
     MultiPointSpec,
     load_multipoint_scenario,
     multipoint_settings_from_dict,
     run_multipoint_scenario,
 )
+from trainsim.multipoint import CouplerModel
 
 ROOT = Path(__file__).resolve().parents[2]
 HEAVY = ROOT / "examples" / "heavy_haul"

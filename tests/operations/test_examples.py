@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from trainsim.operations.operate import run_operation, run_operation_file
-from trainsim.operations.reader import read_operation
+from trainsim.io.operation_file import read_operation
+from trainsim.io.operation_run import run_operation, run_operation_file
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "operations"
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")  # TrainRuns.jl's documented defaults

@@ -9,8 +9,8 @@ import pytest
 import yaml
 
 from trainsim.errors import InputError
-from trainsim.operations.operate import run_operation_file
-from trainsim.operations.reader import read_operation
+from trainsim.io.operation_file import read_operation
+from trainsim.io.operation_run import run_operation_file
 
 ROOT = Path(__file__).resolve().parents[2]
 METRO = ROOT / "examples" / "metro_b"
@@ -128,7 +128,7 @@ def test_impossible_timetable_is_an_explained_result(tmp_path: Path) -> None:
 
 
 def test_monte_carlo_samples_are_seeded_and_summarised(tmp_path: Path) -> None:
-    from trainsim.operations.operate import monte_carlo
+    from trainsim.io.operation_run import monte_carlo
 
     p = _write(tmp_path, delays={"seed": 3, "probability": 0.5, "mean_s": 90.0})
     doc = yaml.safe_load(p.read_text())
@@ -148,7 +148,7 @@ def test_monte_carlo_samples_are_seeded_and_summarised(tmp_path: Path) -> None:
 
 
 def test_check_report_of_an_operation_file() -> None:
-    from trainsim.operations.reader import check_operation
+    from trainsim.io.operation_file import check_operation
 
     report = check_operation(ROOT / "examples/operations/metro_fixed_block.yaml")
     assert report.kind == "operation" and report.figures["trains"] == "14"

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from trainsim.cli import app
 from trainsim.errors import InputError
-from trainsim.power.file import load_power_file, run_power_file
+from trainsim.io.power_file import load_power_file, run_power_file
 from trainsim.power.study import run_study
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -719,7 +719,7 @@ class Study:
         """Every speed-profile file (``multi_point.profile``) the runs may use: see :meth:`_read_files`."""
         if not self.multi_point:
             return {}, {}
-        from trainsim.multipoint.spec import read_profile
+        from trainsim.io.multipoint_spec import read_profile
 
         # pandas raises ValueError on a malformed CSV file
         return self._read_files(
@@ -804,7 +804,7 @@ def _validate_scenario(data: dict[str, Any], source: str, base_dir: FsPath | Non
 def scenario_from_data(data: dict[str, Any], source: str = "<scenario>", base_dir: FsPath | None = None):
     """The :class:`~trainsim.model.scenario.Scenario` of a scenario's data, as ``trainsim.load_scenario``
     reads the same file: without ``model``/``multi_point`` the scenario reader's; else as
-    ``trainsim.multipoint.spec.load_multipoint_scenario`` (same checks, same public functions), with
+    ``trainsim.io.multipoint_spec.load_multipoint_scenario`` (same checks, same public functions), with
     ``model="multi_point"`` and the validated block as ``trainsim.io.loader.load_scenario`` returns it.
     """
     from trainsim.io import trainsim_yaml as tsy
@@ -813,7 +813,7 @@ def scenario_from_data(data: dict[str, Any], source: str = "<scenario>", base_di
         return tsy.scenario_from_dict(data, source, base_dir)
     import dataclasses
 
-    from trainsim.multipoint.spec import multipoint_scenario_from_dict
+    from trainsim.io.multipoint_spec import multipoint_scenario_from_dict
 
     scenario, spec = multipoint_scenario_from_dict(data, source, base_dir)
     if spec is None:

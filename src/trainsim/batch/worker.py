@@ -16,7 +16,7 @@ against the fastest run (which ``optimize`` computes anyway).
 A run with ``model: multi_point`` is computed as :func:`trainsim.run` computes its scenario too: the
 scenario built from the run's data as the scenario reader builds it
 (:func:`trainsim.batch.study.scenario_from_data`), then
-:func:`trainsim.multipoint.spec.run_multipoint_scenario`; its row has the coupler-force columns
+:func:`trainsim.io.multipoint_spec.run_multipoint_scenario`; its row has the coupler-force columns
 (:data:`MULTI_POINT_COLUMNS`).
 
 Every run is caught on its own: an exception becomes a failure row (``status: failed``, the error type
@@ -316,7 +316,7 @@ class WorkerState:
 
     def _profile(self, name: str, source: str):
         """The speed-profile file ``name`` (as written), read by the process that started the study."""
-        from trainsim.multipoint.spec import read_profile
+        from trainsim.io.multipoint_spec import read_profile
 
         return _shared_file(
             self._profiles, name, source, lambda n: read_profile(Path(n), n), "multi_point.profile"
@@ -327,7 +327,7 @@ class WorkerState:
         computes its scenario (``run_multipoint_scenario(scenario, scenario.multi_point)``); the block's
         profile file as read by the process that started the study."""
         from trainsim.batch.study import scenario_from_data
-        from trainsim.multipoint.spec import run_multipoint_scenario
+        from trainsim.io.multipoint_spec import run_multipoint_scenario
 
         source = f"run {task[0]}"
         data, _ = self.run_data(task)

@@ -56,7 +56,7 @@ def write_multipoint_outputs(result, out: Path, *, plots: bool = True) -> list[P
 
 def run_and_report(scenario_path: Path, out: Path | None, as_json: bool, no_plots: bool) -> str:
     """Run a scenario file with the multi-point model and print the summary; returns its status."""
-    from trainsim.multipoint.spec import load_multipoint_scenario, run_multipoint_scenario
+    from trainsim.io.multipoint_spec import load_multipoint_scenario, run_multipoint_scenario
 
     scenario, spec = load_multipoint_scenario(scenario_path)
     if spec is None:

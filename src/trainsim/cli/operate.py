@@ -33,7 +33,7 @@ def operate(
     """
     with user_errors():
         require_file(file, "operation file")
-        from trainsim.operations.operate import run_operation_file
+        from trainsim.io.operation_run import run_operation_file
 
         summary, status = run_operation_file(
             file, out, parquet=parquet, plots=plots, samples=samples, seed=seed

@@ -59,7 +59,7 @@ def power(
     """Solve a traction power network with many trains over time (substations, voltages, regeneration)."""
     with user_errors():
         require_file(file, "power-supply file")
-        from trainsim.power.file import run_power_file
+        from trainsim.io.power_file import run_power_file
 
         summary, status = run_power_file(file, out, plots=plots)
         if as_json:

@@ -246,7 +246,7 @@ def load_scenario(path: str | Path) -> Scenario:
         # the multi-point model's own reader validates its block; imported here (it imports us)
         import dataclasses
 
-        from trainsim.multipoint.spec import load_multipoint_scenario
+        from trainsim.io.multipoint_spec import load_multipoint_scenario
 
         scenario, spec = load_multipoint_scenario(path)
         if spec is None:

@@ -237,7 +237,7 @@ def dump_yaml(spec: BaseModel) -> str:
     return yaml.safe_dump(data, sort_keys=False, allow_unicode=True)
 
 
-# Former private names, kept for modules that used them (multipoint/spec.py): use Spec, fail and
+# Former private names, kept for modules that used them (io/multipoint_spec.py): use Spec, fail and
 # validation_error instead.
 _Spec = Spec
 _fail = fail

@@ -31,7 +31,7 @@ from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
 from trainsim.optimize import pmp_kernel as pk
 from trainsim.sim import kernel
-from trainsim.sim.fastest import kernel_parameters, kink_speeds, regenerative_arrays
+from trainsim.sim.parameters import kernel_parameters, kink_speeds, regenerative_arrays
 from trainsim.sim.profile import compile_track
 
 #: Shooting on the coasting point stops when its bracket is shorter than this [m].

@@ -3,7 +3,7 @@
 Layers: :mod:`limits` (EN 50163 data, EN 50388-style train behaviour), :mod:`network` (tracks,
 substations, connections, gaps), :mod:`solver` (one time step: sparse nodal analysis, Newton,
 rectifier states), :mod:`simulation` (many trains over time, results), :mod:`study` (trains from
-runs, voltage-limited traction fed back into the runs). The file reader (:mod:`file`) and plots
+runs, voltage-limited traction fed back into the runs). The file reader (:mod:`trainsim.io.power_file`) and plots
 (:mod:`plots`) sit on top and are not imported here.
 """
 

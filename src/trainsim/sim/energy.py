@@ -502,7 +502,7 @@ def run_works(
     of each stretch by integration [m/s] and which stretches do not follow their regime (see
     ``stretch_works``). This is the one place where
     trainsim integrates energies; every path (fastest run, driving, optimisation) goes through it."""
-    from trainsim.sim.fastest import kernel_parameters, kink_speeds, regenerative_arrays
+    from trainsim.sim.parameters import kernel_parameters, kink_speeds, regenerative_arrays
 
     if len(s) < 2:
         return np.zeros((0, N_WORKS)), np.zeros(0), np.zeros(0, dtype=bool)

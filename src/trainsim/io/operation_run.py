@@ -11,8 +11,8 @@ from pathlib import Path
 from typing import Any
 
 from trainsim.errors import InputError
+from trainsim.io.operation_file import Operation, read_operation
 from trainsim.operations.blocking import compression
-from trainsim.operations.reader import Operation, read_operation
 from trainsim.operations.runs import RunCache
 from trainsim.operations.simulate import OperationResult, TrainService, simulate
 
