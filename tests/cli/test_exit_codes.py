@@ -109,3 +109,17 @@ def test_python_m_trainsim_and_version():
         [sys.executable, "-m", "trainsim.cli", "--help"], capture_output=True, text=True, timeout=60
     )
     assert out.returncode == 0 and "export-results" in out.stdout
+
+
+@pytest.mark.parametrize(
+    ("file", "kind"),
+    [
+        ("examples/studies/metro_load_efficiency.yaml", "study"),
+        ("examples/operations/metro_cbtc.yaml", "operation"),
+        ("examples/power/main_line_25kv.yaml", "power supply"),
+    ],
+)
+def test_check_reads_the_files_of_every_layer(file, kind):
+    result = CliRunner().invoke(app, ["check", str(ROOT / file)])
+    assert result.exit_code == 0, result.output
+    assert f": {kind} '" in result.output

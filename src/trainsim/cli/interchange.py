@@ -151,6 +151,43 @@ def convert(
     typer.echo(f"wrote {path}")
 
 
+def _check_study(path: Path):  # -> trainsim.io.report.CheckReport
+    from trainsim.batch import load_study
+    from trainsim.io.report import CheckReport
+
+    study = load_study(path)
+    expansion = study.expand()
+    figures = {
+        "runs": f"{len(expansion):,}",
+        "parameters": ", ".join(c.name for c in expansion.columns) or "(none)",
+    }
+    return CheckReport(str(path), "study", "trainsim/study v1", study.name, figures)
+
+
+def _check_power(path: Path):  # -> trainsim.io.report.CheckReport
+    from trainsim.io.power_file import SCHEMA, load_power_file
+    from trainsim.io.report import CheckReport
+
+    spec, network, services = load_power_file(path)
+    figures = {
+        "substations": str(len(network.substations)),
+        "tracks": str(len(network.tracks)),
+        "train services": str(len(services)),
+    }
+    return CheckReport(str(path), "power supply", f"{SCHEMA} v1", getattr(spec, "name", path.stem), figures)
+
+
+def register_checkers() -> None:
+    """Let ``trainsim check`` read the files of the layers above io: studies, operations, power."""
+    from trainsim.io import loader
+    from trainsim.io.operation_file import SCHEMA as OPERATION
+    from trainsim.io.operation_file import check_operation
+
+    loader.register_checker("trainsim/study", _check_study)
+    loader.register_checker(OPERATION, check_operation)
+    loader.register_checker("trainsim/power", _check_power)
+
+
 def check(
     file: Annotated[
         Path,
@@ -193,6 +230,7 @@ def check(
                     file=str(file),
                     field=next(iter(options)),
                 )
+            register_checkers()
             report = loader.check_file(file)
     typer.echo(report.to_text())
 
