@@ -3,7 +3,9 @@
 Blocks fenced as ``python`` run with Python, blocks fenced as ``bash`` or ``sh`` with bash (-e, -o
 pipefail), in the order of their page, in one scratch folder per page that sees the repository's
 ``examples``, ``tests`` and ``docs`` folders, so that they write nothing into the checkout. Commands shown but not meant to run
-here (a server, a cluster address, an install) are fenced as ``console`` or ``text``.
+here (a server, a cluster address, an install, a file the reader must bring) are fenced as ``console``
+or ``text``, and Python shown but not run (it needs such a file, or takes minutes and is run by the
+test suite elsewhere) as ``py``.
 """
 
 from __future__ import annotations
