@@ -76,7 +76,7 @@ def scratch(page: str, tmp_path_factory: pytest.TempPathFactory) -> Path:
     # the blocks of one page run in order in one folder: a later block may read what an earlier wrote
     if page not in _SCRATCH:
         folder = tmp_path_factory.mktemp("docs")
-        for name in ("examples", "tests", "docs", "benchmarks"):
+        for name in ("examples", "tests", "docs", "benchmarks", "scripts"):
             (folder / name).symlink_to(ROOT / name, target_is_directory=True)
         _SCRATCH[page] = folder
     return _SCRATCH[page]
