@@ -193,12 +193,17 @@ class SamplesSpec(_Model):
     fields: dict[str, DistributionSpec] = Field(min_length=1)
 
 
+#: Departures one run entry may expand to (a day at one per second is 86,400).
+MAX_DEPARTURES = 100_000
+
+
 class DeparturesSpec(_Model):
     """Departures at a regular interval: ``first``, ``last`` (included) and ``every_min``."""
 
     first: str | float
     last: str | float
-    every_min: Annotated[float, Field(gt=0)]
+    # a second at least: a finer interval is no timetable (and 1e-5 min would expand to millions of runs)
+    every_min: Annotated[float, Field(ge=1.0 / 60.0)]
 
 
 class RunEntrySpec(_Model):
@@ -526,6 +531,14 @@ class Study:
                         value=d.last,
                     )
                 n = math.floor((last - first) / (d.every_min * 60.0) + 1e-9)
+                if n + 1 > MAX_DEPARTURES:
+                    raise InputError(
+                        f"{n + 1} departures, more than the {MAX_DEPARTURES} one run entry may have",
+                        file=self.file,
+                        field=f"{where}.departures.every_min",
+                        value=d.every_min,
+                        allowed=f"an interval giving at most {MAX_DEPARTURES} departures between first and last",
+                    )
                 departures = tuple(round(first + k * d.every_min * 60.0, 6) for k in range(n + 1))
             elif run.departures is not None:
                 departures = tuple(
