@@ -17,9 +17,6 @@ from trainsim.errors import TrainsimError
 
 __all__ = ["Executor", "batch"]
 
-USER_ERROR = ExitCode.USER_ERROR
-INTERRUPTED = ExitCode.INTERRUPTED
-
 
 class Executor(StrEnum):
     """Where the runs are computed."""
@@ -117,7 +114,7 @@ def batch(
             f"interrupted: the runs written so far are in {out_dir}; run the same command again to resume",
             err=True,
         )
-        raise typer.Exit(code=INTERRUPTED) from None
+        raise typer.Exit(code=int(ExitCode.INTERRUPTED)) from None
     where = f"{outcome.executor}" + (f" x{outcome.workers}" if outcome.executor != "serial" else "")
     speed = (
         f"; {outcome.elapsed_s:.1f} s, {outcome.runs_per_s:.0f} runs/s on {where}" if outcome.computed else ""

@@ -46,9 +46,6 @@ EXIT_CODES_HELP = (
     "failed (resumable); 130 interrupted."
 )
 
-#: Kept for the commands and tests written before ExitCode.
-USER_ERROR = ExitCode.USER_ERROR
-
 
 def fail(message: str, code: int = ExitCode.USER_ERROR) -> typer.Exit:
     """Print ``error: message`` on stderr and return the Exit to raise."""

@@ -174,7 +174,7 @@ def _check_power(path: Path):  # -> trainsim.io.report.CheckReport
         "tracks": str(len(network.tracks)),
         "train services": str(len(services)),
     }
-    return CheckReport(str(path), "power supply", f"{SCHEMA} v1", getattr(spec, "name", path.stem), figures)
+    return CheckReport(str(path), "power supply", f"{SCHEMA} v1", spec.name, figures)
 
 
 def register_checkers() -> None:
