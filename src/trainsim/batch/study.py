@@ -376,7 +376,7 @@ def _read_part(value: Any, kind: str, base_dir: FsPath, file: str, field: str) -
         raise InputError(f"'{field}' must be a file name or a mapping", file=file, field=field, value=value)
     path = FsPath(value)
     path = path if path.is_absolute() else base_dir / path
-    if not path.exists():
+    if not _exists(path, file, field):
         raise InputError("referenced file not found", file=file, field=field, value=str(path))
     detected = loader.detect_format(path)
     if detected.kind != kind:
@@ -389,6 +389,26 @@ def _read_part(value: Any, kind: str, base_dir: FsPath, file: str, field: str) -
     if detected.format == f"trainsim/{kind}":
         return tsy.read_yaml(path)
     return str(path.resolve())
+
+
+def _exists(path: FsPath, file: str, field: str) -> bool:
+    """Whether ``path`` exists; InputError for a name the system refuses to look up (too long, a
+    NUL byte...): ``Path.exists`` raises OSError or ValueError for those instead of answering."""
+    try:
+        return path.exists()
+    except (OSError, ValueError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise InputError(
+            f"not a usable file name ({reason})",
+            file=file,
+            field=field,
+            value=str(path),
+            allowed=f"an existing file's name (at most {_MAX_NAME_BYTES} bytes per path component)",
+        ) from None
+
+
+#: Longest file name (one path component) of common file systems [bytes].
+_MAX_NAME_BYTES = 255
 
 
 def _file_digest(path: str) -> str:
@@ -431,7 +451,7 @@ class Study:
         if isinstance(base, str):
             path = FsPath(base)
             path = path if path.is_absolute() else self.base_dir / path
-            if not path.exists():
+            if not _exists(path, self.file, "base"):
                 raise InputError(
                     "base scenario file not found", file=self.file, field="base", value=str(path)
                 )
@@ -456,7 +476,10 @@ class Study:
             if kind in data:
                 data[kind] = _read_part(data[kind], kind, origin, where, kind)
         _resolve_files(data, origin)
-        _validate_scenario(data, where)
+        if isinstance(base, str):
+            _validate_scenario(data, where, file=where)
+        else:
+            _validate_scenario(data, where, file=self.file, where="base")
         return data
 
     def _entries(self) -> list[Entry]:
@@ -515,7 +538,9 @@ class Study:
             if model_set:
                 drop_unused_block(data)
             _resolve_files(data, self.base_dir)
-            _validate_scenario(data, f"{self.file}: {where} ({run.name})")
+            _validate_scenario(
+                data, f"{self.file}: {where} ({run.name})", file=self.file, where=f"{where} ({run.name})"
+            )
             departures: tuple[float, ...] | None = None
             if run.departure is not None:
                 departures = (parse_clock(run.departure, field=f"{where}.departure", file=self.file),)
@@ -808,10 +833,40 @@ def _at(exc: InputError, file: str, field: str) -> InputError:
     return InputError(exc.reason, file=file, field=field, value=exc.value, allowed=exc.allowed)
 
 
-def _validate_scenario(data: dict[str, Any], source: str, base_dir: FsPath | None = None) -> None:
+def _validate_scenario(
+    data: dict[str, Any],
+    source: str,
+    base_dir: FsPath | None = None,
+    *,
+    file: str | None = None,
+    where: str | None = None,
+) -> None:
     """Build the scenario once: InputError if the reader rejects it. Relative file names (a driving
-    timetable written in an axis) are relative to ``base_dir``."""
-    scenario_from_data(data, source, base_dir)
+    timetable written in an axis) are relative to ``base_dir``.
+
+    The model classes check values after the reader (a dwell of 1e308 set by a run entry) and know no
+    file: their problems are given ``file`` (the study file) and fields prefixed with ``where`` (the
+    run entry that made the scenario), so that the user finds the value in the file he wrote.
+    """
+    try:
+        scenario_from_data(data, source, base_dir)
+    except InputError as exc:
+        if file is None or all(p.file for p in exc.problems):
+            raise
+        problems = [
+            p
+            if p.file
+            else Problem(
+                p.reason,
+                file=file,
+                line=p.line,
+                field=f"{where}: {p.field}" if where and p.field else (p.field or where),
+                value=p.value,
+                allowed=p.allowed,
+            )
+            for p in exc.problems
+        ]
+        raise InputError.from_problems(problems) from None
 
 
 def scenario_from_data(data: dict[str, Any], source: str = "<scenario>", base_dir: FsPath | None = None):
