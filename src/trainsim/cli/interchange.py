@@ -86,27 +86,24 @@ Rho = Annotated[
 ]
 
 
-def _options(
-    train_id: str | None,
-    formation_id: str | None,
-    ocps: str | None,
-    curve: CurveFormula | None,
-    tunnel: TunnelFormula | None,
-    gradient: GradientFormula | None,
-    over: ApplyOver | None,
-    rho: float | None,
-) -> dict[str, Any]:
-    options = {
-        "train_id": train_id,
-        "formation_id": formation_id,
-        "ocps": ocps,
-        "curve_formula": curve.value if curve else None,
-        "tunnel_formula": tunnel.value if tunnel else None,
-        "gradient_formula": gradient.value if gradient else None,
-        "apply_over": over.value if over else None,
-        "rotating_mass_factor": rho,
-    }
-    return {k: v for k, v in options.items() if v is not None}
+#: The reader options a command may take, in the order ``check`` names the first one given.
+_READER_OPTIONS = (
+    "train_id",
+    "formation_id",
+    "ocps",
+    "curve_formula",
+    "tunnel_formula",
+    "gradient_formula",
+    "apply_over",
+    "rotating_mass_factor",
+)
+
+
+def _options(params: dict[str, Any]) -> dict[str, Any]:
+    """The reader options among a command's parameters (pass its ``locals()``): the ones given,
+    enumerations as their values. One place, so that the four commands cannot drift apart."""
+    options = {k: params.get(k) for k in _READER_OPTIONS}
+    return {k: v.value if isinstance(v, StrEnum) else v for k, v in options.items() if v is not None}
 
 
 def convert(
@@ -135,16 +132,7 @@ def convert(
 
         if not inp.exists():
             raise InputError("input not found", file=str(inp))
-        options = _options(
-            train_id,
-            formation_id,
-            ocps,
-            curve_formula,
-            tunnel_formula,
-            gradient_formula,
-            apply_over,
-            rotating_mass_factor,
-        )
+        options = _options(locals())
         path, notes = conv.convert(inp, out, kind=kind.value if kind else None, **options)
     for note in notes:
         typer.echo(f"note: {note}")
@@ -212,16 +200,7 @@ def check(
 
         if not file.exists():
             raise InputError("file not found", file=str(file))
-        options = _options(
-            train_id,
-            formation_id,
-            ocps,
-            curve_formula,
-            tunnel_formula,
-            gradient_formula,
-            apply_over,
-            rotating_mass_factor,
-        )
+        options = _options(locals())
         report = conv.check_file(file, **options)
         if report is None:
             if options:
@@ -283,16 +262,7 @@ def export_results(
                 raise InputError(
                     "unknown format", field="--format", value=f, allowed=", ".join(results_export.FORMATS)
                 )
-        options = _options(
-            train_id,
-            formation_id,
-            ocps,
-            curve_formula,
-            tunnel_formula,
-            gradient_formula,
-            apply_over,
-            rotating_mass_factor,
-        )
+        options = _options(locals())
         scenario = _scenario(inputs, options)
         result = trainsim.run(scenario)
         written = results_export.write_results(result, out, chosen)
@@ -327,16 +297,7 @@ def runtimes(
 
         if not railml.exists():
             raise InputError("input not found", file=str(railml))
-        options = _options(
-            train_id,
-            formation_id,
-            None,
-            curve_formula,
-            tunnel_formula,
-            gradient_formula,
-            apply_over,
-            rotating_mass_factor,
-        )
+        options = _options(locals())
         route = conv.detect_and_load(railml, "route", **options)
         if route is None:
             raise InputError("not a railML file", file=str(railml))
