@@ -2,24 +2,56 @@
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 from pathlib import Path
 
+import numpy as np
 from rich.console import JustifyMethod
 from rich.table import Table
 from rich.text import Text
 
+from trainsim.constants import KMH
 from trainsim.sim.result import RunResult
 
 __all__ = ["summary_table", "write_summary_json", "write_trace_csv"]
 
 
+def _trace_columns(result: RunResult) -> tuple[list[str], list]:
+    """Column names and values (as text) of the trace, in ``Trace.to_dataframe``'s order."""
+    trace = result.trace
+    if trace is None:
+        raise ValueError("this run was computed without its trace (trace=False)")
+    names = [name for name in trace.__dataclass_fields__ if name != "regime"]
+    values = [np.asarray(getattr(trace, name)) for name in names]
+    # the same places as to_dataframe's inserts: regime after the fourth column, then speed_kmh third
+    names.insert(4, "regime")
+    values.insert(4, np.asarray(trace.regime_names, dtype=object))
+    names.insert(3, "speed_kmh")
+    values.insert(3, trace.speed_mps / KMH)
+    text = []
+    for col in values:
+        if col.dtype == object:
+            text.append(col.tolist())
+            continue
+        # the shortest round-trip repr is pandas' to_csv format; NaN is an empty field there
+        text.append([repr(v) if v == v else "" for v in np.asarray(col, dtype=float).tolist()])
+    return names, text
+
+
 def write_trace_csv(result: RunResult, path: str | Path) -> Path:
-    """Write the trace, one row per point and units in the column names (see ``Trace.to_dataframe``)."""
+    """Write the trace, one row per point and units in the column names (see ``Trace.to_dataframe``).
+
+    Written with the csv module, byte for byte what ``result.to_dataframe().to_csv(path,
+    index=False)`` writes, without importing pandas (a quarter of a second per process)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    result.to_dataframe().to_csv(path, index=False)
+    names, columns = _trace_columns(result)
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh, lineterminator="\n")
+        writer.writerow(names)
+        writer.writerows(zip(*columns, strict=True))
     return path
 
 
