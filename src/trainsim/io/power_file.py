@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from trainsim.errors import InputError, Problem
 from trainsim.power.limits import EN50163, standard_limits
-from trainsim.power.network import Connection, Gap, Network, Storage, Substation, Track
+from trainsim.power.network import Connection, Gap, Network, Storage, Substation, Track, regulation_points
 from trainsim.power.study import FeedbackSettings, TrainService, run_study
 
 __all__ = ["PowerFile", "load_power_file", "run_power_file"]
@@ -41,6 +41,7 @@ class LimitsSpec(_Spec):
     traction_full_v: Positive | None = None
     regen_full_v: Positive | None = None
     regen_zero_v: Positive | None = None
+    max3_v: Positive | None = None
 
 
 class TrackSpec(_Spec):
@@ -57,12 +58,26 @@ class SubstationSpec(_Spec):
     id: str
     position_km: float
     tracks: list[str] = Field(min_length=1)
-    no_load_voltage_v: Positive
-    internal_resistance_ohm: NonNegative
+    no_load_voltage_v: Positive | None = None
+    internal_resistance_ohm: NonNegative | None = None
     internal_reactance_ohm: NonNegative = 0.0
     rated_power_kw: Positive | None = None
     overload_power_kw: Positive | None = None
     reversible: bool
+    #: DC regulation curve [[current_a, voltage_v], ...] instead of no_load_voltage_v and
+    #: internal_resistance_ohm (which it sets: the voltage at 0 A and the first segment's slope)
+    regulation: list[tuple[float, Positive]] | None = Field(default=None, min_length=2, max_length=100)
+
+    @model_validator(mode="after")
+    def _source(self) -> SubstationSpec:
+        given = (self.no_load_voltage_v is not None, self.internal_resistance_ohm is not None)
+        if self.regulation is None and not all(given):
+            raise ValueError("give no_load_voltage_v and internal_resistance_ohm, or a regulation curve")
+        if self.regulation is not None and any(given):
+            raise ValueError(
+                "give either a regulation curve or no_load_voltage_v and internal_resistance_ohm, not both"
+            )
+        return self
 
 
 class ConnectionSpec(_Spec):
@@ -160,7 +175,7 @@ def _field(loc: tuple) -> str:
     for part in loc:
         if isinstance(part, int):
             out += f"[{part}]"
-        elif part in ("function-after[_one_timetable(), TrainSpec]",):
+        elif isinstance(part, str) and part.startswith("function-after["):
             continue
         else:
             out += ("." if out else "") + str(part).replace("schema_", "schema")
@@ -191,6 +206,20 @@ def _validation_problems(exc: ValidationError, file: str) -> list[Problem]:
     return problems
 
 
+def _source(s: SubstationSpec, k: int) -> tuple[float, float, tuple[tuple[float, float], ...] | None]:
+    """(E, R_i, regulation) of substation k: given, or from its regulation curve."""
+    if s.regulation is None:
+        return float(s.no_load_voltage_v), float(s.internal_resistance_ohm), None
+    curve = tuple((float(i), float(u)) for i, u in s.regulation)
+    try:
+        e, r = regulation_points(list(curve))
+    except InputError as exc:
+        problem = exc.problems[0]
+        raise InputError(problem.reason, field=f"substations[{k}].regulation", value=problem.value,
+                         allowed=problem.allowed) from None  # fmt: skip
+    return e, r, curve
+
+
 def _network(spec: NetworkSpec, file: str) -> Network:
     base = standard_limits(spec.system)
     try:
@@ -216,14 +245,14 @@ def _network(spec: NetworkSpec, file: str) -> Network:
                     s.id,
                     s.position_km * 1000,
                     tuple(s.tracks),
-                    s.no_load_voltage_v,
-                    s.internal_resistance_ohm,
+                    *_source(s, k)[:2],
                     s.internal_reactance_ohm,
                     None if s.rated_power_kw is None else s.rated_power_kw * 1000,
                     None if s.overload_power_kw is None else s.overload_power_kw * 1000,
                     s.reversible,
+                    _source(s, k)[2],
                 )
-                for s in spec.substations
+                for k, s in enumerate(spec.substations)
             ),
             connections=tuple(
                 Connection(c.id, c.position_km * 1000, tuple(c.tracks), c.kind) for c in spec.connections

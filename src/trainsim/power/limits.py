@@ -1,9 +1,10 @@
 """Supply-voltage limits of traction systems and the trains' voltage-dependent behaviour.
 
-The limits are those of EN 50163:2004, Table 1 (supply voltages of traction systems), as widely
-reproduced: ``Umin2`` lowest non-permanent voltage, ``Umin1`` lowest permanent voltage, ``Un``
-nominal voltage, ``Umax1`` highest permanent voltage, ``Umax2`` highest non-permanent voltage, all
-at the pantograph [V]. They are data (:data:`EN50163`), never hard-coded in a formula: a network
+The limits are those of EN 50163:2004 + A1:2007, Table 1 (nominal voltages and their permissible
+limits in values and duration), identical to IEC 60850:2014 Table 1: ``Umin2`` lowest
+non-permanent voltage, ``Umin1`` lowest permanent voltage, ``Un`` nominal voltage, ``Umax1``
+highest permanent voltage, ``Umax2`` highest non-permanent voltage, ``Umax3`` highest long-term
+overvoltage (20 ms, added by A1:2007), all at the pantograph [V]. They are data (:data:`EN50163`), never hard-coded in a formula: a network
 file may give its own.
 
 The train's behaviour follows the principle of EN 50388 (train current limitation as the line
@@ -55,6 +56,8 @@ class VoltageLimits:
             DEFAULT_TRACTION_FULL_SHARE).
         regen_full_v: full regeneration below this voltage (default Umax1).
         regen_zero_v: no regeneration above this voltage (default Umax2).
+        max3_v: Umax3, highest long-term overvoltage (20 ms) [V], or None; informative (a
+            simulation at 1 s steps does not resolve 20 ms events), checked >= Umax2.
     """
 
     nominal_v: float
@@ -65,6 +68,7 @@ class VoltageLimits:
     traction_full_v: float | None = None
     regen_full_v: float | None = None
     regen_zero_v: float | None = None
+    max3_v: float | None = None
 
     def __post_init__(self) -> None:
         if self.traction_full_v is None:
@@ -96,6 +100,13 @@ class VoltageLimits:
                     value=b,
                     allowed=f">= {name_a} = {a} V (Umin2 <= Umin1 <= Un <= Umax1 <= Umax2)",
                 )
+        if self.max3_v is not None and not self.max3_v >= self.max2_v:
+            raise InputError(
+                "voltage limits out of order: max2_v > max3_v",
+                field="limits.max3_v",
+                value=self.max3_v,
+                allowed=f">= max2_v = {self.max2_v} V",
+            )
         if not self.min1_v < self.traction_full_v:
             raise InputError(
                 "traction must be full above a voltage higher than Umin1",
@@ -122,19 +133,21 @@ class VoltageLimits:
             "traction_full_v": self.traction_full_v,
             "regen_full_v": self.regen_full_v,
             "regen_zero_v": self.regen_zero_v,
+            "max3_v": self.max3_v,
         }
         fields.update({k: v for k, v in values.items() if v is not None})
         return VoltageLimits(**fields)
 
 
-#: EN 50163:2004 Table 1: (Umin2, Umin1, Un, Umax1, Umax2) [V] per system name.
-EN50163: dict[str, tuple[float, float, float, float, float]] = {
-    "dc_600": (400.0, 400.0, 600.0, 720.0, 800.0),
-    "dc_750": (500.0, 500.0, 750.0, 900.0, 1000.0),
-    "dc_1500": (1000.0, 1000.0, 1500.0, 1800.0, 1950.0),
-    "dc_3000": (2000.0, 2000.0, 3000.0, 3600.0, 3900.0),
-    "ac_15000": (11000.0, 12000.0, 15000.0, 17250.0, 18000.0),
-    "ac_25000": (17500.0, 19000.0, 25000.0, 27500.0, 29000.0),
+#: EN 50163:2004 + A1:2007 Table 1 (= IEC 60850:2014 Table 1): (Umin2, Umin1, Un, Umax1, Umax2,
+#: Umax3) [V] per system name. Umin2 = Umin1 for DC; Umax3 is the 20 ms long-term overvoltage.
+EN50163: dict[str, tuple[float, float, float, float, float, float]] = {
+    "dc_600": (400.0, 400.0, 600.0, 720.0, 800.0, 1015.0),
+    "dc_750": (500.0, 500.0, 750.0, 900.0, 1000.0, 1270.0),
+    "dc_1500": (1000.0, 1000.0, 1500.0, 1800.0, 1950.0, 2540.0),
+    "dc_3000": (2000.0, 2000.0, 3000.0, 3600.0, 3900.0, 5075.0),
+    "ac_15000": (11000.0, 12000.0, 15000.0, 17250.0, 18000.0, 24300.0),
+    "ac_25000": (17500.0, 19000.0, 25000.0, 27500.0, 29000.0, 38750.0),
 }
 
 
@@ -145,8 +158,10 @@ def standard_limits(system: str) -> VoltageLimits:
         raise InputError(
             "unknown supply system", field="system", value=system, allowed=", ".join(sorted(EN50163))
         )
-    u_min2, u_min1, u_n, u_max1, u_max2 = EN50163[system]
-    return VoltageLimits(nominal_v=u_n, min2_v=u_min2, min1_v=u_min1, max1_v=u_max1, max2_v=u_max2)
+    u_min2, u_min1, u_n, u_max1, u_max2, u_max3 = EN50163[system]
+    return VoltageLimits(
+        nominal_v=u_n, min2_v=u_min2, min1_v=u_min1, max1_v=u_max1, max2_v=u_max2, max3_v=u_max3
+    )
 
 
 def traction_availability(voltage_v: ArrayLike, u_min1_v: float, u_full_v: float) -> np.ndarray:

@@ -15,6 +15,7 @@ the contact line and its return form one loop impedance per metre and the return
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -23,7 +24,7 @@ import numpy as np
 from trainsim.errors import InputError, Problem
 from trainsim.power.limits import VoltageLimits
 
-__all__ = ["Connection", "Gap", "Network", "Storage", "Substation", "Track"]
+__all__ = ["Connection", "Gap", "Network", "Storage", "Substation", "Track", "regulation_points"]
 
 System = Literal["dc", "ac"]
 
@@ -66,8 +67,14 @@ class Substation:
         internal_reactance_ohm: X_i [ohm] (AC only).
         rated_power_w: rated output power [W], or None.
         overload_power_w: admissible overload power [W], or None.
-        reversible: True if it can return power to the grid (inverter, or any AC substation);
-            a DC diode rectifier (False) never takes power back.
+        reversible: True if it can return power to the grid (an inverter, or an AC substation
+            whose grid takes power back); False: a diode rectifier (DC), or an AC substation whose
+            supply contract or protection forbids return: it never takes power back.
+        regulation: DC regulation curve ((current_a, voltage_v), ...), current increasing and
+            voltage strictly decreasing, through current 0 at ``no_load_voltage_v`` with its
+            first segment's slope equal to ``internal_resistance_ohm``
+            (:func:`regulation_points` builds such a substation's E and R_i); None: the
+            Thevenin source E, R_i alone (trainsim.power.regulation).
     """
 
     id: str
@@ -79,6 +86,27 @@ class Substation:
     rated_power_w: float | None = None
     overload_power_w: float | None = None
     reversible: bool = False
+    regulation: tuple[tuple[float, float], ...] | None = None
+
+
+def regulation_points(points: list[tuple[float, float]]) -> tuple[float, float]:
+    """(no_load_voltage_v, internal_resistance_ohm) of a regulation curve ((current_a, voltage_v),
+    ...): the voltage at current 0 and the slope of the segment starting there. The points must
+    hold a current 0 and be sorted by current (else an InputError)."""
+    currents = [float(i) for i, _ in points]
+    if 0.0 not in currents or currents != sorted(currents) or len(points) < 2:
+        raise InputError(
+            "a regulation curve needs at least two points sorted by current, one at current 0",
+            field="regulation",
+            value=[list(q) for q in points],
+            allowed="[[0, E], [I1, U1], ...] with 0 < I1 < ...",
+        )
+    k = currents.index(0.0)
+    if k == len(points) - 1:
+        k -= 1
+    (i0, u0), (i1, u1) = points[k], points[k + 1]
+    e = float(points[currents.index(0.0)][1])
+    return e, float(-(u1 - u0) / (i1 - i0))
 
 
 @dataclass(frozen=True)
@@ -321,6 +349,8 @@ def validate_network(net: Network) -> list[Problem]:
                     allowed="resistance or reactance > 0",
                 )
             )
+        if s.regulation is not None:
+            p.extend(_regulation_problems(f, s, net.system))
         for name in ("rated_power_w", "overload_power_w"):
             v = getattr(s, name)
             if v is not None:
@@ -436,6 +466,48 @@ def validate_network(net: Network) -> list[Problem]:
     if not p:
         p.extend(_connectivity_problems(net))
     return p
+
+
+def _regulation_problems(f: str, s: Substation, system: str) -> list[Problem]:
+    """A regulation curve: DC, finite, current increasing, voltage strictly decreasing (the
+    current at a voltage must be unique), through (0, E) with slope R_i."""
+    pts = np.asarray(s.regulation, dtype=float)
+    field_name = f"{f}.regulation"
+    if system != "dc":
+        return [Problem("regulation curves are modelled on DC networks", field=field_name, allowed="dc")]
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2 or not np.all(np.isfinite(pts)):
+        return [
+            Problem(
+                "a regulation curve is a list of at least two finite [current_a, voltage_v] pairs",
+                field=field_name,
+                allowed="[[0, E], [I1, U1], ...]",
+            )
+        ]
+    i, u = pts[:, 0], pts[:, 1]
+    if np.any(np.diff(i) <= 0) or np.any(np.diff(u) >= 0) or np.any(u <= 0):
+        return [
+            Problem(
+                "regulation curve: currents must increase and voltages (> 0) strictly decrease",
+                field=field_name,
+                value=[list(q) for q in s.regulation],
+                allowed="I increasing, U decreasing (a flat segment has no unique current)",
+            )
+        ]
+    try:
+        e, r = regulation_points(list(map(tuple, pts)))
+    except InputError as exc:
+        return [dataclasses.replace(q, field=field_name) for q in exc.problems]
+    if not (np.isclose(e, s.no_load_voltage_v, rtol=1e-12) and np.isclose(r, s.internal_resistance_ohm, rtol=1e-9)):
+        return [
+            Problem(
+                "regulation curve disagrees with the substation's no-load voltage / internal resistance",
+                field=field_name,
+                value=f"E = {e} V, R_i = {r} ohm",
+                allowed=f"E = {s.no_load_voltage_v} V and R_i = {s.internal_resistance_ohm} ohm "
+                "(give them from trainsim.power.network.regulation_points)",
+            )
+        ]
+    return []
 
 
 def _stretches(net: Network, ti: int) -> list[tuple[float, float]]:

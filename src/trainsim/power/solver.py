@@ -34,6 +34,7 @@ from trainsim.power.limits import (
     traction_availability_slope,
 )
 from trainsim.power.network import Network
+from trainsim.power.regulation import regulation_current_a
 
 #: Newton / fixed point stop when no node potential moves by more than this share of Un
 #: (7.5e-7 V at 750 V): far below any meaningful voltage, and the analytic tests need 1e-9.
@@ -179,6 +180,38 @@ class _Assembly:
     storage_c: np.ndarray | None = None  # wayside storages' contact / rail nodes
     storage_r: np.ndarray | None = None
     storage_limits: tuple | None = None  # (charge max, discharge max, charge above, discharge below, ramp)
+    sources: _Sources | None = None  # the substations' source laws (regulation curves)
+
+
+class _Sources:
+    """The substations' current laws in terms of x = R_i I(U) [V], a voltage-like variable that is
+    E - U for a Thevenin source and R_i times the inverse regulation curve otherwise; the diode
+    rounding acts on x, so that a rectifier with a curve blocks exactly like one without."""
+
+    def __init__(self, subs) -> None:
+        self.reversible = np.array([s.reversible for s in subs], dtype=bool)
+        self.curved = np.array([s.regulation is not None for s in subs], dtype=bool)
+        self.curves = {
+            k: (
+                np.array([q[0] for q in s.regulation], dtype=float),
+                np.array([q[1] for q in s.regulation], dtype=float),
+                s.internal_resistance_ohm,
+            )
+            for k, s in enumerate(subs)
+            if s.regulation is not None
+        }
+
+    def x(self, index: np.ndarray, e: np.ndarray, us: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """x and dx/dU of the substations ``index`` (e, us: their no-load and busbar voltages)."""
+        x = e - us
+        dxdu = -np.ones(len(index))
+        for j, k in enumerate(index):
+            curve = self.curves.get(int(k))
+            if curve is not None:
+                i, slope = regulation_current_a(float(us[j]), curve[0], curve[1])
+                x[j] = curve[2] * i
+                dxdu[j] = curve[2] * slope
+        return x, dxdu
 
 
 def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assembly:
@@ -385,21 +418,24 @@ def solve_step(
     e = np.array([s.no_load_voltage_v for s in subs])
     z = np.array([complex(s.internal_resistance_ohm, s.internal_reactance_ohm) for s in subs])
     ys = 1.0 / z if ac else 1.0 / z.real
-    reversible = np.array([s.reversible or ac for s in subs])
+    asm.sources = _Sources(subs)
+    reversible = asm.sources.reversible
+    # reversible Thevenin sources are linear (in the matrix); diodes and regulation curves are not
+    linear = reversible & ~asm.sources.curved
     un = lim.nominal_v
     tol = VOLTAGE_TOLERANCE_SHARE * un
     if ac:
-        v, iterations, converged = _fixed_point_ac(net, asm, loads, sub_p, sub_n, e, ys, tol, None)
+        v, iterations, converged, on_ac = _active_set_ac(net, asm, loads, sub_p, sub_n, e, ys, tol, reversible)
     else:
         iterations = 0
         converged = False
         if guess is not None:
             v0 = _start_from_guess(asm, guess, float(np.mean(e)))
             v, iterations, converged = _newton_dc(
-                net, asm, loads, sub_p, sub_n, e, ys, reversible.copy(), tol, v0
+                net, asm, loads, sub_p, sub_n, e, ys, linear.copy(), tol, v0
             )
         if not converged:
-            v, its, converged = _newton_dc(net, asm, loads, sub_p, sub_n, e, ys, reversible.copy(), tol, None)
+            v, its, converged = _newton_dc(net, asm, loads, sub_p, sub_n, e, ys, linear.copy(), tol, None)
             iterations += its
         if not converged and not reversible.all():
             # Newton from the no-load voltage may stall before a hump of the residual: when every
@@ -425,7 +461,7 @@ def solve_step(
                         sub_n,
                         e,
                         ys,
-                        reversible.copy(),
+                        linear.copy(),
                         tol,
                         None,
                         start_v=st.charge_above_v + 0.5 * st.ramp_v,
@@ -441,7 +477,7 @@ def solve_step(
                     sub_n,
                     e,
                     ys,
-                    reversible.copy(),
+                    linear.copy(),
                     tol,
                     None,
                     start_v=start,
@@ -454,7 +490,7 @@ def solve_step(
             # branch above it has no solution); start on the ramp
             start = 0.5 * (lim.min1_v + lim.traction_full_v)
             v, its, converged = _newton_dc(
-                net, asm, loads, sub_p, sub_n, e, ys, reversible.copy(), tol, None, start_v=start
+                net, asm, loads, sub_p, sub_n, e, ys, linear.copy(), tol, None, start_v=start
             )
             iterations += its
         if not converged and not reversible.all():
@@ -468,7 +504,7 @@ def solve_step(
                     sub_n,
                     e,
                     ys,
-                    reversible.copy(),
+                    linear.copy(),
                     tol,
                     v,
                     reverse_share=reverse_share,
@@ -477,7 +513,6 @@ def solve_step(
                 if not converged:
                     break
     us = _potential(v, sub_p) - _potential(v, sub_n)
-    on = reversible | (us < e)
     # results
     uc = _potential(v, asm.train_c) - _potential(v, asm.train_r)
     umag = np.abs(uc)
@@ -485,11 +520,14 @@ def solve_step(
     r_share = regen_acceptance(umag, lim.regen_full_v, lim.regen_zero_v)
     p_train = loads.traction_w * a_share + loads.auxiliary_w - loads.regen_w * r_share
     us = _potential(v, sub_p) - _potential(v, sub_n)
-    i_sub = (e - us) * ys * on
-    if not ac:
+    if ac:
+        on = on_ac
+        i_sub = (e - us) * ys * on
+    else:
         delta = DIODE_SMOOTHING_SHARE * un
-        i_sub = np.where(reversible, (e - us) * ys, _smooth_max((e - us).real, delta) * ys)
-        on = reversible | (us < e)
+        x_all, _ = asm.sources.x(np.arange(len(subs)), e, us.real)
+        i_sub = np.where(reversible, x_all * ys, _smooth_max(x_all, delta) * ys)
+        on = reversible | (x_all > 0)
     if ac:
         s_bus = us * np.conj(i_sub)
         p_bus = s_bus.real
@@ -586,6 +624,8 @@ def _newton_dc(
     dio = ~on
     delta = DIODE_SMOOTHING_SHARE * un
     dp_, dn_, de, dy = sub_p[dio], sub_n[dio], e[dio], ys[dio]
+    d_index = np.flatnonzero(dio)
+    d_exact = asm.sources.reversible[dio]  # reversible with a regulation curve: no diode
     if v0 is None:
         # flat start: contact nodes at the mean no-load voltage, rails at 0
         v = np.zeros(n)
@@ -614,8 +654,8 @@ def _newton_dc(
             - _injection(n, tr, i_t, float)
         )
         if len(de):
-            x = de - (_potential(v, dp_) - _potential(v, dn_))
-            forward = _smooth_max(x, delta)
+            x, _ = asm.sources.x(d_index, de, _potential(v, dp_) - _potential(v, dn_))
+            forward = np.where(d_exact, x, _smooth_max(x, delta))
             i_d = (forward + reverse_share * (x - forward)) * dy
             f += _injection(n, dn_, i_d, float) - _injection(n, dp_, i_d, float)
         if len(st_c):
@@ -637,8 +677,9 @@ def _newton_dc(
         di = np.where(uu > u_floor, dp / uu - p / uu**2, 0.0)
         data = g_data + pattern.values(2, di)
         if len(de):
-            slope = _smooth_max_slope(de - (_potential(v, dp_) - _potential(v, dn_)), delta)
-            data = data + pattern.values(3, dy * (slope + reverse_share * (1.0 - slope)))
+            x, dxdu = asm.sources.x(d_index, de, _potential(v, dp_) - _potential(v, dn_))
+            slope = np.where(d_exact, 1.0, _smooth_max_slope(x, delta))
+            data = data + pattern.values(3, -dxdu * dy * (slope + reverse_share * (1.0 - slope)))
         if len(st_c):
             us = np.maximum(_potential(v, st_c) - _potential(v, st_r), u_floor)
             ps, dps = storage_power_w(us, *asm.storage_limits)
@@ -722,14 +763,35 @@ def _smooth_max_slope(x: np.ndarray, delta: float) -> np.ndarray:
     return 0.5 * (1.0 + x / np.sqrt(x * x + delta * delta))
 
 
-def _fixed_point_ac(net, asm: _Assembly, loads: StepLoads, sub_p, sub_n, e, ys, tol, v0):
-    """Fixed-point (current injection) iteration on the AC phasor equations."""
+def _active_set_ac(net, asm: _Assembly, loads: StepLoads, sub_p, sub_n, e, ys, tol, reversible):
+    """AC with non-reversible substations: a substation whose active power at the busbar would be
+    negative is opened, an open one that would deliver active power if closed is closed again,
+    until no state changes (at most one pass per substation and two more). Returns (V, iterations,
+    converged, closed)."""
+    on = np.ones(len(e), dtype=bool)
+    total = 0
+    for _ in range(len(e) + 2):
+        v, its, converged = _fixed_point_ac(net, asm, loads, sub_p, sub_n, e, ys, tol, None, on)
+        total += its
+        us = _potential(v, sub_p) - _potential(v, sub_n)
+        # active power at the busbar as it is (closed) or would be (open, first instant)
+        p_bus = (us * np.conj((e - us) * ys)).real
+        new_on = reversible | np.where(on, p_bus >= 0.0, p_bus > 0.0)
+        if (new_on == on).all():
+            return v, total, converged, on
+        on = new_on
+    return v, total, False, on
+
+
+def _fixed_point_ac(net, asm: _Assembly, loads: StepLoads, sub_p, sub_n, e, ys, tol, v0, on=None):
+    """Fixed-point (current injection) iteration on the AC phasor equations with the substations
+    ``on`` closed (default all)."""
     lim = net.limits
     n = asm.n
-    on = np.ones(len(e), dtype=bool)
+    on = np.ones(len(e), dtype=bool) if on is None else on
     rows, cols, vals = _base_matrix(asm, sub_p, sub_n, ys, on, complex)
     lu = splu(sp.csc_matrix((vals, (rows, cols)), shape=(n, n)))
-    j_src = _injection(n, sub_p, e * ys, complex) - _injection(n, sub_n, e * ys, complex)
+    j_src = _injection(n, sub_p[on], (e * ys)[on], complex) - _injection(n, sub_n[on], (e * ys)[on], complex)
     v = lu.solve(j_src) if v0 is None else v0.copy()
     tc, tr = asm.train_c, asm.train_r
     for it in range(1, MAX_FIXED_POINT_ITERATIONS + 1):
