@@ -6,20 +6,41 @@ force; 0: coasting) for ``dt_s`` seconds. Stops are served when the train comes 
 head within ``stop_window_m`` of a stop it has not served yet; it then dwells (commands are
 ignored) for the station's dwell time. The recorded drive converts to the same ``RunResult`` as a
 fastest run, so both can be compared.
+
+Traction follows the train's effort curve as its file defines it, also beyond the last point of a
+table (constant, or lower where ``max_power_kw`` caps it: power-limited; zero where the table ends
+at 0 kN), but never drives the train past its design speed ``max_speed_mps``: at or above it the
+tractive effort is at most what holds the speed (the running and line resistance, never
+negative), as a speed governor does. Gravity on a falling grade can still carry the train over
+it; braking is then the driver's (or ATP's) job.
+
+A live drive evaluates the forces hundreds of thousands of times per simulated hour, so the
+route's profiles and the train's laws are evaluated here as plain floats (:class:`_Scalar`,
+:class:`_ScalarEffort`): the same formulas and the same numbers as their numpy ``__call__``,
+without numpy's per-call overhead on scalars.
 """
 
 from __future__ import annotations
 
+import math
+from bisect import bisect_right
 from dataclasses import dataclass
 
 import numpy as np
 
 from trainsim.errors import InputError
+from trainsim.model.effort import POWER_CAP_MIN_SPEED_MPS, EffortCurve
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings, Scenario
 from trainsim.model.train import Train
 from trainsim.sim.kernel import BRAKE, COAST, DWELL, TRACTION
-from trainsim.sim.profile import line_resistance_profile, line_voltage, speed_ceiling, traction_availability
+from trainsim.sim.profile import (
+    PiecewiseLinear,
+    line_resistance_profile,
+    line_voltage,
+    speed_ceiling,
+    traction_availability,
+)
 from trainsim.sim.result import RunResult, build_result
 
 #: Largest internal time step [s]; a command may span many of them.
@@ -28,6 +49,51 @@ MAX_SUBSTEP_S = 0.1
 DEFAULT_STOP_WINDOW_M = 5.0
 #: Longest drive a session records [s], to bound memory.
 MAX_DRIVE_S = 6 * 3600.0
+
+
+class _Scalar:
+    """A :class:`~trainsim.sim.profile.PiecewiseLinear` evaluated at one position [m] with floats:
+    the same lookup (first piece whose start is <= s, clamped to the ends) and interpolation."""
+
+    __slots__ = ("last", "left", "right", "x")
+
+    def __init__(self, f: PiecewiseLinear) -> None:
+        self.x: list[float] = f.x.tolist()
+        self.left: list[float] = f.left.tolist()
+        self.right: list[float] = f.right.tolist()
+        self.last = len(self.left) - 1
+
+    def __call__(self, s: float) -> float:
+        x = self.x
+        k = bisect_right(x, s) - 1
+        k = 0 if k < 0 else self.last if k > self.last else k
+        x0 = x[k]
+        frac = (s - x0) / (x[k + 1] - x0)
+        frac = 0.0 if frac < 0.0 else 1.0 if frac > 1.0 else frac
+        left = self.left[k]
+        return left + (self.right[k] - left) * frac
+
+
+class _ScalarEffort:
+    """An :class:`~trainsim.model.effort.EffortCurve` evaluated at one speed [m/s] with floats
+    (the formula of ``EffortCurve.__call__``)."""
+
+    __slots__ = ("force_cap", "power_cap", "rows", "starts")
+
+    def __init__(self, curve: EffortCurve) -> None:
+        starts, coefficients, self.force_cap, self.power_cap = curve.as_arrays()
+        self.starts: list[float] = starts.tolist()
+        self.rows: list[tuple[float, ...]] = [tuple(r) for r in coefficients.tolist()]
+
+    def __call__(self, v: float) -> float:
+        j = bisect_right(self.starts, v) - 1
+        c0, c1, c2, ch = self.rows[j if j > 0 else 0]
+        law = c0 + c1 * v + c2 * v * v
+        if ch != 0.0:
+            law = law + (ch / v if v != 0.0 else math.copysign(math.inf, ch))
+        power = self.power_cap / (v if v > POWER_CAP_MIN_SPEED_MPS else POWER_CAP_MIN_SPEED_MPS)
+        out = min(law, self.force_cap, power)
+        return out if out > 0.0 else 0.0
 
 
 @dataclass(frozen=True)
@@ -86,6 +152,22 @@ class DrivingSession:
         self._ceiling = speed_ceiling(route, train)
         self._available = traction_availability(route, train)
         self._voltage = line_voltage(route, train)
+        p = self._profile
+        self._gradient, self._curve = _Scalar(p.gradient), _Scalar(p.curve)
+        self._tunnel, self._tunnel_v2 = _Scalar(p.tunnel), _Scalar(p.tunnel_v2)
+        self._available_at = _Scalar(self._available)
+        self._ceiling_at = _Scalar(self._ceiling)
+        self._voltage_at = _Scalar(self._voltage)
+        # the limit in force just after each breakpoint of the ceiling, for "next limit" lookups
+        self._limit_after = [self._ceiling_at(x + 1e-7) for x in self._ceiling_at.x]
+        self._next_limit_cache: tuple[int, float, int | None] = (-1, math.nan, None)
+        self._traction = _ScalarEffort(train.traction)
+        b = train.braking
+        self._service = _ScalarEffort(b.service_force) if b.service_force is not None else None
+        self._regen = _ScalarEffort(b.regenerative) if b.regenerative is not None else None
+        law = train.resistance_law
+        self._resistance = (law.c0, law.c1, law.c2)
+        self._weight_n = train.mass_kg * route.gravity_mps2
         stops = route.stops
         if not stops:
             raise InputError("the route has no stop to start from", field="stations")
@@ -120,21 +202,24 @@ class DrivingSession:
     # ------------------------------------------------------------------ physics
     def _forces(self, command: float, v: float, s: float) -> tuple[float, float, float]:
         """(traction, braking, resistance) [N] for a command at speed v and head position s."""
-        train = self.train
-        traction = (
-            command * float(self._available(s + 1e-7)) * float(train.traction(v)) if command > 0 else 0.0
-        )
-        running = float(train.running_resistance_n(v)) if v > 0 else 0.0
-        p = self._profile
-        ratio = float(p.gradient(s) + p.curve(s) + p.tunnel(s) + p.tunnel_v2(s) * v * v)
-        resistance = running + train.mass_kg * self.route.gravity_mps2 * ratio
+        c0, c1, c2 = self._resistance
+        running = c0 + c1 * v + c2 * v * v if v > 0 else 0.0
+        ratio = self._gradient(s) + self._curve(s) + self._tunnel(s) + self._tunnel_v2(s) * v * v
+        resistance = running + self._weight_n * ratio
+        traction = 0.0
+        if command > 0:
+            traction = command * self._available_at(s + 1e-7) * self._traction(v)
+            if v >= self.train.max_speed_mps:
+                # the design speed: at most the effort that holds the speed (a governor)
+                traction = min(traction, resistance if resistance > 0.0 else 0.0)
         braking = 0.0
         if command < 0:
-            if train.braking.deceleration_mps2 is not None:
-                decel = train.braking.deceleration_mps2 * self.settings.braking_fraction
-                braking = -command * max(train.inertial_mass_kg * decel - resistance, 0.0)
+            deceleration = self.train.braking.deceleration_mps2
+            if deceleration is not None or self._service is None:
+                decel = float(deceleration or 0.0) * self.settings.braking_fraction
+                braking = -command * max(self.train.inertial_mass_kg * decel - resistance, 0.0)
             else:
-                braking = -command * self.settings.braking_fraction * float(train.braking.service_force(v))
+                braking = -command * self.settings.braking_fraction * self._service(v)
         return traction, braking, resistance
 
     def _line_power_w(self, command: float) -> float:
@@ -145,8 +230,7 @@ class DrivingSession:
             return 0.0
         v = self.speed_mps
         traction, braking, _ = self._forces(command, v, self.position_m)
-        regen_cap = self.train.braking.regenerative
-        regen = min(braking, float(regen_cap(v))) if regen_cap is not None else 0.0
+        regen = min(braking, self._regen(v)) if self._regen is not None else 0.0
         return (
             traction * v / elec.traction_efficiency
             + elec.auxiliary_power_w
@@ -181,7 +265,7 @@ class DrivingSession:
     # ------------------------------------------------------------------ API
     def step(self, command: float, dt_s: float) -> DrivingState:
         """Apply ``command`` in [-1, 1] for ``dt_s`` seconds (0 < dt_s <= 60) and return the state."""
-        if not np.isfinite(command) or not -1.0 <= command <= 1.0:
+        if not math.isfinite(command) or not -1.0 <= command <= 1.0:
             raise InputError("the driving command must be in [-1, 1]", field="command", value=command)
         if not 0.0 < dt_s <= 60.0:
             raise InputError("the time step must be in (0, 60] s", field="dt_s", value=dt_s)
@@ -243,19 +327,35 @@ class DrivingSession:
         else:
             self._record.append(entry)
 
+    def speed_limit_mps(self) -> float:
+        """The speed ceiling at the head now (line limits, the rear's clearance and the train's
+        design speed) [m/s]."""
+        return self._ceiling_at(self.position_m + 1e-7)
+
+    def _next_limit_index(self, s: float, limit: float) -> int | None:
+        """Index of the first breakpoint of the ceiling beyond s + 1 um after which the limit
+        differs from ``limit`` (None: none ahead); remembered while s stays between breakpoints."""
+        first = bisect_right(self._ceiling_at.x, s + 1e-6)
+        k, known, found = self._next_limit_cache
+        if k == first and known == limit:
+            return found
+        after = self._limit_after
+        found = next((j for j in range(first, len(after)) if abs(after[j] - limit) > 1e-9), None)
+        self._next_limit_cache = (first, limit, found)
+        return found
+
     def state(self, command: float = 0.0) -> DrivingState:
         """The current state without moving."""
         s, v = self.position_m, self.speed_mps
         traction, braking, resistance = self._forces(command if self.dwell_remaining_s == 0 else 0.0, v, s)
-        limit = float(self._ceiling(s + 1e-7))
-        x = self._ceiling.x
-        later = np.flatnonzero((x > s + 1e-6) & (np.abs(self._ceiling(x + 1e-7) - limit) > 1e-9))
-        next_pos = float(x[later[0]]) if len(later) else None
-        next_lim = float(self._ceiling(x[later[0]] + 1e-7)) if len(later) else None
+        limit = self._ceiling_at(s + 1e-7)
+        later = self._next_limit_index(s, limit)
+        next_pos = self._ceiling_at.x[later] if later is not None else None
+        next_lim = self._limit_after[later] if later is not None else None
         nxt = self._stops[self._next_stop] if self._next_stop < len(self._stops) else None
         elec = self.train.electrical
         current = None
-        u_line = float(self._voltage(s + 1e-7))
+        u_line = self._voltage_at(s + 1e-7)
         if elec and u_line > 0:
             current = self._line_power_w(command if self.dwell_remaining_s == 0 else 0.0) / (
                 u_line * elec.power_factor

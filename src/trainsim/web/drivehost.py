@@ -3,7 +3,7 @@ event loop only relays messages.
 
 A drive is the core's :class:`~trainsim.sim.driving.DrivingSession` with what a driver's desk adds
 (:class:`HostedDrive`): automatic train protection (full service braking on overspeed, as an
-option), traction cut at the train's design speed, the clock from departure, where the train is in
+option), the clock from departure, where the train is in
 words, stopping accuracy, gradient and the distance to the next limit. Each host process keeps
 the drives given to it; the server sends ``open``, ``advance``, ``view``, ``result`` and ``close``
 requests over a pipe (one request at a time per host) and gets plain dictionaries back. With
@@ -13,6 +13,7 @@ requests over a pipe (one request at a time per host) and gets plain dictionarie
 from __future__ import annotations
 
 import asyncio
+import bisect
 import contextlib
 import itertools
 import math
@@ -20,7 +21,6 @@ import multiprocessing
 import multiprocessing.connection
 import signal
 import traceback
-from dataclasses import asdict
 from typing import Any
 
 from trainsim.constants import KMH, KN, KWH
@@ -31,7 +31,7 @@ from trainsim.model.train import Train
 
 __all__ = ["DriveHostError", "DriveHosts", "HostedDrive"]
 
-#: longest single core step while ATP and the design-speed cut watch the train [s]
+#: longest single core step while ATP watches the train [s]
 WATCH_STEP_S = 0.5
 #: a request to a host that takes longer than this ends the drive [s]
 HOST_TIMEOUT_S = 20.0
@@ -59,6 +59,10 @@ class HostedDrive:
         self.atp_braking = False
         self.departure_s: float | None = None
         self.start_position_m = self.core.position_m
+        # sections do not overlap: sorted by start, the one that may hold a position is the last
+        # that starts at or before it
+        self._gradients = sorted(route.gradients, key=lambda g: g.start_m)
+        self._gradient_starts = [g.start_m for g in self._gradients]
 
     def reference(self) -> dict[str, Any] | None:
         """The fastest run's speed over distance, to drive against (None if it cannot be run)."""
@@ -79,20 +83,16 @@ class HostedDrive:
 
     def effective_command(self, command: float) -> float:
         """The driver's command, overridden by ATP on overspeed (more than 1 km/h over the limit:
-        full service braking until the speed is back at the limit) and with traction cut at the
-        train's design speed."""
-        state = self.core.state(command)
-        v, limit = state.speed_mps, state.speed_limit_mps
-        if self.atp:
-            if v > limit + 1.0 * KMH:
-                self.atp_braking = True
-            elif self.atp_braking and v <= limit:
-                self.atp_braking = False
-            if self.atp_braking:
-                return -1.0
-        if command > 0 and v >= self.train.max_speed_mps:
-            return 0.0
-        return command
+        full service braking until the speed is back at the limit). The design speed is the core's
+        (:mod:`trainsim.sim.driving`: traction never takes the train past it)."""
+        if not self.atp:
+            return command
+        v, limit = self.core.speed_mps, self.core.speed_limit_mps()
+        if v > limit + 1.0 * KMH:
+            self.atp_braking = True
+        elif self.atp_braking and v <= limit:
+            self.atp_braking = False
+        return -1.0 if self.atp_braking else command
 
     def advance(self, command: float, dt_s: float) -> dict[str, Any]:
         """Drive ``dt_s`` seconds with the driver's ``command``; the view afterwards. ATP ending its
@@ -120,14 +120,16 @@ class HostedDrive:
         return (f"past {before[-1].name}" if before else "on the line"), None
 
     def _gradient_permille(self, position_m: float) -> float:
-        for g in self.route.gradients:
+        k = bisect.bisect_right(self._gradient_starts, position_m) - 1
+        if k >= 0:
+            g = self._gradients[k]
             if g.start_m <= position_m < g.end_m:
                 return float(g.gradient_permille)
         return 0.0
 
     def view(self, command: float, lever_reset: bool = False) -> dict[str, Any]:
         """What the driver sees (the ``state`` message without the server's fields)."""
-        d = asdict(self.core.state(command))
+        d = vars(self.core.state(command))
         if self.departure_s is None and d["speed_mps"] > 0:
             self.departure_s = d["time_s"]
         location, stop_error = self._location(d["position_m"], d["speed_mps"])
