@@ -749,7 +749,7 @@ class Study:
     # ------------------------------------------------------------------ referenced files
     def _read_timetables(self) -> tuple[dict[str, Any], dict[str, str | None]]:
         """Every timetable file (``driving.timetable``) the runs may use: see :meth:`_read_files`."""
-        from trainsim.optimize.timetable import read_timetable_yaml
+        from trainsim.io.timetable_file import read_timetable_yaml
 
         return self._read_files("driving", "timetable", read_timetable_yaml, (OSError,))
 

@@ -15,6 +15,7 @@ from typing import Any
 import yaml
 
 from trainsim.errors import InputError
+from trainsim.model import bounds
 from trainsim.model.timetable import Journey, SectionSchedule, Timetable, TimingPoint
 
 __all__ = [
@@ -26,6 +27,7 @@ __all__ = [
     "parse_supplement",
     "passing_point_warnings",
     "read_timetable_yaml",
+    "timetable_from_dict",
     "timetable_from_journey",
 ]
 
@@ -48,7 +50,16 @@ def parse_supplement(
         if not value <= 300:
             raise InputError("supplement too large", file=file, field=field, value=text, allowed="0 .. 300 %")
         return SectionSchedule(supplement_fraction=value / 100.0)
-    return SectionSchedule(supplement_s=value * (60.0 if unit == "min" else 1.0))
+    factor = 60.0 if unit == "min" else 1.0
+    if not bounds.BOUNDS["time"].contains(value * factor):  # "1e400 s" would be an infinite supplement
+        raise InputError(
+            "supplement too large",
+            file=file,
+            field=field,
+            value=text,
+            allowed=f"0 .. {bounds.BOUNDS['time'].high / factor:g} {unit}",
+        )
+    return SectionSchedule(supplement_s=value * factor)
 
 
 def line_supplement(text: str) -> Timetable:
@@ -56,12 +67,15 @@ def line_supplement(text: str) -> Timetable:
     return Timetable(line=parse_supplement(text))
 
 
-def read_timetable_yaml(path: str | Path, n_sections: int | None = None) -> Timetable:
-    """Read a ``schema: trainsim/timetable`` file.
+#: The keys of a ``trainsim/timetable`` document.
+TIMETABLE_KEYS = ("schema", "version", "name", "description", "supplement", "sections")
 
-    Either ``supplement: "10%"`` for the whole line, or ``sections:`` a list with, per section,
-    ``running_time_s``, ``supplement`` ("8%" / "20 s"), or ``departure_s`` and ``arrival_s``.
-    """
+
+def read_timetable_yaml(path: str | Path, n_sections: int | None = None) -> Timetable:
+    """Transitional name of :func:`trainsim.io.timetable_file.read_timetable_yaml`, which reads the file
+    within the bounds of :mod:`trainsim.io.documents` (this one does not: optimize is below io and may
+    not use it). Kept only until its callers in io/loader.py, io/yaml_scenario.py, batch/worker.py and
+    cli/optimize.py import the io reader."""
     file = str(path)
     try:
         data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
@@ -72,22 +86,47 @@ def read_timetable_yaml(path: str | Path, n_sections: int | None = None) -> Time
         raise InputError(
             f"not valid YAML: {exc}", file=file, line=line + 1 if line is not None else None
         ) from None
+    return timetable_from_dict(data, file, n_sections)
+
+
+def timetable_from_dict(data: Any, file: str = "<timetable>", n_sections: int | None = None) -> Timetable:
+    """The :class:`Timetable` of a ``schema: trainsim/timetable`` document (already parsed).
+
+    Either ``supplement: "10%"`` for the whole line, or ``sections:`` a list with, per section,
+    ``running_time_s``, ``supplement`` ("8%" / "20 s"), or ``departure_s`` and ``arrival_s``. Times are
+    numbers (not ``true``, text, NaN or inf) within the plausible range of a time
+    (:mod:`trainsim.model.bounds`); ``n_sections`` is the route's number of sections between stops.
+    """
     if not isinstance(data, dict) or data.get("schema") != "trainsim/timetable":
-        raise InputError("not a trainsim timetable", file=file, field="schema", allowed="trainsim/timetable")
-    if data.get("version") != 1:
+        raise InputError(
+            "not a trainsim timetable",
+            file=file,
+            field="schema",
+            value=data.get("schema") if isinstance(data, dict) else type(data).__name__,
+            allowed="trainsim/timetable",
+        )
+    if data.get("version") != 1 or isinstance(data.get("version"), bool):
         raise InputError(
             "unsupported version", file=file, field="version", value=data.get("version"), allowed="1"
         )
-    unknown = set(data) - {"schema", "version", "name", "description", "supplement", "sections"}
+    unknown = sorted(str(k) for k in set(data) - set(TIMETABLE_KEYS))
     if unknown:
-        raise InputError("unknown fields", file=file, field=", ".join(sorted(unknown)))
+        raise InputError(
+            "unknown field", file=file, field=", ".join(unknown), allowed=", ".join(TIMETABLE_KEYS)
+        )
     if "supplement" in data and "sections" in data:
         raise InputError("give either 'supplement' or 'sections', not both", file=file, field="supplement")
     if "supplement" in data:
         return Timetable(line=parse_supplement(data["supplement"], file=file), source=file)
     rows = data.get("sections")
     if not isinstance(rows, list) or not rows:
-        raise InputError("'sections' must be a non-empty list", file=file, field="sections")
+        raise InputError(
+            "'sections' must be a non-empty list",
+            file=file,
+            field="sections",
+            value=rows if not isinstance(rows, list) else None,
+            allowed="a list with one schedule per section between stops",
+        )
     if n_sections is not None and len(rows) != n_sections:
         raise InputError(
             "one schedule per section is needed",
@@ -99,28 +138,40 @@ def read_timetable_yaml(path: str | Path, n_sections: int | None = None) -> Time
     return Timetable(sections=tuple(_section(row, k, file) for k, row in enumerate(rows)), source=file)
 
 
+def _time(row: dict[str, Any], key: str, field: str, file: str) -> float:
+    return bounds.check(row[key], "time", field=f"{field}.{key}", file=file, unit="s")
+
+
 def _section(row: Any, k: int, file: str) -> SectionSchedule:
     field = f"sections[{k}]"
     if not isinstance(row, dict):
         raise InputError("expected a mapping", file=file, field=field, value=row)
     keys = set(row) - {"from", "to"}
     if keys == {"running_time_s"}:
-        value = row["running_time_s"]
-        if not isinstance(value, int | float) or value <= 0:
-            raise InputError("must be > 0", file=file, field=f"{field}.running_time_s", value=value)
-        return SectionSchedule(running_time_s=float(value))
+        value = _time(row, "running_time_s", field, file)
+        if value <= 0:
+            raise InputError(
+                "must be > 0", file=file, field=f"{field}.running_time_s", value=value, allowed="> 0 s"
+            )
+        return SectionSchedule(running_time_s=value)
     if keys == {"supplement"}:
         return parse_supplement(row["supplement"], file=file, field=f"{field}.supplement")
     if keys == {"departure_s", "arrival_s"}:
-        dep, arr = row["departure_s"], row["arrival_s"]
-        if not all(isinstance(x, int | float) for x in (dep, arr)) or arr <= dep:
-            raise InputError("arrival must be after departure", file=file, field=field, value=(dep, arr))
-        return SectionSchedule(running_time_s=float(arr - dep))
+        dep, arr = _time(row, "departure_s", field, file), _time(row, "arrival_s", field, file)
+        if arr <= dep:
+            raise InputError(
+                "arrival must be after departure",
+                file=file,
+                field=f"{field}.arrival_s",
+                value=arr,
+                allowed=f"> the departure_s, {dep:g} s",
+            )
+        return SectionSchedule(running_time_s=arr - dep)
     raise InputError(
         "a section needs running_time_s, or supplement, or departure_s and arrival_s",
         file=file,
         field=field,
-        value=sorted(keys),
+        value=sorted(str(key) for key in keys),
     )
 
 
