@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from itertools import pairwise
 
 import numpy as np
 
 from trainsim.constants import KMH, KN
 from trainsim.errors import InputError
+from trainsim.model.effort import POWER_CAP_MIN_SPEED_MPS
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings, Scenario
 from trainsim.model.train import Train
@@ -28,40 +30,131 @@ def drop_empty_stretches(s, v, t, regime):
     return s[keep], v[keep], t[keep], regime[keep]
 
 
-#: Speeds sampled between standstill and the ceiling when checking whether the brakes can slow the
-#: train (besides the braking curve's kinks).
-BRAKE_CHECK_SPEEDS = 24
+def _branch_force(v: np.ndarray, coefs_j: np.ndarray, fcap: float, pcap: float) -> np.ndarray:
+    """Force [N] of one interval's law of a compiled EffortCurve at speeds v [m/s], with the curve's
+    caps and the clip at 0, evaluated as ``kernel.effort`` does (the law is inf at standstill when
+    it has a hyperbolic term), but on the given interval whatever the speed (so that both sides of
+    a table step are seen)."""
+    c0, c1, c2, ch = coefs_j
+    with np.errstate(divide="ignore"):
+        hyperbolic = np.where(v > 0.0, ch / np.where(v > 0.0, v, 1.0), np.inf) if ch else 0.0
+    law = c0 + c1 * v + c2 * v * v + hyperbolic
+    f = np.minimum(law, fcap)
+    f = np.minimum(f, pcap / np.maximum(v, POWER_CAP_MIN_SPEED_MPS))
+    return np.maximum(f, 0.0)
 
 
-def brake_limited_interval(track, P: np.ndarray, curves: tuple, bk: np.ndarray, i0: int, i1: int) -> tuple:
+def _real_roots(coefs: list[float], lo: float, hi: float) -> list[float]:
+    """Real roots in [lo, hi] of the polynomial with ``coefs`` (highest power first, degree <= 3):
+    closed forms up to degree 2 (most braking tables are linear pieces), numpy's roots beyond."""
+    c = [float(x) for x in coefs]
+    if not all(math.isfinite(x) for x in c):
+        return []
+    while c and c[0] == 0.0:
+        c.pop(0)
+    roots: list[float] = []
+    while len(c) > 1 and c[-1] == 0.0:  # a factor v
+        c.pop()
+        roots.append(0.0)
+    if len(c) == 2:
+        roots.append(-c[1] / c[0])
+    elif len(c) == 3:
+        a, b, q = c
+        disc = b * b - 4.0 * a * q
+        if disc >= 0.0:
+            # the stable pair of formulas (no cancellation between b and the root)
+            t = -0.5 * (b + math.copysign(math.sqrt(disc), b))
+            roots += [t / a] + ([q / t] if t != 0.0 else [])
+    elif len(c) == 4:
+        r = np.roots(c)
+        roots += [float(x) for x in r.real[np.abs(r.imag) <= 1e-9 * (1.0 + np.abs(r.real))]]
+    return [x for x in roots if lo <= x <= hi]
+
+
+def worst_braking_surplus(
+    P: np.ndarray, brake_curve: tuple, q2_extra: float, v_max: float
+) -> tuple[float, float]:
+    """Largest value over speeds v in [0, v_max] [m/s] of ``-(f B(v) + R(v)) - q2_extra v^2`` [N],
+    with B the service braking curve, f the braking fraction, R the running resistance and
+    ``q2_extra`` the line's v^2 coefficient times the mass [N s^2/m^2], as ``(speed, value)`` (the
+    lowest such speed when several tie).
+
+    Exact: on each interval of the braking curve the function is the smallest of a few smooth
+    branches (the interval's law, the force cap, the power cap, zero), so its maximum lies at an
+    interval end (both sides of a table step), where two branches cross (the roots of cubics), or
+    where a branch is stationary (the roots of cubics again), and every such speed is evaluated.
+    A sampled check could miss a narrow dip of the braking force between its samples."""
+    starts, coefs, fcap, pcap = brake_curve
+    frac = float(P[kernel.P_BRAKE_FRACTION])
+    r0, q1, q2 = float(P[kernel.P_R0]), float(P[kernel.P_R1]), float(P[kernel.P_R2]) + q2_extra
+    vmin = POWER_CAP_MIN_SPEED_MPS
+    best_v, best = 0.0, -np.inf
+    for j in range(len(starts)):
+        lo = 0.0 if j == 0 else float(starts[j])
+        hi = float(starts[j + 1]) if j + 1 < len(starts) else v_max
+        hi = min(hi, v_max)
+        if lo > v_max or hi < lo:
+            continue
+        c0, c1, c2, ch = (float(c) for c in coefs[j])
+        cand = [lo, hi, vmin, pcap / fcap if fcap > 0 else 0.0]
+        if q2 != 0.0:
+            cand.append(-q1 / (2.0 * q2))  # stationary with a constant (or zero) braking force
+        cand += _real_roots([2.0 * (frac * c2 + q2), frac * c1 + q1, 0.0, -frac * ch], lo, hi)
+        cand += _real_roots([c2, c1, c0, ch], lo, hi)  # the law crosses zero
+        if np.isfinite(fcap):
+            cand += _real_roots([c2, c1, c0 - fcap, ch], lo, hi)
+        if np.isfinite(pcap):
+            cand += _real_roots([2.0 * q2, q1, 0.0, -frac * pcap], lo, hi)  # stationary on the power cap
+            cand += _real_roots([c2, c1, c0, ch - pcap], lo, hi)
+            cand += _real_roots([c2, c1, c0 - pcap / vmin, ch], lo, hi)
+        v = np.array(sorted(x for x in cand if lo <= x <= hi))
+        value = -(frac * _branch_force(v, coefs[j], fcap, pcap) + r0 + q1 * v + q2 * v * v)
+        k = int(np.argmax(value))
+        if value[k] > best or (value[k] == best and v[k] < best_v):
+            best_v, best = float(v[k]), float(value[k])
+    return best_v, best
+
+
+def brake_limited_interval(
+    track, P: np.ndarray, curves: tuple, bk: np.ndarray, i0: int, i1: int, cache: dict | None = None
+) -> tuple:
     """The first grid interval in [i0, i1) where full service braking cannot slow the train down at
     some speed between standstill and the interval's ceiling (a descent steeper than the brakes), as
     ``(index, speed [m/s], surplus force [N])`` with the surplus of downhill force over braking force
     plus resistance at its worst; ``(-1, nan, nan)`` when the brakes suffice everywhere. Trains
-    braking at a constant deceleration (TrainRuns.jl's convention) always suffice."""
+    braking at a constant deceleration (TrainRuns.jl's convention) always suffice.
+
+    The line's laws are linear over an interval, so the worst is at one of its ends; the line's
+    constant part only shifts the surplus, so the exact worst over the speeds
+    (``worst_braking_surplus``) is computed once per distinct v^2 coefficient and ceiling. ``bk``
+    (the braking curve's kinks) is kept for the callers; the exact check needs no sampled speeds.
+    ``cache`` keeps those worsts between the segments of one run (same train and settings)."""
     if P[kernel.P_DECEL] > 0.0 or i1 <= i0:
         return -1, float("nan"), float("nan")
     idx = np.arange(i0, i1)
     w = track.x[idx + 1] - track.x[idx]
-    vmax = float(np.max(track.vlim[idx]))
-    speeds = np.unique(np.concatenate([np.linspace(0.0, vmax, BRAKE_CHECK_SPEEDS), bk[bk < vmax]]))
-    bs, bc, bf, bp = curves[4:8]
-    brake = np.array([P[kernel.P_BRAKE_FRACTION] * kernel.effort(v, bs, bc, bf, bp) for v in speeds])
-    running = P[kernel.P_R0] + P[kernel.P_R1] * speeds + P[kernel.P_R2] * speeds**2
     m = P[kernel.P_MASS]
-    worst = np.full(len(idx), -np.inf)
-    worst_v = np.zeros(len(idx))
-    for u in (np.zeros(len(idx)), w):  # both ends of each interval (the laws are linear in between)
-        line = m * (
-            (track.a0[idx] + track.a1[idx] * u)[:, None]
-            + (track.b0[idx] + track.b1[idx] * u)[:, None] * speeds**2
-        )
-        surplus = -(brake + running)[None, :] - line  # > 0: the train accelerates under full braking
-        surplus[speeds[None, :] > track.vlim[idx][:, None] + 1e-9] = -np.inf
-        j = np.argmax(surplus, axis=1)
-        better = surplus[np.arange(len(idx)), j] > worst
-        worst = np.where(better, surplus[np.arange(len(idx)), j], worst)
-        worst_v = np.where(better, speeds[j], worst_v)
+    brake_curve = curves[4:8]
+    ends = np.concatenate([np.zeros(len(idx)), w])  # both ends (the laws are linear in between)
+    ii = np.concatenate([idx, idx])
+    a = track.a0[ii] + track.a1[ii] * ends
+    b = track.b0[ii] + track.b1[ii] * ends
+    # distinct (v^2 coefficient, ceiling) pairs, through integer codes (unique rows of floats is slow)
+    ub, ib = np.unique(b, return_inverse=True)
+    uv, iv = np.unique(track.vlim[ii], return_inverse=True)
+    codes, inverse = np.unique(ib * len(uv) + iv, return_inverse=True)
+    cache = {} if cache is None else cache
+    per_key = np.empty((len(codes), 2))
+    for q, code in enumerate(codes.tolist()):
+        key = (float(ub[code // len(uv)]), float(uv[code % len(uv)]))
+        if key not in cache:
+            cache[key] = worst_braking_surplus(P, brake_curve, m * key[0], key[1])
+        per_key[q] = cache[key]
+    surplus = (per_key[inverse, 1] - m * a).reshape(2, len(idx))
+    speed = per_key[inverse, 0].reshape(2, len(idx))
+    end = np.argmax(surplus, axis=0)  # the start when both ends are as bad
+    cols = np.arange(len(idx))
+    worst, worst_v = surplus[end, cols], speed[end, cols]
     bad = np.flatnonzero(worst >= 0.0)
     if not len(bad):
         return -1, float("nan"), float("nan")
@@ -120,9 +213,10 @@ def run_fastest(
     stations = route.stops
     warnings: list[str] = []
     brake_limited = False
+    brake_cache: dict = {}
     for k in range(len(stops) - 1):
         i0, i1 = int(track.stop_index[k]), int(track.stop_index[k + 1])
-        j, v_bad, surplus = brake_limited_interval(track, P, curves, bk, i0, i1)
+        j, v_bad, surplus = brake_limited_interval(track, P, curves, bk, i0, i1, brake_cache)
         if j >= 0:
             # the brakes cannot slow the train from x[j] on: run to a standstill before it, and say so
             brake_limited = True
