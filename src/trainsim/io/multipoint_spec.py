@@ -18,15 +18,22 @@ takes ``model`` and ``multi_point`` out and hands the rest to the scenario reade
 
 from __future__ import annotations
 
+import csv
+import io
+import re
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
-from trainsim.errors import InputError
+from trainsim.constants import KMH
+from trainsim.errors import InputError, shown_value
+from trainsim.io.documents import read_text
 from trainsim.io.spec import Spec as _Spec
 from trainsim.io.spec import fail as _fail
 from trainsim.io.spec import validation_error as _validation_error
+from trainsim.model import bounds
 from trainsim.model.scenario import Scenario
 from trainsim.multipoint.model import (
     FREIGHT_CAPACITY_N,
@@ -197,40 +204,143 @@ def multipoint_settings_from_dict(data: Any, source: str = "<scenario>", *, path
     return spec
 
 
+#: Most data rows of a speed-profile file (a 1,000 km trace at 1 m steps is 1e6 rows).
+MAX_PROFILE_ROWS = 2_000_000
+#: Most columns of a speed-profile file (a trace.csv of trainsim has about 30).
+MAX_PROFILE_COLUMNS = 200
+#: A number as written in a CSV cell: no thousands separator, no '_', no NaN/inf.
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+#: The numeric columns of a profile: (unit factor to SI, quantity of :mod:`trainsim.model.bounds`).
+_PROFILE_COLUMNS = {
+    "position_m": (1.0, "length"),
+    "speed_mps": (1.0, "speed"),
+    "speed_kmh": (KMH, "speed"),
+    "time_s": (1.0, "time"),
+}
+
+
 def read_profile(path: Path, source: str) -> SpeedProfile:
     """A speed profile from a CSV file with columns ``position_m`` and ``speed_kmh`` (or ``speed_mps``),
     optionally ``regime`` (names as in trainsim traces) and ``time_s``; a ``trace.csv`` written by
-    ``trainsim run`` qualifies."""
-    import pandas as pd
+    ``trainsim run`` qualifies. Other columns are ignored.
 
-    from trainsim.constants import KMH
+    The file is read within bounds (size as every document, :data:`MAX_PROFILE_ROWS` rows,
+    :data:`MAX_PROFILE_COLUMNS` columns); every cell of the columns used must be a finite number in the
+    plausible range of its quantity, positions and times must not decrease. Errors name the file
+    (``source`` if the file is missing: the scenario that names it), the line and the column.
+    """
     from trainsim.sim.kernel import REGIME_NAMES
 
-    if not path.exists():
-        raise InputError("profile file not found", file=source, field="multi_point.profile", value=str(path))
-    df = pd.read_csv(path)
-    if "position_m" not in df or not ({"speed_kmh", "speed_mps"} & set(df.columns)):
+    file = str(path)
+    try:
+        exists = path.exists()
+    except (OSError, ValueError):
+        exists = False  # a name the system cannot look up is a file that is not there
+    if not exists:
+        raise InputError(
+            "profile file not found", file=source, field="multi_point.profile", value=shown_value(file)
+        )
+    rows = csv.reader(io.StringIO(read_text(path), newline=""))
+    try:
+        header = [h.strip() for h in next(rows)]
+    except StopIteration:
+        raise InputError("empty profile file", file=file, allowed="a header line and rows") from None
+    except csv.Error as exc:
+        raise InputError(f"not a CSV file ({exc})", file=file, line=1) from None
+    if len(header) > MAX_PROFILE_COLUMNS:
+        raise InputError(
+            "too many columns", file=file, line=1, value=len(header), allowed=f"at most {MAX_PROFILE_COLUMNS}"
+        )
+    speed_name = "speed_mps" if "speed_mps" in header else "speed_kmh"
+    if "position_m" not in header or speed_name not in header:
         raise InputError(
             "a profile needs the columns position_m and speed_kmh (or speed_mps)",
-            file=str(path),
-            value=list(df.columns),
+            file=file,
+            line=1,
+            value=header,
+            allowed="a header with position_m and speed_kmh or speed_mps (regime and time_s optional)",
         )
-    speed = df["speed_mps"].to_numpy(float) if "speed_mps" in df else df["speed_kmh"].to_numpy(float) * KMH
-    regime = None
-    if "regime" in df:
-        codes = {name: k for k, name in enumerate(REGIME_NAMES)}
-        try:
-            regime = df["regime"].map(lambda r: codes[str(r)]).to_numpy("int8")
-        except KeyError as exc:
-            raise InputError(
-                "unknown regime",
-                file=str(path),
-                field="regime",
-                value=str(exc),
-                allowed=", ".join(REGIME_NAMES),
-            ) from None
-    time_s = df["time_s"].to_numpy(float) if "time_s" in df else None
-    return SpeedProfile(df["position_m"].to_numpy(float), speed, regime, time_s)
+    if len(set(header)) != len(header):
+        twice = sorted({h for h in header if header.count(h) > 1})
+        raise InputError("a column is named twice", file=file, line=1, value=twice)
+    wanted = [n for n in ("position_m", speed_name, "time_s", "regime") if n in header]
+    index = {n: header.index(n) for n in wanted}
+    codes = {name: k for k, name in enumerate(REGIME_NAMES)}
+    columns: dict[str, list[float]] = {n: [] for n in wanted}
+    try:
+        for row in rows:
+            if not row or all(not c.strip() for c in row):
+                continue
+            line = rows.line_num
+            if len(columns["position_m"]) >= MAX_PROFILE_ROWS:
+                raise InputError(
+                    "too many rows", file=file, line=line, allowed=f"at most {MAX_PROFILE_ROWS} rows"
+                )
+            for name in wanted:
+                k = index[name]
+                cell = row[k].strip() if k < len(row) else ""
+                if name == "regime":
+                    if cell not in codes:
+                        raise InputError(
+                            "unknown regime",
+                            file=file,
+                            line=line,
+                            field="regime",
+                            value=cell,
+                            allowed=", ".join(REGIME_NAMES),
+                        )
+                    columns[name].append(codes[cell])
+                else:
+                    columns[name].append(_profile_number(cell, name, file, line))
+    except csv.Error as exc:
+        raise InputError(f"not a CSV file ({exc})", file=file, line=rows.line_num) from None
+    if len(columns["position_m"]) < 2:
+        raise InputError(
+            "a profile needs at least two rows",
+            file=file,
+            value=len(columns["position_m"]),
+            allowed=">= 2 rows of position_m and speed",
+        )
+    for name in ("position_m", "time_s"):
+        if name in columns:
+            _non_decreasing(columns[name], name, file)
+    return SpeedProfile(
+        np.array(columns["position_m"]),
+        np.array(columns[speed_name]),
+        np.array(columns["regime"], dtype="int8") if "regime" in columns else None,
+        np.array(columns["time_s"]) if "time_s" in columns else None,
+    )
+
+
+def _profile_number(cell: str, name: str, file: str, line: int) -> float:
+    """The value [SI] of a numeric cell of column ``name``; InputError naming line and column."""
+    factor, quantity = _PROFILE_COLUMNS[name]
+    unit = name.rsplit("_", 1)[1].replace("mps", "m/s").replace("kmh", "km/h")
+    if not _NUMBER.fullmatch(cell):
+        raise InputError(
+            "not a number",
+            file=file,
+            line=line,
+            field=name,
+            value=cell,
+            allowed=f"a decimal number ({bounds.BOUNDS[quantity].allowed(unit, factor)}), no thousands "
+            "separator",
+        )
+    return bounds.check(float(cell), quantity, field=name, file=file, line=line, unit=unit, factor=factor)
+
+
+def _non_decreasing(values: list[float], name: str, file: str) -> None:
+    diffs = np.diff(np.asarray(values))
+    bad = np.flatnonzero(diffs < 0)
+    if bad.size:
+        k = int(bad[0]) + 1
+        raise InputError(
+            f"{name} decreases (data row {k + 1})",
+            file=file,
+            field=name,
+            value=values[k],
+            allowed=f">= the previous row's {values[k - 1]:g}",
+        )
 
 
 def run_multipoint_scenario(
