@@ -8,6 +8,7 @@ The format is described field by field in docs/POWER.md.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -17,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from trainsim.errors import InputError, Problem
 from trainsim.power.limits import EN50163, standard_limits
 from trainsim.power.network import Connection, Gap, Network, Storage, Substation, Track, regulation_points
+from trainsim.power.onboard import OnboardStorage
 from trainsim.power.study import FeedbackSettings, TrainService, run_study
 
 __all__ = ["PowerFile", "load_power_file", "run_power_file"]
@@ -125,6 +127,23 @@ class HeadwaySpec(_Spec):
     count: Annotated[int, Field(ge=1, le=10_000)]
 
 
+class OnboardStorageSpec(_Spec):
+    capacity_kwh: Positive
+    max_power_kw: Positive
+    charge_efficiency: Annotated[float, Field(gt=0, le=1)]
+    discharge_efficiency: Annotated[float, Field(gt=0, le=1)]
+    min_soc: Annotated[float, Field(ge=0, lt=1)] = 0.2
+    max_soc: Annotated[float, Field(gt=0, le=1)] = 0.9
+    initial_soc: Annotated[float, Field(ge=0, le=1)] = 0.5
+    assist_above_kw: NonNegative = 0.0
+
+    def storage(self) -> OnboardStorage:
+        return OnboardStorage(
+            self.capacity_kwh * 3.6e6, self.max_power_kw * 1000, self.charge_efficiency,
+            self.discharge_efficiency, self.min_soc, self.max_soc, self.initial_soc, self.assist_above_kw * 1000,
+        )  # fmt: skip
+
+
 class TrainSpec(_Spec):
     id: str
     scenario: str
@@ -133,6 +152,7 @@ class TrainSpec(_Spec):
     direction: Literal[1, -1] = 1
     departures_s: list[float] | None = None
     headway: HeadwaySpec | None = None
+    onboard_storage: OnboardStorageSpec | None = None
 
     @model_validator(mode="after")
     def _one_timetable(self) -> TrainSpec:
@@ -360,7 +380,13 @@ def load_power_file(path: str | Path) -> tuple[PowerFile, Network, list[TrainSer
         else:
             h = t.headway
             deps = tuple(h.first_s + h.every_s * j for j in range(h.count))
-        services.append(TrainService(t.id, scenario, t.track, origin, t.direction, deps))
+        storage = None
+        if t.onboard_storage is not None:
+            storage = t.onboard_storage.storage()
+            problems = storage.problems(f"trains[{k}].onboard_storage")
+            if problems:
+                raise InputError.from_problems([dataclasses.replace(q, file=file) for q in problems])
+        services.append(TrainService(t.id, scenario, t.track, origin, t.direction, deps, storage))
     return spec, network, services
 
 

@@ -20,6 +20,7 @@ import numpy as np
 from trainsim.constants import KWH
 from trainsim.errors import InputError
 from trainsim.power.network import Network
+from trainsim.power.onboard import OnboardStorage, assist_power_w, charge_power_w
 from trainsim.power.solver import StepGuess, StepLoads, solve_step
 from trainsim.sim.result import RunResult
 
@@ -43,6 +44,7 @@ class TrainLoad:
         regen_power_w: power offered to the line by regenerative braking, before curtailment [W].
         auxiliary_power_w: auxiliaries, drawn all the time the train is on the wire [W].
         power_factor: cos phi of the train (AC) [-].
+        onboard_storage: the train's battery / supercapacitor (trainsim.power.onboard), or None.
     """
 
     id: str
@@ -53,6 +55,7 @@ class TrainLoad:
     regen_power_w: np.ndarray
     auxiliary_power_w: float = 0.0
     power_factor: float = 1.0
+    onboard_storage: OnboardStorage | None = None
 
 
 def train_load_from_run(
@@ -92,6 +95,12 @@ class PowerResult:
     off the wire, e.g. in a neutral section). Powers [W], voltages [V], currents [A], times [s].
     ``storage_power_w`` [step, storage] is the power each wayside storage takes at its terminals
     (negative: gives), ``storage_energy_j`` its stored energy at the end of each step.
+    ``stray_current_a`` [step] is the current leaving the rails into the earth (NaN where not
+    defined: no rail-to-earth conductance, ideal return). With on-board storage,
+    ``onboard_charge_w`` / ``onboard_discharge_w`` [step, train] are the powers at its terminals
+    and ``onboard_energy_j`` its energy at the end of each step (NaN: no storage, or not on the
+    network); ``traction_delivered_w`` then includes the storage's assist and
+    ``regen_accepted_w`` is what the line took (the rest: stored or dissipated).
     """
 
     network: Network
@@ -117,6 +126,10 @@ class PowerResult:
     iterations: np.ndarray
     storage_power_w: np.ndarray | None = None
     storage_energy_j: np.ndarray | None = None
+    stray_current_a: np.ndarray | None = None
+    onboard_charge_w: np.ndarray | None = None
+    onboard_discharge_w: np.ndarray | None = None
+    onboard_energy_j: np.ndarray | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     # ---- derived figures --------------------------------------------------------------------
@@ -125,6 +138,9 @@ class PowerResult:
 
     def _storage_net_w(self) -> float:
         return 0.0 if self.storage_power_w is None else float(np.sum(self.storage_power_w))
+
+    def _onboard_kwh(self, p: np.ndarray | None, k: int) -> float:
+        return 0.0 if p is None else float(np.nansum(p[:, k]) * self.dt_s) / KWH
 
     def energy_balance_error(self) -> float:
         """|sources - (trains + losses)| / sources over the whole run [-]."""
@@ -144,19 +160,23 @@ class PowerResult:
     def regen_kwh(self) -> dict[str, float]:
         """Regenerated energy [kWh]: offered by the trains' electric brakes, accepted by the line,
         used_by_trains (accepted and neither returned through reversible substations nor stored),
-        returned, dissipated (curtailed: burnt on board or taken by friction brakes), and with
+        returned, dissipated (curtailed and not stored on board: burnt on board or taken by friction
+        brakes), ``stored_onboard`` with on-board storage (charged at its terminals), and with
         wayside storage ``stored`` (all energy charged into storages, counted as regenerated: their
         thresholds lie above the substations' no-load voltage)."""
         offered = float(np.nansum(self.regen_offered_w) * self.dt_s)
         accepted = float(np.nansum(self.regen_accepted_w) * self.dt_s)
         returned = float(np.sum(np.maximum(-self.substation_power_w, 0.0)) * self.dt_s)
+        onboard = 0.0 if self.onboard_charge_w is None else float(np.nansum(self.onboard_charge_w) * self.dt_s)
         out = {
             "offered": offered / KWH,
             "accepted": accepted / KWH,
             "used_by_trains": (accepted - returned) / KWH,
             "returned": returned / KWH,
-            "dissipated": (offered - accepted) / KWH,
+            "dissipated": (offered - accepted - onboard) / KWH,
         }
+        if self.onboard_charge_w is not None:
+            out["stored_onboard"] = onboard / KWH
         if self.storage_power_w is not None:
             stored = float(np.sum(np.maximum(self.storage_power_w, 0.0)) * self.dt_s)
             out["stored"] = stored / KWH
@@ -289,12 +309,20 @@ class PowerResult:
                     "regen_dissipated_kwh": float(
                         np.nansum(self.regen_offered_w[:, k] - self.regen_accepted_w[:, k]) * self.dt_s
                     )
-                    / KWH,
+                    / KWH
+                    - self._onboard_kwh(self.onboard_charge_w, k),
                     "peak_current_a": _num(np.nanmax(np.abs(self.train_current_a[:, k])))
                     if on.any()
                     else None,
                 }
             )
+        if self.onboard_energy_j is not None:
+            for k, t in enumerate(trains):
+                e = self.onboard_energy_j[:, k]
+                if np.any(np.isfinite(e)):
+                    t["onboard_charged_kwh"] = self._onboard_kwh(self.onboard_charge_w, k)
+                    t["onboard_discharged_kwh"] = self._onboard_kwh(self.onboard_discharge_w, k)
+                    t["onboard_final_energy_kwh"] = float(e[np.isfinite(e)][-1]) / KWH
         for extra in self.extra.get("trains", []):
             for t in trains:
                 if t["id"] == extra["id"]:
@@ -319,6 +347,7 @@ class PowerResult:
                 "min": _num(np.nanmin(self.rail_potential_min_v)) if rail_defined else None,
                 "max": _num(np.nanmax(self.rail_potential_max_v)) if rail_defined else None,
             },
+            "stray_current_a": _stray_summary(self.stray_current_a, self.dt_s),
             "energy_balance_error": self.energy_balance_error(),
             "solver": {
                 "steps": len(self.time_s),
@@ -346,6 +375,17 @@ class PowerResult:
             out["storages_energy_kwh"] = self._storage_net_w() * self.dt_s / KWH
         out.update({k: v for k, v in self.extra.items() if k != "trains"})
         return out
+
+
+def _stray_summary(stray: np.ndarray | None, dt_s: float) -> dict[str, float | None]:
+    """Mean and largest stray current [A] and the charge leaked [Ah] (None where not defined)."""
+    if stray is None or not np.any(np.isfinite(stray)):
+        return {"mean": None, "max": None, "charge_ah": None}
+    return {
+        "mean": float(np.nanmean(stray)),
+        "max": float(np.nanmax(stray)),
+        "charge_ah": float(np.nansum(stray) * dt_s / 3600.0),
+    }
 
 
 def _num(x: float) -> float | None:
@@ -442,6 +482,7 @@ def simulate(
     sub_loss = np.zeros(n_steps)
     rmin = np.full(n_steps, np.nan)
     rmax = np.full(n_steps, np.nan)
+    stray = np.full(n_steps, np.nan)
     converged = np.ones(n_steps, dtype=bool)
     iterations = np.zeros(n_steps, dtype=np.int64)
     on = np.ones(ns, dtype=bool)
@@ -452,6 +493,24 @@ def simulate(
     st_eta = np.sqrt(np.array([st.efficiency for st in network.storages]))
     st_power = np.zeros((n_steps, n_st)) if n_st else None
     st_record = np.zeros((n_steps, n_st)) if n_st else None
+    ob = [tr.onboard_storage for tr in trains]
+    has_ob = any(o is not None for o in ob)
+    if has_ob:
+        for k, o in enumerate(ob):
+            if o is not None:
+                o.check(f"trains[{k}].onboard_storage")
+
+        def _ob(attr: str, default: float) -> np.ndarray:
+            return np.array([default if o is None else float(getattr(o, attr)) for o in ob])
+
+        ob_cap = _ob("capacity_j", 0.0)
+        ob_pmax = _ob("max_power_w", 0.0)
+        ob_eta_c, ob_eta_d = _ob("charge_efficiency", 1.0), _ob("discharge_efficiency", 1.0)
+        ob_emin, ob_emax = ob_cap * _ob("min_soc", 0.0), ob_cap * _ob("max_soc", 0.0)
+        ob_thr = _ob("assist_above_w", np.inf)
+        ob_energy = ob_cap * _ob("initial_soc", 0.0)
+        ob_charge, ob_discharge, ob_record = nan.copy(), nan.copy(), nan.copy()
+        with_ob = np.array([o is not None for o in ob])
     fixed_v = None
     prev_c = np.full(nt, np.nan)
     prev_r = np.full(nt, np.nan)
@@ -465,7 +524,13 @@ def simulate(
         accepted[j, off] = 0.0
         power[j, off] = 0.0
         current[j, off] = 0.0
-        loads = StepLoads(tracks[sel], xs[j, sel], pt[j, sel], pr[j, sel], aux[sel], tan_phi[sel])
+        pt_line = pt[j]
+        if has_ob:
+            assist = np.where(present[j] & with_ob,
+                              assist_power_w(pt[j], ob_energy, ob_thr, ob_pmax, ob_emin, ob_eta_d, dt_s), 0.0)
+            pt_line = pt[j] - assist
+            delivered[j, off] = assist[off]  # fmt: skip
+        loads = StepLoads(tracks[sel], xs[j, sel], pt_line[sel], pr[j, sel], aux[sel], tan_phi[sel])
         if n_st:
             # what each storage can take / give during this step: its power, and its charge
             loads.storage_charge_max_w = np.minimum(st_pmax, (st_cap - st_energy) / (st_eta * dt_s))
@@ -489,13 +554,23 @@ def simulate(
         volt[j, sel] = sol.train_voltage_v
         power[j, sel] = sol.train_power_w
         current[j, sel] = sol.train_current_a
-        delivered[j, sel] = pt[j, sel] * sol.traction_share
+        delivered[j, sel] = pt_line[sel] * sol.traction_share
         accepted[j, sel] = pr[j, sel] * sol.regen_share
+        if has_ob:
+            delivered[j, sel] += assist[sel]
+            on_net = present[j] & with_ob
+            curtailed = np.where(on_net, pr[j] - np.nan_to_num(accepted[j]), 0.0)
+            charge = np.where(on_net, charge_power_w(curtailed, ob_energy, ob_pmax, ob_emax, ob_eta_c, dt_s), 0.0)
+            ob_energy = ob_energy + (ob_eta_c * charge - assist / ob_eta_d) * dt_s
+            ob_charge[j, on_net] = charge[on_net]
+            ob_discharge[j, on_net] = assist[on_net]
+            ob_record[j, on_net] = ob_energy[on_net]
         p_sub[j] = sol.substation_power_w
         p_src[j] = sol.substation_source_w
         i_sub[j] = sol.substation_current_a
         line_loss[j] = sol.line_loss_w
         sub_loss[j] = sol.substation_loss_w
+        stray[j] = sol.stray_current_a
         if len(sol.rail_potential_v):
             rmin[j] = np.min(sol.rail_potential_v)
             rmax[j] = np.max(sol.rail_potential_v)
@@ -523,4 +598,8 @@ def simulate(
         iterations=iterations,
         storage_power_w=st_power,
         storage_energy_j=st_record,
+        stray_current_a=stray,
+        onboard_charge_w=ob_charge if has_ob else None,
+        onboard_discharge_w=ob_discharge if has_ob else None,
+        onboard_energy_j=ob_record if has_ob else None,
     )

@@ -34,6 +34,7 @@ from trainsim.power.limits import (
     traction_availability_slope,
 )
 from trainsim.power.network import Network
+from trainsim.power.rail import leaky_rail_pi, segment_leakage_a
 from trainsim.power.regulation import regulation_current_a
 
 #: Newton / fixed point stop when no node potential moves by more than this share of Un
@@ -114,6 +115,8 @@ class StepSolution:
         rail_potential_v: rail-to-earth potentials of the rail nodes (DC), or empty.
         guess: this step's potentials, to start the next step from (DC), or None.
         storage_power_w: power taken by each wayside storage at its terminals (negative: given) [W].
+        stray_current_a: current leaving the rails into the earth (trainsim.power.rail) [A]; NaN
+            without rail-to-earth conductance or rail potentials.
     """
 
     converged: bool
@@ -132,6 +135,7 @@ class StepSolution:
     rail_potential_v: np.ndarray
     guess: StepGuess | None = None
     storage_power_w: np.ndarray | None = None
+    stray_current_a: float = float("nan")
 
 
 @dataclass
@@ -181,6 +185,7 @@ class _Assembly:
     storage_r: np.ndarray | None = None
     storage_limits: tuple | None = None  # (charge max, discharge max, charge above, discharge below, ramp)
     sources: _Sources | None = None  # the substations' source laws (regulation curves)
+    leaky_segments: tuple | None = None  # rail segments with leakage: node a, node b, length, r, g
 
 
 class _Sources:
@@ -224,6 +229,7 @@ def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assemb
     train_c = np.empty(len(track), dtype=np.int64)
     train_r = np.empty(len(track), dtype=np.int64)
     rail_nodes = []
+    leaky: list[tuple[np.ndarray, ...]] = []
     for ti, t in enumerate(net.tracks):
         sel = np.flatnonzero(track == ti)
         fp = topo.fixed_positions[ti]
@@ -262,17 +268,20 @@ def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assemb
         b_parts.append(ru)
         y_parts.append(np.full(len(uniq), net.contact_leakage_s))
         if not ideal:
+            # the rails between nodes: the exact pi-equivalent of a uniformly leaking line
+            r, g = t.rail_resistance_ohm_per_m, t.rail_to_earth_conductance_s_per_m
+            y_series, y_shunt = leaky_rail_pi(r, g, dx)
             a_parts.append(ru[:-1])
             b_parts.append(ru[1:])
-            y_parts.append(1.0 / (t.rail_resistance_ohm_per_m * dx))
-            g = t.rail_to_earth_conductance_s_per_m
+            y_parts.append(y_series)
             if g > 0:
-                half = np.zeros(len(uniq))
-                half[:-1] += dx / 2
-                half[1:] += dx / 2
+                shunt = np.zeros(len(uniq))
+                shunt[:-1] += y_shunt
+                shunt[1:] += y_shunt
                 a_parts.append(ru)
                 b_parts.append(np.full(len(uniq), -1, dtype=np.int64))
-                y_parts.append(g * half)
+                y_parts.append(shunt)
+                leaky.append((ru[:-1], ru[1:], dx, np.full(len(dx), r), np.full(len(dx), g)))
     a = np.concatenate(a_parts)
     b = np.concatenate(b_parts)
     y = np.concatenate(y_parts)
@@ -289,7 +298,13 @@ def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assemb
     new_index = np.full(next_id + 1, -1, dtype=np.int64)  # last slot maps -1 -> -1
     new_index[:next_id][used] = np.arange(int(used.sum()))
     rail = np.concatenate(rail_nodes) if rail_nodes else np.empty(0, dtype=np.int64)
+    if leaky:
+        la, lb, ll, lr, lg = (np.concatenate(parts) for parts in zip(*leaky, strict=True))
+        leaky_segments = (new_index[la], new_index[lb], ll, lr, lg)
+    else:
+        leaky_segments = None
     return _Assembly(
+        leaky_segments=leaky_segments,
         n=int(used.sum()),
         a=new_index[a],
         b=new_index[b],
@@ -547,6 +562,10 @@ def solve_step(
     rail = (
         np.real(v[asm.rail_nodes]) if (not net.ideal_return and topo.rail_potential_defined) else np.empty(0)
     )
+    stray = float("nan")
+    if len(rail) and asm.leaky_segments is not None:
+        la, lb, ll, lr, lg = asm.leaky_segments
+        stray = float(np.sum(segment_leakage_a(_potential(v, la), _potential(v, lb), ll, lr, lg)))
     p_storage = None
     if n_st:
         u_st = _potential(v, asm.storage_c) - _potential(v, asm.storage_r)
@@ -572,6 +591,7 @@ def solve_step(
         line_loss_w=line_loss,
         substation_loss_w=sub_loss,
         rail_potential_v=rail,
+        stray_current_a=stray,
     )
 
 

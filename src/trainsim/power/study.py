@@ -27,6 +27,7 @@ import numpy as np
 from trainsim.errors import InputError
 from trainsim.model.scenario import Scenario
 from trainsim.power.network import Network
+from trainsim.power.onboard import OnboardStorage
 from trainsim.power.simulation import PowerResult, TrainLoad, simulate, train_load_from_run
 from trainsim.sim.result import RunResult
 
@@ -44,6 +45,8 @@ class TrainService:
         origin_m: chainage of the route's start on the network [m].
         direction: 1 if the route's positions increase with the chainage, -1 otherwise.
         departures_s: departure times from the route's first stop [s].
+        onboard_storage: the train's on-board storage (each departure starts at its initial
+            state of charge), or None.
     """
 
     id: str
@@ -52,6 +55,7 @@ class TrainService:
     origin_m: float
     direction: int
     departures_s: tuple[float, ...]
+    onboard_storage: OnboardStorage | None = None
 
 
 @dataclass(frozen=True)
@@ -114,7 +118,7 @@ def _load(service: TrainService, run: RunResult, name: str, departure_s: float) 
             value=service.scenario.train.name,
             allowed="a train with an electrical block",
         )
-    return train_load_from_run(
+    load = train_load_from_run(
         run,
         id=name,
         track=service.track,
@@ -125,6 +129,9 @@ def _load(service: TrainService, run: RunResult, name: str, departure_s: float) 
         regenerative_efficiency=el.regenerative_efficiency,
         auxiliary_power_w=el.auxiliary_power_w,
         power_factor=el.power_factor,
+    )
+    return load if service.onboard_storage is None else dataclasses.replace(
+        load, onboard_storage=service.onboard_storage
     )
 
 
