@@ -8,15 +8,17 @@ set to zero and the standing times are put in afterwards (``Movement.trajectory`
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from itertools import pairwise
 
 import numpy as np
 
 from trainsim.constants import KWH
-from trainsim.model import Route, Station, Train
+from trainsim.model import Route, SpeedLimit, Station, Train
 from trainsim.model.scenario import RunSettings
 from trainsim.operations.blocking import Trajectory
+from trainsim.operations.ceiling import with_limits
 from trainsim.sim.fastest import run_fastest
 from trainsim.sim.result import RunResult
 
@@ -65,11 +67,14 @@ def _clip(items: tuple, a: float, b: float) -> tuple:
     return tuple(out)
 
 
-def service_route(directed: Route, stops: list[tuple[str, float]]) -> Route:
+def service_route(
+    directed: Route, stops: list[tuple[str, float]], limits: Sequence[SpeedLimit] = ()
+) -> Route:
     """The route of one run: ``directed`` cut from its first to its last stop, stopping (dwell 0) at
-    every ``(name, running position)`` of ``stops``."""
+    every ``(name, running position)`` of ``stops``, with the extra speed ceilings ``limits`` (running
+    positions) laid over the line's limits."""
     a, b = stops[0][1], stops[-1][1]
-    return Route(
+    route = Route(
         name=directed.name,
         start_m=a,
         end_m=b,
@@ -82,6 +87,7 @@ def service_route(directed: Route, stops: list[tuple[str, float]]) -> Route:
         line_resistance=directed.line_resistance,
         gravity_mps2=directed.gravity_mps2,
     )
+    return with_limits(route, limits)
 
 
 @dataclass(frozen=True)
@@ -168,16 +174,27 @@ class RunCache:
             found = self._routes[key] = direction_route(geometry, length_m, direction)
         return found
 
-    def stretch(self, train: Train, directed: Route, a: tuple[str, float], b: tuple[str, float]):
-        """The fastest run from stop ``a`` to stop ``b`` (names and running positions): (position, speed,
-        time, result)."""
-        key = (id(train), id(directed), round(a[1], 6), round(b[1], 6))
+    def stretch(
+        self,
+        train: Train,
+        directed: Route,
+        a: tuple[str, float],
+        b: tuple[str, float],
+        limits: Sequence[SpeedLimit] = (),
+    ):
+        """The fastest run from stop ``a`` to stop ``b`` (names and running positions) under the extra
+        ceilings ``limits``: (position, speed, time, result)."""
+        limits = tuple(x for x in limits if x.end_m > a[1] and x.start_m < b[1])
+        key = (
+            id(train), id(directed), round(a[1], 6), round(b[1], 6),
+            tuple((round(x.start_m, 6), round(x.end_m, 6), round(x.limit_mps, 9)) for x in limits),
+        )  # fmt: skip
         found = self._runs.get(key)
         if found is not None:
             self.hits += 1
             return found
         self._keep.extend((train, directed))  # ids stay valid while the cache lives
-        result = run_fastest(train, service_route(directed, [a, b]), self.settings)
+        result = run_fastest(train, service_route(directed, [a, b], limits), self.settings)
         tr = result.trace
         s, v, t = tr.position_m, tr.speed_mps, tr.time_s
         if result.status == "ok" and abs(s[-1] - b[1]) > 1e-6:
@@ -187,14 +204,21 @@ class RunCache:
         self.computed += 1
         return found
 
-    def movement(self, train: Train, directed: Route, stops: list[tuple[str, float]]) -> Movement:
-        """The fastest run of ``train`` on ``directed`` through ``stops`` (names and running positions)."""
+    def movement(
+        self,
+        train: Train,
+        directed: Route,
+        stops: list[tuple[str, float]],
+        limits: Sequence[SpeedLimit] = (),
+    ) -> Movement:
+        """The fastest run of ``train`` on ``directed`` through ``stops`` (names and running positions)
+        under the extra ceilings ``limits`` (running positions)."""
         ss, vs, ts, results = [], [], [], []
         arr, dep = [0], [0]
         n = 0
         t0 = 0.0
         for a, b in pairwise(stops):
-            s, v, t, result = self.stretch(train, directed, a, b)
+            s, v, t, result = self.stretch(train, directed, a, b, limits)
             ss.append(s)
             vs.append(v)
             ts.append(t - t[0] + t0)

@@ -40,7 +40,7 @@ import numpy as np
 
 from trainsim.errors import InputError
 from trainsim.model import Route as GeometryRoute
-from trainsim.model import Train
+from trainsim.model import SpeedLimit, Train
 from trainsim.model.scenario import RunSettings
 from trainsim.operations.blocking import (
     BlockingTime,
@@ -52,6 +52,7 @@ from trainsim.operations.blocking import (
     minimum_headway,
     route_release_points,
 )
+from trainsim.operations.ceiling import MIN_CEILING_MPS, driver_braking_steps, release_steps
 from trainsim.operations.line import Direction, Line, Route, RouteStep
 from trainsim.operations.runs import Movement, RunCache, auxiliary_power_w
 from trainsim.operations.separation import EtcsBraking, etcs_approach_distance
@@ -308,13 +309,20 @@ class _TrainState:
         self.given_at: dict[str, float] = {}  # route name -> when the dispatcher gave it
         self.released: dict[tuple[str, str], float] = {}  # (route, resource) -> when it was released
         self._request_value: tuple[float, float | None, float] = (0.0, None, 0.0)
+        self.trajectory_version = 0
+        self.limits: list[SpeedLimit] = []  # driver's braking curves to signals (running positions)
+        # signal stop position -> (its braking curve's steps, trajectory before, signal position)
+        self.approaches: dict[float, tuple[tuple[SpeedLimit, ...], Trajectory, float]] = {}
         self.refresh_movement()
 
     # -- runs and trajectories
-    def refresh_movement(self) -> None:
-        self.movement = self.cache.movement(
-            self.svc.train, self.directed, [(s.name, s.position_m) for s in self.stops]
+    def candidate(self, stops: list[_Stop], limits: Sequence[SpeedLimit]) -> Movement:
+        return self.cache.movement(
+            self.svc.train, self.directed, [(s.name, s.position_m) for s in stops], tuple(limits)
         )
+
+    def refresh_movement(self) -> None:
+        self.movement = self.candidate(self.stops, self.limits)
         if self.movement.status != "ok" and self.stalled_m is None:
             # the run stalls: the train stands where it stalled for good, keeping what it holds there;
             # it asks for no route whose signal lies beyond
@@ -338,6 +346,8 @@ class _TrainState:
 
     def refresh_trajectory(self) -> None:
         self.trajectory = self.movement.trajectory(self.departures(), self.length_m, self.dest_dwell_s)
+        # a counter, not id(): a discarded trajectory's id can be reused by the next one
+        self.trajectory_version += 1
 
     def stop_positions(self) -> np.ndarray:
         return np.array([s.position_m for s in self.stops])
@@ -351,7 +361,7 @@ class _TrainState:
 
     def request_point(self, approach_fn) -> tuple[float, float | None, float]:
         """(request time, stop standing inside the approach or None, approach start)."""
-        key = (self.next, id(self.trajectory), len(self.stops))
+        key = (self.next, self.trajectory_version, len(self.stops))
         if self._request_key == key:
             return self._request_value
         value = self._request_point(approach_fn)
@@ -563,6 +573,9 @@ class _Dispatcher:
             st.granted.append((j, r))
             st.given_at[r.name] = t
         st.next += len(choice)
+        if st.waiting_since is not None and self._release(st, t, choice):
+            self.schedule(st)
+            return
         if st.waiting_since is not None:
             depart = t + sig.setup_s + sig.reaction_s
             q = st.waiting_stop
@@ -581,6 +594,69 @@ class _Dispatcher:
             if st.index in self.waiting:
                 self.waiting.remove(st.index)
         self.schedule(st)
+
+    def _release(self, st: _TrainState, t: float, choice: list[tuple[int, Route]]) -> bool:
+        """The signal a running train brakes for clears (route given at ``t``): the driver sees it
+        ``setup_s + reaction_s`` later and, if the train has not come to a stand by then, picks up speed
+        again from where it is (``release_steps``) instead of stopping. Kept when it reaches the next
+        stop earlier than stopping and starting again would (a train almost at a stand, held at a
+        crawl for a train length, would not). Returns whether the train was released."""
+        q = st.waiting_stop
+        if q not in st.approaches:
+            return False
+        sig = self.line.signalling
+        t_clear = t + sig.setup_s
+        t_seen = t_clear + sig.reaction_s
+        steps, before, signal_m = st.approaches[q]
+        traj = st.trajectory
+        if traj.first_time_at(q)[0] <= t_seen + TIME_TOLERANCE_S:
+            return False  # it stands at the signal by then
+        later = [s.position_m for s in st.stops if s.position_m > q + 1e-9]
+        if not later:
+            return False
+        nxt = min(later)
+        p_c = position_at_time(traj, t_seen, q)
+        v_c = traj.speed_at(p_c)
+        if v_c < MIN_CEILING_MPS:
+            return False
+        stops = [s for s in st.stops if not (s.kind == "signal" and s.position_m == q)]
+        limits = [x for x in st.limits if not any(x is y for y in steps)]
+        kept = release_steps(steps, p_c, v_c, slowed=v_c < before.speed_at(p_c) - 1e-6)
+        # kept is None: cleared before the train had to slow down, it runs as if it had seen proceed
+        limits_new = limits if kept is None else limits + list(kept)
+        movement = st.candidate(stops, limits_new)
+        if movement.status != "ok":
+            return False
+        old = (st.stops, st.limits, st.movement, st.trajectory)
+        st.stops, st.limits, st.movement = stops, limits_new, movement
+        st.refresh_trajectory()
+        t_release = st.trajectory.first_time_at(nxt)[0]
+        passes = st.trajectory.first_time_at(signal_m)[0]
+        # stopping and starting again: the stand ends when the driver has seen the signal clear
+        st.stops, st.limits, st.movement, st.trajectory = old
+        prev = st.override.get(q)
+        st.override[q] = max(st.override.get(q, -np.inf), t_seen)
+        st.refresh_trajectory()
+        t_stop = st.trajectory.first_time_at(nxt)[0]
+        if prev is None:
+            del st.override[q]
+        else:
+            st.override[q] = prev
+        if not (t_release < t_stop - TIME_TOLERANCE_S and passes >= t_clear - TIME_TOLERANCE_S):
+            st.refresh_trajectory()
+            return False
+        del st.approaches[q]
+        st.stops, st.limits, st.movement = stops, limits_new, movement
+        st.refresh_trajectory()
+        if kept is not None:
+            lost = st.trajectory.first_time_at(signal_m)[0] - before.first_time_at(signal_m)[0]
+            where = f"signal {choice[0][1].signal}"
+            st.hindrances.append(Hindrance("slowed", where, p_c, st.waiting_since, float(lost), choice[0][1].name))
+        st.waiting_since = None
+        st.waiting_stop = None
+        if st.index in self.waiting:
+            self.waiting.remove(st.index)
+        return True
 
     def request(self, st: _TrainState, t: float) -> None:
         t_req, q, _a = st.request_point(self.approach[st.index])
@@ -620,6 +696,10 @@ class _Dispatcher:
                         f"{name}: the train needs {brake(v):.0f} m to stop from {v * 3.6:.0f} km/h but sees the "
                         f"aspect only {q - a:.0f} m before (warning too late for its braking distance)"
                     )
+                start = max(a, float(pos[pos < q - 1e-9].max(initial=a)))
+                steps = driver_braking_steps(st.trajectory.speed_at(start), start, q)
+                st.approaches[q] = (steps, st.trajectory, step.start_m)
+                st.limits.extend(steps)
                 st.refresh_movement()
         st.waiting_since = t
         st.waiting_stop = q
@@ -645,6 +725,22 @@ class _Dispatcher:
                 # a stand at a signal cannot end before the train has arrived there: it simply
                 # leaves once both are done (override keeps the later of the two)
                 self.try_grant(st, t, standing=True)
+
+
+def position_at_time(traj: Trajectory, t_s: float, upto_m: float) -> float:
+    """Where the head is at ``t_s`` [m] (bisection on ``first_time_at``; at most ``upto_m``)."""
+    lo, hi = float(traj.position_m[0]), float(upto_m)
+    if traj.first_time_at(hi)[0] <= t_s:
+        return hi
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if traj.first_time_at(mid)[0] <= t_s:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo < 1e-6:
+            break
+    return lo
 
 
 # --------------------------------------------------------------------------- public entry
@@ -872,6 +968,8 @@ def simulate(
         fn = approach[st.index]
         outcome = _outcome(st, plan, line, stuck=st in stuck)
         outcomes.append(outcome)
+        if st not in stuck and st.stalled_m is None and [j for j, _r in st.granted] != st.steps:
+            raise RuntimeError(f"train {st.svc.id}: ran without holding every route of its path")
         if st not in stuck:
             # the dispatcher's own times: when each route was given and each resource released (a
             # train held at its origin got its platform, and left the switches behind it, before it
@@ -880,7 +978,7 @@ def simulate(
                 st.svc.id, st.trajectory, st.path, st.granted, list(st.stop_positions()), sig,
                 _line_pos(line, st.svc.direction), fn,
             ):  # fmt: skip
-                start = min(b.start_s, st.given_at.get(b.route, b.start_s))
+                start = st.given_at.get(b.route, b.start_s)
                 end = st.released.get((b.route, b.resource), b.end_s)
                 blocking.append(replace(b, start_s=start, end_s=end, clear_s=end - sig.release_s))
         warnings.extend(f"train {st.svc.id}: {w}" for w in outcome.warnings)
