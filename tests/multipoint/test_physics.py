@@ -18,7 +18,7 @@ import pytest
 from mpcases import freight_train, hilly_route, level_route
 
 import trainsim
-from trainsim.constants import KMH, G
+from trainsim.constants import KMH
 from trainsim.model import EffortCurve
 from trainsim.multipoint import (
     BrakePropagation,
@@ -157,7 +157,7 @@ def _independent_energy_terms(result, route, train_mp, command_of_time):
         curve[:, i] = averaged_over_length(point.curve, L)(x[:, i])
     veps = mp.settings.standstill_speed_mps
     sgn = np.tanh(v / veps)
-    weight = mp.mass_kg * G
+    weight = mp.mass_kg * route.gravity_mps2
     u = command_of_time(t)[:, None]
     traction = np.zeros_like(v)
     for loco, curve_j in zip(mp.locomotives, mp.traction_curves, strict=True):

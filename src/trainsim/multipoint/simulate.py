@@ -25,7 +25,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from trainsim.constants import G
 from trainsim.errors import InputError
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
@@ -267,7 +266,7 @@ class _Compiled:
         SP[mpk.S_ETA_R] = elec.regenerative_efficiency * elec.receptivity if elec else 0.0
         SP[mpk.S_SERVICE_CURVE] = service_idx
         SP[mpk.S_REGEN_CURVE] = regen_idx
-        SP[mpk.S_G] = G
+        SP[mpk.S_G] = route.gravity_mps2
         SP[mpk.S_STALL_S] = STALL_TIME_S
         SP[mpk.S_NEWTON_TOL] = NEWTON_TOLERANCE_MPS
         self.SP = SP

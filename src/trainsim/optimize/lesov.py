@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trainsim.constants import KMH, G
+from trainsim.constants import KMH
 from trainsim.model.route import Route, Station
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Braking, Train
@@ -53,20 +53,21 @@ EPSILON_MIN = 0.5 / 60.0  #: schedule tolerance [min]
 PATH_PER_KMH_MIN = 16.7  #: m per (km/h x min)
 
 
-def zeta_kmh_per_min(train: Train) -> float:
-    """Acceleration [km/h per min] of 1 N/kN of net specific force: 3.6 x 60 g / (1000 rho)."""
-    return 3.6 * 60.0 * G / (1000.0 * train.rotating_mass_factor)
+def zeta_kmh_per_min(train: Train, g_mps2: float) -> float:
+    """Acceleration [km/h per min] of 1 N/kN of net specific force: 3.6 x 60 g / (1000 rho), with g
+    [m/s^2] the route's gravity (``Route.gravity_mps2``)."""
+    return 3.6 * 60.0 * g_mps2 / (1000.0 * train.rotating_mass_factor)
 
 
-def specific_force_n_per_kn(force_n: float, train: Train) -> float:
-    """A force [N] as specific force [N/kN] of the train's weight (source 004 eq. for f_t max)."""
-    return 1000.0 * force_n / (train.mass_kg * G)
+def specific_force_n_per_kn(force_n: float, train: Train, g_mps2: float) -> float:
+    """A force [N] as specific force [N/kN] of the train's weight m g (source 004 eq. for f_t max)."""
+    return 1000.0 * force_n / (train.mass_kg * g_mps2)
 
 
-def net_specific_force_n_per_kn(deceleration_mps2: float, train: Train) -> float:
+def net_specific_force_n_per_kn(deceleration_mps2: float, train: Train, g_mps2: float) -> float:
     """The net specific force [N/kN] that gives a deceleration [m/s^2]: a x 1000 rho / g, the
     inverse of zeta (source 004's dt = dV / (zeta f_t))."""
-    return deceleration_mps2 * 1000.0 * train.rotating_mass_factor / G
+    return deceleration_mps2 * 1000.0 * train.rotating_mass_factor / g_mps2
 
 
 def speed_step_kmh(v_kmh: float, target_kmh: float) -> float:
@@ -108,15 +109,16 @@ def _phases(train: Train, route: Route, s0: float, s1: float, v_ss: float, zeta:
     """Traction from 0 to v_ss, and braking (recuperative, then mechanical) from v_ss to 0, by the
     paper's speed steps; returns (traction distance, time, braking distance, time, mech distance)."""
     prof = line_resistance_profile(route, train)
+    g = route.gravity_mps2
 
     def w_a(s: float) -> float:
         return 1000.0 * float(prof.gradient(s) + prof.curve(s) + prof.tunnel(s))
 
     def f_u(v_kmh: float) -> float:
-        return specific_force_n_per_kn(float(train.traction(v_kmh * KMH)), train)
+        return specific_force_n_per_kn(float(train.traction(v_kmh * KMH)), train, g)
 
     def w_m(v_kmh: float) -> float:
-        return specific_force_n_per_kn(float(train.running_resistance_n(v_kmh * KMH)), train)
+        return specific_force_n_per_kn(float(train.running_resistance_n(v_kmh * KMH)), train, g)
 
     s, t, v = s0, 0.0, 0.0
     while v < v_ss - 1e-9 and s < s1:
@@ -138,11 +140,11 @@ def _phases(train: Train, route: Route, s0: float, s1: float, v_ss: float, zeta:
         vm = v + 0.5 * dv
         if vm <= MECHANICAL_BRAKING_SPEED_KMH:
             if train.braking.service_force is not None:
-                b = specific_force_n_per_kn(float(train.braking.service_force(vm * KMH)), train)
+                b = specific_force_n_per_kn(float(train.braking.service_force(vm * KMH)), train, g)
             else:
                 # a train that brakes at a constant net deceleration (resistance and grade
                 # included): the specific force that gives it, less what resistance and grade add
-                b = net_specific_force_n_per_kn(train.braking.deceleration_mps2, train) - w_m(vm) - w_a(s)
+                b = net_specific_force_n_per_kn(train.braking.deceleration_mps2, train, g) - w_m(vm) - w_a(s)
         else:
             if mech is None:
                 mech = s
@@ -189,7 +191,7 @@ def switching_for_speed(
     iterations: int = 0,
 ) -> LesovSwitching:
     """The switching points of source 004's mode sequence for a steady speed [km/h]."""
-    zeta = zeta_kmh_per_min(train)
+    zeta = zeta_kmh_per_min(train, route.gravity_mps2)
     trac_s, trac_t, brk_s, brk_t, mech_s, v_top = _phases(train, route, s0, s1, steady_kmh, zeta)
     cruise_s = max((s1 - s0) - trac_s - brk_s, 0.0)
     budgets = slope_budgets(train, route, s0, s1, scheduled_s)
@@ -206,7 +208,7 @@ def switching_for_speed(
 
 def lesov_switching(train: Train, route: Route, s0: float, s1: float, scheduled_s: float) -> LesovSwitching:
     """Source 004's iteration for the steady speed V_ss and the switching points of a section."""
-    zeta = zeta_kmh_per_min(train)
+    zeta = zeta_kmh_per_min(train, route.gravity_mps2)
     vmax_kmh = train.max_speed_mps / KMH
     t_sched = scheduled_s / 60.0
     v_ss = vmax_kmh
