@@ -73,9 +73,7 @@ from trainsim.errors import InputError
 from trainsim.io import railml_common as rc
 from trainsim.io.railml_common import (
     Content,
-    Problems,
     Span,
-    Usage,
     attr_bool,
     attr_float,
     child,
@@ -85,6 +83,7 @@ from trainsim.io.railml_common import (
     label,
     local,
 )
+from trainsim.io.railml_reader import Dialect, Entry, Topology, read_railml
 from trainsim.model import Route, Train
 
 __all__ = [
@@ -119,35 +118,55 @@ def detect(root: etree._Element) -> str | None:
     return version if version.startswith("2") else None
 
 
+
 # ====================================================================== reading
-class _Reader:
-    def __init__(self, path: str | Path, tree: etree._ElementTree) -> None:
-        self.file = str(path)
-        self.root = tree.getroot()
-        self.problems = Problems(self.file)
-        self.usage = Usage()
-        self.usage.use(self.root)
-        self.version = detect(self.root) or "2.x"
-        self.content = Content(format=f"railML {self.version}", file=self.file)
-        if self.version not in SUPPORTED:
-            self.content.notes.append(f"railML version {self.version}: read as railML 2.5")
-        self.ids = rc.index_ids(self.root, self.problems)
-        self.problems.raise_if_any()
-        self.infra = child(self.root, "infrastructure")
-        self.rollingstock = child(self.root, "rollingstock")
-        self.timetable = child(self.root, "timetable")
-        for el in (self.infra, self.rollingstock, self.timetable):
-            self.usage.use(el)
-        meta = child(self.root, "metadata")
-        if meta is not None:
-            self.usage.use(meta, deep=True)
+class Railml2(Dialect):
+    """What railML 2 names and places its own way (the rest of the reading:
+    :mod:`trainsim.io.railml_reader`)."""
+
+    family = "railML 2"
+    root_tag = "railml"
+    fallback_version = "2.x"
+    read_as = "2.5"
+    supported = SUPPORTED
+    sections = ("infrastructure", "rollingstock", "timetable")
+    edge_figure = "tracks"
+    points_word = "ocps"
+    unplaced_point = "operational point '{ref}' has no position on a track (no crossSection with its ocpRef)"
+    stop_at_ends = True
+    vehicle_family = "vehicleFamilyRef"
+    axles = ("numberDrivenAxles", "numberNonDrivenAxles")
+    stock_in_containers = True
+    no_formation_note = "no formation: no train read (a formation lists the vehicles)"
+    unknown_vehicle = "vehicleRef to an unknown vehicle"
+    empty_formation = "the formation lists no vehicle (trainOrder/vehicleRef)"
+    merge_repeats = False
+    order_entries = False
+
+    detect = staticmethod(detect)
 
     # ------------------------------------------------------------------ timetable
+    def timetable_path(
+        self, train_id: str | None, points: dict[str | None, etree._Element]
+    ) -> tuple[list[Entry], None, str | None, str] | None:
+        ocp_tts, formation_ref, tname = self.train_part_ocps(train_id)
+        if not ocp_tts:
+            return None
+        entries: list[Entry] = []
+        for o in ocp_tts:
+            ref = o.get("ocpRef")
+            if ref not in points:
+                self.r.problems.add(o, "ocpRef to an unknown ocp", attribute="ocpRef", value=ref)
+                continue
+            dwell, stop = self.dwell(o)
+            entries.append((ref, dwell, stop, o))
+        return entries, None, formation_ref, tname
+
     def train_part_ocps(
         self, train_id: str | None
     ) -> tuple[list[etree._Element], etree._Element | None, str]:
         """The ocpTT elements of the chosen train in order, its formation reference, its name."""
-        tt = self.timetable
+        tt = self.r.timetable
         if tt is None:
             return [], None, ""
         parts = {p.get("id"): p for p in descendants(child(tt, "trainParts"), "trainPart")}
@@ -165,7 +184,7 @@ class _Reader:
                 known = [t.get("id") for t in trains] + list(parts)
                 raise InputError(
                     "no train or train part of that id, number or name in the timetable",
-                    file=self.file,
+                    file=self.r.file,
                     field="train_id",
                     value=train_id,
                     allowed=", ".join(str(k) for k in known),
@@ -173,25 +192,25 @@ class _Reader:
         if not chosen_parts:
             if trains:
                 if len(trains) > 1:
-                    self.content.notes.append(
+                    self.r.content.notes.append(
                         f"{len(trains)} trains in the timetable: the first, {label(trains[0])}, is read "
                         "(choose another with train_id / --train-id)"
                     )
                 train = trains[0]
-                self.usage.use(train, deep=True)
+                self.r.usage.use(train, deep=True)
                 name = train.get("name") or train.get("trainNumber") or train.get("id") or ""
                 refs = []
                 for seq in children(train, "trainPartSequence"):
-                    order = rc.attr_int(seq, "sequence", self.problems)
+                    order = rc.attr_int(seq, "sequence", self.r.problems)
                     refs += [(order, r.get("ref")) for r in children(seq, "trainPartRef")]
                 for _, ref in sorted(refs, key=lambda x: x[0]):
                     if ref not in parts:
-                        raise self.problems.error(train, "trainPartRef to an unknown trainPart", value=ref)
+                        raise self.r.problems.error(train, "trainPartRef to an unknown trainPart", value=ref)
                     chosen_parts.append(parts[ref])
             elif parts:
                 first = next(iter(parts.values()))
                 if len(parts) > 1:
-                    self.content.notes.append(
+                    self.r.content.notes.append(
                         f"{len(parts)} train parts and no train: the first, {label(first)}, is read"
                     )
                 chosen_parts = [first]
@@ -199,13 +218,13 @@ class _Reader:
         ocps: list[etree._Element] = []
         formation_ref = None
         for part in chosen_parts:
-            self.usage.use(part)
+            self.r.usage.use(part)
             ftt = child(part, "formationTT")
             if ftt is not None:
-                self.usage.use(ftt)
+                self.r.usage.use(ftt)
                 formation_ref = formation_ref or ftt.get("formationRef")
             container = child(part, "ocpsTT")
-            self.usage.use(container)
+            self.r.usage.use(container)
             items = children(container, "ocpTT")
             items.sort(key=lambda o: rc.sort_number(o.get("sequence")))
             for o in items:
@@ -217,33 +236,33 @@ class _Reader:
 
     def dwell(self, ocp_tt: etree._Element) -> tuple[float, bool]:
         """Dwell time [s] and whether the train stops."""
-        self.usage.use(ocp_tt)
+        self.r.usage.use(ocp_tt)
         stop = ocp_tt.get("ocpType") != "pass"
         desc = child(ocp_tt, "stopDescription")
         minimal = None
         if desc is not None:
-            self.usage.use(desc)
+            self.r.usage.use(desc)
             for st in children(desc, "stopTimes"):
-                self.usage.use(st)
+                self.r.usage.use(st)
                 minimal = rc.parse_duration(st.get("minimalTime"))
                 if st.get("minimalTime") is not None and minimal is None:
-                    self.problems.add(
+                    self.r.problems.add(
                         st, "not an xs:duration", attribute="minimalTime", value=st.get("minimalTime")
                     )
         if minimal is not None:
             return minimal, stop
         times = children(ocp_tt, "times")
         for t in times:
-            self.usage.use(t)
+            self.r.usage.use(t)
         chosen = [t for t in times if t.get("scope") == "scheduled"] or times
         if chosen:
             t = chosen[0]
-            self.usage.use(t)
-            arr = rc.parse_clock(t.get("arrival"), rc.attr_int(t, "arrivalDay", self.problems, high=366))
-            dep = rc.parse_clock(t.get("departure"), rc.attr_int(t, "departureDay", self.problems, high=366))
+            self.r.usage.use(t)
+            arr = rc.parse_clock(t.get("arrival"), rc.attr_int(t, "arrivalDay", self.r.problems, high=366))
+            dep = rc.parse_clock(t.get("departure"), rc.attr_int(t, "departureDay", self.r.problems, high=366))
             for attr, value in (("arrival", arr), ("departure", dep)):
                 if t.get(attr) is not None and value is None:
-                    self.problems.add(t, "not a time hh:mm:ss", attribute=attr, value=t.get(attr))
+                    self.r.problems.add(t, "not a time hh:mm:ss", attribute=attr, value=t.get(attr))
             if arr is not None and dep is not None:
                 if dep < arr:
                     dep += 86400.0  # over midnight without a day offset
@@ -251,28 +270,37 @@ class _Reader:
         return 0.0, stop
 
     # ------------------------------------------------------------------ network
+
+    # ------------------------------------------------------------------ network
+    def topology(self) -> Topology:
+        net, locations, origins = self.network()
+        return _Tracks(net, origins, locations)
+
+    def points(self) -> dict[str | None, etree._Element]:
+        return {o.get("id"): o for o in descendants(child(self.r.infra, "operationControlPoints"), "ocp")}
+
     def network(self) -> tuple[rc.Network, dict[str, list[tuple[str, float]]], dict[str, float]]:
         """Tracks as edges, connections as ports; ocp id -> locations; track id -> mileage of its begin."""
         net = rc.Network()
         locations: dict[str, list[tuple[str, float]]] = {}
         origins: dict[str, float] = {}
-        p = self.problems
-        tracks_el = child(self.infra, "tracks")
-        self.usage.use(tracks_el)
+        p = self.r.problems
+        tracks_el = child(self.r.infra, "tracks")
+        self.r.usage.use(tracks_el)
         for track in children(tracks_el, "track"):
             tid = track.get("id")
             if not tid:
                 p.add(track, "a track needs an id", attribute="id")
                 continue
-            self.usage.use(track)
+            self.r.usage.use(track)
             topo = child(track, "trackTopology")
-            self.usage.use(topo)
+            self.r.usage.use(topo)
             begin_el, end_el = child(topo, "trackBegin"), child(topo, "trackEnd")
             if begin_el is None or end_el is None:
                 p.add(track, "the track needs trackTopology/trackBegin and trackEnd")
                 continue
-            self.usage.use(begin_el, deep=True)
-            self.usage.use(end_el, deep=True)
+            self.r.usage.use(begin_el, deep=True)
+            self.r.usage.use(end_el, deep=True)
             begin = attr_float(begin_el, "pos", p, required=True, what="position of the track begin [m]")
             end = attr_float(end_el, "pos", p, required=True, what="position of the track end [m]")
             if begin is None or end is None:
@@ -303,8 +331,8 @@ class _Reader:
                 pos = attr_float(sw, "pos", p, required=True, what=f"position of the {local(sw)} [m]")
                 if pos is None:
                     continue
-                self.usage.use(sw, deep=True)
-                self.usage.use(sw.getparent())
+                self.r.usage.use(sw, deep=True)
+                self.r.usage.use(sw.getparent())
                 for conn in children(sw, "connection"):
                     orientation = conn.get("orientation")
                     leave, arrive = {
@@ -315,34 +343,29 @@ class _Reader:
                         rc.Port(conn.get("id") or "", tid, pos, leave, arrive, conn.get("ref"), conn)
                     )
             for cs in children(child(topo, "crossSections"), "crossSection"):
-                self.usage.use(cs.getparent())
+                self.r.usage.use(cs.getparent())
                 pos = attr_float(cs, "pos", p, required=True, what="position on the track [m]")
                 ref = cs.get("ocpRef")
                 if ref is None:
-                    self.usage.skip(cs, "no ocpRef")
+                    self.r.usage.skip(cs, "no ocpRef")
                     continue
-                self.usage.use(cs)
+                self.r.usage.use(cs)
                 if pos is not None:
-                    self._within(cs, pos, begin, end)
+                    self.r.within(cs, pos, begin, end)
                     locations.setdefault(ref, []).append((tid, pos))
         return net, locations, origins
 
-    def _within(self, el: etree._Element, pos: float, begin: float, end: float) -> bool:
-        if not begin - rc.POSITION_TOLERANCE_M <= pos <= end + rc.POSITION_TOLERANCE_M:
-            self.problems.add(
-                el,
-                "position outside its track",
-                attribute="pos",
-                value=pos,
-                allowed=f"{begin:g} .. {end:g} m",
-            )
-            return False
-        return True
 
-    def line_data(self, net: rc.Network) -> dict[str, Any]:
+    def line_data(self, topology: Topology) -> dict[str, Any]:
+        data = self._line_data(topology.net)
+        data["speed_changes"] = data.pop("speed")
+        data["speed"] = data.pop("speed_regions")
+        return data
+
+    def _line_data(self, net: rc.Network) -> dict[str, Any]:
         """Per track: direction-bound speed changes, and spans of speed (changes without direction),
         gradient, radius, tunnels, electrification."""
-        p = self.problems
+        p = self.r.problems
         speed: list[tuple[str, float, int, Any, etree._Element]] = []
         spans: dict[str, list[Span]] = {
             "gradient": [],
@@ -356,17 +379,17 @@ class _Reader:
             elements = child(track, "trackElements")
             if elements is None:
                 continue
-            self.usage.use(elements)
+            self.r.usage.use(elements)
             # speed changes: bound to a direction (up, down: the limit from the change on, for trains
             # running that way), or without direction (the limit of the track from the change to the
             # next one, both ways)
             undirected: list[tuple[float, Any, etree._Element]] = []
             for sc in children(child(elements, "speedChanges"), "speedChange"):
-                self.usage.use(sc.getparent())
+                self.r.usage.use(sc.getparent())
                 if sc.get("profileRef") or sc.get("trainCategory") or sc.get("etcsTrainCategory"):
-                    self.usage.skip(sc, "speed for a speed profile / train category, not the line speed")
+                    self.r.usage.skip(sc, "speed for a speed profile / train category, not the line speed")
                     continue
-                self.usage.use(sc, deep=True)
+                self.r.usage.use(sc, deep=True)
                 pos = attr_float(sc, "pos", p, required=True, what="position on the track [m]")
                 vmax_text = sc.get("vMax")
                 if vmax_text is None:
@@ -380,14 +403,14 @@ class _Reader:
                         p.add(sc, "not a speed in km/h or 'end'", attribute="vMax", value=vmax_text)
                         continue
                     if abs(vmax - _VIRTUAL_END_KMH) < 1e-9:
-                        self.content.notes.append(
+                        self.r.content.notes.append(
                             f"{label(sc)} (line {sc.sourceline}): vMax 999.9 read as the end of a temporary "
                             "restriction (railML before 2.3)"
                         )
                         value = rc.END_OF_RESTRICTION
                     else:
                         value = vmax
-                if pos is None or not self._within(sc, pos, begin, end):
+                if pos is None or not self.r.within(sc, pos, begin, end):
                     continue
                 direction = {"up": 1, "down": -1}.get(sc.get("dir") or "")
                 if direction is None:
@@ -418,8 +441,8 @@ class _Reader:
             ):
                 changes: list[tuple[float, Any, etree._Element]] = []
                 for el in children(child(elements, container), item):
-                    self.usage.use(el.getparent())
-                    self.usage.use(el, deep=True)
+                    self.r.usage.use(el.getparent())
+                    self.r.usage.use(el, deep=True)
                     pos = attr_float(el, "pos", p, required=True, what="position on the track [m]")
                     value = attr_float(
                         el,
@@ -428,7 +451,7 @@ class _Reader:
                         required=True,
                         what=f"{attr} ({'per mille' if kind == 'gradient' else 'm'})",
                     )
-                    if pos is None or value is None or not self._within(el, pos, begin, end):
+                    if pos is None or value is None or not self.r.within(el, pos, begin, end):
                         continue
                     if kind == "gradient" and el.get("dir") == "down":
                         value = -value  # slope given for trains running down
@@ -438,8 +461,8 @@ class _Reader:
                 spans[kind] += list(rc.regions(changes, tid, end))
             changes = []
             for el in children(child(elements, "electrificationChanges"), "electrificationChange"):
-                self.usage.use(el.getparent())
-                self.usage.use(el, deep=True)
+                self.r.usage.use(el.getparent())
+                self.r.usage.use(el, deep=True)
                 pos = attr_float(el, "pos", p, required=True, what="position on the track [m]")
                 voltage = attr_float(el, "voltage", p, minimum=0)
                 kind_e = el.get("type")
@@ -449,32 +472,32 @@ class _Reader:
                     if el.get("voltage") is None:
                         p.add(el, "missing line voltage [V] (or type='none')", attribute="voltage")
                     continue
-                if pos is None or not self._within(el, pos, begin, end):
+                if pos is None or not self.r.within(el, pos, begin, end):
                     continue
                 changes.append((pos, voltage, el))
             changes.sort(key=lambda c: c[0])
             self._same_position(changes, "electrificationChange")
             spans["electrification"] += list(rc.regions(changes, tid, end))
             for el in children(child(elements, "tunnels"), "tunnel"):
-                self.usage.use(el.getparent())
-                self.usage.use(el, deep=True)
+                self.r.usage.use(el.getparent())
+                self.r.usage.use(el, deep=True)
                 pos = attr_float(el, "pos", p, required=True, what="position on the track [m]")
                 length = attr_float(el, "length", p, required=True, what="tunnel length [m]", positive=True)
-                if pos is None or length is None or not self._within(el, pos, begin, end):
+                if pos is None or length is None or not self.r.within(el, pos, begin, end):
                     continue
                 a, b = (pos - length, pos) if el.get("dir") == "down" else (pos, pos + length)
-                if not self._within(el, b if el.get("dir") != "down" else a, begin, end):
+                if not self.r.within(el, b if el.get("dir") != "down" else a, begin, end):
                     continue
                 limiting = (rc.ext(el, "limitingGradient") or "false").lower() == "true"
                 spans["tunnel"].append(Span(tid, a, b, limiting, el))
             for el in children(child(elements, "mileageChanges"), "mileageChange"):
-                self.usage.skip(el, "positions are read from pos (distance along the track), not the mileage")
+                self.r.usage.skip(el, "positions are read from pos (distance along the track), not the mileage")
         return {"speed": speed, **spans}
 
     def _same_position(self, changes: Sequence[tuple[float, Any, etree._Element]], what: str) -> None:
         for (p0, v0, e0), (p1, v1, e1) in itertools.pairwise(changes):
             if abs(p1 - p0) <= rc.POSITION_TOLERANCE_M and v0 != v1:
-                self.problems.add(
+                self.r.problems.add(
                     e1,
                     f"two {what} elements at the same position with different values; the other is "
                     f"{label(e0)} at line {e0.sourceline}",
@@ -482,272 +505,62 @@ class _Reader:
                     value=p1,
                 )
 
-    def route(
-        self,
-        *,
-        train_id: str | None,
-        ocps: Sequence[str] | None,
-        line_resistance: dict[str, str] | None,
-        require_line_resistance: bool,
-    ) -> tuple[dict[str, Any] | None, str | None]:
-        """The route mapping and the formation the timetable names (or None)."""
-        if self.infra is None:
-            return None, None
-        net, locations, origins = self.network()
-        self.problems.raise_if_any()
-        ocp_elements = {
-            o.get("id"): o for o in descendants(child(self.infra, "operationControlPoints"), "ocp")
-        }
-        by_name: dict[str, list[str]] = {}
-        for oid, o in ocp_elements.items():
-            by_name.setdefault(o.get("name") or "", []).append(oid)
-        formation_ref = None
-        entries: list[tuple[str, float, bool, etree._Element]] = []  # ocp id, dwell, stop, source element
-        name = self.infra.get("name") or Path(self.file).stem
-        if ocps:
-            for given in ocps:
-                ids = [given] if given in ocp_elements else by_name.get(given, [])
-                if len(ids) != 1:
-                    raise InputError(
-                        "no operational point of that id or name"
-                        if not ids
-                        else "several ocps have that name",
-                        file=self.file,
-                        field="ocps",
-                        value=given,
-                        allowed=", ".join(f"{o} ({ocp_elements[o].get('name')})" for o in ocp_elements),
-                    )
-                entries.append((ids[0], 0.0, True, ocp_elements[ids[0]]))
-            self.content.notes.append("route from the operational points given: a stop at each, dwell 0 s")
-        else:
-            ocp_tts, formation_ref, tname = self.train_part_ocps(train_id)
-            if not ocp_tts:
-                self.content.notes.append(
-                    "no route: the file has no timetable; give the operational points of the path (--ocps)"
-                )
-                return None, None
-            name = f"{tname or 'train'} path" if tname else name
-            for o in ocp_tts:
-                ref = o.get("ocpRef")
-                if ref not in ocp_elements:
-                    self.problems.add(o, "ocpRef to an unknown ocp", attribute="ocpRef", value=ref)
-                    continue
-                dwell, stop = self.dwell(o)
-                entries.append((ref, dwell, stop, o))
-        self.problems.raise_if_any()
-        stops: list[rc.Stop] = []
-        for ref, _, _, el in entries:
-            ocp = ocp_elements[ref]
-            self.usage.use(ocp, deep=True)
-            if ref not in locations:
-                self.problems.add(
-                    el,
-                    f"operational point '{ref}' has no position on a track (no crossSection with its ocpRef)",
-                )
-                continue
-            stops.append(rc.Stop(ocp.get("name") or ref, tuple(locations[ref]), el))
-        self.problems.raise_if_any()
-        path = rc.route_path(net, stops, self.problems, origins.get)
-        self.problems.raise_if_any()
-        assert path is not None
-        stations = rc.stations_on_path(path, entries, stops, self.problems)
-        if stations:
-            stations[0] = rc.StationAt(
-                stations[0].name, stations[0].position_m, stations[0].dwell_s, True, stations[0].element
-            )
-            stations[-1] = rc.StationAt(
-                stations[-1].name, stations[-1].position_m, stations[-1].dwell_s, True, stations[-1].element
-            )
-        self.content.station_elements = [st.element for st in stations]
-        data = self.line_data(net)
-        self.problems.raise_if_any()
-        lr = rc.line_resistance_choice(
-            self.infra, line_resistance, self.content, required=require_line_resistance
-        )
-        route = rc.route_mapping(
-            self.content,
-            self.problems,
-            name=name,
-            path=path,
-            stations=stations,
-            speed=sorted(
-                path.changes(data["speed"]) + rc.events_from_spans(path.spans(data["speed_regions"])),
-                key=lambda e: e.position_m,
-            ),
-            gradients=rc.events_from_spans(path.spans(data["gradient"], down=lambda g: -g)),
-            electrification=rc.events_from_spans(path.spans(data["electrification"])),
-            curves=path.spans(data["radius"]),
-            tunnels=path.spans(data["tunnel"]),
-            line_resistance=lr,
-            anchor=self.infra,
-        )
-        self.problems.raise_if_any()
-        self.content.figures.update(
-            {
-                "tracks": str(len(net.extent)),
-                "operational points": str(len(ocp_elements)),
-                "route path": " -> ".join(f"{leg.edge} ({leg.start:g}..{leg.end:g} m)" for leg in path.legs),
-            }
-        )
-        return route, formation_ref
 
     # ------------------------------------------------------------------ rolling stock
-    def _vattr(self, vehicle: etree._Element, name: str) -> tuple[str | None, etree._Element]:
-        """An attribute of a vehicle or, if missing, of its vehicle family."""
-        seen = set()
-        v: etree._Element | None = vehicle
-        while v is not None and id(v) not in seen:
-            seen.add(id(v))
-            if v.get(name) is not None:
-                return v.get(name), v
-            ref = v.get("vehicleFamilyRef")
-            v = self.ids.get(ref) if ref else None
-        return None, vehicle
+    def vehicle_equipment(self, v: etree._Element, src: rc.VehicleSource) -> None:
+        p = self.r.problems
+        engine = child(v, "engine")
+        propulsion = child(engine, "propulsion")
+        wagon = child(v, "wagon")
+        for holder in (propulsion, wagon):
+            if holder is not None and holder.get("rotationMassFactor") is not None:
+                src.rotating_mass_factor = attr_float(holder, "rotationMassFactor", p, minimum=1.0)
+                break
+            if holder is not None and holder.get("additionalRotationMass") is not None:
+                extra = attr_float(holder, "additionalRotationMass", p, minimum=0)
+                if extra is not None and src.mass_t > 0:
+                    src.rotating_mass_factor = 1.0 + extra / src.mass_t
+                break
+        if wagon is not None:
+            self.r.usage.use(wagon)
+            src.auxiliary_w = attr_float(wagon, "auxiliaryPowerConsumption", p, minimum=0) or 0.0
+        if propulsion is not None:
+            self.r.usage.use(engine)
+            self.r.usage.use(propulsion)
+            for other in children(engine, "propulsion")[1:]:
+                self.r.usage.skip(other, "only the first propulsion of a vehicle is read")
+            src.powered = True
+            src.propulsion = propulsion
+            src.max_effort_n = attr_float(propulsion, "maxTractEffort", p, positive=True)
+            src.power_w = attr_float(propulsion, "power", p, positive=True)
+            src.max_brake_power_w = attr_float(propulsion, "maxBrakePower", p, positive=True)
+            te = child(propulsion, "tractiveEffort")
+            self.r.usage.use(te)
+            vt = child(te, "valueTable")
+            if vt is not None:
+                src.traction = rc.read_value_table(vt, p, y_dimensions=("force",), usage=self.r.usage)
+            be = child(propulsion, "brakeEffort")
+            self.r.usage.use(be)
+            vt = child(be, "valueTable")
+            if vt is not None:
+                src.regenerative = rc.read_value_table(vt, p, y_dimensions=("force",), usage=self.r.usage)
+        for vt in descendants(v, "valueTable"):
+            if local(vt.getparent()) == "decelerationTable":
+                self.r.usage.use(vt.getparent())
+                src.deceleration = rc.read_value_table(
+                    vt, p, y_dimensions=("acceleration",), usage=self.r.usage
+                )
+                break
 
-    def _vfloat(self, vehicle: etree._Element, name: str, **kwargs: Any) -> float | None:
-        text, owner = self._vattr(vehicle, name)
-        if text is None:
-            return attr_float(vehicle, name, self.problems, **kwargs)
-        return attr_float(owner, name, self.problems, **kwargs)
-
-    def train(self, formation_id: str | None, rho: float | None) -> dict[str, Any] | None:
-        rs = self.rollingstock
-        if rs is None:
-            return None
-        vehicles = {v.get("id"): v for v in descendants(child(rs, "vehicles"), "vehicle")}
-        formations = {f.get("id"): f for f in descendants(child(rs, "formations"), "formation")}
-        p = self.problems
-        self.usage.use(child(rs, "vehicles"))
-        self.usage.use(child(rs, "formations"))
-        if formation_id is not None:
-            formation = rc.formation_by_id(formations, formation_id, self.file)
-        elif len(formations) == 1:
-            formation = next(iter(formations.values()))
-        elif formations:
-            formation = next(iter(formations.values()))
-            self.content.notes.append(
-                f"{len(formations)} formations: the first, {label(formation)}, is read "
-                "(choose with --formation-id)"
-            )
-        else:
-            formation = None
-        if formation is None:
-            if len(vehicles) != 1:
-                self.content.notes.append("no formation: no train read (a formation lists the vehicles)")
-                return None
-            order = [(next(iter(vehicles.values())), 1, None)]
-            name = order[0][0].get("name") or order[0][0].get("id") or "train"
-        else:
-            self.usage.use(formation)
-            name = formation.get("name") or formation.get("id") or "train"
-            refs = children(child(formation, "trainOrder"), "vehicleRef")
-            self.usage.use(child(formation, "trainOrder"))
-            order: list[tuple[etree._Element, int, etree._Element | None]] = list(
-                rc.vehicle_order(refs, vehicles, self.usage, p, unknown="vehicleRef to an unknown vehicle")
-            )
-            if not order:
-                p.add(formation, "the formation lists no vehicle (trainOrder/vehicleRef)")
-        p.raise_if_any()
-        return self._train_mapping(name, formation, order, rho)
-
-    def _train_mapping(
-        self,
-        name: str,
-        formation: etree._Element | None,
-        order: list[tuple[etree._Element, int, etree._Element | None]],
-        rho_given: float | None,
-    ) -> dict[str, Any]:
-        p = self.problems
-        c = self.content
-        anchor = formation if formation is not None else order[0][0]
-        vehicles: list[rc.VehicleSource] = []
-        names: set[str] = set()
-        for i, (v, count, ref) in enumerate(order):
-            self.usage.use(v)
-            vname = v.get("name") or v.get("id") or f"vehicle {i + 1}"
-            if vname in names or vname == "train":
-                vname = f"{vname} #{i + 1}"
-            names.add(vname)
-            masses = rc.vehicle_mass(
-                self._vfloat(v, "tareWeight", minimum=0),
-                self._vfloat(v, "bruttoWeight", minimum=0),
-                self._vfloat(v, "nettoWeight", minimum=0),
-                v,
-                c,
-                p,
-            )
-            length = self._vfloat(v, "length", required=True, what="vehicle length [m]", positive=True)
-            if masses is None or length is None:
-                continue
-            src = rc.VehicleSource(vname, count, masses[0], masses[1], length, ref if ref is not None else v)
-            src.max_speed_kmh = self._vfloat(v, "speed", positive=True)
-            driven = self._vfloat(v, "numberDrivenAxles", minimum=0)
-            carrying = self._vfloat(v, "numberNonDrivenAxles", minimum=0)
-            if driven is not None or carrying is not None:
-                src.axles = int((driven or 0) + (carrying or 0)) or None
-            engine = child(v, "engine")
-            propulsion = child(engine, "propulsion")
-            wagon = child(v, "wagon")
-            for holder in (propulsion, wagon):
-                if holder is not None and holder.get("rotationMassFactor") is not None:
-                    src.rotating_mass_factor = attr_float(holder, "rotationMassFactor", p, minimum=1.0)
-                    break
-                if holder is not None and holder.get("additionalRotationMass") is not None:
-                    extra = attr_float(holder, "additionalRotationMass", p, minimum=0)
-                    if extra is not None and src.mass_t > 0:
-                        src.rotating_mass_factor = 1.0 + extra / src.mass_t
-                    break
-            if wagon is not None:
-                self.usage.use(wagon)
-                src.auxiliary_w = attr_float(wagon, "auxiliaryPowerConsumption", p, minimum=0) or 0.0
-            if propulsion is not None:
-                self.usage.use(engine)
-                self.usage.use(propulsion)
-                for other in children(engine, "propulsion")[1:]:
-                    self.usage.skip(other, "only the first propulsion of a vehicle is read")
-                src.powered = True
-                src.propulsion = propulsion
-                src.max_effort_n = attr_float(propulsion, "maxTractEffort", p, positive=True)
-                src.power_w = attr_float(propulsion, "power", p, positive=True)
-                src.max_brake_power_w = attr_float(propulsion, "maxBrakePower", p, positive=True)
-                te = child(propulsion, "tractiveEffort")
-                self.usage.use(te)
-                vt = child(te, "valueTable")
-                if vt is not None:
-                    src.traction = rc.read_value_table(vt, p, y_dimensions=("force",), usage=self.usage)
-                be = child(propulsion, "brakeEffort")
-                self.usage.use(be)
-                vt = child(be, "valueTable")
-                if vt is not None:
-                    src.regenerative = rc.read_value_table(vt, p, y_dimensions=("force",), usage=self.usage)
-            for vt in descendants(v, "valueTable"):
-                if local(vt.getparent()) == "decelerationTable":
-                    self.usage.use(vt.getparent())
-                    src.deceleration = rc.read_value_table(
-                        vt, p, y_dimensions=("acceleration",), usage=self.usage
-                    )
-                    break
-            vehicles.append(src)
-        p.raise_if_any()
-        form = rc.FormationSource(name, anchor, vehicles, rotating_mass_factor=rho_given)
-        if formation is not None:
-            form.max_speed_kmh = attr_float(formation, "speed", p, positive=True)
-            self._formation_data(formation, form)
-        self._electrical(form)
-        p.raise_if_any()
-        train = rc.train_mapping(form, c, p)
-        p.raise_if_any()
-        return train
-
-    def _formation_data(self, formation: etree._Element, form: rc.FormationSource) -> None:
+    def formation_data(self, formation: etree._Element, form: rc.FormationSource) -> None:
         """Braking and running resistance of a railML 2 formation."""
-        p = self.problems
+        p = self.r.problems
         for op in children(formation, "trainBrakeOperation") + children(formation, "trainBrakes"):
-            self.usage.use(op)
+            self.r.usage.use(op)
             vt = child(child(op, "decelerationTable"), "valueTable")
             if vt is not None and form.deceleration_table is None:
-                self.usage.use(vt.getparent())
-                table = rc.read_value_table(vt, p, y_dimensions=("acceleration", "force"), usage=self.usage)
+                self.r.usage.use(vt.getparent())
+                table = rc.read_value_table(vt, p, y_dimensions=("acceleration", "force"), usage=self.r.usage)
                 kind = rc.ext(op, "tableIs") or "service"
                 if kind not in ("service", "full"):
                     p.add(
@@ -770,7 +583,7 @@ class _Reader:
         tr = child(formation, "trainResistance")
         if tr is None:
             return
-        self.usage.use(tr)
+        self.r.usage.use(tr)
         if tr.get("tunnelFactor") is not None:
             form.notes.append(
                 f"{label(tr)}: tunnelFactor not used (the tunnel resistance is the route's formula)"
@@ -791,11 +604,11 @@ class _Reader:
             vt = child(tr, "valueTable")
             if vt is not None:
                 form.resistance_table = rc.read_value_table(
-                    vt, p, y_dimensions=("force", "ratio"), usage=self.usage
+                    vt, p, y_dimensions=("force", "ratio"), usage=self.r.usage
                 )
 
-    def _electrical(self, form: rc.FormationSource) -> None:
-        p = self.problems
+    def electrical(self, form: rc.FormationSource) -> None:
+        p = self.r.problems
         prop = rc.powered_propulsion(form)
         if prop is None:
             return
@@ -809,6 +622,21 @@ class _Reader:
             out["regenerative_efficiency"] = regen
         rc.extension_numbers(prop, out, (("power_factor", "powerFactor"), ("receptivity", "receptivity")))
         form.electrical = out
+
+
+
+
+class _Tracks(Topology):
+    """railML 2 tracks; operational points placed by ``crossSection@ocpRef``."""
+
+    def __init__(
+        self, net: rc.Network, origins: dict[str, float], locations: dict[str, list[tuple[str, float]]]
+    ) -> None:
+        super().__init__(net, origins)
+        self.locations = locations
+
+    def locate(self, point: etree._Element, ref: str) -> list[tuple[str, float]]:
+        return self.locations.get(ref, [])
 
 
 def read_railml2(
@@ -838,23 +666,8 @@ def read_railml2(
     Raises:
         InputError naming the element and its line for every problem found.
     """
-    tree = tree if tree is not None else rc.parse_xml(path)
-    if detect(tree.getroot()) is None:
-        raise InputError("not a railML 2 file (root element 'railml' with version 2.x)", file=str(path))
-    reader = _Reader(path, tree)
-    content = reader.content
-    route, formation_ref = reader.route(
-        train_id=train_id,
-        ocps=ocps,
-        line_resistance=line_resistance,
-        require_line_resistance=require_line_resistance,
-    )
-    content.route = route
-    content.train = reader.train(formation_id or formation_ref, rotating_mass_factor)
-    reader.problems.raise_if_any()
-    content.ignored = reader.usage.ignored(reader.root)
-    content.figures["railML version"] = reader.version
-    return content
+    options = {k: v for k, v in locals().items() if k != "path"}
+    return read_railml(path, Railml2, **options)
 
 
 def load_train_railml2(path: str | Path, **options: Any) -> Train:

@@ -80,6 +80,7 @@ from trainsim.io.railml_common import (
     label,
     local,
 )
+from trainsim.io.railml_reader import Dialect, Entry, Topology, read_railml
 from trainsim.model import Route, Train
 
 __all__ = ["NAMESPACES", "detect", "read_railml3", "write_railml3"]
@@ -103,44 +104,59 @@ def detect(root: etree._Element) -> str | None:
     return version if version.startswith("3") else None
 
 
-class _Reader:
-    def __init__(self, path: str | Path, tree: etree._ElementTree) -> None:
-        self.file = str(path)
-        self.root = tree.getroot()
-        self.problems = Problems(self.file)
-        self.usage = Usage()
-        self.usage.use(self.root)
-        self.version = detect(self.root) or "3.x"
-        self.content = Content(format=f"railML {self.version}", file=self.file)
-        if self.version not in SUPPORTED:
-            self.content.notes.append(f"railML version {self.version}: read as railML 3.2")
-        self.ids = rc.index_ids(self.root, self.problems)
-        self.problems.raise_if_any()
-        self.infra = child(self.root, "infrastructure")
-        self.rollingstock = child(self.root, "rollingstock")
-        self.timetable = child(self.root, "timetable")
-        self.common = child(self.root, "common")
-        for el in (self.infra, self.rollingstock, self.timetable, self.common):
-            self.usage.use(el)
-        meta = child(self.root, "metadata")
-        if meta is not None:
-            self.usage.use(meta, deep=True)
+class Railml3(Dialect):
+    """What railML 3 names and places its own way (the rest of the reading:
+    :mod:`trainsim.io.railml_reader`)."""
+
+    family = "railML 3"
+    root_tag = "railML"
+    fallback_version = "3.x"
+    read_as = "3.2"
+    supported = SUPPORTED
+    sections = ("infrastructure", "rollingstock", "timetable", "common")
+    edge_figure = "netElements"
+    points_word = "operational points"
+    unplaced_point = "operational point '{ref}' has no position on a netElement (spotLocation)"
+    stop_at_ends = False
+    vehicle_family = None
+    axles = ("numberOfDrivenAxles", "numberOfNonDrivenAxles")
+    stock_in_containers = False
+    no_formation_note = "no formation: no train read"
+    unknown_vehicle = "reference to an unknown vehicle"
+    empty_formation = "the formation lists no vehicle (trainOrder)"
+    merge_repeats = True
+    order_entries = True
+
+    detect = staticmethod(detect)
+
+    def name(self, el: etree._Element | None, use: bool = False) -> str:
+        return _name(el, self.r.usage if use else None)
 
     # ------------------------------------------------------------------ topology
+    def topology(self) -> Topology:
+        net, origins, measures = self.network()
+        return NetElements(self, net, origins, measures)
+
+    def points(self) -> dict[str | None, etree._Element]:
+        points = {op.get("id"): op for op in descendants(self.r.infra, "operationalPoint")}
+        for op in points.values():
+            self.use_containers(op)
+        return points
+
     def lps_units(self) -> dict[str, float]:
         """Linear positioning systems: id -> metres per unit."""
         if hasattr(self, "_units"):
             return self._units
         out: dict[str, float] = {}
         self._units = out
-        for lps in descendants(self.common, "linearPositioningSystem"):
-            self.usage.use(lps, deep=True)
-            self.usage.use(lps.getparent())
-            self.usage.use(lps.getparent().getparent())
+        for lps in descendants(self.r.common, "linearPositioningSystem"):
+            self.r.usage.use(lps, deep=True)
+            self.r.usage.use(lps.getparent())
+            self.r.usage.use(lps.getparent().getparent())
             unit = lps.get("units") or "m"
             factor = {"m": 1.0, "km": 1000.0}.get(unit.strip())
             if factor is None:
-                self.problems.add(
+                self.r.problems.add(
                     lps, f"unknown unit '{unit}'", attribute="units", value=unit, allowed="m, km"
                 )
                 continue
@@ -150,25 +166,25 @@ class _Reader:
     def network(self) -> tuple[rc.Network, dict[str, float], dict[str, tuple[float, str]]]:
         """netElements as edges, netRelations as ports; edge -> mileage origin [m]; edge -> (begin
         measure [m], positioning system id) for linear coordinates."""
-        p = self.problems
+        p = self.r.problems
         net = rc.Network()
         units = self.lps_units()
         p.raise_if_any()  # positions in an unknown unit: nothing else can be placed
         origins: dict[str, float] = {}
         measures: dict[str, tuple[float, str]] = {}
-        topology = child(self.infra, "topology")
-        self.usage.use(topology)
+        topology = child(self.r.infra, "topology")
+        self.r.usage.use(topology)
         container = child(topology, "netElements")
-        self.usage.use(container)
+        self.r.usage.use(container)
         for ne in children(container, "netElement"):
             nid = ne.get("id")
             if (
                 child(ne, "elementCollectionOrdered") is not None
                 or child(ne, "elementCollectionUnordered") is not None
             ):
-                self.usage.skip(ne, "aggregates other netElements (not a track of the path)")
+                self.r.usage.skip(ne, "aggregates other netElements (not a track of the path)")
                 continue
-            self.usage.use(ne, deep=True)
+            self.r.usage.use(ne, deep=True)
             coords: dict[float, tuple[float, str]] = {}
             for ic in descendants(ne, "intrinsicCoordinate"):
                 x = rc.num(ic.get("intrinsicCoord"))
@@ -196,9 +212,9 @@ class _Reader:
                 if 1.0 not in coords or coords[1.0][0] >= coords[0.0][0]:
                     origins[nid or ""] = coords[0.0][0]
         relations = child(topology, "netRelations")
-        self.usage.use(relations)
+        self.r.usage.use(relations)
         for nr in children(relations, "netRelation"):
-            self.usage.use(nr, deep=True)
+            self.r.usage.use(nr, deep=True)
             a_el, b_el = child(nr, "elementA"), child(nr, "elementB")
             a, b = (
                 (a_el.get("ref") if a_el is not None else None),
@@ -245,13 +261,13 @@ class _Reader:
         units: dict[str, float],
     ) -> list[tuple[str, float, float, tuple[int, ...]]]:
         """Extents ``(edge, a, b, directions)`` of an element's linear locations."""
-        p = self.problems
+        p = self.r.problems
         out = []
         locations = children(holder, "linearLocation")
         if not locations:
             p.add(holder, "no linearLocation: where is it?")
         for ll in locations:
-            self.usage.use(ll, deep=True)
+            self.r.usage.use(ll, deep=True)
             dirs = _DIRECTIONS.get(ll.get("applicationDirection"), (1, -1))
             for ane in children(ll, "associatedNetElement"):
                 edge = ane.get("netElementRef") or ""
@@ -304,23 +320,23 @@ class _Reader:
     ) -> float | None:
         if lc is None:
             return None
-        measure = attr_float(lc, "measure", self.problems)
+        measure = attr_float(lc, "measure", self.r.problems)
         ref = lc.get("positioningSystemRef") or ""
         if measure is None or edge not in measures or ref != measures[edge][1] or ref not in units:
             return None
         return measure * units[ref] - measures[edge][0]
 
-    def _spot(
+    def spot(
         self,
         holder: etree._Element,
         net: rc.Network,
         measures: dict[str, tuple[float, str]],
         units: dict[str, float],
     ) -> list[tuple[str, float]]:
-        p = self.problems
+        p = self.r.problems
         out = []
         for sl in children(holder, "spotLocation"):
-            self.usage.use(sl, deep=True)
+            self.r.usage.use(sl, deep=True)
             edge = sl.get("netElementRef") or ""
             if edge not in net.extent:
                 p.add(sl, "unknown netElement", attribute="netElementRef", value=edge)
@@ -342,8 +358,16 @@ class _Reader:
         return out
 
     # ------------------------------------------------------------------ line data
-    def line_data(self, net: rc.Network, measures: dict[str, tuple[float, str]]) -> dict[str, list[Span]]:
-        p = self.problems
+
+    # ------------------------------------------------------------------ line data
+    def line_data(self, topology: Topology) -> dict[str, list[Any]]:
+        assert isinstance(topology, NetElements)
+        data: dict[str, list[Any]] = dict(self._line_data(topology.net, topology.measures))
+        data["speed_changes"] = []
+        return data
+
+    def _line_data(self, net: rc.Network, measures: dict[str, tuple[float, str]]) -> dict[str, list[Span]]:
+        p = self.r.problems
         units = self.lps_units()
         data: dict[str, list[Span]] = {
             "speed": [],
@@ -352,59 +376,59 @@ class _Reader:
             "tunnel": [],
             "electrification": [],
         }
-        fi = self.infra
+        fi = self.r.infra
 
         def spans(el: etree._Element, value: Any, kind: str) -> None:
             for edge, a, b, dirs in self._linear(el, net, measures, units):
                 data[kind].append(Span(edge, a, b, value, el, dirs))
 
         for sec in descendants(fi, "speedSection"):
-            self._use_containers(sec)
+            self.use_containers(sec)
             if any("rofile" in a for a in sec.attrib) or any("rofile" in local(c) for c in sec):
-                self.usage.skip(sec, "speed for a speed profile, not the line speed")
+                self.r.usage.skip(sec, "speed for a speed profile, not the line speed")
                 continue
-            self.usage.use(sec, deep=True)
+            self.r.usage.use(sec, deep=True)
             v = attr_float(sec, "maxSpeed", p, required=True, what="maximum speed [km/h]", positive=True)
             if v is not None:
                 spans(sec, v, "speed")
         for gc in descendants(fi, "gradientCurve"):
-            self._use_containers(gc)
-            self.usage.use(gc, deep=True)
+            self.use_containers(gc)
+            self.r.usage.use(gc, deep=True)
             g = attr_float(gc, "gradient", p)
             dg = attr_float(gc, "deltaGradient", p)
             if g is None and dg is None:
                 p.add(gc, "missing gradient [per mille]", attribute="gradient")
                 continue
             if dg is not None:
-                self.content.notes.append(
+                self.r.content.notes.append(
                     f"{label(gc)} (line {gc.sourceline}): a changing gradient, its mean over the curve is "
                     "used"
                 )
                 g = (g or 0.0) + dg / 2.0 if g is not None else dg / 2.0
             spans(gc, g, "gradient")
         for hc in descendants(fi, "horizontalCurve"):
-            self._use_containers(hc)
+            self.use_containers(hc)
             r = attr_float(hc, "radius", p)
             if r is None:
-                self.usage.skip(hc, f"no radius (curveType {hc.get('curveType')})")
+                self.r.usage.skip(hc, f"no radius (curveType {hc.get('curveType')})")
                 continue
-            self.usage.use(hc, deep=True)
+            self.r.usage.use(hc, deep=True)
             spans(hc, abs(r), "radius")
         for oc in descendants(fi, "overCrossing"):
-            self._use_containers(oc)
+            self.use_containers(oc)
             kind = oc.get("constructionType") or oc.get("type") or ""
             if kind != "tunnel":
-                self.usage.skip(oc, f"not a tunnel ({kind or 'no constructionType'})")
+                self.r.usage.skip(oc, f"not a tunnel ({kind or 'no constructionType'})")
                 continue
-            self.usage.use(oc, deep=True)
+            self.r.usage.use(oc, deep=True)
             spans(oc, (rc.ext(oc, "limitingGradient") or "false").lower() == "true", "tunnel")
         systems = {s.get("id"): s for s in descendants(fi, "electrificationSystem")}
         for s in systems.values():
-            self._use_containers(s)
-            self.usage.use(s, deep=True)
+            self.use_containers(s)
+            self.r.usage.use(s, deep=True)
         for es in descendants(fi, "electrificationSection"):
-            self._use_containers(es)
-            self.usage.use(es, deep=True)
+            self.use_containers(es)
+            self.r.usage.use(es, deep=True)
             holder = es
             ref = child(es, "electrificationSystemRef")
             if ref is not None:
@@ -425,13 +449,58 @@ class _Reader:
             spans(es, voltage, "electrification")
         return data
 
-    def _use_containers(self, el: etree._Element) -> None:
+    def use_containers(self, el: etree._Element) -> None:
         parent = el.getparent()
-        while parent is not None and parent is not self.infra:
-            self.usage.use(parent)
+        while parent is not None and parent is not self.r.infra:
+            self.r.usage.use(parent)
             parent = parent.getparent()
 
     # ------------------------------------------------------------------ timetable
+
+    # ------------------------------------------------------------------ timetable
+    def timetable_path(
+        self, train_id: str | None, points: dict[str | None, etree._Element]
+    ) -> tuple[list[Entry], etree._Element | None, None, str] | None:
+        p = self.r.problems
+        entries: list[Entry] = []
+        base, formation, tname = self.itinerary(train_id)
+        if base is None:
+            return None
+        self.r.usage.use(base)
+        for c in base.iterancestors():
+            self.r.usage.use(c)
+        bips = children(base, "baseItineraryPoint")
+        bips.sort(key=lambda b: rc.sort_number(b.get("sequence")))
+        for k, bip in enumerate(bips):
+            self.r.usage.use(bip)
+            ref = bip.get("locationRef")
+            if ref not in points:
+                p.add(
+                    bip, "locationRef to an unknown operationalPoint", attribute="locationRef", value=ref
+                )
+                continue
+            arr, dep = self._times(bip)
+            dwell = rc.parse_duration(rc.ext(bip, "dwell"))
+            stop_attr = rc.ext(bip, "stop")
+            if dwell is None:
+                dwell = (
+                    (dep - arr + (86400.0 if dep < arr else 0.0))
+                    if arr is not None and dep is not None
+                    else 0.0
+                )
+            if stop_attr is not None:
+                stop = stop_attr.lower() == "true"
+            else:
+                stop = (
+                    k in (0, len(bips) - 1)
+                    or (arr is not None and dep is not None)
+                    or child(bip, "stopActivities") is not None
+                )
+            entries.append((ref, dwell if stop else 0.0, stop, bip))
+            for c in bip:
+                self.r.usage.use(c, deep=True)
+        return entries, formation, None, tname
+
     def _follow(self, start: etree._Element, want: str, limit: int = 50) -> etree._Element | None:
         """The first element named ``want`` reached from ``start`` through reference attributes."""
         seen = set()
@@ -441,27 +510,27 @@ class _Reader:
             if id(el) in seen:
                 continue
             seen.add(id(el))
-            self.usage.use(el, deep=True)
+            self.r.usage.use(el, deep=True)
             if local(el) == want:
                 return el
             for d in el.iter():
                 if d is not el and local(d) == want:
                     return d
                 for k, v in d.attrib.items():
-                    if (k.endswith("Ref") or k == "ref") and v in self.ids:
-                        queue.append(self.ids[v])
+                    if (k.endswith("Ref") or k == "ref") and v in self.r.ids:
+                        queue.append(self.r.ids[v])
         return None
 
     def itinerary(self, train_id: str | None) -> tuple[etree._Element | None, etree._Element | None, str]:
         """The base itinerary of the chosen train (by id or name; default: the first operational or
         commercial train, else the first base itinerary), its formation if referenced, its name."""
-        tt = self.timetable
+        tt = self.r.timetable
         if tt is None:
             return None, None, ""
         bases = descendants(tt, "baseItinerary")
         start = None
         if train_id is not None:
-            start = self.ids.get(train_id)
+            start = self.r.ids.get(train_id)
             if start is None:
                 named = [e for e in tt.iter() if local(e) and _name(e) == train_id]
                 start = named[0] if named else None
@@ -471,7 +540,7 @@ class _Reader:
                 ]
                 raise InputError(
                     "no element of that id or name in the timetable",
-                    file=self.file,
+                    file=self.r.file,
                     field="train_id",
                     value=train_id,
                     allowed=", ".join(str(x) for x in [*trains, *(b.get("id") for b in bases)]),
@@ -481,26 +550,26 @@ class _Reader:
             if trains:
                 start = trains[0]
                 if len(trains) > 1:
-                    self.content.notes.append(
+                    self.r.content.notes.append(
                         f"{len(trains)} trains in the timetable: the first, {label(start)}, is read "
                         "(choose with --train-id)"
                     )
                 for other in trains[1:]:
-                    self.usage.skip(other, "another train")
+                    self.r.usage.skip(other, "another train")
         if start is not None:
             base = self._follow(start, "baseItinerary")
             if base is None:
-                raise self.problems.error(
+                raise self.r.problems.error(
                     start, "no baseItinerary reached from this element through its references"
                 )
             formation = self._follow(start, "formation")
-            name = _name(start, self.usage) or start.get("id") or ""
-            self.usage.use(start, deep=True)
+            name = _name(start, self.r.usage) or start.get("id") or ""
+            self.r.usage.use(start, deep=True)
         elif bases:
             base, formation = bases[0], None
             name = base.get("id") or ""
             if len(bases) > 1:
-                self.content.notes.append(
+                self.r.content.notes.append(
                     f"{len(bases)} base itineraries: the first, {label(base)}, is the route "
                     "(choose with --train-id)"
                 )
@@ -508,7 +577,7 @@ class _Reader:
             return None, None, ""
         for other in bases:
             if other is not base:
-                self.usage.skip(other, "another train's path")
+                self.r.usage.skip(other, "another train's path")
         return base, formation, name
 
     def _times(self, point: etree._Element) -> tuple[float | None, float | None]:
@@ -516,7 +585,7 @@ class _Reader:
         order = {"operational": 0, "scheduled": 1, "commercial": 2}
         sets.sort(key=lambda t: order.get(t.get("scope") or "", 3))
         for t in sets:
-            self.usage.use(t, deep=True)
+            self.r.usage.use(t, deep=True)
         if not sets:
             return None, None
         t = sets[0]
@@ -526,250 +595,46 @@ class _Reader:
             text = el.get("time") if el is not None else t.get(which)
             holder = el if el is not None else t
             days = rc.attr_int(
-                holder, "dayOffset" if el is not None else f"{which}Day", self.problems, high=366
+                holder, "dayOffset" if el is not None else f"{which}Day", self.r.problems, high=366
             )
             value = rc.parse_clock(text, days) if text is not None else None
             if text is not None and value is None:
-                self.problems.add(el if el is not None else t, "not a time hh:mm:ss", value=text)
+                self.r.problems.add(el if el is not None else t, "not a time hh:mm:ss", value=text)
             out.append(value)
         return out[0], out[1]
 
     # ------------------------------------------------------------------ route
-    def route(
-        self,
-        *,
-        train_id: str | None,
-        ocps: Sequence[str] | None,
-        line_resistance: dict[str, str] | None,
-        require_line_resistance: bool,
-    ) -> tuple[dict[str, Any] | None, etree._Element | None]:
-        if self.infra is None:
-            return None, None
-        p = self.problems
-        net, origins, measures = self.network()
-        p.raise_if_any()
-        units = self.lps_units()
-        points = {op.get("id"): op for op in descendants(self.infra, "operationalPoint")}
-        by_name: dict[str, list[str]] = {}
-        for oid, op in points.items():
-            self._use_containers(op)
-            by_name.setdefault(_name(op), []).append(oid)
-        formation = None
-        entries: list[tuple[str, float, bool, etree._Element]] = []
-        name = _name(self.infra, self.usage) or Path(self.file).stem
-        if ocps:
-            for given in ocps:
-                ids = [given] if given in points else by_name.get(given, [])
-                if len(ids) != 1:
-                    raise InputError(
-                        "no operational point of that id or name"
-                        if not ids
-                        else "several operational points have that name",
-                        file=self.file,
-                        field="ocps",
-                        value=given,
-                        allowed=", ".join(f"{o} ({_name(points[o])})" for o in points),
-                    )
-                entries.append((ids[0], 0.0, True, points[ids[0]]))
-            self.content.notes.append("route from the operational points given: a stop at each, dwell 0 s")
-        else:
-            base, formation, tname = self.itinerary(train_id)
-            if base is None:
-                self.content.notes.append(
-                    "no route: the file has no timetable; give the operational points of the path (--ocps)"
-                )
-                return None, None
-            self.usage.use(base)
-            for c in base.iterancestors():
-                self.usage.use(c)
-            name = f"{tname} path" if tname else name
-            bips = children(base, "baseItineraryPoint")
-            bips.sort(key=lambda b: rc.sort_number(b.get("sequence")))
-            for k, bip in enumerate(bips):
-                self.usage.use(bip)
-                ref = bip.get("locationRef")
-                if ref not in points:
-                    p.add(
-                        bip, "locationRef to an unknown operationalPoint", attribute="locationRef", value=ref
-                    )
-                    continue
-                arr, dep = self._times(bip)
-                dwell = rc.parse_duration(rc.ext(bip, "dwell"))
-                stop_attr = rc.ext(bip, "stop")
-                if dwell is None:
-                    dwell = (
-                        (dep - arr + (86400.0 if dep < arr else 0.0))
-                        if arr is not None and dep is not None
-                        else 0.0
-                    )
-                if stop_attr is not None:
-                    stop = stop_attr.lower() == "true"
-                else:
-                    stop = (
-                        k in (0, len(bips) - 1)
-                        or (arr is not None and dep is not None)
-                        or child(bip, "stopActivities") is not None
-                    )
-                entries.append((ref, dwell if stop else 0.0, stop, bip))
-                for c in bip:
-                    self.usage.use(c, deep=True)
-        p.raise_if_any()
-        stops: list[rc.Stop] = []
-        for ref, _, _, el in entries:
-            op = points[ref]
-            self.usage.use(op, deep=True)
-            locs = self._spot(op, net, measures, units)
-            if not locs:
-                p.add(el, f"operational point '{ref}' has no position on a netElement (spotLocation)")
-                continue
-            stops.append(rc.Stop(_name(op, self.usage) or ref, tuple(locs), el))
-        p.raise_if_any()
-        path = rc.route_path(net, stops, p, origins.get)
-        p.raise_if_any()
-        assert path is not None
-        stations = rc.stations_on_path(path, entries, stops, p)
-        self.content.station_elements = [st.element for st in stations]
-        data = self.line_data(net, measures)
-        p.raise_if_any()
-        speed_spans = path.spans(data["speed"])
-        rc.check_overlaps(speed_spans, "speed section", p)
-        grad_spans = path.spans(data["gradient"], down=lambda g: -g)
-        rc.check_overlaps(grad_spans, "gradient curve", p)
-        elec_spans = path.spans(data["electrification"])
-        rc.check_overlaps(elec_spans, "electrification section", p)
-        p.raise_if_any()
-        lr = rc.line_resistance_choice(
-            self.infra, line_resistance, self.content, required=require_line_resistance
-        )
-        route = rc.route_mapping(
-            self.content,
-            p,
-            name=name,
-            path=path,
-            stations=stations,
-            speed=rc.events_from_spans(speed_spans),
-            gradients=rc.events_from_spans(grad_spans),
-            electrification=rc.events_from_spans(elec_spans),
-            curves=path.spans(data["radius"]),
-            tunnels=path.spans(data["tunnel"]),
-            line_resistance=lr,
-            anchor=self.infra,
-        )
-        p.raise_if_any()
-        self.content.figures.update(
-            {
-                "netElements": str(len(net.extent)),
-                "operational points": str(len(points)),
-                "route path": " -> ".join(f"{leg.edge} ({leg.start:g}..{leg.end:g} m)" for leg in path.legs),
-            }
-        )
-        return route, formation
 
     # ------------------------------------------------------------------ rolling stock
-    def train(
-        self, formation: etree._Element | None, formation_id: str | None, rho: float | None
-    ) -> dict[str, Any] | None:
-        rs = self.rollingstock
-        if rs is None:
-            return None
-        p = self.problems
-        c = self.content
-        vehicles = {v.get("id"): v for v in descendants(rs, "vehicle")}
-        formations = {f.get("id"): f for f in descendants(rs, "formation")}
-        for el in (child(rs, "vehicles"), child(rs, "formations")):
-            self.usage.use(el)
-        if formation_id is not None:
-            formation = rc.formation_by_id(formations, formation_id, self.file)
-        elif formation is None and formations:
-            formation = next(iter(formations.values()))
-            if len(formations) > 1:
-                c.notes.append(
-                    f"{len(formations)} formations: the first, {label(formation)}, is read "
-                    "(choose with --formation-id)"
-                )
-        if formation is None:
-            if len(vehicles) != 1:
-                c.notes.append("no formation: no train read")
-                return None
-            v = next(iter(vehicles.values()))
-            order = [(v, 1, v)]
-            name = _name(v, self.usage) or v.get("id") or "train"
-        else:
-            self.usage.use(formation)
-            name = _name(formation, self.usage) or formation.get("id") or "train"
-            refs = children(child(formation, "trainOrder"), "vehicleRef") or children(formation, "trainOrder")
-            self.usage.use(child(formation, "trainOrder"))
-            order = rc.vehicle_order(
-                refs, vehicles, self.usage, p, unknown="reference to an unknown vehicle", merge_repeats=True
-            )
-            if not order:
-                p.add(formation, "the formation lists no vehicle (trainOrder)")
-        p.raise_if_any()
-        sources: list[rc.VehicleSource] = []
-        names: set[str] = set()
-        for i, (v, count, ref) in enumerate(order):
-            self.usage.use(v)
-            vname = _name(v, self.usage) or v.get("id") or f"vehicle {i + 1}"
-            if vname in names or vname == "train":
-                vname = f"{vname} #{i + 1}"
-            names.add(vname)
-            masses = rc.vehicle_mass(
-                attr_float(v, "tareWeight", p, minimum=0),
-                attr_float(v, "bruttoWeight", p, minimum=0),
-                attr_float(v, "nettoWeight", p, minimum=0),
-                v,
-                c,
-                p,
-            )
-            length = attr_float(v, "length", p, required=True, what="vehicle length [m]", positive=True)
-            if masses is None or length is None:
-                continue
-            src = rc.VehicleSource(vname, count, masses[0], masses[1], length, ref)
-            src.max_speed_kmh = attr_float(v, "speed", p, positive=True)
-            axles = [
-                attr_float(v, a, p, minimum=0) for a in ("numberOfDrivenAxles", "numberOfNonDrivenAxles")
-            ]
-            if any(a is not None for a in axles):
-                src.axles = int(sum(a or 0 for a in axles)) or None
-            src.rotating_mass_factor = attr_float(v, "rotatingMassFactor", p, minimum=1.0)
-            src.auxiliary_w = rc.num(rc.ext(v, "auxiliaryPower")) or 0.0
-            engine = child(v, "engine")
-            if engine is not None:
-                self.usage.use(engine, deep=True)
-                src.powered = True
-                src.propulsion = engine
-                src.max_effort_n = _attr_below(engine, "maxTractiveEffort", p)
-                src.power_w = _attr_below(engine, "tractivePower", p)
-                src.max_brake_power_w = _attr_below(engine, "maxBrakePower", p)
-                vt = _table_below(engine, "tractiveEffort")
-                if vt is not None:
-                    src.traction = rc.read_value_table(vt, p, y_dimensions=("force",), usage=self.usage)
-                vt = _table_below(engine, "brakeEffort")
-                if vt is not None:
-                    src.regenerative = rc.read_value_table(vt, p, y_dimensions=("force",), usage=self.usage)
-            vt = _table_below(child(v, "brakes"), "decelerationTable")
+    def vehicle_equipment(self, v: etree._Element, src: rc.VehicleSource) -> None:
+        p = self.r.problems
+        src.rotating_mass_factor = attr_float(v, "rotatingMassFactor", p, minimum=1.0)
+        src.auxiliary_w = rc.num(rc.ext(v, "auxiliaryPower")) or 0.0
+        engine = child(v, "engine")
+        if engine is not None:
+            self.r.usage.use(engine, deep=True)
+            src.powered = True
+            src.propulsion = engine
+            src.max_effort_n = _attr_below(engine, "maxTractiveEffort", p)
+            src.power_w = _attr_below(engine, "tractivePower", p)
+            src.max_brake_power_w = _attr_below(engine, "maxBrakePower", p)
+            vt = _table_below(engine, "tractiveEffort")
             if vt is not None:
-                self.usage.use(child(v, "brakes"), deep=True)
-                src.deceleration = rc.read_value_table(
-                    vt, p, y_dimensions=("acceleration",), usage=self.usage
-                )
-            sources.append(src)
-        p.raise_if_any()
-        anchor = formation if formation is not None else order[0][0]
-        form = rc.FormationSource(name, anchor, sources, rotating_mass_factor=rho)
-        if formation is not None:
-            form.max_speed_kmh = attr_float(formation, "speed", p, positive=True)
-            self._formation_data(formation, form)
-        self._electrical(form)
-        p.raise_if_any()
-        train = rc.train_mapping(form, c, p)
-        p.raise_if_any()
-        return train
+                src.traction = rc.read_value_table(vt, p, y_dimensions=("force",), usage=self.r.usage)
+            vt = _table_below(engine, "brakeEffort")
+            if vt is not None:
+                src.regenerative = rc.read_value_table(vt, p, y_dimensions=("force",), usage=self.r.usage)
+        vt = _table_below(child(v, "brakes"), "decelerationTable")
+        if vt is not None:
+            self.r.usage.use(child(v, "brakes"), deep=True)
+            src.deceleration = rc.read_value_table(
+                vt, p, y_dimensions=("acceleration",), usage=self.r.usage
+            )
 
-    def _formation_data(self, formation: etree._Element, form: rc.FormationSource) -> None:
-        p = self.problems
+    def formation_data(self, formation: etree._Element, form: rc.FormationSource) -> None:
+        p = self.r.problems
         for tb in children(formation, "trainBrakes"):
-            self.usage.use(tb, deep=True)
+            self.r.usage.use(tb, deep=True)
             mean = attr_float(tb, "meanDeceleration", p, positive=True)
             if mean is not None and form.mean_deceleration is None:
                 form.mean_deceleration = (mean, tb)
@@ -783,7 +648,7 @@ class _Reader:
         )
         if tr is None:
             return
-        self.usage.use(tr, deep=True)
+        self.r.usage.use(tr, deep=True)
         if tr.get("tunnelFactor") is not None:
             form.notes.append(
                 f"{label(tr)}: tunnelFactor not used (the tunnel resistance is the route's formula)"
@@ -801,11 +666,11 @@ class _Reader:
         vt = next(iter(descendants(tr, "valueTable")), None)
         if vt is not None:
             form.resistance_table = rc.read_value_table(
-                vt, p, y_dimensions=("force", "ratio"), usage=self.usage
+                vt, p, y_dimensions=("force", "ratio"), usage=self.r.usage
             )
 
-    def _electrical(self, form: rc.FormationSource) -> None:
-        p = self.problems
+    def electrical(self, form: rc.FormationSource) -> None:
+        p = self.r.problems
         engine = rc.powered_propulsion(form)
         if engine is None:
             return
@@ -821,6 +686,26 @@ class _Reader:
         )
         rc.extension_numbers(engine, out, pairs)
         form.electrical = out
+
+
+
+
+class NetElements(Topology):
+    """railML 3 netElements; operational points placed by their ``spotLocation``."""
+
+    def __init__(
+        self,
+        dialect: Railml3,
+        net: rc.Network,
+        origins: dict[str, float],
+        measures: dict[str, tuple[float, str]],
+    ) -> None:
+        super().__init__(net, origins)
+        self.dialect = dialect
+        self.measures = measures  #: edge -> (begin measure [m], positioning system id)
+
+    def locate(self, point: etree._Element, ref: str) -> list[tuple[str, float]]:
+        return self.dialect.spot(point, self.net, self.measures, self.dialect.lps_units())
 
 
 def _name(el: etree._Element | None, usage: Usage | None = None) -> str:
@@ -850,6 +735,7 @@ def _table_below(el: etree._Element | None, container: str) -> etree._Element | 
     return None
 
 
+
 def read_railml3(
     path: str | Path,
     *,
@@ -863,23 +749,8 @@ def read_railml3(
 ) -> Content:
     """Read a railML 3 file: its train (formation) and route, as trainsim YAML mappings. The
     options are those of :func:`trainsim.io.railml2.read_railml2`."""
-    tree = tree if tree is not None else rc.parse_xml(path)
-    if detect(tree.getroot()) is None:
-        raise InputError("not a railML 3 file (root element 'railML' with version 3.x)", file=str(path))
-    reader = _Reader(path, tree)
-    content = reader.content
-    route, formation = reader.route(
-        train_id=train_id,
-        ocps=ocps,
-        line_resistance=line_resistance,
-        require_line_resistance=require_line_resistance,
-    )
-    content.route = route
-    content.train = reader.train(formation, formation_id, rotating_mass_factor)
-    reader.problems.raise_if_any()
-    content.ignored = reader.usage.ignored(reader.root)
-    content.figures["railML version"] = reader.version
-    return content
+    options = {k: v for k, v in locals().items() if k != "path"}
+    return read_railml(path, Railml3, **options)
 
 
 def load_train_railml3(path: str | Path, **options: Any) -> Train:
