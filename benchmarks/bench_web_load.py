@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import json
 import os
 import socket
@@ -116,20 +117,62 @@ def pct(values: list[float], q: int) -> float:
     return statistics.quantiles(values, n=100, method="inclusive")[q - 1]
 
 
+class RawHttp:
+    """A minimal HTTP/1.1 keep-alive client on one connection (a browser's tab): the client shares the
+    2 cores with the server, and httpx costs several times the server's own CPU per request, which
+    would measure the client more than the server. Enough for JSON requests and answers with a
+    Content-Length (what the API sends)."""
+
+    def __init__(self, port: int) -> None:
+        self.port = port
+        self.session: str | None = None
+        self._reader: asyncio.StreamReader | None = None
+        self._writer: asyncio.StreamWriter | None = None
+
+    async def request(self, method: str, path: str, body: object | None = None) -> tuple[int, bytes]:
+        if self._writer is None:
+            self._reader, self._writer = await asyncio.open_connection("127.0.0.1", self.port)
+        assert self._reader is not None
+        data = json.dumps(body).encode() if body is not None else b""
+        head = f"{method} {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: {len(data)}\r\n"
+        if body is not None:
+            head += "Content-Type: application/json\r\n"
+        if self.session:
+            head += f"X-Trainsim-Session: {self.session}\r\n"
+        self._writer.write(head.encode() + b"\r\n" + data)
+        raw = await self._reader.readuntil(b"\r\n\r\n")
+        lines = raw.decode("latin-1").split("\r\n")
+        status = int(lines[0].split()[1])
+        headers = {}
+        for line in lines[1:]:
+            name, _, value = line.partition(":")
+            headers[name.strip().lower()] = value.strip()
+        answer = await self._reader.readexactly(int(headers.get("content-length", "0")))
+        self.session = headers.get("x-trainsim-session", self.session)
+        return status, answer
+
+    async def close(self) -> None:
+        if self._writer is not None:
+            self._writer.close()
+            with contextlib.suppress(OSError):
+                await self._writer.wait_closed()
+
+
 async def one_client(
     base: str, k: int, runs: int, stop_at: float, lat: dict[str, list[float]], distinct: bool = False
 ) -> int:
     """One browser-like client; returns the number of runs it made. Raises on a wrong answer."""
-    async with httpx.AsyncClient(base_url=base, timeout=60) as c:
+    c = RawHttp(int(base.rsplit(":", 1)[1]))
 
-        async def call(kind: str, method: str, url: str, **kw) -> httpx.Response:
-            t0 = time.perf_counter()
-            r = await c.request(method, url, **kw)
-            lat[kind].append(time.perf_counter() - t0)
-            return r
+    async def call(kind: str, method: str, url: str, body: object | None = None) -> tuple[int, bytes]:
+        t0 = time.perf_counter()
+        out = await c.request(method, url, body)
+        lat[kind].append(time.perf_counter() - t0)
+        return out
 
-        r = await call("other", "POST", "/api/examples/metro_b")
-        assert r.status_code == 200, r.text
+    try:
+        status, answer = await call("other", "POST", "/api/examples/metro_b")
+        assert status == 200, answer[:300]
         done = 0
         for i in range(runs):
             if time.monotonic() > stop_at:
@@ -137,15 +180,17 @@ async def one_client(
             body: dict = {"label": f"client {k} run {i}"}
             if distinct:  # a step no other request uses: computed, not cached
                 body["settings"] = {"max_step_m": round(5.0 + 0.001 * (k * 1000 + i + 1), 4)}
-            r = await call("run", "POST", "/api/runs", json=body)
-            assert r.status_code == 201, r.text
+            status, answer = await call("run", "POST", "/api/runs", body)
+            assert status == 201, answer[:300]
             if not distinct:
-                assert abs(r.json()["summary"]["running_time_s"] - METRO_RUNNING_TIME_S) < 1e-6
+                assert abs(json.loads(answer)["summary"]["running_time_s"] - METRO_RUNNING_TIME_S) < 1e-6
             done += 1
-        r = await call("other", "GET", "/api/runs")
-        labels = {x["label"] for x in r.json()}
+        status, answer = await call("other", "GET", "/api/runs")
+        labels = {x["label"] for x in json.loads(answer)}
         assert labels and all(label.startswith(f"client {k} ") for label in labels), labels
         return done
+    finally:
+        await c.close()
 
 
 async def load(
@@ -154,9 +199,10 @@ async def load(
     """Run the load against ``base``; returns the figures."""
     lat: dict[str, list[float]] = {"run": [], "other": []}
     stop_at = time.monotonic() + max_seconds
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     done = await asyncio.gather(*(one_client(base, k, runs, stop_at, lat, distinct) for k in range(clients)))
     wall = time.perf_counter() - t0
+    client_cpu = time.process_time() - c0
     every = lat["run"] + lat["other"]
     return {
         "clients": clients,
@@ -169,6 +215,8 @@ async def load(
         "run_p95_ms": 1000 * pct(lat["run"], 95),
         "run_max_ms": 1000 * max(lat["run"]),
         "all_p95_ms": 1000 * pct(every, 95),
+        "client_cpu_ms": 1000 * client_cpu / len(every),
+        "load_average": os.getloadavg()[0],
     }
 
 
@@ -236,6 +284,7 @@ def main() -> None:
     parser.add_argument("--drive-seconds", type=float, default=8.0)
     parser.add_argument("--max-seconds", type=float, default=60.0)
     args = parser.parse_args()
+    load_before = os.getloadavg()[0]
     port = free_port()
     proc = start_server(port)
     out: dict[str, dict[str, float]] = {}
@@ -269,6 +318,7 @@ def main() -> None:
             proc.wait(timeout=10)
     b = out["baseline"]
     load_avg = os.getloadavg()[0]
+    print(f"load average before the run {load_before:.1f} (1 min)")
     print(
         f"web load on 127.0.0.1, {os.cpu_count()} cores (load average {load_avg:.1f}), one uvicorn process:"
     )
@@ -282,7 +332,8 @@ def main() -> None:
             f"  {what}: {f['runs']} runs in {f['wall_s']:.2f} s = {f['runs_per_s']:.0f} runs/s "
             f"(x{f['runs_per_s'] / b['runs_per_s']:.2f} of baseline); run p50 {f['run_p50_ms']:.0f} ms, "
             f"p95 {f['run_p95_ms']:.0f} ms (x{f['run_p95_ms'] / b['run_p95_ms']:.1f}), max {f['run_max_ms']:.0f} ms; "
-            f"server CPU {1000 * cpu[name]:.1f} ms per request"
+            f"server CPU {1000 * cpu[name]:.1f} ms, client CPU {f['client_cpu_ms']:.1f} ms per request; "
+            f"load average {f['load_average']:.1f} after"
         )
     d0, d = out["drive_baseline"], out["drive"]
     for key, f, what in (

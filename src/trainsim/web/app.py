@@ -26,7 +26,8 @@ from trainsim.web import api, drive, errors
 from trainsim.web.cache import RunCache
 from trainsim.web.config import WebSettings
 from trainsim.web.drivehost import DriveHosts
-from trainsim.web.sessions import COOKIE_NAME, HEADER_NAME, SessionStore, WebSession
+from trainsim.web.errors import ApiError
+from trainsim.web.sessions import COOKIE_NAME, HEADER_NAME, SessionRateError, SessionStore, WebSession
 from trainsim.web.workers import WorkerPool
 
 STATIC_DIR = Path(__file__).parent / "static"
@@ -268,7 +269,17 @@ def create_app(settings: WebSettings | None = None) -> FastAPI:
         if session is None:
             cookie = request.cookies.get(COOKIE_NAME)
             sid = request.headers.get(HEADER_NAME) or cookie
-            session, _ = store.get_or_create(sid)
+            client = request.client.host if request.client else "unknown"
+            try:
+                session, _ = store.get_or_create(sid, client)
+            except SessionRateError as exc:
+                raise ApiError(
+                    429,
+                    f"{exc}; allowed: {settings.session_burst} new sessions at once and "
+                    f"{settings.sessions_per_minute:g} per minute per client (send the session cookie "
+                    "or X-Trainsim-Session header to keep using yours)",
+                    headers={"Retry-After": f"{exc.retry_after_s:.0f}"},
+                ) from exc
             scope[_SCOPE_KEY] = session
             scope[_SCOPE_KEY + ".cookie"] = cookie
         return session

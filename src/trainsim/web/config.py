@@ -41,6 +41,11 @@ class WebSettings:
         drive_hosts: processes that host the live drives (0: in the server process).
         max_queued_jobs: requests waiting for a worker; past that the answer is 503.
         max_jobs_per_session: requests of one session in the workers at once; past that 429.
+        session_burst: new sessions one client (IP address) may make at once; past that it gets
+            429 with ``Retry-After`` until its allowance refills.
+        sessions_per_minute: rate at which a client's allowance of new sessions refills [1/min].
+        max_rate_clients: clients whose allowance is remembered (the least recently seen is
+            forgotten first; bounds memory under a flood from many addresses).
         allowed_hosts: values the ``Host`` header may have (without the port); other hosts get 400
             (protects against DNS rebinding). ``*`` allows any.
     """
@@ -69,4 +74,7 @@ class WebSettings:
     start_timeout_s: float = 600.0
     max_queued_jobs: int = 64
     max_jobs_per_session: int = 2
+    session_burst: int = 120
+    sessions_per_minute: float = 120.0
+    max_rate_clients: int = 10_000
     allowed_hosts: tuple[str, ...] = ("127.0.0.1", "localhost", "::1", "testserver")

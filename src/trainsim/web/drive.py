@@ -282,9 +282,12 @@ class DriveConnection:
     async def _tick(self, drive: _Drive) -> None:
         tick = self.limits.drive_tick_s
         last = time.monotonic()
+        due = last + tick
         while self.drive is drive:
-            await asyncio.sleep(tick)
+            # ticks on a fixed schedule: the host's answer time is not added to every interval
+            await asyncio.sleep(max(0.0, due - time.monotonic()))
             now = time.monotonic()
+            due = max(due + tick, now + 0.5 * tick)
             # a late tick advances by the wall time it stood for, but by at most two ticks: an
             # overloaded server lets the drive fall behind the wall clock rather than take ever
             # longer steps (which would make it later still)

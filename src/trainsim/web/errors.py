@@ -28,11 +28,18 @@ from trainsim.errors import InputError, Problem, TrainsimError, shown_value
 class ApiError(Exception):
     """An error answer with a status code, a message and optional field-level detail."""
 
-    def __init__(self, status: int, message: str, detail: list[dict[str, Any]] | None = None) -> None:
+    def __init__(
+        self,
+        status: int,
+        message: str,
+        detail: list[dict[str, Any]] | None = None,
+        headers: dict[str, str] | None = None,
+    ) -> None:
         super().__init__(message)
         self.status = status
         self.message = message
         self.detail = detail or []
+        self.headers = headers or {}
 
 
 def parse_field(field: str | None) -> list[str | int]:
@@ -166,13 +173,18 @@ def input_error(exc: InputError, prefix: list[str | int] | None = None, file: st
     return ApiError(422, message, input_error_detail(exc, prefix))
 
 
-def error_response(status: int, message: str, detail: list[dict[str, Any]] | None = None) -> JSONResponse:
-    return JSONResponse({"message": message, "detail": detail or []}, status_code=status)
+def error_response(
+    status: int,
+    message: str,
+    detail: list[dict[str, Any]] | None = None,
+    headers: dict[str, str] | None = None,
+) -> JSONResponse:
+    return JSONResponse({"message": message, "detail": detail or []}, status_code=status, headers=headers)
 
 
 async def _api_error(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, ApiError)
-    return error_response(exc.status, exc.message, exc.detail)
+    return error_response(exc.status, exc.message, exc.detail, exc.headers)
 
 
 async def _trainsim_error(request: Request, exc: Exception) -> JSONResponse:

@@ -6,10 +6,17 @@ the one session its id names, under that session's lock. The store is bounded: s
 after ``session_ttl_s`` without use, there are at most ``max_sessions`` (the least recently used
 without a live drive goes first), at most ``max_runs_per_session`` runs per session and at most
 ``max_total_trace_points`` trace points over all sessions (the oldest runs go first).
+
+A flood of requests without a session must not push active users out: each client (IP address)
+may make ``session_burst`` sessions at once and ``sessions_per_minute`` after that
+(:class:`SessionRateLimit`, a token bucket; past it :class:`SessionRateError` and 429), and when the
+store is full, empty sessions (no train, route or run: what a flood makes) go before sessions
+that hold something.
 """
 
 from __future__ import annotations
 
+import math
 import re
 import secrets
 import threading
@@ -102,6 +109,43 @@ class WebSession:
         return f"r{self.run_counter}"
 
 
+class SessionRateError(Exception):
+    """A client made new sessions faster than allowed; ``retry_after_s`` until it may again [s]."""
+
+    def __init__(self, retry_after_s: float) -> None:
+        super().__init__(f"too many new sessions from this client; try again in {retry_after_s:.0f} s")
+        self.retry_after_s = retry_after_s
+
+
+class SessionRateLimit:
+    """Token bucket per client: ``burst`` new sessions at once, refilled at ``per_minute`` per
+    minute; at most ``max_clients`` clients remembered (least recently seen forgotten first)."""
+
+    def __init__(self, burst: int, per_minute: float, max_clients: int, clock: Any = time.monotonic) -> None:
+        self.burst = float(burst)
+        self.rate_per_s = per_minute / 60.0
+        self.max_clients = max_clients
+        self._clock = clock
+        self._buckets: OrderedDict[str, tuple[float, float]] = OrderedDict()  # client -> (tokens, when)
+
+    def take(self, client: str) -> None:
+        """Take one new session for ``client`` or raise :class:`SessionRateError`."""
+        now = self._clock()
+        tokens, when = self._buckets.pop(client, (self.burst, now))
+        tokens = min(self.burst, tokens + (now - when) * self.rate_per_s)
+        if tokens < 1.0:
+            self._buckets[client] = (tokens, now)
+            wait = (1.0 - tokens) / self.rate_per_s if self.rate_per_s > 0 else 3600.0
+            raise SessionRateError(max(1.0, math.ceil(wait)))
+        self._buckets[client] = (tokens - 1.0, now)
+        while len(self._buckets) > self.max_clients:
+            self._buckets.popitem(last=False)
+
+
+def _holds_something(session: WebSession) -> bool:
+    return session.train is not None or session.route is not None or bool(session.runs)
+
+
 class SessionStore:
     """All sessions of the application, bounded in number, age and size."""
 
@@ -111,6 +155,7 @@ class SessionStore:
         self._sessions: OrderedDict[str, WebSession] = OrderedDict()
         self._lock = threading.Lock()
         self.active_drives = 0
+        self.rate = SessionRateLimit(settings.session_burst, settings.sessions_per_minute, settings.max_rate_clients)
 
     def __len__(self) -> int:
         return len(self._sessions)
@@ -136,13 +181,18 @@ class SessionStore:
                 self._sessions.move_to_end(session.id)
             return session
 
-    def create(self) -> WebSession:
-        """A new empty session; drops expired and, if full, least recently used sessions."""
+    def create(self, client: str | None = None) -> WebSession:
+        """A new empty session; drops expired and, if full, least recently used sessions (empty
+        ones first). With ``client`` (its address) the client's rate limit applies
+        (:class:`SessionRateError`)."""
         now = self._clock()
         with self._lock:
+            if client is not None:
+                self.rate.take(client)
             self._expire(now)
             while len(self._sessions) >= self.settings.max_sessions:
-                victim = next((s for s in self._sessions.values() if s.drive_token is None), None)
+                free = [s for s in self._sessions.values() if s.drive_token is None]
+                victim = next((s for s in free if not _holds_something(s)), free[0] if free else None)
                 if victim is None:
                     break  # every session drives: exceed the bound rather than cut a live drive
                 del self._sessions[victim.id]
@@ -151,12 +201,13 @@ class SessionStore:
             self._sessions[sid] = session
             return session
 
-    def get_or_create(self, sid: str | None) -> tuple[WebSession, bool]:
-        """The session of ``sid``, or a new one; the flag says whether it is new."""
+    def get_or_create(self, sid: str | None, client: str | None = None) -> tuple[WebSession, bool]:
+        """The session of ``sid``, or a new one (within ``client``'s rate limit); the flag says
+        whether it is new."""
         session = self.get(sid)
         if session is not None:
             return session, False
-        return self.create(), True
+        return self.create(client), True
 
     # ------------------------------------------------------------------ drives
     def reserve_drive(self) -> bool:

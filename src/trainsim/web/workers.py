@@ -288,6 +288,10 @@ class WorkerPool:
             except TimeoutError:
                 self.stats["busy"] += 1
                 raise PoolBusyError(STARTING) from None
+            except Exception as exc:  # e.g. the fork server died: 503 now, a new start next time
+                self._starting = None
+                self.stats["busy"] += 1
+                raise PoolBusyError(f"the worker processes could not start ({type(exc).__name__})") from exc
         assert self._idle is not None
         if self._closed:
             raise PoolBusyError("the server is shutting down")

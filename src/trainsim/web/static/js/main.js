@@ -267,14 +267,17 @@ function runRequest(labelMode) {
     if (input.value.trim() === "") continue;
     const num = (x) => (Number.isFinite(Number(x)) ? Number(x) : x);
     if (input.dataset.points) {
-      // "position: earliest-latest" per point, points separated by ";" (an unreadable entry is sent
-      // as it is, and the server says what is wrong with it)
+      // "position: earliest-latest @ lowest-highest km/h" per point (either window may be left out),
+      // points separated by ";" (an unreadable entry is sent as it is, and the server says what is
+      // wrong with it)
       params.timing_points = input.value.split(";").map((x) => x.trim()).filter((x) => x !== "").map((x) => {
-        const m = x.match(/^([\d.]+)\s*m?\s*:\s*([\d.]*)\s*-\s*([\d.]*)\s*s?$/);
-        if (!m) return x;
+        const m = x.match(
+          /^([\d.]+)\s*m?\s*:\s*(?:([\d.]*)\s*-\s*([\d.]*)\s*s?)?\s*(?:@\s*([\d.]*)\s*-\s*([\d.]*)\s*(?:km\/h)?)?$/);
+        if (!m || (m[2] === undefined && m[4] === undefined)) return x;
         const p = { position_m: Number(m[1]) };
-        if (m[2] !== "") p.earliest_s = Number(m[2]);
-        if (m[3] !== "") p.latest_s = Number(m[3]);
+        for (const [k, key] of [[2, "earliest_s"], [3, "latest_s"], [4, "min_speed_kmh"], [5, "max_speed_kmh"]]) {
+          if (m[k] !== undefined && m[k] !== "") p[key] = Number(m[k]);
+        }
         return p;
       });
       continue;
@@ -421,8 +424,9 @@ function renderStrategyParams() {
     const isPoints = key === "timing_points";
     const input = h("input", { type: "text", class: isList ? "txt" : "num", "data-param": key, "data-path": `params.${key}`,
       "data-list": isList && !isPoints ? "true" : undefined, "data-points": isPoints ? "true" : undefined,
-      title: isPoints ? "position: time window from the section's departure, e.g. 800: 60-120; 2400: -300" : prop.description || key,
-      placeholder: isPoints ? "e.g. 800: 60-120; 2400: -300" : isList ? "e.g. 110, 100, 95"
+      title: isPoints ? "position: time window from the section's departure @ speed window, e.g. "
+        + "800: 60-120 @ 40-60 km/h; 2400: -300; 3000: @ -50" : prop.description || key,
+      placeholder: isPoints ? "e.g. 800: 60-120 @ 40-60 km/h; 2400: -300" : isList ? "e.g. 110, 100, 95"
         : prop.default !== undefined && prop.default !== null ? String(prop.default) : "" });
     box.append(h("label", { title: prop.description || key }, key, input));
   }
