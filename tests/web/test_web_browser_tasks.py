@@ -220,3 +220,30 @@ def test_multipoint_heavy_haul_heat_map_and_extreme_couplers(page) -> None:  # n
     assert pg.locator("#plot-couplers .heatmaplayer, #plot-couplers .hm").count() >= 1
     pg.locator("#plot-couplers").scroll_into_view_if_needed()
     shot(pg, "multipoint.png")
+
+
+def test_timing_points_with_speed_windows_in_the_optimisation_form(page) -> None:  # noqa: F811
+    pg = page
+    load_metro(pg)
+    pg.click("button[data-tab=run]")
+    pg.wait_for_selector("#summary-table tr[data-key='running_time_s'] td.a")
+    pg.select_option("#run-strategy", "energy_efficient")
+    points = pg.locator("#run-params [data-param=timing_points]")
+    assert "km/h" in (points.get_attribute("placeholder") or "")
+    # at 1000 m (between S1 and S2): by 120 s after S1's departure, at most 40 km/h
+    points.fill("1000: -120 @ -40 km/h")
+    with pg.expect_request(lambda r: r.url.endswith("/api/runs") and r.method == "POST") as sent:
+        pg.click("#run-button")
+    body = sent.value.post_data_json
+    assert body["params"]["timing_points"] == [{"position_m": 1000, "latest_s": 120, "max_speed_kmh": 40}]
+    # the optimizer's run passes faster than the window allows: said as a warning of the run
+    pg.wait_for_function(
+        "document.querySelector('#run-warnings').textContent.includes('above its maximum 40.0 km/h')",
+        timeout=120_000,
+    )
+    assert "timing point at 1000 m" in pg.locator("#run-warnings").inner_text()
+    # a speed window alone, and an unreadable one: the server's message names the field
+    points.fill("1000: @ 30-; 1200: @ x")
+    pg.click("#run-button")
+    pg.wait_for_function("document.querySelector('#run-errors').textContent.trim() !== ''", timeout=60_000)
+    assert "timing_points" in pg.locator("#run-errors").inner_text()
