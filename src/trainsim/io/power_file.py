@@ -13,12 +13,14 @@ import json
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from trainsim.errors import InputError, Problem
 from trainsim.power.limits import EN50163, standard_limits
 from trainsim.power.network import Connection, Gap, Network, Storage, Substation, Track, regulation_points
 from trainsim.power.onboard import OnboardStorage
+from trainsim.power.simulation import TrainLoad, simulate
 from trainsim.power.study import FeedbackSettings, TrainService, run_study
 
 __all__ = ["PowerFile", "load_power_file", "run_power_file"]
@@ -178,6 +180,14 @@ class SimulationSpec(_Spec):
     feedback: FeedbackSpec = Field(default_factory=FeedbackSpec)
 
 
+class OperationLinkSpec(_Spec):
+    """The trains of an operation file (``trainsim operate``), as operated, on this network."""
+
+    file: str
+    tracks: dict[Literal["up", "down"], str] = Field(min_length=1)
+    origin_km: float = 0.0
+
+
 class PowerFile(_Spec):
     """The whole file."""
 
@@ -186,8 +196,15 @@ class PowerFile(_Spec):
     name: str = "power supply"
     description: str | None = None
     network: NetworkSpec
-    trains: list[TrainSpec] = Field(min_length=1)
+    trains: list[TrainSpec] = Field(default_factory=list)
+    operation: OperationLinkSpec | None = None
     simulation: SimulationSpec = Field(default_factory=SimulationSpec)
+
+    @model_validator(mode="after")
+    def _trains_or_operation(self) -> PowerFile:
+        if bool(self.trains) == (self.operation is not None):
+            raise ValueError("give either trains (a timetable of scenarios) or operation (an operation file)")
+        return self
 
 
 def _field(loc: tuple) -> str:
@@ -390,16 +407,128 @@ def load_power_file(path: str | Path) -> tuple[PowerFile, Network, list[TrainSer
     return spec, network, services
 
 
+def _moving_pieces(time_s: np.ndarray, position_m: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) trace index of each movement between two standstills of an operated trajectory
+    (a standstill: the position does not change while the time does)."""
+    standing = (np.diff(position_m) <= 1e-9) & (np.diff(time_s) > 0)
+    pieces, start = [], 0
+    for k in np.flatnonzero(standing):
+        if position_m[k] - position_m[start] >= 1.0:
+            pieces.append((start, int(k)))
+        start = int(k) + 1
+    if position_m[-1] - position_m[start] >= 1.0:
+        pieces.append((start, len(position_m) - 1))
+    return pieces
+
+
+def operated_train_loads(
+    operation_file: str | Path, tracks: dict[str, str], origin_m: float = 0.0
+) -> tuple[list[TrainLoad], dict[str, Any]]:
+    """The trains of an operation file as the power network sees them, as operated (with the
+    waits at signals and the delays of ``trainsim operate``).
+
+    Each movement of an operated train between two standstills (stops and signal stops) is the
+    core's fastest run between them (``trainsim.operations.runs.service_route``, the run the
+    operation itself joins); its traction power F v / eta_t and regenerated power F_r v eta_r
+    are placed at the operated times of the same positions. ``tracks`` maps each direction (``up``,
+    ``down``) to a network track; the line's position x is at chainage ``origin_m + x``.
+
+    Returns the loads and an ``operation`` block for the summary: file, status, per train its
+    delay and the largest difference between an operated movement's duration and its run's
+    (0 unless the operation ran it under extra ceilings, e.g. ETCS supervision) [s].
+    """
+    from trainsim.io.operation_file import read_operation
+    from trainsim.io.operation_run import run_operation
+    from trainsim.operations.runs import direction_route, service_route
+    from trainsim.sim.fastest import run_fastest
+
+    op = read_operation(operation_file)
+    result = run_operation(op)
+    services = {svc.id: svc for svc in op.services}
+    loads, trains = [], []
+    for outcome in result.trains:
+        svc = services[outcome.id]
+        el = svc.train.electrical
+        if el is None:
+            raise InputError("the train has no electrical data", file=str(operation_file),
+                             field=f"trains[{outcome.id}].train", value=svc.train.name,
+                             allowed="a train with an electrical block")  # fmt: skip
+        if outcome.direction not in tracks:
+            raise InputError("no network track for this direction", field="operation.tracks",
+                             value=outcome.direction, allowed="up: TRACK, down: TRACK")  # fmt: skip
+        traj = outcome.trajectory
+        if traj is None:
+            trains.append({"id": outcome.id, "status": outcome.status, "on_network": False})
+            continue
+        directed = direction_route(op.geometry, op.line.length_m, outcome.direction)
+        t_parts, x_parts, pt_parts, pr_parts = [], [], [], []
+        mismatch = 0.0
+        t, s = traj.time_s, traj.position_m
+        for i0, i1 in _moving_pieces(t, s):
+            run = run_fastest(svc.train, service_route(directed, [("a", s[i0]), ("b", s[i1])]), op.settings)
+            tr = run.trace
+            mismatch = max(mismatch, abs((t[i1] - t[i0]) - (tr.time_s[-1] - tr.time_s[0])))
+            t_parts.append(np.interp(tr.position_m, s[i0 : i1 + 1], t[i0 : i1 + 1]))
+            x_parts.append(tr.position_m)
+            pt_parts.append(tr.traction_force_n * tr.speed_mps / el.traction_efficiency)
+            pr_parts.append(tr.regenerative_braking_force_n * tr.speed_mps * el.regenerative_efficiency)
+        # standing before the first and after the last movement (dwell at the destination)
+        t_all = np.concatenate([[t[0]], *t_parts, [t[-1]]])
+        x_all = np.concatenate([[s[0]], *x_parts, [s[-1]]])
+        pt_all = np.concatenate([[0.0], *pt_parts, [0.0]])
+        pr_all = np.concatenate([[0.0], *pr_parts, [0.0]])
+        line_x = x_all if outcome.direction == "up" else op.line.length_m - x_all
+        loads.append(
+            TrainLoad(outcome.id, tracks[outcome.direction], t_all, origin_m + line_x, pt_all, pr_all,
+                      el.auxiliary_power_w, el.power_factor)
+        )  # fmt: skip
+        trains.append({"id": outcome.id, "status": outcome.status, "on_network": True,
+                       "delay_s": _finite(outcome.delay_s), "movements": len(t_parts),
+                       "movement_time_mismatch_s": mismatch})  # fmt: skip
+    info = {"file": str(operation_file), "status": result.status, "trains": trains}
+    return loads, info
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
 def run_power_file(
     path: str | Path, out_dir: str | Path | None = None, *, plots: bool = True
 ) -> tuple[dict[str, Any], str]:
     """Run a power-supply file: (summary, status). With ``out_dir``: ``summary.json``, the time
     series as CSV (``trains.csv``, ``substations.csv``, ``network.csv``) and, with ``plots``, PNG
-    plots (see :mod:`trainsim.power.plots`)."""
+    plots (see :mod:`trainsim.power.plots`). With ``operation:`` the operated trains are solved
+    once (their delays come from the operation; voltage-limited traction is reported, not fed
+    back into the operation)."""
     spec, network, services = load_power_file(path)
     sim = spec.simulation
-    fb = FeedbackSettings(sim.feedback.enabled, sim.feedback.max_iterations, sim.feedback.tolerance)
-    result = run_study(network, services, dt_s=sim.step_s, start_s=sim.start_s, end_s=sim.end_s, feedback=fb)
+    if spec.operation is not None:
+        link = spec.operation
+        where = Path(path).parent / link.file
+        if not where.is_file():
+            raise InputError("operation file not found", file=str(path), field="operation.file", value=link.file,
+                             allowed="a trainsim/operation file, relative to this file")  # fmt: skip
+        unknown = [tid for tid in link.tracks.values() if tid not in {t.id for t in network.tracks}]
+        if unknown:
+            raise InputError("unknown track", file=str(path), field="operation.tracks", value=unknown[0],
+                             allowed=", ".join(t.id for t in network.tracks))  # fmt: skip
+        loads, info = operated_train_loads(where, dict(link.tracks), link.origin_km * 1000)
+        if not loads:
+            raise InputError("no operated train reached the network", file=str(path), field="operation.file",
+                             value=link.file)  # fmt: skip
+        try:
+            result = simulate(network, loads, dt_s=sim.step_s, start_s=sim.start_s, end_s=sim.end_s)
+        except InputError as exc:
+            raise exc.located(str(path)) from None
+        feedback = {"enabled": False, "iterations": 1, "consistent": True,
+                    "method": "operated trains are solved once: their delays come from the operation"}  # fmt: skip
+        result = dataclasses.replace(result, extra={"operation": info, "feedback": feedback})
+    else:
+        fb = FeedbackSettings(sim.feedback.enabled, sim.feedback.max_iterations, sim.feedback.tolerance)
+        result = run_study(
+            network, services, dt_s=sim.step_s, start_s=sim.start_s, end_s=sim.end_s, feedback=fb
+        )
     summary = result.summary()
     summary["name"] = spec.name
     if out_dir is not None:

@@ -69,7 +69,7 @@ def segment_leakage_a(
     total = np.where(lin, (va + vb) * length / 2, (va + vb) * np.tanh(al / 2) / a_safe)
     change = (va * vb < 0)
     # integral of V from 0 to the sign change x0
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(all="ignore"):  # the sign-change branch is computed everywhere, used where it applies
         x0_lin = length * va / (va - vb)
         x0_hyp = np.arctanh(np.clip(va * sh / (va * ch - vb), -1 + 1e-16, 1 - 1e-16)) / a_safe
         x0 = np.where(lin, x0_lin, x0_hyp)
