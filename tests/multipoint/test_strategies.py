@@ -171,10 +171,10 @@ def test_a_train_too_weak_for_the_grade_stalls():
             "lesov",
             marks=pytest.mark.xfail(
                 strict=True,
-                reason="known gap: the multi-point train following source 004's run overshoots the "
-                "intermediate stop by about 10 m (status did_not_reach_stop since stops are checked; "
-                "it was hidden behind status ok before), and the single-point lesov run itself now "
-                "says did_not_reach_stop",
+                reason="known gap of the multi-point follower: its braking command tops out at the service "
+                "brake (486 kN on this train), and source 004's recuperative brake, 0.8 x traction (640 kN), "
+                "is stronger: following the single-point lesov run (now status ok, stopping at every stop: "
+                "tests/optimize/test_lesov_stops.py) the multi-point train overshoots the stop by 10 m",
             ),
         ),
     ],
