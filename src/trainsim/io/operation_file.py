@@ -21,6 +21,7 @@ from trainsim.errors import InputError, Problem
 from trainsim.model import Route as GeometryRoute
 from trainsim.model import Train
 from trainsim.model.scenario import RunSettings
+from trainsim.operations.disturbances import Disturbances, disturbances_from_dict
 from trainsim.operations.etcs import EtcsNationalValues
 from trainsim.operations.line import Line, Signalling, StationLayout, build_line
 from trainsim.operations.separation import EtcsBraking
@@ -150,6 +151,7 @@ class _Operation(_Spec):
     dispatching: _Dispatching = _Dispatching()
     settings: _Settings = _Settings()
     delays: _Delays | None = None
+    disturbances: dict[str, Any] | None = None
     compare_systems: list[Literal["fixed_block", "etcs_l2", "moving_block"]] = []
     pattern_period_s: float | None = None
 
@@ -193,6 +195,8 @@ class Operation:
     delays: DelayModel | None = None
     #: the services before delays were sampled (for Monte Carlo samples)
     given_services: list[TrainService] = field(default_factory=list)
+    #: sampled entry, dwell and running-time disturbances (instead of ``delays``)
+    disturbances: Disturbances | None = None
 
     def with_system(self, system: str) -> Line:
         """The same line with another train separation."""
@@ -425,13 +429,23 @@ def read_operation(path: str | Path) -> Operation:
         if spec.delays is None
         else DelayModel(spec.delays.probability, spec.delays.mean_s, spec.delays.seed)
     )
+    disturbances = None
+    if spec.disturbances is not None:
+        if delays is not None:
+            raise InputError(
+                "give either 'delays' or 'disturbances' (its 'entry' distribution replaces 'delays')",
+                file=file,
+                field="disturbances",
+            )
+        disturbances = disturbances_from_dict(spec.disturbances, file)
     given = list(services)
-    if delays is not None:
-        services = delays.sample(services, np.random.default_rng(delays.seed))
+    sampler = disturbances if disturbances is not None else delays
+    if sampler is not None:
+        services = sampler.sample(services, np.random.default_rng(sampler.seed))
     return Operation(
         spec.name, file, line, geometry, services, settings, spec.dispatching.rule, etcs,
         list(spec.compare_systems), spec.pattern_period_s, spec.dispatching.lookahead_s, line_args, delays,
-        given,
+        given, disturbances,
     )  # fmt: skip
 
 

@@ -37,20 +37,21 @@ def monte_carlo(op: Operation, samples: int, seed: int | None = None) -> dict[st
     how often each status came out. The single-train runs are shared between the samples."""
     import numpy as np
 
-    if op.delays is None:
+    sampler = op.disturbances if op.disturbances is not None else op.delays
+    if sampler is None:
         raise InputError(
-            "Monte Carlo samples need a 'delays' block (probability, mean_s, seed)",
+            "Monte Carlo samples need a 'delays' block (probability, mean_s, seed) or a 'disturbances' block",
             file=op.file,
             field="delays",
         )
     if not 1 <= samples <= 10_000:
         raise InputError("invalid number of samples", field="--samples", value=samples, allowed="1 .. 10000")
-    streams = np.random.SeedSequence(op.delays.seed if seed is None else seed).spawn(samples)
+    streams = np.random.SeedSequence(sampler.seed if seed is None else seed).spawn(samples)
     cache = RunCache(op.settings)
     delays: dict[str, list[float]] = {s.id: [] for s in op.given_services}
     totals, statuses = [], {}
     for stream in streams:
-        services = op.delays.sample(op.given_services, np.random.default_rng(stream))
+        services = sampler.sample(op.given_services, np.random.default_rng(stream))
         res = run_operation(op, services, cache, conflicts=False, headways=False)
         statuses[res.status] = statuses.get(res.status, 0) + 1
         for t in res.trains:
@@ -76,7 +77,7 @@ def monte_carlo(op: Operation, samples: int, seed: int | None = None) -> dict[st
 
     return {
         "samples": samples,
-        "seed": op.delays.seed if seed is None else seed,
+        "seed": sampler.seed if seed is None else seed,
         "statuses": statuses,
         "total_delay_s": stats(totals),
         "trains": [{"id": k, "delay_s": stats(v)} for k, v in delays.items()],

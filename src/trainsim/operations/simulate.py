@@ -74,6 +74,8 @@ class ScheduledStop:
         arrival_s: scheduled arrival [s], or None (the planned run's arrival).
         departure_s: scheduled departure [s], or None (arrival + dwell).
         track: platform track to use, or None (the dispatcher's choice).
+        extra_dwell_s: a sampled disturbance [s]: time lost at the stop (or lumped there from the
+            next stretch's running time) that the operated run takes and the planned one does not.
     """
 
     station: str
@@ -81,6 +83,7 @@ class ScheduledStop:
     arrival_s: float | None = None
     departure_s: float | None = None
     track: int | None = None
+    extra_dwell_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -257,6 +260,7 @@ class _Stop:
     dwell_s: float
     scheduled_departure_s: float | None
     track: int | None = None
+    extra_s: float = 0.0  # a sampled disturbance the planned run does not have [s]
 
 
 class _TrainState:
@@ -287,7 +291,10 @@ class _TrainState:
                 dest_dwell = s.dwell_s
                 continue
             self.stops.append(
-                _Stop(s.station, path.stop_m[s.station], "stop", s.dwell_s, s.departure_s, s.track)
+                _Stop(
+                    s.station, path.stop_m[s.station], "stop", s.dwell_s, s.departure_s, s.track,
+                    s.extra_dwell_s,
+                )  # fmt: skip
             )
         self.stops.append(_Stop(svc.destination, p1, "destination", dest_dwell, None))
         self.dest_dwell_s = dest_dwell
@@ -331,13 +338,13 @@ class _TrainState:
             self.next = min(self.next, len(self.steps))
         self.refresh_trajectory()
 
-    def departures(self) -> list[float]:
+    def departures(self, planned: bool = False) -> list[float]:
         m = self.movement
         rt = m.running_times_s()
         deps: list[float] = []
         for k, s in enumerate(self.stops[:-1]):
             arrival = s.scheduled_departure_s if k == 0 else deps[-1] + rt[k - 1]
-            dep = arrival + s.dwell_s
+            dep = arrival + s.dwell_s + (0.0 if planned else s.extra_s)
             if s.scheduled_departure_s is not None:
                 dep = max(dep, s.scheduled_departure_s)
             dep = max(dep, self.override.get(s.position_m, -np.inf))
@@ -1013,7 +1020,7 @@ class _Plan:
 def _planned(st: _TrainState) -> _Plan:
     delay = st.svc.entry_delay_s
     st.stops[0].scheduled_departure_s -= delay
-    deps = st.departures()
+    deps = st.departures(planned=True)
     st.stops[0].scheduled_departure_s += delay
     traj = st.movement.trajectory(deps, st.length_m, st.dest_dwell_s)
     standing = _standing_s(st.movement, deps, st.dest_dwell_s)
