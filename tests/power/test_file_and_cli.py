@@ -58,6 +58,7 @@ def _small(tmp_path: Path, **changes) -> Path:
         "metro_750v_diode_storage",
         "metro_750v_diode_eco",
         "main_line_25kv",
+        "metro_750v_diode_onboard",
     ],
 )
 def test_every_example_runs_ok_with_its_energy_balance(name):
