@@ -247,3 +247,29 @@ def test_timing_points_with_speed_windows_in_the_optimisation_form(page) -> None
     pg.click("#run-button")
     pg.wait_for_function("document.querySelector('#run-errors').textContent.trim() !== ''", timeout=60_000)
     assert "timing_points" in pg.locator("#run-errors").inner_text()
+
+
+def test_upload_ones_own_multipoint_scenario(page) -> None:  # noqa: F811
+    import yaml
+
+    from .test_web_multipoint_upload import small_scenario
+
+    pg = page
+    pg.click("button[data-tab=run]")
+    scenario = small_scenario()
+    pg.set_input_files(
+        "#mp-file",
+        files=[{"name": "mine.yaml", "mimeType": "application/x-yaml", "buffer": yaml.safe_dump(scenario).encode()}],
+    )
+    pg.wait_for_function("document.querySelector('#mp-status').textContent.includes('✓')", timeout=120_000)
+    pg.wait_for_selector("#plot-couplers .main-svg")
+    assert "largest draft" in pg.locator("#mp-extremes").inner_text()
+    # an invalid wagon mass: the message names the file and the field, as the command line does
+    scenario["train"]["formation"][1]["mass_t"] = -20
+    pg.set_input_files(
+        "#mp-file",
+        files=[{"name": "bad.yaml", "mimeType": "application/x-yaml", "buffer": yaml.safe_dump(scenario).encode()}],
+    )
+    pg.wait_for_function("document.querySelector('#mp-status').textContent.includes('✗')", timeout=60_000)
+    text = pg.locator("#mp-extremes").inner_text()
+    assert "bad.yaml" in text and "formation[1].mass_t" in text

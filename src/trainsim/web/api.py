@@ -784,6 +784,29 @@ async def energy_time_curve(request: Request, body: CurveRequest) -> Response:
 
 
 @router.post(
+    "/multipoint/upload",
+    tags=["runs"],
+    responses={**_ERRORS, 413: {"description": "file too large"}},
+    summary="Run one's own multi-point scenario: coupler-force heat map and extreme couplers",
+)
+async def multipoint_upload(
+    request: Request,
+    file: Annotated[
+        UploadFile,
+        File(
+            description="a scenario YAML with `model: multi_point` (train and route inline), or a zip of a "
+            "scenario folder: scenario*.yaml with the train, route and profile files it names"
+        ),
+    ],
+) -> Response:
+    limits = settings_of(request)
+    content, name = await _read_upload(file, limits)
+    session = session_of(request)
+    body_json = await work(request, session, "multipoint_upload", content, name, limits)
+    return _raw(body_json)
+
+
+@router.post(
     "/multipoint/{name}",
     tags=["runs"],
     responses={**_ERRORS, 404: {"description": "no such multi-point example"}},

@@ -312,8 +312,6 @@ def multipoint_example(name: str, max_columns: int = 400) -> bytes:
     """A shipped multi-point scenario run (per-vehicle masses and forces, couplers with slack):
     the coupler-force heat map (at most ``max_columns`` instants), the extreme couplers, and the
     run's figures, as the answer body."""
-    import numpy as np
-
     import trainsim
     from trainsim.web.examples import EXAMPLES_DIR
 
@@ -322,6 +320,13 @@ def multipoint_example(name: str, max_columns: int = 400) -> bytes:
             "no such multi-point example", field="name", value=name, allowed=", ".join(MULTIPOINT_EXAMPLES)
         )
     result = trainsim.run(trainsim.load_scenario(EXAMPLES_DIR / "heavy_haul" / MULTIPOINT_EXAMPLES[name]))
+    return _multipoint_body(result, name, MULTIPOINT_EXAMPLES[name], max_columns)
+
+
+def _multipoint_body(result: Any, name: str, scenario: str, max_columns: int) -> bytes:
+    """The answer body of a multi-point run: figures, extreme couplers, the heat map."""
+    import numpy as np
+
     forces = np.asarray(result.coupler_force_n)  # (instants, couplers) [N]
     step = max(1, len(forces) // max_columns)
     rows = slice(None, None, step)
@@ -338,7 +343,7 @@ def multipoint_example(name: str, max_columns: int = 400) -> bytes:
     run = result.run
     body = {
         "name": name,
-        "scenario": MULTIPOINT_EXAMPLES[name],
+        "scenario": scenario,
         "train": run.train_name,
         "route": run.route_name,
         "status": result.status,
@@ -356,3 +361,119 @@ def multipoint_example(name: str, max_columns: int = 400) -> bytes:
         },
     }
     return _dumps(body, "multi-point run")
+
+
+#: files a multi-point upload may hold (the scenario, its train and route, a speed profile)
+_MULTIPOINT_FILES = (".yaml", ".yml", ".json", ".csv")
+
+
+def _unzip_scenario(archive: Path, folder: Path, limits: WebSettings, name: str) -> None:
+    """Extract a zipped scenario folder (flat names, YAML/JSON/CSV only, bounded in count and size)."""
+    try:
+        zf = zipfile.ZipFile(archive)
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise InputError("not a readable zip file", file=name, allowed="a zip of a scenario folder") from exc
+    with zf:
+        entries = [
+            i
+            for i in zf.infolist()
+            if not i.is_dir() and PurePosixPath(i.filename).suffix.lower() in _MULTIPOINT_FILES
+        ]
+        if len(entries) > 16:
+            raise InputError("too many files in the zip", file=name, value=len(entries), allowed="at most 16")
+        if sum(i.file_size for i in entries) > 4 * limits.max_body_bytes:
+            raise InputError(
+                "the zip's files are too large", file=name, allowed=f"at most {4 * limits.max_body_bytes} bytes"
+            )
+        for info in entries:
+            base = _safe_name(PurePosixPath(info.filename).name)
+            with zf.open(info) as src:
+                data = src.read(info.file_size + 1)
+            if len(data) > info.file_size:
+                raise InputError("a file in the zip is larger than it says", file=name, field=base)
+            (folder / base).write_bytes(data)
+
+
+def _scenario_file(folder: Path, name: str) -> Path:
+    candidates = sorted(
+        p for p in folder.iterdir() if p.suffix.lower() in (".yaml", ".yml") and p.name.startswith("scenario")
+    )
+    if len(candidates) != 1:
+        raise InputError(
+            "the zip must hold exactly one scenario file",
+            file=name,
+            value=[p.name for p in candidates],
+            allowed="one file named scenario*.yaml, with the train, route and profile files it names",
+        )
+    return candidates[0]
+
+
+def _in_upload(exc: InputError, folder: Path, name: str) -> InputError:
+    """The error with the temporary folder replaced by the uploaded file's name (``x.zip/train.yaml``)."""
+    from trainsim.errors import Problem
+    from trainsim.web.errors import problems_of
+
+    prefix = str(folder)
+    problems = []
+    for p in problems_of(exc):
+        file = p.file or name
+        if file.startswith(prefix):
+            inner = file[len(prefix) :].lstrip("/")
+            file = name if inner in ("", "scenario.yaml") and not name.endswith(".zip") else f"{name}/{inner}"
+        problems.append(Problem(p.reason, file=file, line=p.line, field=p.field, value=p.value, allowed=p.allowed))
+    return InputError.from_problems(problems)
+
+
+def multipoint_upload(content: bytes, name: str, limits: WebSettings, max_columns: int = 400) -> bytes:
+    """An uploaded multi-point scenario, read as ``trainsim run`` reads it and run: a scenario YAML
+    with ``model: multi_point`` and its train and route inline, or a zip of a scenario folder
+    (``scenario*.yaml`` with the train, route and profile files it names). The answer body is that
+    of :func:`multipoint_example`; messages name the uploaded file (``x.zip/train.yaml``)."""
+    from trainsim.io.multipoint_spec import load_multipoint_scenario, run_multipoint_scenario
+    from trainsim.io.trainsim_yaml import read_yaml
+
+    with tempfile.TemporaryDirectory(prefix="trainsim-web-") as tmp:
+        folder = Path(tmp)
+        try:
+            safe = _safe_name(name)
+            if safe.lower().endswith(".zip"):
+                archive = folder / "upload.zip"
+                archive.write_bytes(content)
+                source = folder / "scenario"
+                source.mkdir()
+                _unzip_scenario(archive, source, limits, name)
+                path = _scenario_file(source, name)
+                folder = source
+            else:
+                if PurePosixPath(safe).suffix.lower() not in (".yaml", ".yml", ".json"):
+                    raise InputError(
+                        "not a scenario file",
+                        file=name,
+                        allowed="a scenario .yaml (train and route inline) or a .zip of a scenario folder",
+                    )
+                path = folder / "scenario.yaml"
+                path.write_bytes(content)
+            for document in sorted(folder.iterdir()):
+                if document.suffix.lower() in (".yaml", ".yml", ".json"):
+                    guard.check_document(read_yaml(document), limits, file=str(document))
+            scenario, spec = load_multipoint_scenario(path)
+            if spec is None:
+                raise InputError(
+                    "this scenario does not choose the multi-point model",
+                    file=str(path),
+                    field="model",
+                    allowed="model: multi_point",
+                )
+            route = scenario.route
+            if route.end_m - route.start_m > limits.max_route_length_m:
+                raise InputError(
+                    "route too long for the web application",
+                    file=str(path),
+                    field="route",
+                    value=route.end_m - route.start_m,
+                    allowed=f"at most {limits.max_route_length_m:g} m",
+                )
+            result = run_multipoint_scenario(scenario, spec, base_dir=folder)
+            return _multipoint_body(result, "upload", name, max_columns)
+        except InputError as exc:
+            raise _in_upload(exc, folder, name) from exc

@@ -572,9 +572,23 @@ async function energyTimeCurve() {
 async function runMultipoint() {
   const name = $("#mp-example").value;
   setStatus($("#mp-status"), "running (the first run of an example takes a while)…", "");
-  const answer = await busy(post(`/api/multipoint/${encodeURIComponent(name)}`, {}));
+  showMultipoint(await busy(post(`/api/multipoint/${encodeURIComponent(name)}`, {})));
+}
+
+async function uploadMultipoint(ev) {
+  const file = ev.target.files[0];
+  ev.target.value = "";
+  if (!file) return;
+  setStatus($("#mp-status"), `running ${file.name}…`, "");
+  showMultipoint(await busy(upload("/api/multipoint/upload", file)));
+}
+
+function showMultipoint(answer) {
   if (!answer.ok) {
+    // the readers' messages, one per file, line and field (as the command line prints them)
     setStatus($("#mp-status"), `✗ ${answer.data.message}`, "bad");
+    $("#mp-extremes").replaceChildren(...(answer.data.detail || []).map((d) => h("div", {
+      class: "bad", text: `${d.file ? `${d.file}${d.line ? `:${d.line}` : ""}: ` : ""}${d.field ? `${d.field}: ` : ""}${d.msg}` })));
     return;
   }
   const mp = answer.data;
@@ -653,6 +667,7 @@ async function main() {
   $("#drive-compare").addEventListener("click", compareDrive);
   $("#curve-button").addEventListener("click", energyTimeCurve);
   $("#mp-run").addEventListener("click", runMultipoint);
+  $("#mp-file").addEventListener("change", uploadMultipoint);
   for (const r of document.querySelectorAll("input[name=scale]")) r.addEventListener("change", () => setScale(Number(r.value)));
   document.addEventListener("keydown", driveKeys);
   document.body.dataset.ready = "true";
