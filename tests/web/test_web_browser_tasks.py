@@ -273,3 +273,19 @@ def test_upload_ones_own_multipoint_scenario(page) -> None:  # noqa: F811
     pg.wait_for_function("document.querySelector('#mp-status').textContent.includes('✗')", timeout=60_000)
     text = pg.locator("#mp-extremes").inner_text()
     assert "bad.yaml" in text and "formation[1].mass_t" in text
+
+
+def test_operation_train_graph_with_blocking_time_stairs(page) -> None:  # noqa: F811
+    pg = page
+    pg.click("button[data-tab=run]")
+    pg.select_option("#op-example", "metro_fixed_block")
+    pg.click("#op-run")
+    pg.wait_for_selector("#plot-train-graph .main-svg", timeout=180_000)
+    assert "14 trains" in pg.locator("#op-status").inner_text()
+    # 14 trains: a filled stairs trace and a path each; the station names label the position axis
+    assert pg.locator("#plot-train-graph .scatterlayer .trace").count() == 28
+    assert "Train graph with blocking times" in pg.locator("#plot-train-graph").inner_text()
+    for station in ("S1", "S2", "S3", "S4"):
+        assert station in pg.locator("#plot-train-graph").inner_text()
+    pg.locator("#plot-train-graph").scroll_into_view_if_needed()
+    shot(pg, "train_graph.png")

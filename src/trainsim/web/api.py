@@ -829,3 +829,25 @@ async def multipoint_example(name: str, request: Request) -> Response:
     # the example never changes: computed once, shared by every session
     _, body_json = await request.app.state.run_cache.get(f"multipoint:{name}", compute)
     return _raw(body_json)
+
+
+@router.post(
+    "/operations/{name}",
+    tags=["runs"],
+    responses={**_ERRORS, 404: {"description": "no such operation example"}},
+    summary="Run a shipped operation: the train graph with blocking-time stairs",
+)
+async def operation_example(name: str, request: Request) -> Response:
+    from trainsim.web.jobs import OPERATION_EXAMPLES
+
+    if name not in OPERATION_EXAMPLES:
+        raise ApiError(404, f"no operation example '{name[:80]}'; allowed: {', '.join(OPERATION_EXAMPLES)}")
+    session = session_of(request)
+
+    async def compute() -> Any:
+        limit = max(settings_of(request).job_time_limit_s, 300.0)  # a shipped file: trusted, fixed
+        return None, await work(request, session, "operation_example", name, time_limit_s=limit)
+
+    # the example never changes: computed once, shared by every session
+    _, body_json = await request.app.state.run_cache.get(f"operation:{name}", compute)
+    return _raw(body_json)

@@ -477,3 +477,57 @@ def multipoint_upload(content: bytes, name: str, limits: WebSettings, max_column
             return _multipoint_body(result, "upload", name, max_columns)
         except InputError as exc:
             raise _in_upload(exc, folder, name) from exc
+
+
+#: operation files shipped with the web application (example_files/operations)
+OPERATION_EXAMPLES: dict[str, str] = {"metro_fixed_block": "metro_fixed_block.yaml"}
+
+
+def operation_example(name: str, max_points: int = 400) -> bytes:
+    """A shipped operation run as ``trainsim operate`` runs it: the train graph (every train's line
+    position over time, at most ``max_points`` per train) with the operated blocking times (one
+    rectangle per resource and train: from_m..to_m over start_s..end_s), the stations, conflicts
+    and the status, as the answer body."""
+    import numpy as np
+
+    from trainsim.io.operation_file import read_operation
+    from trainsim.io.operation_run import run_operation
+    from trainsim.web.examples import EXAMPLES_DIR
+
+    if name not in OPERATION_EXAMPLES:
+        raise InputError(
+            "no such operation example", field="name", value=name, allowed=", ".join(OPERATION_EXAMPLES)
+        )
+    op = read_operation(EXAMPLES_DIR / "operations" / OPERATION_EXAMPLES[name])
+    result = run_operation(op)
+    trains = []
+    for t in result.trains:
+        tr = t.trajectory if t.trajectory is not None else t.planned_trajectory
+        keep = np.unique(np.linspace(0, len(tr.time_s) - 1, min(max_points, len(tr.time_s))).round().astype(int))
+        position = np.asarray(op.line.line_position(t.direction, tr.position_m[keep]), dtype=float)
+        trains.append(
+            {
+                "id": t.id,
+                "direction": str(t.direction),
+                "status": t.status,
+                "delay_s": t.delay_s,
+                "time_s": np.round(tr.time_s[keep], 1).tolist(),
+                "position_m": np.round(position, 1).tolist(),
+            }
+        )
+    body = {
+        "name": name,
+        "title": op.name,
+        "status": result.status,
+        "warnings": list(result.warnings),
+        "signalling": op.line.signalling.system,
+        "line_length_m": op.line.length_m,
+        "stations": [{"name": s.name, "position_m": s.position_m} for s in op.line.stations],
+        "trains": trains,
+        "blocking": [
+            {"train": b.train, "start_s": b.start_s, "end_s": b.end_s, "from_m": b.from_m, "to_m": b.to_m}
+            for b in result.blocking
+        ],
+        "conflicts": len(result.conflicts),
+    }
+    return _dumps(body, "operation run")

@@ -1,7 +1,7 @@
 // The page: four views (train, track, run, live driving) over the JSON API and the drive WebSocket.
 import { del, get, post, put, upload } from "./api.js";
 import { SpecEditor } from "./editor.js";
-import { DrivePlot, plotCouplerHeatmap, plotEnergyTime, plotProfile, plotRuns, plotTrainCurves } from "./plots.js";
+import { DrivePlot, plotCouplerHeatmap, plotEnergyTime, plotProfile, plotRuns, plotTrainCurves, plotTrainGraph } from "./plots.js";
 
 const $ = (sel) => document.querySelector(sel);
 const h = (tag, attrs = {}, ...children) => {
@@ -602,6 +602,22 @@ function showMultipoint(answer) {
   plotCouplerHeatmap(div, mp);
 }
 
+async function runOperation() {
+  const name = $("#op-example").value;
+  setStatus($("#op-status"), "running the operation…", "");
+  const answer = await busy(post(`/api/operations/${encodeURIComponent(name)}`, {}));
+  if (!answer.ok) {
+    setStatus($("#op-status"), `✗ ${answer.data.message}`, "bad");
+    return;
+  }
+  const op = answer.data;
+  setStatus($("#op-status"), `✓ ${op.status}: ${op.trains.length} trains, ${op.conflicts} conflicts`, op.status === "ok" ? "ok" : "bad");
+  $("#op-warnings").replaceChildren(...op.warnings.map((w) => h("div", { text: `⚠ ${w}` })));
+  const div = $("#plot-train-graph");
+  div.hidden = false;
+  plotTrainGraph(div, op);
+}
+
 function driveKeys(ev) {
   if (state.tab !== "drive" || !drive.running) return;
   if (["INPUT", "SELECT", "TEXTAREA"].includes(document.activeElement?.tagName) && document.activeElement.type !== "range"
@@ -668,6 +684,7 @@ async function main() {
   $("#curve-button").addEventListener("click", energyTimeCurve);
   $("#mp-run").addEventListener("click", runMultipoint);
   $("#mp-file").addEventListener("change", uploadMultipoint);
+  $("#op-run").addEventListener("click", runOperation);
   for (const r of document.querySelectorAll("input[name=scale]")) r.addEventListener("change", () => setScale(Number(r.value)));
   document.addEventListener("keydown", driveKeys);
   document.body.dataset.ready = "true";

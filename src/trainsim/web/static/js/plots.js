@@ -221,3 +221,30 @@ export function plotCouplerHeatmap(div, mp) {
   ], { ...BASE, hovermode: "closest", title: { text: `In-train forces (draft > 0, buff < 0): ${mp.train}`, font: { size: 14 } },
     xaxis: { title: { text: "time [s]" } }, yaxis: { title: { text: "coupling (0 = behind the head vehicle)" }, autorange: "reversed" } }, CONFIG);
 }
+
+// train graph of an operation: time across, line position up; each train's blocking times as the
+// "stairs" of rectangles (resource from_m..to_m blocked from start_s to end_s), in the train's colour
+export function plotTrainGraph(div, op) {
+  const palette = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf"];
+  const colour = new Map(op.trains.map((t, i) => [t.id, palette[i % palette.length]]));
+  const stairs = op.trains.map((t) => {
+    const x = [];
+    const y = [];
+    for (const b of op.blocking.filter((b) => b.train === t.id)) {
+      x.push(b.start_s, b.end_s, b.end_s, b.start_s, b.start_s, null);
+      y.push(b.from_m, b.from_m, b.to_m, b.to_m, b.from_m, null);
+    }
+    return { x, y, mode: "lines", fill: "toself", line: { width: 0.5, color: colour.get(t.id) }, opacity: 0.25,
+      name: `${t.id} blocking`, legendgroup: t.id, showlegend: false, hoverinfo: "skip" };
+  });
+  const paths = op.trains.map((t) => ({ x: t.time_s, y: t.position_m, mode: "lines", name: t.id, legendgroup: t.id,
+    line: { color: colour.get(t.id), width: 2 },
+    hovertemplate: `${t.id}: %{x:.0f} s, %{y:.0f} m (delay ${t.delay_s.toFixed(0)} s)<extra></extra>` }));
+  const stations = op.stations.map((s) => ({ type: "line", xref: "paper", x0: 0, x1: 1, y0: s.position_m, y1: s.position_m,
+    line: { color: "#999", width: 1, dash: "dot" } }));
+  const labels = op.stations.map((s) => ({ xref: "paper", x: 1, xanchor: "left", y: s.position_m, text: s.name,
+    showarrow: false, font: { size: 11 } }));
+  Plotly.react(div, [...stairs, ...paths], { ...BASE, hovermode: "closest", shapes: stations, annotations: labels,
+    title: { text: `Train graph with blocking times: ${op.title} (${op.signalling}, ${op.conflicts} conflicts)`, font: { size: 14 } },
+    xaxis: { title: { text: "time [s]" } }, yaxis: { title: { text: "position on the line [m]" } } }, CONFIG);
+}
