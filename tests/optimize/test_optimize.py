@@ -248,7 +248,7 @@ def test_cli_optimize_json():
 def test_cli_optimize_errors():
     runner = CliRunner()
     r = runner.invoke(app, ["optimize", str(METRO)])
-    assert r.exit_code == 2 and "exactly one of --supplement and --timetable" in r.output
+    assert r.exit_code == 2 and "exactly one of --supplement, --timetable and --allowance" in r.output
     r = runner.invoke(app, ["optimize", str(METRO), "--supplement", "5%", "--strategy", "magic"])
     assert r.exit_code == 2 and "unknown strategy" in r.output
     assert "Traceback" not in r.output

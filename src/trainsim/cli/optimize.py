@@ -46,11 +46,37 @@ def optimize(
             "--curve/--no-curve", help="Also compute the energy-versus-running-time curve (with --out)."
         ),
     ] = False,
+    allowance: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--allowance",
+            help="Running-time allowance AMOUNT[@START-END][:DISTRIBUTION], repeatable, adding up: AMOUNT "
+            "5% (of the fastest time), 1.5min/100km or 30s; START-END a range in m (default the line); "
+            "DISTRIBUTION time (default), distance or optimal. E.g. --allowance 5% "
+            "--allowance 30s@1200-3400 (a construction margin).",
+        ),
+    ] = None,
+    max_acceleration: Annotated[
+        float | None, typer.Option("--max-acceleration", help="Comfort limit on acceleration [m/s^2].")
+    ] = None,
+    max_deceleration: Annotated[
+        float | None, typer.Option("--max-deceleration", help="Comfort limit on deceleration [m/s^2].")
+    ] = None,
+    max_jerk: Annotated[
+        float | None, typer.Option("--max-jerk", help="Jerk limit [m/s^3] (--strategy reference only).")
+    ] = None,
+    speed_margin: Annotated[
+        float, typer.Option("--speed-margin", help="Stay this far below every speed limit [km/h].")
+    ] = 0.0,
 ) -> None:
     """Drive a scenario to a timetable with least energy: switching points, savings, deviations.
 
-    Exit code 3 when the result's status is not ok (e.g. an infeasible schedule: the best feasible run
-    is printed and the summary says by how much the schedule is missed).
+    The schedule is one of --supplement, --timetable, --allowance (repeatable) or the scenario's
+    'driving' block. Constraints (--max-acceleration, --max-deceleration, --max-jerk, --speed-margin)
+    apply to every strategy (docs/OPTIMIZATION.md, "Driving constraints").
+
+    Exit code 3 when the result's status is not ok (e.g. an infeasible schedule or a missed timing
+    window: the best feasible run is printed and the summary says by how much it is missed).
     """
     with user_errors():
         scn = load_scenario(scenario, train, route, None)
@@ -62,18 +88,39 @@ def optimize(
             raise InputError(
                 "unknown strategy", field="--strategy", value=strategy, allowed=", ".join(STRATEGIES)
             )
-        if supplement is not None and timetable is not None:
-            raise InputError("give exactly one of --supplement and --timetable")
-        if supplement is None and timetable is None:
+        given = [name for name, x in (("--supplement", supplement), ("--timetable", timetable),
+                                      ("--allowance", allowance)) if x]  # fmt: skip
+        if len(given) > 1:
+            raise InputError(
+                "give exactly one of --supplement, --timetable and --allowance",
+                field=" and ".join(given),
+                allowed="one of them",
+            )
+        if not given:
             if scn.timetable is None:
                 raise InputError(
-                    "give exactly one of --supplement and --timetable (or a 'driving' block in the scenario)"
+                    "give exactly one of --supplement, --timetable and --allowance (or a 'driving' block in "
+                    "the scenario)"
                 )
             if strategy == "optimal" and scn.strategy != "fastest":
                 strategy = scn.strategy
-        journey = None
+        constraints = _constraints(max_acceleration, max_deceleration, max_jerk, speed_margin)
         route_used = scn.route
-        if supplement is not None:
+        if allowance:
+            from trainsim.optimize.allowances import allowance_timetable, parse_allowance
+            from trainsim.optimize.constraints import constrained_route, constrained_train
+
+            # shared on the fastest run the constraints allow, as the strategies then drive it
+            c_train, c_route = scn.train, scn.route
+            if constraints is not None:
+                c_train, c_route = (
+                    constrained_train(c_train, constraints),
+                    constrained_route(c_route, constraints),
+                )
+            tt, _ = allowance_timetable(
+                c_train, c_route, [parse_allowance(a) for a in allowance], scn.settings
+            )
+        elif supplement is not None:
             tt = line_supplement(supplement)
         elif timetable is None:
             tt = scn.timetable
@@ -86,20 +133,18 @@ def optimize(
                 from trainsim.io.ttobench import read_ttobench_journey
                 from trainsim.optimize.timetable import timetable_from_journey
 
-                journey = read_ttobench_journey(timetable)
-                route_used, tt = timetable_from_journey(journey, scn.route)
+                # its passing points become the timetable's timing points: the result reports them
+                route_used, tt = timetable_from_journey(read_ttobench_journey(timetable), scn.route)
             elif fmt == "trainsim/timetable":
                 tt = read_timetable_yaml(timetable, n_sections=len(scn.route.stops) - 1)
             else:
                 raise InputError(
                     "not a timetable", file=str(timetable), allowed="trainsim/timetable, TTOBench journey"
                 )
-        result = run_optimize(scn.train, route_used, tt, strategy=strategy, settings=scn.settings)
+        result = run_optimize(
+            scn.train, route_used, tt, strategy=strategy, settings=scn.settings, constraints=constraints
+        )
         summary = result.summary()
-        if journey is not None:
-            from trainsim.optimize.timetable import passing_point_warnings
-
-            summary["warnings"] += passing_point_warnings(journey, result.run)
         written: list[Path] = []
         if out is not None:
             from trainsim.io.export import write_trace_csv
@@ -141,3 +186,32 @@ def optimize(
     for p in written:
         out_console.print(f"wrote {p}", markup=False, highlight=False)
     exit_for_status(str(summary["status"]))
+
+
+def _constraints(
+    max_acceleration: float | None, max_deceleration: float | None, max_jerk: float | None, margin_kmh: float
+):
+    """The driving constraints the options ask for (None when none), the margin converted to m/s."""
+    if max_acceleration is None and max_deceleration is None and max_jerk is None and not margin_kmh:
+        return None
+    from trainsim.constants import KMH
+    from trainsim.optimize.constraints import DrivingConstraints
+
+    limits = (
+        ("--max-acceleration", max_acceleration),
+        ("--max-deceleration", max_deceleration),
+        ("--max-jerk", max_jerk),
+    )
+    for name, x in limits:
+        if x is not None and not (0.0 < x < float("inf")):
+            raise InputError("must be a finite number > 0", field=name, value=x, allowed="> 0")
+    if not 0.0 <= margin_kmh < float("inf"):
+        raise InputError(
+            "must be a finite number >= 0", field="--speed-margin", value=margin_kmh, allowed=">= 0 km/h"
+        )
+    return DrivingConstraints(
+        max_acceleration_mps2=max_acceleration,
+        max_deceleration_mps2=max_deceleration,
+        max_jerk_mps3=max_jerk,
+        speed_margin_mps=margin_kmh * KMH,
+    )

@@ -94,6 +94,46 @@ class Allowance:
             )
 
 
+#: The units a written allowance may end with, and its kind.
+_UNITS = (("min/100km", "min_per_100km"), ("%", "percent"), ("s", "seconds"))
+
+
+def parse_allowance(text: str, field: str = "--allowance") -> Allowance:
+    """An allowance as a planner writes it on the command line: ``AMOUNT[@START-END][:DISTRIBUTION]``.
+
+    AMOUNT is ``5%`` (of the fastest running time over the range), ``1.5min/100km`` or ``30s``;
+    START-END the range in metres (default: the whole line); DISTRIBUTION ``time`` (default),
+    ``distance`` or ``optimal``. Examples: ``5%``, ``1.5min/100km:distance``,
+    ``30s@1200-3400`` (a construction margin on 1200-3400 m).
+
+    Raises:
+        InputError: the text does not follow that form (naming ``field``, the value and the form).
+    """
+    allowed = "AMOUNT[@START-END][:DISTRIBUTION], AMOUNT 5% | 1.5min/100km | 30s, DISTRIBUTION " + ", ".join(
+        DISTRIBUTIONS
+    )
+    raw = text.strip().replace(" ", "")
+    body, _, distribution = raw.partition(":")
+    amount, _, span = body.partition("@")
+    kind = next((k for unit, k in _UNITS if amount.endswith(unit)), None)
+    try:
+        if kind is None:
+            raise ValueError
+        unit = next(unit for unit, k in _UNITS if k == kind)
+        value = float(amount[: -len(unit)])
+        start = end = None
+        if span:
+            a, sep, b = span.partition("-")
+            if not sep:
+                raise ValueError
+            start, end = float(a), float(b)
+    except ValueError:
+        raise InputError("not an allowance", field=field, value=text, allowed=allowed) from None
+    return Allowance(
+        kind, value, start, end, distribution=distribution or "time", label=f"{field} {text.strip()}"
+    )
+
+
 def allowance_s(kind: str, value: float, fastest_time_s: float, length_m: float) -> float:
     """The allowance [s] of a range whose fastest running time is ``fastest_time_s`` [s] and whose
     length is ``length_m`` [m]: value % of the time, value min per 100 km, or value seconds."""

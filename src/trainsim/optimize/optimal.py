@@ -34,14 +34,15 @@ from trainsim.sim import kernel
 from trainsim.sim.parameters import kernel_parameters, kink_speeds, regenerative_arrays
 from trainsim.sim.profile import compile_track
 
-#: Shooting on the coasting point stops when its bracket is shorter than this [m].
-COAST_POINT_TOLERANCE_M = 0.25
-#: ... and until the run meets the braking curve to the stop no farther than this before it [m].
-CEILING_MISS_M = 2.0
-#: A run that coasts to rest no farther than this before the stop stops there [m].
-STOP_TOLERANCE_M = 0.1
-#: The section time is met to this [s] (far inside the max(0.5 s, 0.05 %) the schedule needs).
-TIME_TOLERANCE_S = 5e-2
+#: Shooting on the coasting point stops when its bracket is shorter than this [m]: the switching
+#: point is located exactly (to rounding at 50 km), so the run does not move with the step (issue 13).
+COAST_POINT_TOLERANCE_M = 1e-9
+#: A run that comes to rest no farther than this before the stop stops there [m]: far below what
+#: moves an energy or a time by 1e-9, and within the energy integration's own tolerance.
+STOP_TOLERANCE_M = 1e-7
+#: The section time is met to this [s] (far inside the max(0.5 s, 0.05 %) the schedule needs, and
+#: tight enough that energies and times do not move by 1e-6 with the step, issue 13).
+TIME_TOLERANCE_S = 1e-4
 #: ... and the variants built to compare with the first run of a solve, to this [s].
 VARIANT_TIME_TOLERANCE_S = 0.1
 #: Iterations of the holding speed search before the fallbacks take over.
@@ -64,6 +65,9 @@ ADJOINT_STEP_M = 20.0
 DEPARTURE_WINDOW_M = 150.0
 #: ... when the holding speed differs from the previous one by less than this (in log) [-].
 WARM_START_LOG_SPEED = 0.005
+#: Departure points ahead of descents and lower limits are located to this [m] (at 0.5 m the
+#: running time moved with the step by 1e-5 through them).
+DEPARTURE_TOLERANCE_M = 1e-2
 
 
 def price_of_time_w(train: Train, holding_speed_mps: float) -> float:
@@ -297,7 +301,7 @@ class SectionSolver:
             cum = np.empty(len(s))
             pk.path_energy(
                 s, v, m, tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.P, self.curves,
-                self.inv_eta_t, self.eta_r, cum,
+                self.inv_eta_t, self.eta_r, cum, self.tk, self.bk, self.rk,
             )  # fmt: skip
 
             def cost(p: float, keep: bool = False, points=points, cum=cum, q=q, b=b, i_last=i_last):
@@ -369,7 +373,7 @@ class SectionSolver:
         return float(s[j0]), float(s[j1 + 1])
 
     @staticmethod
-    def _minimise(cost, lo: float, hi: float, tol_m: float = 0.5):
+    def _minimise(cost, lo: float, hi: float, tol_m: float | None = None):
         """(p, cost) of a scan of [lo, hi] refined by golden section around the best point."""
         count = int(min(64, max(16, (hi - lo) / 250.0)))
         grid = np.linspace(lo, hi, count + 1)[1:]
@@ -383,8 +387,9 @@ class SectionSolver:
         return (p, value) if value <= values[k] else (float(grid[k]), values[k])
 
     @staticmethod
-    def _golden(cost, a: float, z: float, tol_m: float = 0.5):
+    def _golden(cost, a: float, z: float, tol_m: float | None = None):
         """(p, cost) of a golden-section search of [a, z]."""
+        tol_m = DEPARTURE_TOLERANCE_M if tol_m is None else tol_m
         g = 0.5 * (np.sqrt(5.0) - 1.0)
         c, d = z - g * (z - a), a + g * (z - a)
         fc, fd = cost(c)[0], cost(d)[0]
@@ -532,7 +537,7 @@ class SectionSolver:
         cum = np.empty(len(s))
         pk.path_energy(
             s, v, m, tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.P, self.curves,
-            self.inv_eta_t, self.eta_r, cum,
+            self.inv_eta_t, self.eta_r, cum, self.tk, self.bk, self.rk,
         )  # fmt: skip
         return float(cum[-1]), (b - a) / V
 
@@ -557,7 +562,7 @@ class SectionSolver:
         cum = np.empty(len(seg[0]))
         pk.path_energy(
             seg[0], seg[1], seg[3], tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.P, self.curves,
-            self.inv_eta_t, self.eta_r, cum,
+            self.inv_eta_t, self.eta_r, cum, self.tk, self.bk, self.rk,
         )  # fmt: skip
         out = [np.empty(self.n_max) for _ in range(3)] + [np.empty(self.n_max, dtype=np.int8)]
 
@@ -626,7 +631,7 @@ class SectionSolver:
         tr = self.track
         i, u, vc, tc, j = pk.state_at(
             s, v, t, m, tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.i1, self.P,
-            self.curves, self.tk, self.bk, float(s_c),
+            self.curves, self.tk, self.bk, float(s_c), self.rk,
         )  # fmt: skip
         return int(i), float(u), float(vc), float(tc), int(j)
 
@@ -666,7 +671,7 @@ class SectionSolver:
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, tr.traction_scale, i, u, v, t, self.i1,
             self.P, self.curves, self.tk, self.bk, Cr, US, mu, self.inv_eta_t, self.eta_r,
             self.has_regen, ADJOINT_STEP_M, out_s, out_v, out_t, out_m, 0, force_mode, v_hold, phi_start,
-            stop_mode, sk,
+            stop_mode, sk, self.rk,
         )  # fmt: skip
         if n >= self.n_max:
             status = pk.STOPPED_SHORT  # the buffers filled up: an unusable attempt
@@ -753,12 +758,10 @@ class SectionSolver:
         lo_points = None
         previous = None  # the coasting point before lo with its residual (the run stopped short)
         bisect = True
-        # on to COAST_POINT_TOLERANCE_M, and further while the run meets the braking curve to the
-        # stop far before it (at speed: friction braking would waste what regeneration returns),
-        # unless the train coasts to rest at the stop itself
-        while r_lo < -STOP_TOLERANCE_M and (
-            hi - lo > COAST_POINT_TOLERANCE_M or (r_hi > CEILING_MISS_M and hi - lo > 1e-3)
-        ):
+        # on until the train comes to rest at the stop itself, or the bracket closes on the point
+        # where the outcome jumps (the run then meets the braking curve there): a coasting point
+        # left a metre early (a tolerance) moved with the step and its energy with it
+        while r_lo < -STOP_TOLERANCE_M and hi - lo > COAST_POINT_TOLERANCE_M:
             mid = 0.5 * (lo + hi)
             if not bisect and previous is not None and previous[1] < r_lo:
                 # where a run stops short moves on continuously with the coasting point (the
@@ -767,7 +770,7 @@ class SectionSolver:
                 p0, r0 = previous
                 # aimed inside the stop tolerance: just beyond the root the run meets the braking
                 # curve instead, which only moves the bracket's upper end
-                target = -0.5 * STOP_TOLERANCE_M
+                target = -0.25 * STOP_TOLERANCE_M
                 guess = lo + (target - r_lo) * (lo - p0) / (r_lo - r0)
                 if lo < guess < hi:
                     mid = guess
@@ -877,6 +880,15 @@ class SectionSolver:
             )
         else:
             best = min((p for _, p in built), key=lambda p: abs(p.running_time_s - running_time_s))
+        if meeting and best.feasible and abs(best.running_time_s - running_time_s) > TIME_TOLERANCE_S:
+            # a variant compared within VARIANT_TIME_TOLERANCE_S won: meet the time with it exactly
+            key = next(k for k, p in meeting if p is best)
+            exact = self._solve_variant(
+                running_time_s, key[0], key[1], best.holding_speed_mps, short=key[2], braking_arc_exits=key[3],
+                exact=True,
+            )  # fmt: skip
+            if abs(exact.running_time_s - running_time_s) < abs(best.running_time_s - running_time_s):
+                best = exact
         self.excursions = self.limit_coasting = True
         self.short_excursions = self.braking_arc_exits = False
         return best
@@ -889,6 +901,7 @@ class SectionSolver:
         guess_mps: float | None = None,
         short: bool = False,
         braking_arc_exits: bool = False,
+        exact: bool = False,
     ) -> SectionPlan:
         """The run with or without departures ahead of descents and lower limits (with ``short``,
         excursions that end before the next descent only), starting from the holding speed
@@ -900,7 +913,7 @@ class SectionSolver:
         self._departure_points = {}
         self._last_departure_speed = None
         self._last_holding_speed = guess_mps if guess_mps is not None and np.isfinite(guess_mps) else None
-        self._secondary = self._last_holding_speed is not None
+        self._secondary = self._last_holding_speed is not None and not exact
         try:
             return self._solve_once(running_time_s)
         finally:

@@ -98,7 +98,7 @@ def ceiling_at(u, w, k, Cr, US, vcap, line, P, curves, bk):
 def final_phase(
     x, a0, a1, b0, b1, vcap, tscale, i_start, u_start, v_start, t_start, i_end,
     P, curves, tk, bk, Cr, US, mu, inv_eta_t, eta_r, has_regen, h_max,
-    out_s, out_v, out_t, out_m, n, force_mode, v_hold, phi_start, stop_mode, sk,
+    out_s, out_v, out_t, out_m, n, force_mode, v_hold, phi_start, stop_mode, sk, rk,
 ):  # fmt: skip
     """From (x[i_start] + u_start, v_start), leaving the holding arc (phi just below 1/eta_t), drive
     by the adjoint to the stop at x[i_end], holding the speed limit ``vcap`` if the train reaches
@@ -109,7 +109,9 @@ def final_phase(
     The adjoint starts at ``phi_start``, by default (< 0) just below 1/eta_t: leaving a holding
     arc; leaving an arc held by braking on a descent it starts just below eta_r (or 0).
     ``Cr``/``US`` are the braking curves of ``stop_mode`` (BRAKE: service braking; REGEN:
-    regenerative braking only), ``sk`` their kinks; the run follows them where it meets them."""
+    regenerative braking only), ``sk`` their kinks; the run follows them where it meets them.
+    ``rk`` are the kinks of the regenerative curve (its steps integrated exactly, as the energy
+    accounting does: across a kink the run would otherwise move with the step)."""
     phi = inv_eta_t * (1.0 - 1e-9) if phi_start < 0.0 else phi_start
     E = 0.5 * v_start * v_start
     t = t_start
@@ -140,7 +142,7 @@ def final_phase(
             h = min(h_max, w - u)
             if US[kk] > u:
                 h = min(h, US[kk] - u)  # the braking curve part starts at US
-            kinks = tk if mode == TRACTION else bk
+            kinks = tk if mode == TRACTION else (rk if mode == REGEN else bk)
             if mode == CRUISE:
                 E1, dt = E, h / v
             else:
@@ -481,8 +483,7 @@ def coast_excursion(
                 n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
                 return n, 0, phiq - inv_eta_t, ii, uu + hq, t + dtq, energy
             if mode == CRUISE:
-                _, fr = point_forces(CRUISE, v, uu, line, P, curves)
-                energy -= eta_r * fr * h
+                energy -= eta_r * _cruise_regen_work(v, uu, h, line, P, curves)
             phi = phi_step(phi, E, E1, uu, h, b0[ii], b1[ii], P, mu) if v > PHI_MIN_SPEED else phi
             if mode == CRUISE and cap == W:
                 phi = eta_r  # on the singular regenerative arc the adjoint stays at eta_r
@@ -519,9 +520,21 @@ def point_forces(mode, v, u, line, P, curves):
 
 
 @njit(cache=True)
-def path_energy(s, v, m, x, a0, a1, b0, b1, tscale, P, curves, inv_eta_t, eta_r, out):
+def _cruise_regen_work(v, u, h, line, P, curves):
+    """Regenerative braking work [J] of holding speed v from offset u over h [m]: Simpson's rule on
+    the braking force (the grade varies along an interval; a step's first force alone was O(h))."""
+    _, f0 = point_forces(CRUISE, v, u, line, P, curves)
+    _, fm = point_forces(CRUISE, v, u + 0.5 * h, line, P, curves)
+    _, f1 = point_forces(CRUISE, v, u + h, line, P, curves)
+    return h / 6.0 * (f0 + 4.0 * fm + f1)
+
+
+@njit(cache=True)
+def path_energy(s, v, m, x, a0, a1, b0, b1, tscale, P, curves, inv_eta_t, eta_r, out, tk, bk, rk):
     """Cumulative electrical energy [J] (traction / eta_t - eta_r regenerated) along a run's
-    points into ``out``: trapezoids of each stretch's forces in the regime of its first point."""
+    points into ``out``: Simpson's rule on each stretch's forces in the regime of its first point,
+    the midpoint speed integrated in that regime. (Trapezoids, O(h^2), made the departure points
+    chosen with these costs move by metres with the step.)"""
     out[0] = 0.0
     i = 0
     for k in range(len(s) - 1):
@@ -534,9 +547,16 @@ def path_energy(s, v, m, x, a0, a1, b0, b1, tscale, P, curves, inv_eta_t, eta_r,
         line = (a0[i], a1[i], b0[i], b1[i])
         P[P_TRACTION_SCALE] = tscale[i]
         u0 = s[k] - x[i]
-        ft0, fr0 = point_forces(m[k], v[k], u0, line, P, curves)
-        ft1, fr1 = point_forces(m[k], v[k + 1], u0 + ds, line, P, curves)
-        out[k + 1] = out[k] + 0.5 * ds * ((ft0 + ft1) * inv_eta_t - eta_r * (fr0 + fr1))
+        mode = m[k]
+        ft0, fr0 = point_forces(mode, v[k], u0, line, P, curves)
+        ft1, fr1 = point_forces(mode, v[k + 1], u0 + ds, line, P, curves)
+        vm = 0.5 * (v[k] + v[k + 1])
+        if mode in (TRACTION, REGEN, BRAKE):
+            kinks = tk if mode == TRACTION else (rk if mode == REGEN else bk)
+            Em = step_energy(0.5 * v[k] * v[k], u0, 0.5 * ds, mode, line, P, curves, kinks)
+            vm = np.sqrt(2.0 * Em) if Em > 0.0 else 0.0
+        ftm, frm = point_forces(mode, vm, u0 + 0.5 * ds, line, P, curves)
+        out[k + 1] = out[k] + ds / 6.0 * ((ft0 + 4.0 * ftm + ft1) * inv_eta_t - eta_r * (fr0 + 4.0 * frm + fr1))
 
 
 @njit(cache=True)
@@ -592,19 +612,17 @@ def coast_to_curve(
                         Em, dtm = step_energy_time(E, uu, hm - uu, COAST, line, P, curves, bk)
                     n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
                     if mode == CRUISE:
-                        _, fr = point_forces(CRUISE, v, uu, line, P, curves)
-                        energy -= eta_r * fr * (hm - uu)
+                        energy -= eta_r * _cruise_regen_work(v, uu, hm - uu, line, P, curves)
                     return n, 0, ii, hm, np.sqrt(2.0 * Em) if Em > 0.0 else 0.0, t + dtm, energy
             if mode == CRUISE:
-                _, fr = point_forces(CRUISE, v, uu, line, P, curves)
-                energy -= eta_r * fr * h
+                energy -= eta_r * _cruise_regen_work(v, uu, h, line, P, curves)
             n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
             E, t, uu = E1, t + dt, uu + h
     return n, 1, i_last, x[i_last + 1] - x[i_last], np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, energy
 
 
 @njit(cache=True)
-def state_at(s, v, t, m, x, a0, a1, b0, b1, tscale, i1, P, curves, tk, bk, s_c):
+def state_at(s, v, t, m, x, a0, a1, b0, b1, tscale, i1, P, curves, tk, bk, s_c, rk):
     """(interval, offset [m], speed [m/s], time [s], index of the last point at or before) of the
     run (s, v, t, m) at s_c, integrating its regime from that last point (what the optimal
     strategy's searches ask of a run thousands of times per solve)."""
@@ -620,6 +638,7 @@ def state_at(s, v, t, m, x, a0, a1, b0, b1, tscale, i1, P, curves, tk, bk, s_c):
     if mode in (CRUISE, DWELL):
         return i, u0 + h, v[j], (t[j] + h / v[j]) if v[j] > 0.0 else t[j], j
     line = (a0[i], a1[i], b0[i], b1[i])
-    kinks = tk if mode == TRACTION else bk  # coasting has no kinks: any list works
+    # (coasting has no kinks: any list works)
+    kinks = tk if mode == TRACTION else (rk if mode == REGEN else bk)
     E1, dt = step_energy_time(0.5 * v[j] ** 2, u0, h, mode, line, P, curves, kinks)
     return i, u0 + h, np.sqrt(max(2.0 * E1, 0.0)), t[j] + dt, j
