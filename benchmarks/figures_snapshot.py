@@ -109,11 +109,12 @@ def compare(before: dict[str, Any], after: dict[str, Any], tolerance: float) -> 
         worst = max(rel) if rel else (0.0, "")
         worst_all = max(worst_all, worst)
         flag = "" if worst[0] <= tolerance and not exact else "  <-- EXCEEDS"
-        print(f"{case:55s} max rel diff {worst[0]:.3e} at {worst[1]}{flag}")
+        where = f" at {worst[1]}" if worst[0] > 0 else " (every figure bit for bit)"
+        print(f"{case:55s} max rel diff {worst[0]:.3e}{where}{flag}")
         for e in exact[:5]:
             print(f"    differs: {e}")
         ok = ok and worst[0] <= tolerance and not exact
-    print(f"overall max relative difference: {worst_all[0]:.3e} at {worst_all[1]}")
+    print(f"overall max relative difference: {worst_all[0]:.3e} {worst_all[1] if worst_all[0] > 0 else ''}")
     return ok
 
 

@@ -395,7 +395,7 @@ def drive(train, route, settings, driving: Driving | None, *, source: str = "<ru
 
     Returns (RunResult, :func:`driving_figures`, the optimiser's warnings). ``driving`` None or
     ``strategy: fastest``: the fastest run (``trainsim.run`` calls ``run_scenario``, that is
-    ``run_fastest``); else ``trainsim.optimize.api.optimize`` (``trainsim.run`` returns its ``.run``).
+    ``run_fastest``), without its trace (``trace`` is None; every summary figure is the same); else ``trainsim.optimize.api.optimize`` (``trainsim.run`` returns its ``.run``).
     """
     from trainsim.sim.fastest import run_fastest
 
@@ -413,7 +413,8 @@ def drive(train, route, settings, driving: Driving | None, *, source: str = "<ru
                 allowed=f"{n} (the route's sections between stops)",
             )
     if strategy == "fastest":
-        result = run_fastest(train, route, settings)
+        # a study keeps only summary figures: no trace arrays (the same figures, tested in tests/sim)
+        result = run_fastest(train, route, settings, trace=False)
         return result, driving_figures(strategy, timetable, result, None), []
     from trainsim.optimize.api import optimize
 

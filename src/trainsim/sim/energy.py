@@ -165,22 +165,18 @@ def _rk4_works(E, u, h, n, mode, lw, level, P, curves, W, vref):
     """Integrate E and the works over [u, u + h] with n RK4 sub-steps, adding the works to W;
     returns E at the end (not clipped at 0)."""
     d = h / n
-    k = np.empty((4, N_WORKS + 1))
+    # the four stages as scalars (a stage array allocated per call cost more than a short piece)
     for _ in range(n):
-        Es = E
-        for j in range(4):
-            if j == 0:
-                Ej, uj = E, u
-            elif j == 3:
-                Ej, uj = E + d * k[2, 0], u + d
-            else:
-                Ej, uj = E + 0.5 * d * k[j - 1, 0], u + 0.5 * d
-            f = _forces(mode, Ej if Ej > 0.0 else 0.0, uj, lw, level, P, curves, vref)
-            for q in range(N_WORKS + 1):
-                k[j, q] = f[q]
+        f1 = _forces(mode, E if E > 0.0 else 0.0, u, lw, level, P, curves, vref)
+        E2 = E + 0.5 * d * f1[0]
+        f2 = _forces(mode, E2 if E2 > 0.0 else 0.0, u + 0.5 * d, lw, level, P, curves, vref)
+        E3 = E + 0.5 * d * f2[0]
+        f3 = _forces(mode, E3 if E3 > 0.0 else 0.0, u + 0.5 * d, lw, level, P, curves, vref)
+        E4 = E + d * f3[0]
+        f4 = _forces(mode, E4 if E4 > 0.0 else 0.0, u + d, lw, level, P, curves, vref)
         for q in range(N_WORKS):
-            W[q] += d / 6.0 * (k[0, q + 1] + 2.0 * k[1, q + 1] + 2.0 * k[2, q + 1] + k[3, q + 1])
-        E = Es + d / 6.0 * (k[0, 0] + 2.0 * k[1, 0] + 2.0 * k[2, 0] + k[3, 0])
+            W[q] += d / 6.0 * (f1[q + 1] + 2.0 * f2[q + 1] + 2.0 * f3[q + 1] + f4[q + 1])
+        E = E + d / 6.0 * (f1[0] + 2.0 * f2[0] + 2.0 * f3[0] + f4[0])
         u += d
     return E
 
@@ -387,7 +383,6 @@ def _piece_loop(k, s, v, mode, level, lx, laws, P, curves, tk, bk, rk, row, acc_
     """Integrate stretch k piece by piece of the line laws; returns E at its end."""
     g0, g1, c0, c1, k0, k1, avail = laws
     n_pieces = len(g0)
-    empty = np.empty(0)
     E = 0.5 * v[k] * v[k]
     pos = s[k]
     for _ in range(n_pieces + 2):
@@ -407,7 +402,7 @@ def _piece_loop(k, s, v, mode, level, lx, laws, P, curves, tk, bk, rk, row, acc_
         elif mode == FOLLOW:
             E = _follow_piece(E, acc_follow, u, h, lw, P, curves, row)
         else:
-            kinks = tk if mode == TRACTION else bk if mode == BRAKE else rk if mode == REGEN else empty
+            kinks = tk if mode == TRACTION else bk if mode == BRAKE else rk if mode == REGEN else tk[:0]
             E = _dynamic_piece(E, u, h, mode, lw, level, P, curves, kinks, row, v[k + 1])
         pos = end
         if pos >= s[k + 1] - kernel.POSITION_TOLERANCE:

@@ -39,8 +39,21 @@ class PiecewiseLinear:
     left: np.ndarray  # value at x[k] from the right (start of piece k)
     right: np.ndarray  # value at x[k+1] from the left (end of piece k)
 
+    def __post_init__(self) -> None:
+        # piecewise constant (left == right on every piece, e.g. a gradient step function): the
+        # interpolation is left[k] + 0 x frac, so it is skipped (most calls of a run are of these)
+        object.__setattr__(self, "_steps", bool(np.array_equal(self.left, self.right)))
+
     def __call__(self, s: np.ndarray | float) -> np.ndarray:
         s = np.asarray(s, dtype=float)
+        if self._steps and s.ndim == 1:
+            k = np.searchsorted(self.x, s, side="right") - 1
+            np.clip(k, 0, len(self.left) - 1, out=k)
+            out = self.left[k] + 0.0  # + 0.0: -0.0 becomes 0.0, as left + 0 x frac does
+            nan = np.isnan(s)
+            if nan.any():
+                out[nan] = np.nan
+            return out
         k = np.searchsorted(self.x, s, side="right") - 1
         k = np.minimum(np.maximum(k, 0), len(self.left) - 1)
         x0 = self.x[k]
@@ -106,9 +119,11 @@ def speed_ceiling(route: Route, train: Train) -> PiecewiseLinear:
     mid = 0.5 * (x[:-1] + x[1:])
     ceiling = np.full(len(mid), train.max_speed_mps)
     for lim in route.speed_limits:
-        # a limit on [a, b) binds head positions in [a, b + L): the rear leaves it at b + L
-        covered = (mid >= lim.start_m) & (mid < lim.end_m + L)
-        ceiling[covered] = np.minimum(ceiling[covered], lim.limit_mps)
+        # a limit on [a, b) binds head positions in [a, b + L): the rear leaves it at b + L;
+        # mid is increasing, so the covered pieces are one slice
+        j0 = int(np.searchsorted(mid, lim.start_m, side="left"))
+        j1 = int(np.searchsorted(mid, lim.end_m + L, side="left"))
+        np.minimum(ceiling[j0:j1], lim.limit_mps, out=ceiling[j0:j1])
     return PiecewiseLinear(x, ceiling.copy(), ceiling.copy())
 
 
