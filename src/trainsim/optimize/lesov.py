@@ -39,7 +39,7 @@ from trainsim.model.route import Route, Station
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Braking, Train
 from trainsim.optimize import pmp_kernel as pk
-from trainsim.optimize.optimal import SectionPlan, SectionSolver
+from trainsim.optimize.optimal import ADJOINT_STEP_M, SectionPlan, SectionSolver
 from trainsim.sim import kernel
 from trainsim.sim.profile import line_resistance_profile
 
@@ -189,12 +189,15 @@ def switching_for_speed(
     steady_kmh: float,
     scheduled_s: float = 0.0,
     iterations: int = 0,
+    *,
+    budgets: bool = True,
 ) -> LesovSwitching:
-    """The switching points of source 004's mode sequence for a steady speed [km/h]."""
+    """The switching points of source 004's mode sequence for a steady speed [km/h]; without the
+    slope budgets (each a fastest run) if ``budgets`` is false."""
     zeta = zeta_kmh_per_min(train, route.gravity_mps2)
     trac_s, trac_t, brk_s, brk_t, mech_s, v_top = _phases(train, route, s0, s1, steady_kmh, zeta)
     cruise_s = max((s1 - s0) - trac_s - brk_s, 0.0)
-    budgets = slope_budgets(train, route, s0, s1, scheduled_s)
+    budgets = slope_budgets(train, route, s0, s1, scheduled_s) if budgets else []
     return LesovSwitching(
         steady_speed_kmh=v_top,
         traction_end_m=s0 + trac_s,
@@ -267,18 +270,115 @@ def lesov_train(train: Train) -> Train:
 #: Where the recuperation point is searched, it is located to this [m]: far below what moves energy
 #: or time by 1e-9 (a metro at 20 m/s covers it in 5e-11 s).
 RECUPERATION_POINT_TOLERANCE_M = 1e-9
+#: The recuperation point's residual (a speed on the braking curve) is solved to this [m/s]: with the
+#: curve's slope of about 0.1 /s near V_mech, the point is then located to about 1e-8 m.
+RESIDUAL_TOLERANCE_MPS = 1e-9
+#: A run that ends this close to its stop [m] has reached it.
+STOP_TOLERANCE_M = 1e-6
+
+
+def _locate(solver: SectionSolver, s_m: float) -> tuple[int, float]:
+    """(interval, offset [m]) of position s_m on the solver's track, within the section."""
+    x = solver.track.x
+    i = int(np.searchsorted(x, s_m, side="right")) - 1
+    i = min(max(i, solver.i0), solver.i1 - 1)
+    return i, s_m - float(x[i])
+
+
+def _speed_event(solver: SectionSolver, s, v, t, q: int, v_event: float) -> tuple[float, float]:
+    """(position [m], time [s]) where the recuperative-braking step from point q to q + 1 of a run
+    slows to ``v_event`` [m/s], located by bisection on the kernel's kink-aware step (to 1e-12 of the
+    step): an event of the motion, not a point of the grid."""
+    tr = solver.track
+    i, u = _locate(solver, float(s[q]))
+    line = (tr.a0[i], tr.a1[i], tr.b0[i], tr.b1[i])
+    solver.P[kernel.P_TRACTION_SCALE] = tr.traction_scale[i]
+    e0, e_event = 0.5 * float(v[q]) ** 2, 0.5 * v_event * v_event
+    lo, hi = 0.0, float(s[q + 1] - s[q])
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        e1, _ = kernel.step_energy_time(e0, u, mid, kernel.REGEN, line, solver.P, solver.curves, solver.rk)
+        if e1 > e_event:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-12 * max(1.0, hi):
+            break
+    _, dt = kernel.step_energy_time(e0, u, hi, kernel.REGEN, line, solver.P, solver.curves, solver.rk)
+    return float(s[q]) + hi, float(t[q]) + dt
+
+
+def _mechanical_to_stop(solver: SectionSolver, s_m: float, v_m: float, t_m: float):
+    """Service (mechanical) braking from (s_m, v_m, t_m) to rest: the points, and whether it ends at
+    the stop (-1 short of it, 0 at it, +1 running through it)."""
+    tr = solver.track
+    i, u = _locate(solver, s_m)
+    out = [np.empty(solver.n_max) for _ in range(3)] + [np.empty(solver.n_max, dtype=np.int8)]
+    n, _, end = pk.final_phase(
+        tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, tr.traction_scale, i, u, v_m, t_m, solver.i1,
+        solver.P, solver.curves, solver.tk, solver.bk, solver.Cr, solver.US, 0.0, solver.inv_eta_t,
+        solver.eta_r, solver.has_regen, ADJOINT_STEP_M, *out, 0, kernel.BRAKE, np.inf, -1.0,
+        kernel.BRAKE, solver.bk, solver.rk,
+    )  # fmt: skip
+    s, v, t, m = (a[:n] for a in out)
+    if n and v[-1] > 0.0:
+        return (s, v, t, m), 1
+    return (s, v, t, m), 0 if end >= solver.s1 - STOP_TOLERANCE_M else -1
+
+
+def _service_curve_speed(solver: SectionSolver, s_m: float) -> float:
+    """Speed [m/s] of the service braking curve to the stop at position s_m."""
+    tr = solver.track
+    i, u = _locate(solver, s_m)
+    kk = i - (solver.i1 - len(solver.Cr))
+    solver.P[kernel.P_TRACTION_SCALE] = tr.traction_scale[i]
+    line = (tr.a0[i], tr.a1[i], tr.b0[i], tr.b1[i])
+    w = float(tr.x[i + 1] - tr.x[i])
+    return float(pk._curve_speed(u, w, solver.Cr[kk], kernel.BRAKE, line, solver.P, solver.curves, solver.bk))
+
+
+def _final_braking(solver: SectionSolver, phase_a, s_r: float):
+    """Source 004's braking from s_r on phase A: recuperative braking down to V_mech (10 km/h), then
+    mechanical (service) braking to rest; where the recuperative brake meets the service braking curve
+    above V_mech, the run follows that curve to the stop.
+
+    Returns the points and a residual [m/s] that is continuous in s_r and 0 where the recuperative
+    brake reaches V_mech exactly on the service braking curve: the speed above V_mech at which it meets
+    the curve (>= 0: the run ends at the stop), or V_mech less the curve's speed where it reaches
+    V_mech (< 0: below the curve, the mechanical braking stops it short)."""
+    points, status = solver._phase_b_forced(phase_a, s_r)
+    s, v, t, m = points
+    v_mech = MECHANICAL_BRAKING_SPEED_KMH * KMH
+    after = np.flatnonzero(s >= s_r - 1e-12)
+    for q in after[:-1]:
+        if m[q] != kernel.REGEN:
+            # the recuperative brake met the service braking curve above V_mech: it ends at the stop
+            return points, (float(v[q]) - v_mech) if status == pk.HIT_CEILING else -v_mech
+        if v[q] > v_mech >= v[q + 1]:
+            s_m, t_m = _speed_event(solver, s, v, t, int(q), v_mech)
+            residual = v_mech - _service_curve_speed(solver, s_m)
+            rest, _ = _mechanical_to_stop(solver, s_m, v_mech, t_m)
+            keep = slice(0, q + 1)
+            joined = (
+                np.concatenate([s[keep], [s_m], rest[0][1:]]),
+                np.concatenate([v[keep], [v_mech], rest[1][1:]]),
+                np.concatenate([t[keep], [t_m], rest[2][1:]]),
+                np.concatenate([m[keep], [kernel.BRAKE], rest[3][1:]]).astype(np.int8),
+            )
+            return joined, residual
+    return points, 0.0 if status == pk.HIT_CEILING else -v_mech
 
 
 def _execute(solver: SectionSolver, sw: LesovSwitching) -> SectionPlan:
     """Drive the switching points: hold V_ss, recuperative braking from the recuperation point
-    until the service braking curve to the stop, then service braking.
+    down to V_mech (or to the service braking curve, where it meets it above), then service braking.
 
-    If the paper's point (computed with its coarse speed steps) would stop the train short, it is
-    moved to the first point from which the recuperative brake meets the service braking curve, located
-    to :data:`RECUPERATION_POINT_TOLERANCE_M` (a fixed point of the line, whatever the step). Where no
-    such point exists (a recuperative brake stronger than the service braking curve, as 0.8 x the
-    traction of a freight locomotive can be: from anywhere it stops short), the train brakes along the
-    service braking curve itself, which is blended: the recuperative brake supplies what it can."""
+    If the paper's point (computed with its coarse speed steps) would stop the train short or run
+    through the stop, it is moved to the point from which the train stops at the stop, located to
+    :data:`RECUPERATION_POINT_TOLERANCE_M` (an event of the motion, whatever the step). Where no such
+    point exists (a recuperative brake stronger than the service braking curve, as 0.8 x the traction
+    of a freight locomotive can be: from anywhere it stops short), the train brakes along the service
+    braking curve itself, which is blended: the recuperative brake supplies what it can."""
     v_ss = sw.steady_speed_kmh * KMH
     tr = solver.track
     vhold = np.minimum(tr.vlim, v_ss)
@@ -289,33 +389,112 @@ def _execute(solver: SectionSolver, sw: LesovSwitching) -> SectionPlan:
         solver.P, solver.curves, solver.tk, solver.bk, solver.rk, solver.Cr, solver.US, modes, *out,
     )  # fmt: skip
     phase_a = tuple(a[:n] for a in out)
-
-    def run_from(s_r: float):
-        # phi just below eta_r, mu = 0: regenerative braking until the braking curve (phi stays > 0)
-        return solver._phase_b_forced(phase_a, s_r)
-
     s_r = min(max(sw.recuperation_start_m, solver.s0), solver.s1)
-    points, status = run_from(s_r)
-    if status != pk.HIT_CEILING:
-        lo, hi = s_r, solver.s1
-        found = None
+    points, r = _final_braking(solver, phase_a, s_r)
+    if r < 0.0:
+        # the first point from which the train stops at the stop: the root of the residual, by
+        # regula falsi (Illinois) where it is continuous, bisection where it is not
+        lo, r_lo, hi, r_hi, found = s_r, r, solver.s1, None, None
+        side = 0
         for _ in range(200):
             if hi - lo <= RECUPERATION_POINT_TOLERANCE_M * max(1.0, abs(hi)):
                 break
-            mid = 0.5 * (lo + hi)
-            p, st = run_from(mid)
-            if st == pk.HIT_CEILING and mid < solver.s1:
-                hi, found = mid, p
+            if r_hi is not None and r_hi > r_lo:
+                mid = hi - r_hi * (hi - lo) / (r_hi - r_lo)
+                if not lo < mid < hi:
+                    mid = 0.5 * (lo + hi)
             else:
-                lo = mid
+                mid = 0.5 * (lo + hi)
+            p, e = _final_braking(solver, phase_a, mid)
+            if e >= 0.0:
+                hi, r_hi, found = mid, e, p
+                if side == 1:
+                    r_lo *= 0.5
+                side = 1
+            else:
+                lo, r_lo = mid, e
+                if side == -1 and r_hi is not None:
+                    r_hi *= 0.5
+                side = -1
+            if abs(e) <= RESIDUAL_TOLERANCE_MPS:
+                break
         if found is not None and hi < solver.s1:
             points, s_r = found, hi
         else:
             points, s_r = phase_a, solver.s1  # phase A brakes along the service curve to the stop
-    s, v, t, m = points
-    m = m.copy()
+    s, v, t, m = (np.array(a) for a in points)
+    if v[-1] > 0.0 and solver.s1 - s[-1] <= STOP_TOLERANCE_M:
+        # located to 1e-9 m, the run through the stop arrives at a speed of order 1e-4 m/s: at rest
+        v[-1] = 0.0
     m[-1] = kernel.DWELL
     return SectionPlan(s, v, t, m, float(t[-1]), v_ss, s_r, np.nan, solver.fastest_time_s, True)
+
+
+#: The steady speed is refined until the run meets its schedule to this share of it: source 004's
+#: epsilon (0.5 s) left the run, and its energy, free to move with the step within that window.
+SCHEDULE_MATCH_FRACTION = 1e-10
+
+
+def _exact_schedule(
+    solver: SectionSolver, train: Train, route: Route, T: float, sw: LesovSwitching, plan: SectionPlan
+) -> SectionPlan:
+    """The run of the steady speed V_ss at which source 004's run takes exactly T [s] (to
+    :data:`SCHEDULE_MATCH_FRACTION`): the limit of the paper's correction as epsilon goes to 0, so that
+    the result is a property of the line and not of the step. Bracketed from the corrected run's V_ss,
+    then bisected; where the running time jumps over T (the paper's speed steps change the switching
+    points in jumps), the side closer to T is kept."""
+    vmax = train.max_speed_mps / KMH
+    tol = SCHEDULE_MATCH_FRACTION * T
+
+    def run(v_kmh: float) -> tuple[float, SectionPlan]:
+        sw_v = switching_for_speed(train, route, solver.s0, solver.s1, v_kmh, T, sw.iterations, budgets=False)
+        p = _execute(solver, sw_v)
+        return p.running_time_s - T, p
+
+    v0 = sw.steady_speed_kmh
+    f0 = plan.running_time_s - T
+    if abs(f0) <= tol:
+        return plan
+    best = (abs(f0), plan)
+    # a run slower than T needs a higher steady speed; one faster than T a lower one
+    direction = 1.0 if f0 > 0.0 else -1.0
+    step = max(1e-3 * v0, 1e-3)
+    near, f_near, far, f_far = v0, f0, None, 0.0
+    for _ in range(40):
+        v1 = min(max(v0 + direction * step, 5.0), vmax)
+        f1, p1 = run(v1)
+        best = min(best, (abs(f1), p1), key=lambda b: b[0])
+        if (f1 > 0.0) != (f0 > 0.0):
+            far, f_far = v1, f1
+            break
+        near, f_near = v1, f1
+        if v1 in (5.0, vmax):
+            return best[1]
+        step *= 2.0
+    if far is None:
+        return best[1]
+    # the run is slower than T at lo, faster at hi: regula falsi (Illinois), bisection at jumps
+    (lo, f_lo), (hi, f_hi) = sorted([(near, f_near), (far, f_far)])
+    side = 0
+    for _ in range(200):
+        mid = lo - f_lo * (hi - lo) / (f_hi - f_lo) if f_lo != f_hi else 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            mid = 0.5 * (lo + hi)
+        f, p = run(mid)
+        best = min(best, (abs(f), p), key=lambda b: b[0])
+        if abs(f) <= tol or hi - lo <= 1e-13 * hi:
+            break
+        if f > 0.0:
+            lo, f_lo = mid, f
+            if side == 1:
+                f_hi *= 0.5
+            side = 1
+        else:
+            hi, f_hi = mid, f
+            if side == -1:
+                f_lo *= 0.5
+            side = -1
+    return best[1]
 
 
 def lesov_plans(
@@ -361,6 +540,7 @@ def lesov_plans(
                     plan, sw = p_mid, sw_mid
                 if abs(plan.running_time_s - T) <= 0.1:
                     break
+        plan = _exact_schedule(solver, lt, route, T, sw, plan)
         if abs(plan.running_time_s - T) > max(0.5, 5e-4 * T):
             warnings.append(
                 f"source 004's method: section {sv.s0:.0f}-{sv.s1:.0f} m runs {plan.running_time_s - T:+.1f} s "
