@@ -154,3 +154,13 @@ def test_the_operations_layer_builds_its_line_from_it():
     built = build_line("signal line", line.end_m, "single_track", stations, Signalling())
     mains = [s.position_m for s in line.signals if s.direction == "up" and s.kind == "main"]
     assert list(built.paths["up"].signal_positions()) == [500.0 - 400.0, *mains]
+
+
+def test_an_operational_point_without_id_is_a_clear_error(tmp_path):
+    # the walk keeps the points by id; one without id, asked for by its name, is refused with the
+    # element and its line (a mutation found a KeyError here)
+    text = (DATA / "line_railml2.xml").read_text().replace('<ocp id="ocpB" name="B"/>', '<ocp name="B"/>')
+    path = tmp_path / "no_id.xml"
+    path.write_text(text)
+    with pytest.raises(InputError, match=r"<ocp name='B'>.*has no position on a track"):
+        read_signalling(path, ocps=["A", "B", "C"])

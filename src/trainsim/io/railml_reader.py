@@ -32,7 +32,7 @@ from trainsim.io.railml_common import Content, Problems, Usage, attr_float, chil
 __all__ = ["Dialect", "Entry", "Reader", "Topology", "read_railml"]
 
 #: A point of the route: operational point id, dwell [s], whether the train stops, source element.
-Entry = tuple[str, float, bool, etree._Element]
+Entry = tuple[str | None, float, bool, etree._Element]
 
 
 class Topology:
@@ -183,9 +183,9 @@ class Reader:
         topology = self.d.topology()
         p.raise_if_any()
         points = self.d.points()
-        by_name: dict[str, list[str]] = {}
+        by_name: dict[str, list[str | None]] = {}
         for oid, op in points.items():
-            by_name.setdefault(self.d.name(op), []).append(oid or "")
+            by_name.setdefault(self.d.name(op), []).append(oid)
         formation: etree._Element | None = None
         formation_ref: str | None = None
         entries: list[Entry] = []
@@ -265,7 +265,10 @@ class Reader:
         return route, formation, formation_ref
 
     def _given_points(
-        self, ocps: Sequence[str], points: dict[str | None, etree._Element], by_name: dict[str, list[str]]
+        self,
+        ocps: Sequence[str],
+        points: dict[str | None, etree._Element],
+        by_name: dict[str, list[str | None]],
     ) -> list[Entry]:
         entries: list[Entry] = []
         for given in ocps:
