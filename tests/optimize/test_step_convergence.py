@@ -29,7 +29,9 @@ def _pair(name: str):
     timetable = scenario.timetable or line_supplement("10%")
     h = scenario.settings.max_step_m
     return [
-        optimize(scenario.train, scenario.route, timetable, "optimal", replace(scenario.settings, max_step_m=step))
+        optimize(
+            scenario.train, scenario.route, timetable, "optimal", replace(scenario.settings, max_step_m=step)
+        )
         for step in (h, h / 2)
     ]
 
@@ -53,7 +55,9 @@ def _check(name: str) -> None:
         assert not any("regime" in w for w in r.warnings)
 
 
-@pytest.mark.parametrize("name", ["metro_b/scenario.yaml", "metro_b/scenario_eco.yaml", "loco_001/scenario.yaml"])
+@pytest.mark.parametrize(
+    "name", ["metro_b/scenario.yaml", "metro_b/scenario_eco.yaml", "loco_001/scenario.yaml"]
+)
 def test_optimal_figures_do_not_move_with_the_step(name: str) -> None:
     _check(name)
 
@@ -65,3 +69,30 @@ def test_optimal_figures_do_not_move_with_the_step(name: str) -> None:
 def test_optimal_figures_do_not_move_with_the_step_long_lines(name: str) -> None:
     _check(name)
 
+
+def test_a_stretch_labelled_with_a_regime_it_does_not_drive_is_warned_about() -> None:
+    """A holding arc labelled as full braking (what the optimizer did with its regenerative holding
+    arcs and the last cm before a stop) is reported, and its figures stay those of the motion."""
+    import dataclasses
+
+    import numpy as np
+
+    from trainsim.optimize.api import OFF_REGIME_NOTE, _result, _solvers
+    from trainsim.sim import kernel
+    from trainsim.sim.fastest import run_fastest
+
+    scenario = trainsim.load_scenario(ROOT / "examples" / "loco_001" / "scenario.yaml")
+    train, route, settings = scenario.train, scenario.route, scenario.settings
+    solvers = _solvers(train, route, settings)
+    plan = solvers[0].solve(1.1 * solvers[0].fastest_time_s)
+    honest = _result(
+        "optimal", train, route, settings, run_fastest(train, route, settings), [plan], [plan.running_time_s]
+    )
+    assert not honest.warnings and honest.summary()["status"] == "ok"
+    regime = plan.regime.copy()
+    regime[np.flatnonzero(regime == kernel.CRUISE)[0]] = kernel.BRAKE
+    bad = dataclasses.replace(plan, regime=regime)
+    result = _result("optimal", train, route, settings, honest.fastest, [bad], [plan.running_time_s])
+    assert result.run.energy_balance["off_regime_stretches"] >= 1.0
+    assert any(w.startswith(OFF_REGIME_NOTE) for w in result.warnings)
+    assert any(w.startswith(OFF_REGIME_NOTE) for w in result.summary()["warnings"])
