@@ -164,3 +164,38 @@ def test_an_operational_point_without_id_is_a_clear_error(tmp_path):
     path.write_text(text)
     with pytest.raises(InputError, match=r"<ocp name='B'>.*has no position on a track"):
         read_signalling(path, ocps=["A", "B", "C"])
+
+
+@pytest.mark.parametrize("name", FILES)
+def test_mutated_files_read_or_refused_never_a_traceback(name, tmp_path):
+    # seeded structural mutations (an attribute changed or removed, an element removed or renamed):
+    # each file is read or refused with an InputError, nothing else
+    import random
+
+    from lxml import etree
+
+    text = (DATA / name).read_text()
+    outcomes = {"read": 0, "refused": 0}
+    for seed in range(150):
+        rng = random.Random(seed)
+        root = etree.fromstring(text.encode())
+        el = rng.choice([e for e in root.iter() if isinstance(e.tag, str)])
+        op = rng.random()
+        if op < 0.6 and el.attrib:
+            attr = rng.choice(sorted(el.attrib))
+            if rng.random() < 0.7:
+                el.set(attr, rng.choice(["", "-1", "1e309", "nan", "x", "99999"]))
+            else:
+                del el.attrib[attr]
+        elif op < 0.85 and el.getparent() is not None:
+            el.getparent().remove(el)
+        else:
+            el.tag = el.tag + "x"
+        path = tmp_path / f"m{seed}.xml"
+        path.write_bytes(etree.tostring(root))
+        try:
+            read_signalling(path, ocps=["A", "B", "C"])
+            outcomes["read"] += 1
+        except InputError:
+            outcomes["refused"] += 1
+    assert outcomes["read"] > 0 and outcomes["refused"] > 0, outcomes
