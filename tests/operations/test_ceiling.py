@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 import pytest
 
@@ -26,7 +28,7 @@ def test_merge_keeps_a_cover_with_the_lowest_value_everywhere() -> None:
     extra = (SpeedLimit(500, 1500, 25.0), SpeedLimit(1800, 1900, 5.0))
     merged = merge_limits(base, extra)
     assert merged[0].start_m == 0 and merged[-1].end_m == 2000
-    assert all(a.end_m == b.start_m for a, b in zip(merged, merged[1:], strict=False))
+    assert all(a.end_m == b.start_m for a, b in pairwise(merged))
     for x, v in [(100, 30), (600, 25), (1200, 20), (1850, 5), (1950, 20)]:
         assert _value(merged, x) == v
     # a valid route: no gaps, no overlaps
@@ -57,7 +59,7 @@ def test_uniform_braking_curve_is_constant_deceleration() -> None:
 def test_driver_steps_start_at_the_aspect_and_a_release_cuts_them() -> None:
     steps = driver_braking_steps(20.0, 1000.0, 2000.0)
     assert steps[0].start_m == 1000.0 and steps[0].limit_mps == pytest.approx(20.0)
-    assert all(a.limit_mps > b.limit_mps for a, b in zip(steps, steps[1:], strict=False))
+    assert all(a.limit_mps > b.limit_mps for a, b in pairwise(steps))
     assert driver_braking_steps(0.1, 1000.0, 2000.0) == ()
     released = release_steps(steps, 1510.0, 13.0, slowed=True)
     assert all(s.start_m < 1510.0 for s in released[:-1]) and released[-2].end_m == 1510.0

@@ -172,6 +172,8 @@ class TrainOutcome:
     planned_trajectory: Trajectory
     routes: list[tuple[int, Route]]
     warnings: list[str] = field(default_factory=list)
+    #: the core's runs of the operated movement, one per stretch between two stops (signal stops too)
+    runs: tuple = ()
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -294,7 +296,7 @@ class _TrainState:
                 _Stop(
                     s.station, path.stop_m[s.station], "stop", s.dwell_s, s.departure_s, s.track,
                     s.extra_dwell_s,
-                )  # fmt: skip
+                )
             )
         self.stops.append(_Stop(svc.destination, p1, "destination", dest_dwell, None))
         self.dest_dwell_s = dest_dwell
@@ -1085,7 +1087,7 @@ def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutc
     energy = st.movement.energy_kwh(standing, auxiliary_power_w(svc.train)) if deps is not None else np.nan
     return TrainOutcome(
         svc.id, svc.direction, status, stop_times, float(delay), energy, plan.energy_kwh,
-        st.hindrances, traj, plan.trajectory, list(st.granted), warnings,
+        st.hindrances, traj, plan.trajectory, list(st.granted), warnings, st.movement.results,
     )  # fmt: skip
 
 
