@@ -28,6 +28,7 @@ import asyncio
 import contextlib
 import json
 import os
+import re
 import socket
 import statistics
 import subprocess
@@ -54,6 +55,7 @@ def metro_running_time_s(step_m: float | None = None) -> float:
 
 
 METRO_RUNNING_TIME_S = metro_running_time_s()
+RUNNING_TIME = re.compile(rb'"running_time_s":([-+0-9.eE]+)')
 
 
 def free_port() -> int:
@@ -183,7 +185,10 @@ async def one_client(
             status, answer = await call("run", "POST", "/api/runs", body)
             assert status == 201, answer[:300]
             if not distinct:
-                assert abs(json.loads(answer)["summary"]["running_time_s"] - METRO_RUNNING_TIME_S) < 1e-6
+                # the run's figure at the head of the answer: no full parse of the 80 KB of plot data
+                # (it would cost the client more CPU than the server spends on the request)
+                found = RUNNING_TIME.search(answer, 0, 2000)
+                assert found and abs(float(found.group(1)) - METRO_RUNNING_TIME_S) < 1e-6, answer[:300]
             done += 1
         status, answer = await call("other", "GET", "/api/runs")
         labels = {x["label"] for x in json.loads(answer)}
