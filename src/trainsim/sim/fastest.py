@@ -115,22 +115,14 @@ def worst_braking_surplus(
     return best_v, best
 
 
-def brake_limited_interval(
-    track, P: np.ndarray, curves: tuple, bk: np.ndarray, i0: int, i1: int, cache: dict | None = None
-) -> tuple:
-    """The first grid interval in [i0, i1) where full service braking cannot slow the train down at
-    some speed between standstill and the interval's ceiling (a descent steeper than the brakes), as
-    ``(index, speed [m/s], surplus force [N])`` with the surplus of downhill force over braking force
-    plus resistance at its worst; ``(-1, nan, nan)`` when the brakes suffice everywhere. Trains
-    braking at a constant deceleration (TrainRuns.jl's convention) always suffice.
+def braking_surplus(track, P: np.ndarray, curves: tuple, i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
+    """For each grid interval in [i0, i1): the worst surplus of downhill force over full service
+    braking plus resistance at any speed between standstill and the interval's ceiling [N] (>= 0:
+    the brakes cannot hold the train there), and the speed where it is worst [m/s].
 
     The line's laws are linear over an interval, so the worst is at one of its ends; the line's
     constant part only shifts the surplus, so the exact worst over the speeds
-    (``worst_braking_surplus``) is computed once per distinct v^2 coefficient and ceiling. ``bk``
-    (the braking curve's kinks) is kept for the callers; the exact check needs no sampled speeds.
-    ``cache`` keeps those worsts between the segments of one run (same train and settings)."""
-    if P[kernel.P_DECEL] > 0.0 or i1 <= i0:
-        return -1, float("nan"), float("nan")
+    (``worst_braking_surplus``) is computed once per distinct v^2 coefficient and ceiling."""
     idx = np.arange(i0, i1)
     w = track.x[idx + 1] - track.x[idx]
     m = P[kernel.P_MASS]
@@ -143,23 +135,35 @@ def brake_limited_interval(
     ub, ib = np.unique(b, return_inverse=True)
     uv, iv = np.unique(track.vlim[ii], return_inverse=True)
     codes, inverse = np.unique(ib * len(uv) + iv, return_inverse=True)
-    cache = {} if cache is None else cache
-    per_key = np.empty((len(codes), 2))
-    for q, code in enumerate(codes.tolist()):
-        key = (float(ub[code // len(uv)]), float(uv[code % len(uv)]))
-        if key not in cache:
-            cache[key] = worst_braking_surplus(P, brake_curve, m * key[0], key[1])
-        per_key[q] = cache[key]
+    per_key = np.array(
+        [worst_braking_surplus(P, brake_curve, m * ub[c // len(uv)], uv[c % len(uv)]) for c in codes.tolist()]
+    ).reshape(-1, 2)
     surplus = (per_key[inverse, 1] - m * a).reshape(2, len(idx))
     speed = per_key[inverse, 0].reshape(2, len(idx))
     end = np.argmax(surplus, axis=0)  # the start when both ends are as bad
     cols = np.arange(len(idx))
-    worst, worst_v = surplus[end, cols], speed[end, cols]
+    return surplus[end, cols], speed[end, cols]
+
+
+def brake_limited_interval(track, P: np.ndarray, curves: tuple, bk: np.ndarray, i0: int, i1: int) -> tuple:
+    """The first grid interval in [i0, i1) where full service braking cannot slow the train down at
+    some speed between standstill and the interval's ceiling (a descent steeper than the brakes), as
+    ``(index, speed [m/s], surplus force [N])`` with the surplus of downhill force over braking force
+    plus resistance at its worst (``braking_surplus``); ``(-1, nan, nan)`` when the brakes suffice
+    everywhere. Trains braking at a constant deceleration (TrainRuns.jl's convention) always
+    suffice. ``bk`` (the braking curve's kinks) is kept for the callers; the exact check needs no
+    sampled speeds."""
+    if P[kernel.P_DECEL] > 0.0 or i1 <= i0:
+        return -1, float("nan"), float("nan")
+    return _first_bad(*braking_surplus(track, P, curves, i0, i1), i0)
+
+
+def _first_bad(worst: np.ndarray, worst_v: np.ndarray, i0: int) -> tuple:
     bad = np.flatnonzero(worst >= 0.0)
     if not len(bad):
         return -1, float("nan"), float("nan")
     k = int(bad[0])
-    return int(idx[k]), float(worst_v[k]), float(worst[k])
+    return i0 + k, float(worst_v[k]), float(worst[k])
 
 
 def stops_of(route: Route) -> list[float]:
@@ -213,10 +217,17 @@ def run_fastest(
     stations = route.stops
     warnings: list[str] = []
     brake_limited = False
-    brake_cache: dict = {}
+    # the brake check of every interval at once (one set of distinct laws for the whole line)
+    first, last = int(track.stop_index[0]), int(track.stop_index[-1])
+    checked = P[kernel.P_DECEL] == 0.0 and last > first
+    worst, worst_v = braking_surplus(track, P, curves, first, last) if checked else (None, None)
     for k in range(len(stops) - 1):
         i0, i1 = int(track.stop_index[k]), int(track.stop_index[k + 1])
-        j, v_bad, surplus = brake_limited_interval(track, P, curves, bk, i0, i1, brake_cache)
+        j, v_bad, surplus = (
+            _first_bad(worst[i0 - first : i1 - first], worst_v[i0 - first : i1 - first], i0)
+            if checked and i1 > i0
+            else (-1, float("nan"), float("nan"))
+        )
         if j >= 0:
             # the brakes cannot slow the train from x[j] on: run to a standstill before it, and say so
             brake_limited = True
