@@ -60,6 +60,7 @@ CONVERGED = 1e-6
 #: What run_fastest calls, as (module, attribute, label); a stage missing in this version is skipped.
 STAGES = (
     ("trainsim.sim.fastest", "compile_track", "compile_track"),
+    ("trainsim.sim.fastest", "braking_surplus", "brake check"),
     ("trainsim.sim.kernel", "fastest_segment", "kernel"),
     ("trainsim.sim.kernel", "insert_kink_points", "kinks"),
     ("trainsim.sim.fastest", "build_result", "result"),
@@ -128,7 +129,8 @@ def stage_split(train, route, settings, repeat: int) -> dict[str, float]:
             t0 = time.process_time()
             run_fastest(train, route, settings)
             acc["total"] = time.process_time() - t0
-        acc["other"] = acc["total"] - sum(acc[k] for k in ("compile_track", "kernel", "kinks", "result"))
+        stages = ("compile_track", "brake check", "kernel", "kinks", "result")
+        acc["other"] = acc["total"] - sum(acc[k] for k in stages)
         acc["no trace"] = acc["total"] - acc["result"] + acc["(energy)"]
         for k, x in acc.items():
             samples[k].append(x)
@@ -182,7 +184,7 @@ def main(argv: list[str] | None = None) -> None:
         )
 
     print("\n2. where one run goes (median CPU ms of instrumented runs; (energy) is part of result)")
-    labels = ("compile_track", "kernel", "kinks", "result", "(energy)", "other", "total", "no trace")
+    labels = ("compile_track", "brake check", "kernel", "kinks", "result", "(energy)", "other", "total", "no trace")
     print(f"{'case':46s} " + " ".join(f"{x:>13s}" for x in labels))
     for name, train, route, settings in selected:
         split = stage_split(train, route, settings, repeat)

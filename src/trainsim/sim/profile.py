@@ -48,7 +48,9 @@ class PiecewiseLinear:
         s = np.asarray(s, dtype=float)
         if self._steps and s.ndim == 1:
             k = np.searchsorted(self.x, s, side="right") - 1
-            np.clip(k, 0, len(self.left) - 1, out=k)
+            # not np.clip: with Python int bounds it looks up integer limits on every call
+            np.maximum(k, 0, out=k)
+            np.minimum(k, len(self.left) - 1, out=k)
             out = self.left[k] + 0.0  # + 0.0: -0.0 becomes 0.0, as left + 0 x frac does
             nan = np.isnan(s)
             if nan.any():
