@@ -60,6 +60,8 @@ from trainsim.operations.separation import EtcsBraking, etcs_approach_distance
 Rule = Literal["fcfs", "priority"]
 #: Times closer than this are the same instant (a follower at exactly the minimum headway) [s].
 TIME_TOLERANCE_S = 1e-6
+#: Grid of the release points of trains that pick up speed again [m].
+RELEASE_GRID_M = 10.0
 #: Operated blocking times may touch within this much (trace interpolation between run points) [s].
 INVARIANT_TOLERANCE_S = 1e-3
 
@@ -624,7 +626,9 @@ class _Dispatcher:
         if not later:
             return False
         nxt = min(later)
-        p_c = position_at_time(traj, t_seen, q)
+        # released at the next point of a fixed grid (a little later: on the safe side), so that
+        # identical trains released near the same place share their run
+        p_c = min(float(np.ceil(position_at_time(traj, t_seen, q) / RELEASE_GRID_M) * RELEASE_GRID_M), q)
         v_c = traj.speed_at(p_c)
         if v_c < MIN_CEILING_MPS:
             return False
