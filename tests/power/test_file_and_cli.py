@@ -241,3 +241,39 @@ def test_status_not_ok_exits_3(tmp_path):
     result = CliRunner().invoke(app, ["power", str(path), "--json"])
     assert result.exit_code == 3
     assert json.loads(result.stdout)["status"] == "feedback_not_converged"
+
+
+def test_feedback_per_stretch_holds_back_only_where_the_line_limits(tmp_path):
+    """The weak line of the test above: with one cap per stretch between two stops the train is
+    held back on each stretch only as much as the line limited it there, so it loses less time
+    than with one cap for the whole run; both end consistent and the iterations are reported."""
+    weak = {
+        "network.tracks.0.contact_resistance_ohm_per_km": 0.05,
+        "network.tracks.1.contact_resistance_ohm_per_km": 0.05,
+        "network.substations": [
+            {"id": "S", "position_km": 0, "tracks": ["up", "down"], "no_load_voltage_v": 850,
+             "internal_resistance_ohm": 0.02, "reversible": False}
+        ],
+        "network.connections": [],
+        "trains": [
+            {"id": "up", "scenario": METRO, "track": "up", "origin_km": 0, "direction": 1, "departures_s": [0]}
+        ],
+    }  # fmt: skip
+    out = {}
+    for method in ("per_stretch", "constant"):
+        doc = yaml.safe_load(_small(tmp_path, **weak).read_text())
+        doc["simulation"]["feedback"] = {"enabled": True, "method": method}
+        path = tmp_path / f"{method}.yaml"
+        path.write_text(yaml.safe_dump(doc))
+        summary, status = run_power_file(path)
+        assert status == "ok" and summary["feedback"]["consistent"]
+        assert summary["feedback"]["iterations"] >= 2
+        out[method] = summary["trains"][0]
+    stretch, constant = out["per_stretch"], out["constant"]
+    caps = stretch["traction_power_caps_kw"]
+    # farther from the only substation (at S1), the line limits more: a lower cap per stretch
+    assert len(caps) == 3 and all(c is not None for c in caps)
+    assert caps[0] > caps[1] > caps[2]
+    assert constant["traction_power_cap_kw"] == pytest.approx(min(caps), rel=0.2)
+    assert 0.0 < stretch["time_lost_s"] < constant["time_lost_s"]
+    assert stretch["traction_delivered_kwh"] >= (1 - 1e-3) * stretch["traction_demand_kwh"]

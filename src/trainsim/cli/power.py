@@ -38,8 +38,13 @@ def _print_summary(summary: dict) -> None:
     )
     typer.echo(
         f"regenerated {r['offered']:.1f} kWh: used by trains {r['used_by_trains']:.1f}, returned {r['returned']:.1f}, "
-        f"dissipated {r['dissipated']:.1f}; energy balance {summary['energy_balance_error']:.1e}"
+        f"dissipated {r['dissipated']:.1f}"
+        + (f", stored on board {r['stored_onboard']:.1f}" if "stored_onboard" in r else "")
+        + f"; energy balance {summary['energy_balance_error']:.1e}"
     )
+    stray = summary.get("stray_current_a") or {}
+    if stray.get("max") is not None:
+        typer.echo(f"stray current {stray['mean']:.1f} A mean, {stray['max']:.1f} A at most")
     for w in summary["warnings"]:
         typer.echo(f"warning: {w}", err=True)
     if summary["status"] != "ok":

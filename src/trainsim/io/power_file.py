@@ -171,6 +171,7 @@ class FeedbackSpec(_Spec):
     enabled: bool = True
     max_iterations: Annotated[int, Field(ge=1, le=50)] = 10
     tolerance: Annotated[float, Field(gt=0, lt=0.5)] = 1e-3
+    method: Literal["per_stretch", "constant"] = "per_stretch"
 
 
 class SimulationSpec(_Spec):
@@ -525,7 +526,9 @@ def run_power_file(
                     "method": "operated trains are solved once: their delays come from the operation"}  # fmt: skip
         result = dataclasses.replace(result, extra={"operation": info, "feedback": feedback})
     else:
-        fb = FeedbackSettings(sim.feedback.enabled, sim.feedback.max_iterations, sim.feedback.tolerance)
+        fb = FeedbackSettings(
+        sim.feedback.enabled, sim.feedback.max_iterations, sim.feedback.tolerance, sim.feedback.method
+    )
         result = run_study(
             network, services, dt_s=sim.step_s, start_s=sim.start_s, end_s=sim.end_s, feedback=fb
         )

@@ -210,7 +210,9 @@ class _Sources:
         """x and dx/dU of the substations ``index`` (e, us: their no-load and busbar voltages)."""
         x = e - us
         dxdu = -np.ones(len(index))
-        for j, k in enumerate(index):
+        if not self.curves:
+            return x, dxdu
+        for j, k in enumerate(index.tolist()):
             curve = self.curves.get(int(k))
             if curve is not None:
                 i, slope = regulation_current_a(float(us[j]), curve[0], curve[1])

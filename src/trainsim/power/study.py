@@ -29,6 +29,7 @@ from trainsim.model.scenario import Scenario
 from trainsim.power.network import Network
 from trainsim.power.onboard import OnboardStorage
 from trainsim.power.simulation import PowerResult, TrainLoad, simulate, train_load_from_run
+from trainsim.power.stretches import JoinedRun, joined_run, stop_positions
 from trainsim.sim.result import RunResult
 
 __all__ = ["FeedbackSettings", "TrainService", "run_study"]
@@ -67,11 +68,15 @@ class FeedbackSettings:
         max_iterations: network solutions at most (the first one included).
         tolerance: a departure is consistent when it gets at least 1 - tolerance of the traction
             energy it asks [-].
+        method: ``per_stretch`` (a cap per stretch between two stops, where the line limited
+            that stretch; fastest runs only, others fall back to ``constant``) or ``constant``
+            (one cap for the whole run).
     """
 
     enabled: bool = True
     max_iterations: int = 10
     tolerance: float = 1e-3
+    method: str = "per_stretch"
 
     def __post_init__(self) -> None:
         if not 1 <= self.max_iterations <= 50:
@@ -81,6 +86,9 @@ class FeedbackSettings:
                 value=self.max_iterations,
                 allowed="1 .. 50",
             )
+        if self.method not in ("per_stretch", "constant"):
+            raise InputError("unknown feedback method", field="simulation.feedback.method", value=self.method,
+                             allowed="per_stretch, constant")  # fmt: skip
         if not 0 < self.tolerance < 0.5:
             raise InputError(
                 "invalid tolerance",
@@ -152,12 +160,21 @@ def run_study(
     feedback = feedback or FeedbackSettings()
     if not services:
         raise InputError("no trains", field="trains", allowed="one or more trains")
-    runs: dict[tuple[int, float], RunResult] = {}
+    runs: dict[tuple, RunResult | JoinedRun] = {}
+    per_stretch = [
+        feedback.method == "per_stretch" and s.scenario.strategy == "fastest" for s in services
+    ]
+    stops = [stop_positions(s.scenario.route) for s in services]
 
-    def run_of(k: int, cap: float) -> RunResult:
-        key = (k, round(cap, 3) if np.isfinite(cap) else np.inf)
+    def run_of(k: int, cap: np.ndarray | float) -> RunResult | JoinedRun:
+        caps_k = np.atleast_1d(np.asarray(cap, dtype=float))
+        key = (k, tuple(round(c, 3) if np.isfinite(c) else np.inf for c in caps_k))
         if key not in runs:
-            run = _run(services[k].scenario, key[1])
+            if per_stretch[k] and len(caps_k) > 1 and np.isfinite(caps_k).any():
+                sc = services[k].scenario
+                run = joined_run(sc.train, sc.route, sc.settings, np.array(key[1]))
+            else:
+                run = _run(services[k].scenario, float(np.min(caps_k)))
             if run.status != "ok":
                 raise InputError(
                     f"the run of train {services[k].id} is not possible: " + "; ".join(run.warnings),
@@ -172,7 +189,7 @@ def run_study(
         for k, s in enumerate(services)
         for j, dep in enumerate(s.departures_s)
     ]
-    caps = np.full(len(departures), np.inf)
+    caps = [np.full(len(stops[k]) - 1 if per_stretch[k] else 1, np.inf) for k, _, _ in departures]
     efficiency = np.array([_efficiency(services[k]) for k, _, _ in departures])
     iterations = 0
     result: PowerResult | None = None
@@ -192,19 +209,37 @@ def run_study(
             break
         short = result.traction_delivered_w < result.traction_demand_w * (1.0 - feedback.tolerance)
         for i in np.flatnonzero(limited):
+            k = departures[i][0]
+            svc = services[k]
+            # the stretch of each limited step: back from chainage to the route's own position
+            s_route = svc.scenario.route.start_m + svc.direction * (result.train_position_m[short[:, i], i] - svc.origin_m)
+            stretch = np.clip(np.searchsorted(stops[k], s_route, side="right") - 1, 0, len(caps[i]) - 1)
             delivered = result.traction_delivered_w[short[:, i], i]
-            caps[i] = min(caps[i], float(np.min(delivered)) * efficiency[i])
+            for j in np.unique(stretch) if len(caps[i]) > 1 else [0]:
+                mine = delivered[stretch == j] if len(caps[i]) > 1 else delivered
+                caps[i][j] = min(caps[i][j], float(np.min(mine)) * efficiency[i])
     trains: list[dict[str, Any]] = []
     for i, (k, name, _) in enumerate(departures):
-        nominal = run_of(k, np.inf).running_time_s
-        actual = run_of(k, caps[i]).running_time_s
+        actual_run = run_of(k, caps[i])
+        # the nominal run the same way (joined stretches or the whole run) so that no cap: no loss
+        nominal_caps = np.full(len(caps[i]), np.inf)
+        if isinstance(actual_run, JoinedRun):
+            nominal = joined_run(services[k].scenario.train, services[k].scenario.route,
+                                 services[k].scenario.settings, nominal_caps).running_time_s  # fmt: skip
+        else:
+            nominal = run_of(k, np.inf).running_time_s
+        actual = actual_run.running_time_s
+        finite = np.isfinite(caps[i])
         trains.append(
             {
                 "id": name,
                 "running_time_s": actual,
                 "nominal_running_time_s": nominal,
                 "time_lost_s": actual - nominal,
-                "traction_power_cap_kw": float(caps[i]) / 1e3 if np.isfinite(caps[i]) else None,
+                "traction_power_cap_kw": float(np.min(caps[i])) / 1e3 if finite.any() else None,
+                "traction_power_caps_kw": [float(c) / 1e3 if np.isfinite(c) else None for c in caps[i]]
+                if len(caps[i]) > 1
+                else None,
             }
         )
     extra = {
@@ -213,7 +248,12 @@ def run_study(
             "enabled": feedback.enabled,
             "iterations": iterations,
             "consistent": bool(consistent),
-            "method": "constant cap on the traction power at the wheel: least power delivered at a limited step",
+            "method": (
+                "a cap on the traction power at the wheel per stretch between two stops: the least power "
+                "delivered at a limited step of that stretch"
+                if feedback.method == "per_stretch"
+                else "constant cap on the traction power at the wheel: least power delivered at a limited step"
+            ),
         },
     }
     return dataclasses.replace(result, extra=extra)
