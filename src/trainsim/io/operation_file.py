@@ -71,10 +71,25 @@ class _Signalling(_Spec):
     etcs: _Etcs | None = None
 
 
+class _LineResistance(_Spec):
+    curve_formula: str
+    tunnel_formula: str
+
+
+class _Railml(_Spec):
+    """The line read from a railML 2 or 3 file: its route and its signalling (issue 17)."""
+
+    file: str
+    train_id: str | None = None
+    ocps: list[str] | None = None
+    line_resistance: _LineResistance | None = None
+
+
 class _Line(_Spec):
-    route: str
+    route: str | None = None
+    railml: _Railml | None = None
     layout: Literal["double_track", "single_track"]
-    stations: list[_Station]
+    stations: list[_Station] = []
     signalling: _Signalling
     block_length_m: float = 2000.0
     block_signals_m: dict[Literal["up", "down"], list[float]] | None = None
@@ -339,7 +354,20 @@ def read_operation(path: str | Path) -> Operation:
             problems.extend(p if p.file else replace(p, file=str(target)) for p in e.problems)
             return None
 
-    geometry = load("route", spec.line.route, "line.route")
+    signalling_read = None
+    if (spec.line.route is None) == (spec.line.railml is None):
+        raise InputError(
+            "the line needs its route: give either 'route' (a route file) or 'railml' (a railML file "
+            "with signals), not both",
+            file=file,
+            field="line",
+            allowed="line.route or line.railml",
+        )
+    if spec.line.railml is not None:
+        geometry, signalling_read = _railml_line(spec.line.railml, base, file, problems)
+    else:
+        assert spec.line.route is not None
+        geometry = load("route", spec.line.route, "line.route")
     trains: dict[str, Train] = {}
     for i, t in enumerate(spec.trains):
         if t.train not in trains:
@@ -357,8 +385,19 @@ def read_operation(path: str | Path) -> Operation:
             value=geometry.start_m,
         )
     route_stations = {s.name: s.position_m for s in geometry.stations}
+    line_stations = spec.line.stations
+    block_signals_m = spec.line.block_signals_m
+    if signalling_read is not None:
+        line_stations = _stations_with_signals(signalling_read, line_stations)
+        read_blocks = signalling_read.block_signals_m()
+        if block_signals_m is None and spec.line.layout == "double_track" and any(read_blocks.values()):
+            block_signals_m = {d: v for d, v in read_blocks.items() if v}
+    if not line_stations:
+        problems.append(
+            Problem("a line needs its stations", file=file, field="line.stations", allowed="a list of stations")
+        )
     stations = []
-    for i, s in enumerate(spec.line.stations):
+    for i, s in enumerate(line_stations):
         pos = s.position_m if s.position_m is not None else route_stations.get(s.name)
         if pos is None:
             problems.append(
@@ -413,7 +452,7 @@ def read_operation(path: str | Path) -> Operation:
             "stations": tuple(stations),
             "signalling": signalling,
             "block_length_m": spec.line.block_length_m,
-            "block_signals_m": spec.line.block_signals_m,
+            "block_signals_m": block_signals_m,
         }
         line = build_line(**line_args)
         settings = RunSettings(
@@ -447,6 +486,51 @@ def read_operation(path: str | Path) -> Operation:
         list(spec.compare_systems), spec.pattern_period_s, spec.dispatching.lookahead_s, line_args, delays,
         given, disturbances,
     )  # fmt: skip
+
+
+def _railml_line(railml: _Railml, base: Path, file: str, problems: list[Problem]):
+    """The route and the signalling of ``line.railml`` (None, None with problems when unreadable)."""
+    from trainsim.io.interchange import detect_and_load
+    from trainsim.io.railml_signalling import read_signalling
+
+    target = (base / railml.file).resolve()
+    if not target.is_file():
+        problems.append(
+            Problem(
+                "file not found",
+                file=file,
+                field="line.railml.file",
+                value=railml.file,
+                allowed="a path relative to the operation file",
+            )
+        )
+        return None, None
+    options: dict = {"train_id": railml.train_id, "ocps": railml.ocps}
+    if railml.line_resistance is not None:
+        options["line_resistance"] = railml.line_resistance.model_dump()
+    try:
+        route = detect_and_load(target, "route", **options)
+        if route is None:
+            raise InputError("not a railML file", file=str(target), field="line.railml.file")
+        return route, read_signalling(target, train_id=railml.train_id, ocps=railml.ocps)
+    except InputError as e:
+        problems.extend(p if p.file else replace(p, file=str(target)) for p in e.problems)
+        return None, None
+
+
+def _stations_with_signals(read, given: list[_Station]) -> list[_Station]:
+    """The stations of a railML line with the signal distances read for the up direction (the line model
+    holds one value for both directions); a station given in the operation file overrides, field by
+    field, what was read."""
+    by_name = {s.name: s for s in given}
+    out = []
+    for entry in read.station_signals("up"):
+        mine = by_name.pop(str(entry["name"]), None)
+        fields = dict(entry)
+        if mine is not None:
+            fields.update({k: getattr(mine, k) for k in mine.model_fields_set})
+        out.append(_Station(**fields))
+    return out + list(by_name.values())
 
 
 def _services(
