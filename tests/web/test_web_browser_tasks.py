@@ -194,6 +194,9 @@ def test_driver_desk_readouts_atp_and_comparison(page) -> None:  # noqa: F811
     pg.wait_for_function(
         "document.querySelector('#drive-next-stop').textContent.startsWith('S3')", timeout=60_000
     )
+    # paused at once: at 20x the train covers the 1.5 km to S3 in 4 s of wall time, less than a
+    # loaded machine may take to click the next button
+    pg.click("#drive-pause")
     assert float(pg.locator("#drive-speed").inner_text()) <= 80 + 2
     pg.click("#drive-finish")
     pg.wait_for_selector("#drive-result:not([hidden])")
