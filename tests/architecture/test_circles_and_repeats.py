@@ -85,7 +85,7 @@ def test_no_repeated_code_between_source_files():
         ],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=900,
     )
     pairs: dict[tuple[str, ...], int] = {}
     for block in proc.stdout.split("R0801")[1:]:

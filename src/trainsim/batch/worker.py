@@ -231,7 +231,7 @@ class WorkerState:
 
     def _timetable(self, name: str, source: str):
         """The timetable file ``name`` (as written), read by the process that started the study."""
-        from trainsim.optimize.timetable import read_timetable_yaml
+        from trainsim.io.timetable_file import read_timetable_yaml
 
         return _shared_file(self._timetables, name, source, read_timetable_yaml, "driving.timetable")
 

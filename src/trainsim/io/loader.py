@@ -449,7 +449,7 @@ def _check_ttobench(path: str | Path, detected: Detected) -> CheckReport:
 
 def _check_timetable(path: str | Path, detected: Detected) -> CheckReport:
     """A ``trainsim/timetable`` file (the schedule of ``optimize``)."""
-    from trainsim.optimize.timetable import read_timetable_yaml
+    from trainsim.io.timetable_file import read_timetable_yaml
 
     timetable = read_timetable_yaml(path)
     figures = {k: str(v) for k, v in _public_figures(timetable).items()}

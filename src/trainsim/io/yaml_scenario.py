@@ -96,7 +96,7 @@ class ScenarioSpec(Spec):
         scenario = Scenario(name=self.name, train=train, route=route, settings=self.settings.build())
         if self.driving is None:
             return scenario
-        from trainsim.optimize.timetable import read_timetable_yaml
+        from trainsim.io.timetable_file import read_timetable_yaml
 
         def read_timetable(name: str) -> Timetable:
             path = _resolve(base, name, file, "driving.timetable")
