@@ -277,3 +277,34 @@ def test_feedback_per_stretch_holds_back_only_where_the_line_limits(tmp_path):
     assert constant["traction_power_cap_kw"] == pytest.approx(min(caps), rel=0.2)
     assert 0.0 < stretch["time_lost_s"] < constant["time_lost_s"]
     assert stretch["traction_delivered_kwh"] >= (1 - 1e-3) * stretch["traction_demand_kwh"]
+
+
+@pytest.mark.parametrize("knock_on", [False, True])
+def test_knock_on_delays_only_when_the_timetable_says_so(tmp_path, knock_on):
+    """Two departures of one train, 120 s apart, on the weak line: the first loses time to the
+    voltage; with ``knock_on`` (and no buffer) the second departs that much later, otherwise it
+    keeps its time and only the time lost is reported."""
+    weak = {
+        "network.tracks.0.contact_resistance_ohm_per_km": 0.05,
+        "network.tracks.1.contact_resistance_ohm_per_km": 0.05,
+        "network.substations": [
+            {"id": "S", "position_km": 0, "tracks": ["up", "down"], "no_load_voltage_v": 850,
+             "internal_resistance_ohm": 0.02, "reversible": False}
+        ],
+        "network.connections": [],
+        "trains": [
+            {"id": "up", "scenario": METRO, "track": "up", "origin_km": 0, "direction": 1,
+             "departures_s": [0, 120]}
+        ],
+    }  # fmt: skip
+    doc = yaml.safe_load(_small(tmp_path, **weak).read_text())
+    doc["simulation"]["feedback"] = {"enabled": True, "knock_on": knock_on, "buffer_s": 0}
+    path = tmp_path / "knock.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    summary, status = run_power_file(path)
+    first, second = summary["trains"]
+    assert status == "ok" and summary["feedback"]["consistent"]
+    assert summary["feedback"]["knock_on"] is knock_on
+    assert first["time_lost_s"] > 0 and first["departure_delay_s"] == 0.0
+    expected = first["time_lost_s"] if knock_on else 0.0
+    assert second["departure_delay_s"] == pytest.approx(expected, abs=1e-6)

@@ -172,6 +172,8 @@ class FeedbackSpec(_Spec):
     max_iterations: Annotated[int, Field(ge=1, le=50)] = 10
     tolerance: Annotated[float, Field(gt=0, lt=0.5)] = 1e-3
     method: Literal["per_stretch", "constant"] = "per_stretch"
+    knock_on: bool = False
+    buffer_s: NonNegative = 0.0
 
 
 class SimulationSpec(_Spec):
@@ -527,8 +529,9 @@ def run_power_file(
         result = dataclasses.replace(result, extra={"operation": info, "feedback": feedback})
     else:
         fb = FeedbackSettings(
-        sim.feedback.enabled, sim.feedback.max_iterations, sim.feedback.tolerance, sim.feedback.method
-    )
+        sim.feedback.enabled, sim.feedback.max_iterations, sim.feedback.tolerance, sim.feedback.method,
+        sim.feedback.knock_on, sim.feedback.buffer_s,
+    )  # fmt: skip
         result = run_study(
             network, services, dt_s=sim.step_s, start_s=sim.start_s, end_s=sim.end_s, feedback=fb
         )

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -71,12 +72,19 @@ class FeedbackSettings:
         method: ``per_stretch`` (a cap per stretch between two stops, where the line limited
             that stretch; fastest runs only, others fall back to ``constant``) or ``constant``
             (one cap for the whole run).
+        knock_on: the timetable says a train may not depart before the previous departure of the
+            same train (service) has made up its delay: each later departure of a service is
+            shifted by the previous one's shift plus its time lost, less ``buffer_s``. False (the
+            default): departures keep their times and the time lost is only reported.
+        buffer_s: recovery time the timetable holds between two departures of a service [s].
     """
 
     enabled: bool = True
     max_iterations: int = 10
     tolerance: float = 1e-3
     method: str = "per_stretch"
+    knock_on: bool = False
+    buffer_s: float = 0.0
 
     def __post_init__(self) -> None:
         if not 1 <= self.max_iterations <= 50:
@@ -89,6 +97,9 @@ class FeedbackSettings:
         if self.method not in ("per_stretch", "constant"):
             raise InputError("unknown feedback method", field="simulation.feedback.method", value=self.method,
                              allowed="per_stretch, constant")  # fmt: skip
+        if not (np.isfinite(self.buffer_s) and self.buffer_s >= 0):
+            raise InputError("invalid buffer time", field="simulation.feedback.buffer_s", value=self.buffer_s,
+                             allowed=">= 0 s")  # fmt: skip
         if not 0 < self.tolerance < 0.5:
             raise InputError(
                 "invalid tolerance",
@@ -190,6 +201,29 @@ def run_study(
         for j, dep in enumerate(s.departures_s)
     ]
     caps = [np.full(len(stops[k]) - 1 if per_stretch[k] else 1, np.inf) for k, _, _ in departures]
+    shift = np.zeros(len(departures))
+
+    def time_lost(i: int) -> tuple[float, float]:
+        """(running time, nominal running time) of departure i with its caps [s]: the nominal the
+        same way (joined stretches or the whole run), so that no cap means no loss."""
+        k = departures[i][0]
+        actual = run_of(k, caps[i])
+        if isinstance(actual, JoinedRun):
+            sc = services[k].scenario
+            nominal = joined_run(sc.train, sc.route, sc.settings, np.full(len(caps[i]), np.inf))
+        else:
+            nominal = run_of(k, np.inf)
+        return actual.running_time_s, nominal.running_time_s
+
+    def knock_on() -> np.ndarray:
+        out = np.zeros(len(departures))
+        for k in range(len(services)):
+            mine = sorted((dep, i) for i, (kk, _, dep) in enumerate(departures) if kk == k)
+            for (_, prev), (_, nxt) in pairwise(mine):
+                actual, nominal = time_lost(prev)
+                out[nxt] = max(0.0, out[prev] + actual - nominal - feedback.buffer_s)
+        return out
+
     efficiency = np.array([_efficiency(services[k]) for k, _, _ in departures])
     iterations = 0
     result: PowerResult | None = None
@@ -197,14 +231,16 @@ def run_study(
     while True:
         iterations += 1
         loads = [
-            _load(services[k], run_of(k, caps[i]), name, dep) for i, (k, name, dep) in enumerate(departures)
+            _load(services[k], run_of(k, caps[i]), name, dep + shift[i])
+            for i, (k, name, dep) in enumerate(departures)
         ]
         result = simulate(network, loads, dt_s=dt_s, start_s=start_s, end_s=end_s)
         asked = np.nansum(result.traction_demand_w, axis=0)
         got = np.nansum(result.traction_delivered_w, axis=0)
         ratio = np.where(asked > 0, got / np.where(asked > 0, asked, 1.0), 1.0)
         limited = ratio < 1.0 - feedback.tolerance
-        consistent = not limited.any()
+        settled = not feedback.knock_on or bool(np.allclose(knock_on(), shift, rtol=0.0, atol=1e-6))
+        consistent = not limited.any() and settled
         if consistent or not feedback.enabled or iterations >= feedback.max_iterations:
             break
         short = result.traction_delivered_w < result.traction_demand_w * (1.0 - feedback.tolerance)
@@ -218,17 +254,11 @@ def run_study(
             for j in np.unique(stretch) if len(caps[i]) > 1 else [0]:
                 mine = delivered[stretch == j] if len(caps[i]) > 1 else delivered
                 caps[i][j] = min(caps[i][j], float(np.min(mine)) * efficiency[i])
+        if feedback.knock_on:
+            shift = knock_on()
     trains: list[dict[str, Any]] = []
-    for i, (k, name, _) in enumerate(departures):
-        actual_run = run_of(k, caps[i])
-        # the nominal run the same way (joined stretches or the whole run) so that no cap: no loss
-        nominal_caps = np.full(len(caps[i]), np.inf)
-        if isinstance(actual_run, JoinedRun):
-            nominal = joined_run(services[k].scenario.train, services[k].scenario.route,
-                                 services[k].scenario.settings, nominal_caps).running_time_s  # fmt: skip
-        else:
-            nominal = run_of(k, np.inf).running_time_s
-        actual = actual_run.running_time_s
+    for i, (_, name, _) in enumerate(departures):
+        actual, nominal = time_lost(i)
         finite = np.isfinite(caps[i])
         trains.append(
             {
@@ -237,6 +267,7 @@ def run_study(
                 "nominal_running_time_s": nominal,
                 "time_lost_s": actual - nominal,
                 "traction_power_cap_kw": float(np.min(caps[i])) / 1e3 if finite.any() else None,
+                "departure_delay_s": float(shift[i]),
                 "traction_power_caps_kw": [float(c) / 1e3 if np.isfinite(c) else None for c in caps[i]]
                 if len(caps[i]) > 1
                 else None,
@@ -248,6 +279,8 @@ def run_study(
             "enabled": feedback.enabled,
             "iterations": iterations,
             "consistent": bool(consistent),
+            "knock_on": feedback.knock_on,
+            "buffer_s": feedback.buffer_s,
             "method": (
                 "a cap on the traction power at the wheel per stretch between two stops: the least power "
                 "delivered at a limited step of that stretch"
