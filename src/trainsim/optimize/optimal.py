@@ -498,7 +498,7 @@ class SectionSolver:
         ends = idx[np.concatenate([breaks, [len(idx) - 1]])] + 1
         s, v = seg[0], seg[1]
         for i, j in zip(starts, ends, strict=True):
-            lo, hi = max(tr.x[i], after), tr.x[j]
+            lo, hi = max(self._steep_from(i, float(vhold[i])), after), tr.x[j]
             if hi <= after + 1.0:
                 continue
             k = min(int(np.searchsorted(tr.x, lo, side="right")) - 1, j - 1)
@@ -509,6 +509,19 @@ class SectionSolver:
             if len(at_v):
                 return float(s[at_v[0]]), float(hi), v_hold
         return None
+
+    def _steep_from(self, i: int, v_hold: float) -> float:
+        """Where holding v_hold [m/s] starts to need braking in interval i [m]: the grade varies
+        linearly along an interval, so the descent begins where the resistance crosses zero, not at
+        the interval's start (a start snapped to the grid moved the departure with the step)."""
+        tr = self.track
+        law = self.train.resistance_law
+        weight = self.P[kernel.P_WEIGHT]
+        r0 = law(v_hold) + weight * (tr.a0[i] + tr.b0[i] * v_hold * v_hold)
+        slope = weight * (tr.a1[i] + tr.b1[i] * v_hold * v_hold)
+        if r0 < 0.0 or slope >= 0.0:
+            return float(tr.x[i])
+        return float(tr.x[i] + min(-r0 / slope, tr.x[i + 1] - tr.x[i]))
 
     @staticmethod
     def _back_at(seg, after: float, V: float) -> float:

@@ -74,10 +74,11 @@ def phi_slope(phi, E, u, b0, b1, P, mu):
 
 
 @njit(cache=True)
-def phi_step(phi, E0, E1, u, h, b0, b1, P, mu):
-    """RK4 for phi over a step h, with E varying linearly along it (the switching points are
-    stationary for the cost, so this accuracy is ample)."""
-    Em = 0.5 * (E0 + E1)
+def phi_step(phi, E0, E1, u, h, b0, b1, P, mu, Em=-1.0):
+    """RK4 for phi over a step h; E at the midpoint ``Em`` (by default (< 0) E varying linearly:
+    an O(h^2) error that moved the switching points with the step)."""
+    if Em < 0.0:
+        Em = 0.5 * (E0 + E1)
     k1 = phi_slope(phi, E0, u, b0, b1, P, mu)
     k2 = phi_slope(phi + 0.5 * h * k1, Em, u + 0.5 * h, b0, b1, P, mu)
     k3 = phi_slope(phi + 0.5 * h * k2, Em, u + 0.5 * h, b0, b1, P, mu)
@@ -113,6 +114,7 @@ def final_phase(
     ``rk`` are the kinks of the regenerative curve (its steps integrated exactly, as the energy
     accounting does: across a kink the run would otherwise move with the step)."""
     phi = inv_eta_t * (1.0 - 1e-9) if phi_start < 0.0 else phi_start
+    just_cut = False
     E = 0.5 * v_start * v_start
     t = t_start
     u = u_start
@@ -144,6 +146,8 @@ def final_phase(
                 h = min(h, US[kk] - u)  # the braking curve part starts at US
             kinks = tk if mode == TRACTION else (rk if mode == REGEN else bk)
             if mode == CRUISE:
+                if resistance_force(v, u, line, P) < 0.0:
+                    h = _descent_end(v, u, h, line, P)
                 E1, dt = E, h / v
             else:
                 E1, dt = step_energy_time(E, u, h, mode, line, P, curves, kinks)
@@ -167,7 +171,11 @@ def final_phase(
                     E1, dt = step_energy_time(E, u, h, mode, line, P, curves, kinks)
                     v1 = vcap[i]
                     E1 = 0.5 * v1 * v1
-            phi1 = phi_step(phi, E, E1, u, h, b0[i], b1[i], P, mu) if v > PHI_MIN_SPEED else phi
+            cut = False
+            phi1 = phi
+            if v > PHI_MIN_SPEED:
+                Em = E if mode == CRUISE else step_energy(E, u, 0.5 * h, mode, line, P, curves, kinks)
+                phi1 = phi_step(phi, E, E1, u, h, b0[i], b1[i], P, mu, Em)
             if v1 >= v_hold and phi1 > inv_eta_t * (1.0 - 1e-9):
                 phi1 = inv_eta_t * (1.0 - 1e-9)
             new_mode = mode_of(phi1, inv_eta_t, eta_r, has_regen)
@@ -183,9 +191,32 @@ def final_phase(
                     thr = 0.0
                 frac = (thr - phi) / (phi1 - phi) if phi1 != phi else 1.0
                 frac = min(max(frac, 0.0), 1.0)
-                # never cut below MIN_SWITCH_STEP_M: near a singular arc the adjoint sits on a
-                # threshold, and slivers of steps would only multiply points without progress
-                h_cut = max(frac * h, min(MIN_SWITCH_STEP_M, h))
+                # the crossing located exactly (secant on the adjoint integrated over part of the
+                # step): linear interpolation put it up to a metre off, moving with the step
+                lo_h, hi_h = 0.0, h
+                h_try = frac * h
+                for _ in range(40):
+                    if not 0.0 < h_try < h:
+                        break
+                    Et = E if mode == CRUISE else step_energy(E, u, h_try, mode, line, P, curves, kinks)
+                    Emt = E if mode == CRUISE else step_energy(E, u, 0.5 * h_try, mode, line, P, curves, kinks)
+                    g = phi_step(phi, E, Et, u, h_try, b0[i], b1[i], P, mu, Emt) - thr
+                    if (g > 0.0) == (phi > thr):
+                        lo_h = h_try
+                    else:
+                        hi_h = h_try
+                    if hi_h - lo_h < 1e-9:
+                        break
+                    # the adjoint is nearly linear over a step: a linear step on the bracket
+                    h_try = 0.5 * (lo_h + hi_h) if g == 0.0 else h_try - g * h_try / (g + thr - phi)
+                    if not lo_h < h_try < hi_h:
+                        h_try = 0.5 * (lo_h + hi_h)
+                h_exact = hi_h if hi_h < h else frac * h
+                # near a singular arc the adjoint sits on a threshold: right after a cut, never cut
+                # below MIN_SWITCH_STEP_M (slivers would only multiply points without progress)
+                h_cut = max(h_exact, min(MIN_SWITCH_STEP_M, h)) if just_cut else h_exact
+                if h_cut < 1e-9:
+                    h_cut = min(1e-9, h)
                 if h_cut < h:
                     h = h_cut
                     if mode == CRUISE:
@@ -194,6 +225,7 @@ def final_phase(
                         E1, dt = step_energy_time(E, u, h, mode, line, P, curves, kinks)
                     v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
                     phi1 = thr - 1e-12 if phi1 < phi else thr + 1e-12
+                    cut = True
             # the braking curve to the stop (and to lower limits) must not be crossed
             if mode != stop_mode and u + h > US[kk]:
                 c1 = _curve_speed(u + h, w, Cr[kk], stop_mode, line, P, curves, sk)
@@ -214,6 +246,7 @@ def final_phase(
                     break
             n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
             E, t, u, phi = E1, t + dt, u + h, phi1
+            just_cut = cut
         if not jumped:
             u = 0.0
             i += 1
@@ -399,11 +432,26 @@ def holding_segment(
 
 
 @njit(cache=True)
+def _descent_end(v, u, h, line, P):
+    """The step [m] from offset u, at most h, up to where holding speed v stops needing braking:
+    the grade varies linearly along an interval, so the resistance at constant speed crosses zero
+    at one point (a hold ended at the step's end instead moved with the step)."""
+    r0 = resistance_force(v, u, line, P)
+    r1 = resistance_force(v, u + h, line, P)
+    if r0 < 0.0 <= r1:
+        hc = h * (-r0) / (r1 - r0)
+        if 1e-9 < hc < h:
+            return hc
+    return h
+
+
+@njit(cache=True)
 def _capped_coast_step(E, v, u, h, cap, line, P, curves, bk):
     """(mode, step, E, time) of a coasting step of at most h [m] from offset u that never exceeds the
     speed ``cap`` [m/s]: at the cap on a descent the train holds it with braking (CRUISE); reaching
     the cap the step ends there."""
     if v >= cap - 1e-9 and resistance_force(v, u, line, P) < 0.0:
+        h = _descent_end(v, u, h, line, P)
         return CRUISE, h, E, h / v
     E1, dt = step_energy_time(E, u, h, COAST, line, P, curves, bk)
     E_cap = 0.5 * cap * cap
