@@ -14,6 +14,7 @@ import trainsim
 from trainsim.cli import app
 from trainsim.constants import KMH
 from trainsim.errors import InputError
+from trainsim.io.timetable_file import read_timetable_yaml
 from trainsim.io.ttobench import read_ttobench_track, read_ttobench_train
 from trainsim.model import (
     Braking,
@@ -28,12 +29,7 @@ from trainsim.model import (
 )
 from trainsim.optimize.api import energy_time_curve, optimize
 from trainsim.optimize.optimal import SectionSolver, key_equation_braking_speed
-from trainsim.optimize.timetable import (
-    SectionSchedule,
-    Timetable,
-    line_supplement,
-    read_timetable_yaml,
-)
+from trainsim.optimize.timetable import SectionSchedule, Timetable, line_supplement
 from trainsim.sim import kernel
 
 ROOT = Path(__file__).resolve().parents[2]

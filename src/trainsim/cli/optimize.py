@@ -80,9 +80,10 @@ def optimize(
     """
     with user_errors():
         scn = load_scenario(scenario, train, route, None)
+        from trainsim.io.timetable_file import read_timetable_yaml
         from trainsim.optimize.api import STRATEGIES, energy_time_curve
         from trainsim.optimize.api import optimize as run_optimize
-        from trainsim.optimize.timetable import line_supplement, read_timetable_yaml
+        from trainsim.optimize.timetable import line_supplement
 
         if strategy not in STRATEGIES:
             raise InputError(

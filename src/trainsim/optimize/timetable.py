@@ -9,10 +9,7 @@ section has the same marginal energy per second (the optimal split, Albrecht et 
 from __future__ import annotations
 
 import re
-from pathlib import Path
 from typing import Any
-
-import yaml
 
 from trainsim.errors import InputError
 from trainsim.model import bounds
@@ -25,8 +22,6 @@ __all__ = [
     "TimingPoint",
     "line_supplement",
     "parse_supplement",
-    "passing_point_warnings",
-    "read_timetable_yaml",
     "timetable_from_dict",
     "timetable_from_journey",
 ]
@@ -69,24 +64,6 @@ def line_supplement(text: str) -> Timetable:
 
 #: The keys of a ``trainsim/timetable`` document.
 TIMETABLE_KEYS = ("schema", "version", "name", "description", "supplement", "sections")
-
-
-def read_timetable_yaml(path: str | Path, n_sections: int | None = None) -> Timetable:
-    """Transitional name of :func:`trainsim.io.timetable_file.read_timetable_yaml`, which reads the file
-    within the bounds of :mod:`trainsim.io.documents` (this one does not: optimize is below io and may
-    not use it). Kept only until its callers in io/loader.py, io/yaml_scenario.py, batch/worker.py and
-    cli/optimize.py import the io reader."""
-    file = str(path)
-    try:
-        data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError("file not found", file=file) from None
-    except yaml.YAMLError as exc:
-        line = getattr(getattr(exc, "problem_mark", None), "line", None)
-        raise InputError(
-            f"not valid YAML: {exc}", file=file, line=line + 1 if line is not None else None
-        ) from None
-    return timetable_from_dict(data, file, n_sections)
 
 
 def timetable_from_dict(data: Any, file: str = "<timetable>", n_sections: int | None = None) -> Timetable:
@@ -232,27 +209,3 @@ def timetable_from_journey(journey, route):  # (Journey, Route) -> (Route, Timet
     return new_route, Timetable(sections=tuple(sections), source=journey.name, timing_points=tuple(points))
 
 
-def passing_point_warnings(journey, run) -> list[str]:
-    """Passing points of a journey whose time or speed window the run misses."""
-    import numpy as np
-
-    tr = run.trace
-    out = []
-    for p in journey.points:
-        if p.is_stop:
-            continue
-        k = int(np.searchsorted(tr.position_m, p.position_m))
-        if k >= len(tr.position_m):
-            continue
-        t, v = float(tr.time_s[k]), float(tr.speed_mps[k])
-        if (p.earliest_s is not None and t < p.earliest_s - 0.5) or (
-            p.latest_s is not None and t > p.latest_s + 0.5
-        ):
-            out.append(
-                f"passing point at {p.position_m:.0f} m: passed at {t:.1f} s, window {p.earliest_s}..{p.latest_s} s"
-            )
-        if (p.min_speed_mps is not None and v < p.min_speed_mps - 1e-6) or (
-            p.max_speed_mps is not None and v > p.max_speed_mps + 1e-6
-        ):
-            out.append(f"passing point at {p.position_m:.0f} m: speed {v * 3.6:.1f} km/h outside its window")
-    return out
