@@ -33,6 +33,15 @@ def _until(check, timeout_s: float = 20.0, what: str = "") -> None:
     raise AssertionError(f"timed out: {what}")
 
 
+def doc_shot(pg, name: str, selector: str) -> None:
+    """A docs screenshot of the view around ``selector`` at 1280 px (the width the docs show)."""
+    pg.set_viewport_size({"width": 1280, "height": 900})
+    pg.locator(selector).scroll_into_view_if_needed()
+    pg.wait_for_timeout(600)  # let Plotly relayout to the new width
+    DOCS_SHOTS.mkdir(parents=True, exist_ok=True)
+    pg.screenshot(path=str(DOCS_SHOTS / name))
+
+
 @pytest.fixture
 def strict_page(browser, live_server) -> Iterator:  # noqa: F811
     """A page under its own Content-Security-Policy (no bypass), 1280 px wide; CSP reports fail the test."""
@@ -160,6 +169,7 @@ def test_auto_rerun_skips_no_op_edits_and_keeps_the_baseline(page) -> None:  # n
     pg.click("#curve-button")
     pg.wait_for_selector("#plot-energy-time .main-svg", timeout=60_000)
     assert "Energy against running time" in pg.locator("#plot-energy-time").inner_text()
+    doc_shot(pg, "energy_time.png", "#plot-energy-time")
 
 
 def test_driver_desk_readouts_atp_and_comparison(page) -> None:  # noqa: F811
@@ -223,6 +233,7 @@ def test_multipoint_heavy_haul_heat_map_and_extreme_couplers(page) -> None:  # n
     assert pg.locator("#plot-couplers .heatmaplayer, #plot-couplers .hm").count() >= 1
     pg.locator("#plot-couplers").scroll_into_view_if_needed()
     shot(pg, "multipoint.png")
+    doc_shot(pg, "multipoint.png", "#plot-couplers")
 
 
 def test_timing_points_with_speed_windows_in_the_optimisation_form(page) -> None:  # noqa: F811
@@ -292,3 +303,4 @@ def test_operation_train_graph_with_blocking_time_stairs(page) -> None:  # noqa:
         assert station in pg.locator("#plot-train-graph").inner_text()
     pg.locator("#plot-train-graph").scroll_into_view_if_needed()
     shot(pg, "train_graph.png")
+    doc_shot(pg, "train_graph.png", "#plot-train-graph")
