@@ -357,7 +357,12 @@ def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pc
     resistance, brakes) is taken at the end-of-step speed ``2 w - v0``. That part of the scheme is
     backward Euler, which damps the stiff friction law near standstill (the midpoint rule alone would
     let a held vehicle's speed flip sign from step to step); the kinetic-energy change of a step is
-    still exactly the work of the applied forces over the step's displacement ``h w``."""
+    still exactly the work of the applied forces over the step's displacement ``h w``.
+
+    Braking with the blend flag: the command's full level is the service braking force (share
+    ``S_BRAKE_FRACTION`` of the service curve) met by the electric brake first and by the friction
+    brakes for the rest; in the regenerative-braking regime (``CMD[K_REGIME] == REGEN``) it is the
+    larger of that and the electric brake's curve, as the single-point model's REGEN regime brakes."""
     cs, cc, coff, cfc, cpc = bank
     poff, px, pval = prof
     ax, aval = avail
@@ -369,6 +374,7 @@ def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pc
     sc = int(SP[S_SERVICE_CURVE])
     rc = int(SP[S_REGEN_CURVE])
     blend = CMD[K_BLEND] > 0.5
+    electric_regime = blend and int(CMD[K_REGIME]) == REGEN and rc >= 0
     for i in range(n):
         v = w[i]
         av = abs(v)
@@ -420,6 +426,12 @@ def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pc
                     # electric braking fades out towards standstill; the friction brakes take over
                     d_regen = d_regen * av / ELECTRIC_FADE_MPS + regen / ELECTRIC_FADE_MPS
                     regen *= av / ELECTRIC_FADE_MPS
+            if electric_regime and regen > demand:
+                # the single-point model's regenerative braking (REGEN) brakes with the electric brake's
+                # own curve, stronger than the service brake at low speeds (source 004: 0.8 x traction):
+                # full command is then the electric brake alone, the friction brakes adding nothing
+                demand = regen
+                d_demand = d_regen
             share_r = VP[i, V_REGEN]
             if share_r > 0.0 and elec[i] > 0.0 and rc >= 0:
                 if blend:
@@ -660,6 +672,10 @@ def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
         rc = int(SP[S_REGEN_CURVE])
         if regime == REGEN and rc >= 0 and bmax > 0.0:
             regen, _ = effort_slope(abs(vc), rc, cs, cc, coff, cfc, cpc)
+            if SP[S_DECEL] <= 0.0:
+                # the command's full level in this regime (vehicle_forces): an electric brake stronger
+                # than the service brake brakes with its own curve, as the reference did
+                bmax = max(bmax, regen)
             base = -min(1.0, regen / bmax)
         ease = rate * (min(v_ref, ceil) - max(vc, 0.0))
         u = base + (ease / bmax if bmax > 0.0 else 0.0)
