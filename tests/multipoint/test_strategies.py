@@ -167,18 +167,7 @@ def test_a_train_too_weak_for_the_grade_stalls():
     "strategy",
     [
         "optimal",
-        pytest.param(
-            "lesov",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="the single-point lesov run is not drivable where it starts braking: it brakes to "
-                "the stops along the service braking curve (which the multi-point braking matches, "
-                "test_braking_command.py), but its first braking stretch (3461 -> 3481 m, 67.5 -> 65.5 "
-                "km/h) decelerates at 0.51 m/s^2 against 0.30 of the service brake and less of the electric "
-                "brake (433 kN there), an off-regime stretch the optimizer warns about (so "
-                "'not optimized.warnings' fails first); following it the train overshoots the stop by 11.5 m",
-            ),
-        ),
+        "lesov",
     ],
 )
 def test_follows_the_timetable_optimizers_energy_efficient_run(train, strategy):

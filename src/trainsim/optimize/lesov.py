@@ -384,9 +384,17 @@ def _execute(solver: SectionSolver, sw: LesovSwitching) -> SectionPlan:
     vhold = np.minimum(tr.vlim, v_ss)
     out = [np.empty(solver.n_max) for _ in range(3)] + [np.empty(solver.n_max, dtype=np.int8)]
     modes = np.full(len(tr.a0), kernel.BRAKE, dtype=np.int64)
+    # the braking curves must be those below the speed held, min(limit, V_ss), not below the limits
+    # (solver.Cr): the holding phase leaves its speed where the ceiling it is given drops below the
+    # limit, so with the limits' ceiling it held V_ss past the point where the curve to the stop (or to
+    # a lower limit) crosses V_ss and joined the curve by a jump at the next grid point (0.51 m/s^2
+    # against 0.30 of the service brake on the hilly test line)
+    Cr, _, US = kernel.braking_ceiling(
+        tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vhold, solver.i0, solver.i1, solver.P, solver.curves, solver.bk
+    )  # fmt: skip
     n, _ = pk.holding_segment(
         tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vhold, vhold, tr.traction_scale, solver.i0, solver.i1,
-        solver.P, solver.curves, solver.tk, solver.bk, solver.rk, solver.Cr, solver.US, modes, *out,
+        solver.P, solver.curves, solver.tk, solver.bk, solver.rk, Cr, US, modes, *out,
     )  # fmt: skip
     phase_a = tuple(a[:n] for a in out)
     s_r = min(max(sw.recuperation_start_m, solver.s0), solver.s1)
