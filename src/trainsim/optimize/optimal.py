@@ -680,12 +680,25 @@ class SectionSolver:
             # regenerative holding arc; at 0 without regeneration), not at 1/eta_t: the train
             # leaves it braking
             phi_start = self.eta_r * (1.0 - 1e-9) if self.has_regen else -1e-9
-        n, status, s_event = pk.final_phase(
-            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, tr.traction_scale, i, u, v, t, self.i1,
-            self.P, self.curves, self.tk, self.bk, Cr, US, mu, self.inv_eta_t, self.eta_r,
-            self.has_regen, ADJOINT_STEP_M, out_s, out_v, out_t, out_m, 0, force_mode, v_hold, phi_start,
-            stop_mode, sk, self.rk,
-        )  # fmt: skip
+        W = -1.0
+        if self.has_regen and force_mode < 0 and mu > 0.0:
+            W = regenerative_holding_speed(self.train, mu, self.eta_r)
+
+        def run(w_end: float):
+            return pk.final_phase_regen(
+                tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, tr.traction_scale, i, u, v, t, self.i1,
+                self.P, self.curves, self.tk, self.bk, Cr, US, mu, self.inv_eta_t, self.eta_r,
+                self.has_regen, ADJOINT_STEP_M, out_s, out_v, out_t, out_m, 0, force_mode, v_hold, phi_start,
+                stop_mode, sk, self.rk, W, w_end,
+            )  # fmt: skip
+
+        n, status, s_event, arc_start, arc_end = run(np.inf)
+        if status == pk.STOPPED_SHORT and 0.0 <= arc_start < arc_end and n < self.n_max:
+            # held at W with regenerative braking to the descent's end the train stops short: it
+            # leaves the arc where it then stops exactly at the stop
+            w_end = self._regen_arc_end(run, arc_start, arc_end)
+            if w_end is not None:
+                n, status, s_event, _, _ = run(w_end)
         if n >= self.n_max:
             status = pk.STOPPED_SHORT  # the buffers filled up: an unusable attempt
         s, vv, tt, m = phase_a
@@ -700,6 +713,37 @@ class SectionSolver:
             status,
             s_event,
         )
+
+    def _regen_arc_end(self, run, lo: float, hi: float) -> float | None:
+        """Where the final phase's regenerative holding arc (from ``lo``; held to ``hi``, the
+        descent's end, the run stops short) ends so that the run stops at the stop: left at once it
+        meets the braking curve to the stop, left later it stops sooner. Located as the final
+        coasting point is (bisection to COAST_POINT_TOLERANCE_M, or a run that comes to rest within
+        STOP_TOLERANCE_M of the stop); None if leaving at once stops short as well."""
+        n, status, s_event, _, _ = run(lo)
+        if status != pk.HIT_CEILING or n >= self.n_max:
+            return None
+        short: list[tuple[float, float]] = []  # (arc end, where the run came to rest) of short runs
+        bisect = True
+        while hi - lo > COAST_POINT_TOLERANCE_M:
+            mid = 0.5 * (lo + hi)
+            if not bisect and len(short) >= 2 and short[-1][1] != short[-2][1]:
+                # where a short run comes to rest moves continuously with the arc's end: a secant
+                # step on those runs every other step (aimed just inside the stop tolerance)
+                (w0, e0), (w1, e1) = short[-2], short[-1]
+                guess = w1 + (self.s1 - 0.25 * STOP_TOLERANCE_M - e1) * (w1 - w0) / (e1 - e0)
+                if lo < guess < hi:
+                    mid = guess
+            bisect = not bisect
+            n, status, s_event, _, _ = run(mid)
+            if status == pk.HIT_CEILING and n < self.n_max:
+                lo = mid
+            else:
+                if self.s1 - s_event <= STOP_TOLERANCE_M:
+                    return mid
+                hi = mid
+                short.append((mid, s_event))
+        return lo
 
     def _coast_point_guess(self, holding_speed_mps: float) -> float | None:
         """Where the final coast of holding speed V probably starts: from the plans of this solve

@@ -101,6 +101,28 @@ def final_phase(
     P, curves, tk, bk, Cr, US, mu, inv_eta_t, eta_r, has_regen, h_max,
     out_s, out_v, out_t, out_m, n, force_mode, v_hold, phi_start, stop_mode, sk, rk,
 ):  # fmt: skip
+    """``final_phase_regen`` without the regenerative holding arc: (n, status, position)."""
+    n, status, s_event, _, _ = final_phase_regen(
+        x, a0, a1, b0, b1, vcap, tscale, i_start, u_start, v_start, t_start, i_end,
+        P, curves, tk, bk, Cr, US, mu, inv_eta_t, eta_r, has_regen, h_max,
+        out_s, out_v, out_t, out_m, n, force_mode, v_hold, phi_start, stop_mode, sk, rk, -1.0, np.inf,
+    )  # fmt: skip
+    return n, status, s_event
+
+
+#: The adjoint entering the regenerative holding arc reaches eta_r at the holding speed W (its
+#: minimum on a descent is there); it is taken to enter it when it reaches eta_r no more than this
+#: fraction below W [-] (the coasting point's search then lands on that edge: the adjoint's minimum
+#: is then within ~1e-6 of eta_r).
+W_ENTRY_FRACTION = 1e-3
+
+
+@njit(cache=True)
+def final_phase_regen(
+    x, a0, a1, b0, b1, vcap, tscale, i_start, u_start, v_start, t_start, i_end,
+    P, curves, tk, bk, Cr, US, mu, inv_eta_t, eta_r, has_regen, h_max,
+    out_s, out_v, out_t, out_m, n, force_mode, v_hold, phi_start, stop_mode, sk, rk, W, w_end,
+):  # fmt: skip
     """From (x[i_start] + u_start, v_start), leaving the holding arc (phi just below 1/eta_t), drive
     by the adjoint to the stop at x[i_end], holding the speed limit ``vcap`` if the train reaches
     it. Appends points; returns (n, status): HIT_CEILING when the train meets the braking curve
@@ -112,8 +134,16 @@ def final_phase(
     ``Cr``/``US`` are the braking curves of ``stop_mode`` (BRAKE: service braking; REGEN:
     regenerative braking only), ``sk`` their kinks; the run follows them where it meets them.
     ``rk`` are the kinks of the regenerative curve (its steps integrated exactly, as the energy
-    accounting does: across a kink the run would otherwise move with the step)."""
+    accounting does: across a kink the run would otherwise move with the step).
+    With a regenerative holding speed ``W`` > 0 (mu = eta_r W^2 R'(W)), where the adjoint comes down
+    to eta_r at W on a descent that needs braking to hold W, the run holds W with regenerative
+    braking (the singular arc, phi = eta_r; as ``coast_excursion``) until ``w_end`` [m] or the
+    descent's end, whichever comes first, then coasts on from phi just above eta_r. Returns
+    (n, status, position, arc_start, arc_end): the arc's ends [m] (-1 if the run has none)."""
     phi = inv_eta_t * (1.0 - 1e-9) if phi_start < 0.0 else phi_start
+    on_w = False
+    arc_start = -1.0
+    arc_end = -1.0
     just_cut = False
     E = 0.5 * v_start * v_start
     t = t_start
@@ -128,8 +158,23 @@ def final_phase(
         while u < w - 1e-12:
             if n >= len(out_s) - 8:
                 # never write past the buffers: report the attempt as failed (stopped short)
-                return n, STOPPED_SHORT, x[i] + u
+                return n, STOPPED_SHORT, x[i] + u, arc_start, arc_end
             v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+            if on_w and (x[i] + u >= w_end - 1e-9 or resistance_force(W, u + 2e-9, line, P) >= 0.0):
+                # the arc ends (where asked, or where holding W stops needing braking): the adjoint
+                # leaves eta_r upwards and the train coasts (below W it falls back to eta_r at once)
+                on_w = False
+                arc_end = x[i] + u
+                phi = eta_r * (1.0 + 1e-9)
+            if on_w:
+                n, u, E, t, done, status = _regen_arc_step(
+                    x, a0, a1, b0, b1, i, u, E, t, i_end, W, w_end, h_max, w, line, P, curves, bk, sk,
+                    Cr, US, kk, stop_mode, out_s, out_v, out_t, out_m, n,
+                )  # fmt: skip
+                if done:
+                    return n, status, u, arc_start, arc_end
+                just_cut = False
+                continue
             mode = mode_of(phi, inv_eta_t, eta_r, has_regen) if force_mode < 0 else force_mode
             if mode == TRACTION and v >= v_hold:
                 # after a descent the adjoint climbs back to 1/eta_t while v > V; traction there
@@ -160,8 +205,8 @@ def final_phase(
                 n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
                 n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u + hs, 0.0, t + dts, mode)
                 if x[i] + u + hs >= x[i_end] - 1e-6:
-                    return n, HIT_CEILING, x[i_end]
-                return n, STOPPED_SHORT, x[i] + u + hs
+                    return n, HIT_CEILING, x[i_end], arc_start, arc_end
+                return n, STOPPED_SHORT, x[i] + u + hs, arc_start, arc_end
             v1 = np.sqrt(2.0 * E1)
             if mode != CRUISE and v1 > vcap[i] and v < vcap[i] and u + h <= US[kk]:
                 # reaches the limit inside the step: stop the step there
@@ -238,12 +283,22 @@ def final_phase(
                         out_s, out_v, out_t, out_m, n, stop_mode,
                     )  # fmt: skip
                     if not found:
-                        return n, HIT_CEILING, x[i] + hm
+                        return n, HIT_CEILING, x[i] + hm, arc_start, arc_end
                     # down to a lower limit: the adjoint drives the run on from there
                     i, u, t = j, uj, tj
                     E = 0.5 * vcap[j] * vcap[j]
                     jumped = True
                     break
+            if (
+                W > 0.0 and force_mode < 0 and arc_start < 0.0 and phi > eta_r >= phi1 and has_regen
+                and vcap[i] > W and v1 >= W * (1.0 - W_ENTRY_FRACTION)
+                and resistance_force(W, u + h, line, P) < 0.0
+            ):  # fmt: skip
+                # the adjoint comes down to eta_r at W on a descent: the regenerative holding arc
+                # (below W by at most W_ENTRY_FRACTION the train coasts up to W first)
+                on_w = True
+                arc_start = x[i] + u + h
+                phi1 = eta_r
             n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
             E, t, u, phi = E1, t + dt, u + h, phi1
             just_cut = cut
@@ -251,7 +306,52 @@ def final_phase(
             u = 0.0
             i += 1
     n = _emit(out_s, out_v, out_t, out_m, n, x[i_end], np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, stop_mode)
-    return n, HIT_CEILING, x[i_end]
+    return n, HIT_CEILING, x[i_end], arc_start, arc_end
+
+
+@njit(cache=True)
+def _regen_arc_step(
+    x, a0, a1, b0, b1, i, u, E, t, i_end, W, w_end, h_max, w, line, P, curves, bk, sk, Cr, US, kk,
+    stop_mode, out_s, out_v, out_t, out_m, n,
+):  # fmt: skip
+    """One step of the regenerative holding arc at W from offset u of interval i: coasting up to W,
+    then holding it with braking, never past ``w_end`` nor where the hold stops needing braking
+    (``_capped_coast_step``). Meeting the braking curve to the stop (or a lower limit) the run brakes
+    along it to the stop: (n, u, E, t, done, status), with done True u is the position [m] where it
+    met the curve (status STOPPED_SHORT, an unusable attempt, if the curve led to a lower limit)."""
+    h = min(h_max, w - u, w_end - x[i] - u)
+    if US[kk] > u:
+        h = min(h, US[kk] - u)
+    h = max(h, 1e-9)
+    v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+    mode, h, E1, dt = _capped_coast_step(E, v, u, h, W, line, P, curves, bk)
+    if u + h > US[kk]:
+        v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
+        if v1 > _curve_speed(u + h, w, Cr[kk], stop_mode, line, P, curves, sk) + 1e-9:
+            if mode == CRUISE:
+                # the held speed meets the curve where the curve comes down to it (bisection)
+                lo, hi = u, u + h
+                for _ in range(80):
+                    mid = 0.5 * (lo + hi)
+                    if v >= _curve_speed(mid, w, Cr[kk], stop_mode, line, P, curves, sk):
+                        hi = mid
+                    else:
+                        lo = mid
+                    if hi - lo < 1e-10:
+                        break
+                hm, Em, dtm = hi, E, (hi - u) / v
+            else:
+                hm = _meet_curve(E, u, u + h, COAST, w, Cr[kk], stop_mode, line, P, curves, bk, sk)
+                Em, dtm = step_energy_time(E, u, hm - u, COAST, line, P, curves, bk)
+            n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
+            n, _, _, _, found = _brake_to_plateau(
+                x, a0, a1, b0, b1, i, hm, Em, t + dtm, i_end, P, curves, sk, Cr, US, kk,
+                out_s, out_v, out_t, out_m, n, stop_mode,
+            )  # fmt: skip
+            # (a lower limit below W on the descent: the arc never reaches it, its curve is the stop's)
+            return n, x[i] + hm, Em, t + dtm, True, HIT_CEILING if not found else STOPPED_SHORT
+    n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
+    return n, u + h, E1, t + dt, False, 0
 
 
 @njit(cache=True)
