@@ -22,9 +22,8 @@ from trainsim.model.scenario import RunSettings
 from trainsim.optimize.api import OFF_REGIME_NOTE, optimize
 from trainsim.optimize.lesov import lesov_train
 from trainsim.optimize.timetable import line_supplement
-from trainsim.sim.energy import run_works
 from trainsim.sim.kernel import BRAKE, DWELL, REGEN
-from trainsim.sim.profile import line_resistance_profile, traction_availability
+from trainsim.sim.profile import line_resistance_profile
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "multipoint"))
 from mpcases import freight_train, hilly_route
@@ -104,28 +103,9 @@ def test_brakes_within_the_trains_brakes_on_every_example(example):
     result = optimize(scenario.train, scenario.route, timetable, "lesov", scenario.settings)
     assert result.run.status == "ok", result.run.warnings
     assert _assert_brakes_within_the_train(scenario.train, scenario.route, scenario.settings, result) > 0
-    # every braking stretch follows its brake (a hold labelled traction where holding_segment clamps
-    # a zero-length hold to the holding speed is a known gap of the kernel, not of braking)
-    assert not _off_regime_braking(scenario, result)
-
-
-def _off_regime_braking(scenario, result) -> list[float]:
-    """Start positions [m] of the braking stretches whose motion is not their brake's."""
-    train = lesov_train(scenario.train).at_gravity(scenario.route.gravity_mps2)
-    tr = result.run.trace
-    _, _, off = run_works(
-        train=train,
-        route=scenario.route,
-        settings=scenario.settings,
-        profile=line_resistance_profile(scenario.route, train),
-        available=traction_availability(scenario.route, train),
-        s=tr.position_m,
-        v=tr.speed_mps,
-        regime=tr.regime,
-        level=np.ones(len(tr.position_m)),
-    )
-    braking = np.isin(tr.regime[:-1], (BRAKE, REGEN))
-    return [float(x) for x in tr.position_m[:-1][off & braking]]
+    # and every stretch its regime: the braking ones, and the holds the kernel emitted as traction
+    # clamped to the held speed (freight_000, heavy_haul: 0.026 and 0.075 m/s off their label)
+    assert not [w for w in result.warnings if w.startswith(OFF_REGIME_NOTE)]
 
 
 def _service_curve_position_m(train, route, stop_m: float, speed_mps: float) -> float:

@@ -20,8 +20,9 @@ EXAMPLES = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "examples").glob("*/
 #: lower limit at grid points on the heavy-haul line's descents: its trajectory moves with the step
 HOLDING_ON_THE_GRID = pytest.mark.xfail(
     strict=True,
-    reason="known gap outside lesov: pmp_kernel.holding_segment snaps coasting on descents and braking "
-    "to lower limits to grid points (1.0e-4 net energy on heavy_haul)",
+    reason="known gap outside lesov: pmp_kernel.holding_segment snaps coasting on descents to grid points "
+    "(1.7e-6 net energy on heavy_haul; 1.0e-4 before lesov gave it the braking curves below its held "
+    "speed, which left the grid-point jumps into braking)",
 )
 
 

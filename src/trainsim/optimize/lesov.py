@@ -369,6 +369,29 @@ def _final_braking(solver: SectionSolver, phase_a, s_r: float):
     return points, 0.0 if status == pk.HIT_CEILING else -v_mech
 
 
+def _holds_labelled_as_holds(solver: SectionSolver, vhold: np.ndarray, points):
+    """Phase A with its stretches of maximum traction that run at the held speed relabelled as holds
+    (CRUISE). Where holding needs no force at a point (a grade change) the holding phase can emit a
+    hold of no length and then traction clamped to the held speed up to the next grid point: a stretch
+    at constant speed labelled traction (0.026 m/s off its label on freight_000). Traction there would
+    accelerate past the held speed, so the hold is within the train's traction; its motion, and so its
+    energy, is unchanged."""
+    s, v, t, m = points
+    tr = solver.track
+    i = np.clip(np.searchsorted(tr.x, s[:-1], side="right") - 1, solver.i0, solver.i1 - 1)
+    held = (
+        (m[:-1] == kernel.TRACTION)
+        & (np.abs(v[1:] - v[:-1]) <= 1e-12 * np.maximum(v[:-1], 1.0))
+        & (v[:-1] >= vhold[i] * (1.0 - 1e-9))
+        & (s[1:] > s[:-1])
+    )
+    if not held.any():
+        return points
+    m = m.copy()
+    m[:-1][held] = kernel.CRUISE
+    return s, v, t, m
+
+
 def _execute(solver: SectionSolver, sw: LesovSwitching) -> SectionPlan:
     """Drive the switching points: hold V_ss, recuperative braking from the recuperation point
     down to V_mech (or to the service braking curve, where it meets it above), then service braking.
@@ -396,7 +419,7 @@ def _execute(solver: SectionSolver, sw: LesovSwitching) -> SectionPlan:
         tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vhold, vhold, tr.traction_scale, solver.i0, solver.i1,
         solver.P, solver.curves, solver.tk, solver.bk, solver.rk, Cr, US, modes, *out,
     )  # fmt: skip
-    phase_a = tuple(a[:n] for a in out)
+    phase_a = _holds_labelled_as_holds(solver, vhold, tuple(a[:n] for a in out))
     s_r = min(max(sw.recuperation_start_m, solver.s0), solver.s1)
     points, r = _final_braking(solver, phase_a, s_r)
     if r < 0.0:
