@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from trainsim.model.route import Route, Station
+from trainsim.model.spans import route_between
 from trainsim.sim.fastest import run_fastest
 
 __all__ = ["JoinedRun", "joined_run", "stop_positions"]
@@ -29,25 +30,9 @@ def stop_positions(route: Route) -> np.ndarray:
     return np.array([route.start_m, *inner, route.end_m])
 
 
-def _cut(items: tuple, a: float, b: float) -> tuple:
-    """The spans of ``items`` that overlap [a, b], cut to it."""
-    kept = (x for x in items if x.start_m < b and x.end_m > a)
-    return tuple(dataclasses.replace(x, start_m=max(x.start_m, a), end_m=min(x.end_m, b)) for x in kept)
-
-
 def _stretch(route: Route, a: float, b: float) -> Route:
     stations = tuple(s for s in route.stations if a < s.position_m < b and not s.stop)
-    return dataclasses.replace(
-        route,
-        start_m=a,
-        end_m=b,
-        stations=(Station("from", a, 0.0, True), *stations, Station("to", b, 0.0, True)),
-        speed_limits=_cut(route.speed_limits, a, b),
-        gradients=_cut(route.gradients, a, b),
-        curves=_cut(route.curves, a, b),
-        tunnels=_cut(route.tunnels, a, b),
-        electrification=_cut(route.electrification, a, b),
-    )
+    return route_between(route, a, b, (Station("from", a, 0.0, True), *stations, Station("to", b, 0.0, True)))
 
 
 @dataclass(frozen=True)
