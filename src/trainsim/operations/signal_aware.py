@@ -8,6 +8,12 @@ driver sees it, so the aspect is never restrictive). The energy-efficient ``refe
 ``trainsim.optimize.api`` then drives the stretch in the signal-blind follower's running time (it
 arrives no later) while meeting those timing points. Energy and arrival are compared with the
 signal-blind follower of the simulation.
+
+The signal-blind follower may be faster than any run that meets the timing points: it passes an
+approach start under a restrictive aspect, brakes, and picks up speed again where the signal clears,
+some hundred metres on. Its running time is then not a schedule the aware follower can keep: it gets
+the shortest one that meets the timing points (``min_running_time_s``) plus ``AWARE_RESERVE`` and
+arrives later; ``delay_change_s`` says by how much.
 """
 
 from __future__ import annotations
@@ -28,6 +34,11 @@ from trainsim.operations.runs import RunCache, auxiliary_power_w, service_route
 from trainsim.operations.simulate import OperationResult, TrainService, approach_function, simulate
 from trainsim.optimize.api import OptimizationResult, optimize
 
+#: Running-time reserve of the aware follower over the shortest running time that meets its timing
+#: points, when the signal-blind follower's time is shorter than that: at the shortest time the run
+#: would have to stand at its origin, which the optimisation (time as integral of ds / v) cannot do.
+AWARE_RESERVE = 0.05
+
 
 @dataclass(frozen=True)
 class SignalAwareComparison:
@@ -41,6 +52,9 @@ class SignalAwareComparison:
         blind_arrival_s / aware_arrival_s: arrival at the end of the stretch [s].
         blind_min_speed_mps / aware_min_speed_mps: lowest speed between the two stops [m/s].
         optimization: the energy-efficient run.
+        min_running_time_s: the shortest running time of the stretch that meets every timing point
+            (``min_running_time_s``) [s].
+        warnings: e.g. the signal-blind running time cannot be kept with the timing points.
     """
 
     timing_points: tuple[TimingPoint, ...]
@@ -51,6 +65,8 @@ class SignalAwareComparison:
     blind_min_speed_mps: float
     aware_min_speed_mps: float
     optimization: OptimizationResult
+    min_running_time_s: float = np.nan
+    warnings: tuple[str, ...] = ()
 
     @property
     def energy_saved_kwh(self) -> float:
@@ -61,6 +77,24 @@ class SignalAwareComparison:
     def delay_change_s(self) -> float:
         """Arrival of the signal-aware run minus that of the signal-blind one [s] (<= 0: not later)."""
         return self.aware_arrival_s - self.blind_arrival_s
+
+
+def min_running_time_s(position_m: np.ndarray, time_s: np.ndarray, points: Sequence[TimingPoint]) -> float:
+    """The shortest running time of a stretch that passes every point no earlier than its
+    ``earliest_s`` [s], from the stretch's fastest run (``position_m``, ``time_s`` from its start)
+    [m, s]: ``T_f + max(0, max_k(e_k - t_f(x_k)))``.
+
+    The fastest run's speed is the highest any run can have at each position, so a run passing
+    ``x_k`` no earlier than ``e_k`` needs at least ``e_k + T_f - t_f(x_k)``; the fastest run started
+    ``max_k(e_k - t_f(x_k))`` later (standing at the origin meanwhile) meets every point and takes
+    exactly the largest of these bounds."""
+    total = float(time_s[-1] - time_s[0])
+    wait = 0.0
+    for p in points:
+        if p.earliest_s is not None:
+            t_f = float(np.interp(p.position_m, position_m, time_s) - time_s[0])
+            wait = max(wait, float(p.earliest_s) - t_f)
+    return total + wait
 
 
 def _interior_min(speed: np.ndarray) -> float:
@@ -101,7 +135,9 @@ def signal_aware_follower(
         if not p0 < x <= p1 + 1e-9:
             continue
         names = {r.name for r in route.resources}
-        ahead = [b.end_s for b in res.blocking if b.train != follower and b.resource in names and b.end_s <= arr]
+        ahead = [
+            b.end_s for b in res.blocking if b.train != follower and b.resource in names and b.end_s <= arr
+        ]
         if not ahead:
             continue
         a = approach_start_m(path, j, sig, out.trajectory, fn)
@@ -111,7 +147,17 @@ def signal_aware_follower(
     cache = RunCache(settings)
     directed = cache.directed(geometry, line.length_m, svc.direction)
     route = service_route(directed, [(first.station, p0), (second.station, p1)])
-    timetable = Timetable(sections=(SectionSchedule(running_time_s=arr - dep),), timing_points=tuple(points))
+    fs, _fv, ft, _fr = cache.stretch(svc.train, directed, (first.station, p0), (second.station, p1))
+    t_min = min_running_time_s(fs, ft, points)
+    running_s, warnings = arr - dep, []
+    if running_s < t_min:
+        warnings.append(
+            f"the signal-blind follower ran {first.station}-{second.station} in {running_s:.1f} s, passing an "
+            f"approach start under a restrictive aspect; meeting the timing points takes at least "
+            f"{t_min:.1f} s, so the aware follower gets {t_min * (1 + AWARE_RESERVE):.1f} s and arrives later"
+        )
+        running_s = t_min * (1 + AWARE_RESERVE)
+    timetable = Timetable(sections=(SectionSchedule(running_time_s=running_s),), timing_points=tuple(points))
     opt = optimize(svc.train, route, timetable, "reference", settings)
     # the signal-blind stretch: its runs up to the first station stop, and any stand at a signal
     blind_runs, reached = [], p0
@@ -134,7 +180,9 @@ def signal_aware_follower(
         _interior_min(tr.speed_mps[inside]),
         _interior_min(opt.run.trace.speed_mps),
         opt,
+        t_min,
+        tuple(warnings),
     )
 
 
-__all__ = ["SignalAwareComparison", "signal_aware_follower"]
+__all__ = ["SignalAwareComparison", "min_running_time_s", "signal_aware_follower"]
