@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -43,9 +44,10 @@ def test_fixed_disturbances_land_where_they_belong_and_delays_propagate(tmp_path
                                         "running: {kind: fixed, value_s: 5}}"))
     first = op.services[0]
     base = plain.services[0]
-    assert first.entry_delay_s == base.entry_delay_s + 5.0  # the first stretch's running time
+    assert first.entry_delay_s == base.entry_delay_s  # running time is lost on the run, not at the origin
+    assert first.running_extra_s == (5.0, 5.0, 5.0)
     assert [s.dwell_s for s in first.stops] == [s.dwell_s for s in base.stops]
-    assert [s.extra_dwell_s for s in first.stops] == [45.0 for s in base.stops]
+    assert [s.extra_dwell_s for s in first.stops] == [40.0 for s in base.stops]
     res, ref = run_operation(op), run_operation(plain)
     delay = {t.id: t.delay_s for t in res.trains}
     ref_delay = {t.id: t.delay_s for t in ref.trains}
@@ -55,6 +57,47 @@ def test_fixed_disturbances_land_where_they_belong_and_delays_propagate(tmp_path
     ups = sorted((t for t in res.trains if t.direction == "up"), key=lambda t: t.id)
     assert any(h.kind in ("signal", "slowed", "stop") for t in ups[1:] for h in t.hindrances)
     assert max(delay[t.id] for t in ups) > 3 * 5.0 + 2 * 40.0
+
+
+def test_running_time_disturbances_are_spread_along_the_run(tmp_path) -> None:
+    """A sampled running-time extension makes the stretch's run slower, not its departure later: the
+    train is late at every point of the stretch by the extension's share of the running time it has
+    run, and arrives exactly the sampled extension later."""
+    block = "disturbances: {seed: 3, running: {kind: uniform, low_s: 2, high_s: 30}}"
+    op = read_operation(_file(tmp_path, block))
+    down = next(s for s in op.services if s.id == "D.1")
+    extra = np.array(down.running_extra_s)
+    assert extra.shape == (3,) and np.all((extra >= 2) & (extra <= 30)) and len(set(extra)) == 3
+    outcome = next(t for t in run_operation(op, [down]).trains if t.id == "D.1")
+    assert outcome.hindrances == [] and down.entry_delay_s == 0.0
+    plan, real = outcome.planned_trajectory, outcome.trajectory
+    np.testing.assert_array_equal(plan.position_m, real.position_m)  # the same path, driven slower
+    path = op.line.paths["down"]
+    stops_m = [path.stop_m[n] for n in (down.origin, *(x.station for x in down.stops), down.destination)]
+    stops_m = sorted(set(stops_m))
+    assert len(stops_m) == 4
+    lost = 0.0
+    for p0, p1, e in zip(stops_m[:-1], stops_m[1:], extra, strict=True):
+        # from leaving p0 (the last point there) to arriving at p1 (the first point there)
+        a = int(np.flatnonzero(plan.position_m <= p0 + 1e-9)[-1])
+        b = int(np.flatnonzero(plan.position_m >= p1 - 1e-9)[0])
+        t_plan = plan.time_s[a : b + 1]
+        rt = t_plan[-1] - t_plan[0]
+        share = e * (t_plan - t_plan[0]) / rt
+        np.testing.assert_allclose(real.time_s[a : b + 1] - t_plan, lost + share, atol=1e-9)
+        # the slower run: speed divided by the time factor at every point
+        np.testing.assert_allclose(real.speed_mps[a : b + 1] * (1 + e / rt), plan.speed_mps[a : b + 1], atol=1e-12)
+        lost += e
+    assert outcome.delay_s == pytest.approx(extra.sum(), abs=1e-6)
+    arrival = outcome.stops[-1]
+    assert arrival.arrival_s - arrival.scheduled_arrival_s == pytest.approx(extra.sum(), abs=1e-6)
+
+
+def test_running_time_disturbances_of_the_wrong_length_are_refused(tmp_path) -> None:
+    op = read_operation(_file(tmp_path, ""))
+    bad = replace(op.services[0], running_extra_s=(1.0, 2.0))
+    with pytest.raises(InputError, match="running_extra_s"):
+        run_operation(op, [bad])
 
 
 def test_the_same_seed_gives_the_same_days(tmp_path) -> None:

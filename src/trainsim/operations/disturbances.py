@@ -1,11 +1,14 @@
 """Sampled disturbances for Monte Carlo studies of a timetable: entry delays, dwell extensions and
 running-time extensions, each a distribution given as data, drawn from a seeded generator.
 
-A running-time extension of the stretch after a stop is lost time of the run, lumped at the departure
-from that stop (for the first stretch: at the origin): the single-train core's runs stay the fastest
-ones, so the extension delays the train and everything it propagates to without a slower run being
-computed. Draws are taken in a fixed order (per train: entry, then per stop dwell, then per stretch
-running time; two draws each), so a seed gives the same disturbances whatever the outcome.
+A running-time extension of a stretch between two scheduled stops is spread along the stretch as a
+slower run is: the stretch's run is driven over the same path with time stretched by the factor
+1 + extension / running time (``TrainService.running_extra_s``), so the train is late at every point
+by the extension's share of the running time it has run (extension x elapsed / running time) and
+arrives exactly the extension later. Its energy stays that of the fastest run (a slower run would
+take a little less: on the safe side). Draws are taken in a fixed order (per train: entry, then per
+stop dwell, then per stretch running time; two draws each), so a seed gives the same disturbances
+whatever the outcome.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from trainsim.errors import InputError, Problem
-from trainsim.operations.simulate import ScheduledStop, TrainService
+from trainsim.operations.simulate import TrainService
 
 #: Distributions and their parameters [s, or - for sigma].
 KINDS: dict[str, tuple[str, ...]] = {
@@ -69,7 +72,8 @@ class Disturbances:
     def sample(self, services: list[TrainService], rng: np.random.Generator) -> list[TrainService]:
         """The services with sampled disturbances added: entry delay, extra dwell at every
         intermediate stop (``ScheduledStop.extra_dwell_s``: the planned run does not have it), and
-        the running-time extension of every stretch at the departure before it."""
+        the running-time extension of every stretch between scheduled stops
+        (``TrainService.running_extra_s``, spread along the stretch by the simulation)."""
         out = []
         for svc in services:
             extra_entry = self.entry.draw(rng) if self.entry else 0.0
@@ -78,16 +82,20 @@ class Disturbances:
             # one stretch after the origin and after every stop but the destination
             legs = [s for s in stops if s.station != svc.destination]
             running = [self.running.draw(rng) if self.running else 0.0 for _ in range(len(legs) + 1)]
-            extra_entry += running[0]
-            new_stops: list[ScheduledStop] = []
-            k = 1
-            for s, dx in zip(stops, dwell_extra, strict=True):
-                if s.station == svc.destination:
-                    new_stops.append(s)
-                    continue
-                new_stops.append(replace(s, extra_dwell_s=s.extra_dwell_s + dx + running[k]))
-                k += 1
-            out.append(replace(svc, entry_delay_s=svc.entry_delay_s + extra_entry, stops=tuple(new_stops)))
+            new_stops = tuple(
+                s if s.station == svc.destination else replace(s, extra_dwell_s=s.extra_dwell_s + dx)
+                for s, dx in zip(stops, dwell_extra, strict=True)
+            )
+            if svc.running_extra_s:
+                running = [a + b for a, b in zip(svc.running_extra_s, running, strict=True)]
+            out.append(
+                replace(
+                    svc,
+                    entry_delay_s=svc.entry_delay_s + extra_entry,
+                    stops=new_stops,
+                    running_extra_s=tuple(running) if self.running else svc.running_extra_s,
+                )
+            )
         return out
 
 
