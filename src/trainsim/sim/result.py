@@ -14,7 +14,9 @@ from trainsim.model.train import Train
 from trainsim.physics import electrical as el
 from trainsim.sim.energy import run_works
 from trainsim.sim.kernel import BRAKE, CRUISE, DWELL, FOLLOW, REGEN, REGIME_NAMES, TRACTION
+from trainsim.sim.parameters import _NO_CURVE
 from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear
+from trainsim.sim.trace_kernel import TRACE_ROWS, run_arrays
 
 #: What a run's ``status`` can say (``RunResult.status`` and ``summary()["status"]``); anything but
 #: ``ok`` comes with warnings saying where and why, and the result is the best feasible run.
@@ -343,7 +345,7 @@ def _line_forces(
     )
 
 
-def _trace_and_peaks(
+def _trace_and_peaks_numpy(
     train: Train,
     settings: RunSettings,
     route: Route,
@@ -367,7 +369,10 @@ def _trace_and_peaks(
     with_trace: bool,
 ) -> tuple[Trace | None, np.ndarray, np.ndarray]:
     """Forces, powers and currents at every point of a run: its trace (None without ``with_trace``)
-    and the line current at each point and the stretch it starts, for the peaks [A]."""
+    and the line current at each point and the stretch it starts, for the peaks [A].
+
+    The numpy form of ``_trace_and_peaks`` (which evaluates the same expressions compiled, in one
+    pass): kept as the reference its results are tested against, bit for bit."""
     m = train.mass_kg
     n = len(s)
     elec = train.electrical
@@ -468,6 +473,118 @@ def _trace_and_peaks(
         braking_work_j=cumulative(w_braking),
         regenerated_energy_j=cumulative(e_regen_line),
         electrical_energy_j=cumulative(e_net),
+    )
+    return trace, peak_current, peak_paper
+
+
+def _law_arrays(f: PiecewiseLinear) -> tuple:
+    """A ``PiecewiseLinear`` as the compiled kernels take it: ``(x, left, right, piecewise constant)``."""
+    return (
+        np.ascontiguousarray(f.x, dtype=float),
+        np.ascontiguousarray(f.left, dtype=float),
+        np.ascontiguousarray(f.right, dtype=float),
+        bool(f._steps),
+    )
+
+
+def _trace_and_peaks(
+    train: Train,
+    settings: RunSettings,
+    route: Route,
+    profile: LineResistanceProfile,
+    ceiling: PiecewiseLinear,
+    availability: PiecewiseLinear,
+    voltage: PiecewiseLinear,
+    s: np.ndarray,
+    v: np.ndarray,
+    t: np.ndarray,
+    regime: np.ndarray,
+    level: np.ndarray,
+    s_right: np.ndarray,
+    w_traction: np.ndarray,
+    w_braking: np.ndarray,
+    e_regen_line: np.ndarray,
+    e_net: np.ndarray,
+    eta_t: float,
+    eta_r: float,
+    aux_w: float,
+    with_trace: bool,
+) -> tuple[Trace | None, np.ndarray, np.ndarray]:
+    """Forces, powers and currents at every point of a run: its trace (None without ``with_trace``)
+    and the line current at each point and the stretch it starts, for the peaks [A]. Evaluated in one
+    compiled pass (``trace_kernel.run_arrays``), the same bits as ``_trace_and_peaks_numpy``; without
+    ``with_trace`` only the peaks are stored."""
+    elec = train.electrical
+    # the ratios are checked where the numpy form checks them, with the same messages
+    el.traction_line_power_w(0.0, 0.0, eta_t)
+    el.regenerated_line_power_w(0.0, 0.0, eta_r)
+    if elec:
+        el.line_current_a(0.0, 1.0, elec.power_factor)
+    b = train.braking
+    law = train.resistance_law
+    decel = b.deceleration_mps2 * settings.braking_fraction if b.deceleration_mps2 is not None else 0.0
+    mech = (
+        float(train.inertial_mass_kg),
+        float(decel),
+        float(settings.braking_fraction),
+        b.deceleration_mps2 is not None,
+        b.service_force is not None,
+        b.regenerative is not None,
+    )
+    traction = train.traction.as_arrays()
+    service = b.service_force.as_arrays() if b.service_force is not None else _NO_CURVE
+    regen = b.regenerative.as_arrays() if b.regenerative is not None else _NO_CURVE
+    laws = tuple(
+        _law_arrays(f)
+        for f in (
+            profile.gradient,
+            profile.curve,
+            profile.tunnel,
+            profile.tunnel_v2,
+            availability,
+            voltage,
+            ceiling,
+        )
+    )
+    electric = (
+        elec is not None,
+        float(eta_t),
+        float(eta_r),
+        float(aux_w),
+        float(elec.power_factor if elec else 1.0),
+    )
+    rows, peak_current, peak_paper = run_arrays(
+        np.ascontiguousarray(s, dtype=float),
+        np.ascontiguousarray(v, dtype=float),
+        np.ascontiguousarray(regime, dtype=np.int64),
+        np.ascontiguousarray(level, dtype=float),
+        np.ascontiguousarray(s_right, dtype=float),
+        laws,
+        (float(law.c0), float(law.c1), float(law.c2)),
+        float(profile.weight_n(train.mass_kg)),
+        mech,
+        electric,
+        traction,
+        service,
+        regen,
+        with_trace,
+    )
+    if not with_trace:
+        return None, peak_current, peak_paper
+
+    def cumulative(x: np.ndarray) -> np.ndarray:
+        return np.concatenate([[0.0], np.cumsum(x)])
+
+    trace = Trace(
+        time_s=t,
+        position_m=s,
+        speed_mps=v,
+        regime=regime,
+        traction_work_j=cumulative(w_traction),
+        braking_work_j=cumulative(w_braking),
+        regenerated_energy_j=cumulative(e_regen_line),
+        electrical_energy_j=cumulative(e_net),
+        **{name: rows[k] for k, name in enumerate(TRACE_ROWS)},
     )
     return trace, peak_current, peak_paper
 
