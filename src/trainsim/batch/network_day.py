@@ -18,8 +18,12 @@ import numpy as np
 
 from trainsim.errors import InputError
 from trainsim.io.operation_file import read_operation
-from trainsim.io.operation_run import run_operation
+from trainsim.io.operation_run import delay_stats, run_operation
 
+#: The most local Dask worker processes started for a network-day.
+MAX_LOCAL_WORKERS = 256
+#: How long to try to reach a Dask scheduler [s].
+CONNECT_TIMEOUT_S = 10
 #: Status order, worst last: the network-day's status is its worst line-day's.
 STATUS_ORDER = ("ok", "conflicts", "stalled", "deadlock")
 
@@ -71,6 +75,13 @@ def _tasks(files: Sequence[str | Path], samples: int, seed: int | None) -> list[
     missing = [str(f) for f in files if not Path(f).is_file()]
     if missing:
         raise InputError("operation file not found", field="files", value=missing)
+    if samples:
+        for f in files:
+            op = read_operation(f)
+            if op.disturbances is None and op.delays is None:
+                raise InputError(
+                    "sampled days need a 'delays' or 'disturbances' block", file=str(f), field="delays"
+                )
     if samples == 0:
         return [(str(f), None, 0, seed) for f in files]
     return [(str(f), k, samples, seed) for f in files for k in range(samples)]
@@ -94,10 +105,102 @@ def network_day(
     worst = max((d["status"] for d in days), key=lambda s: STATUS_ORDER.index(s) if s in STATUS_ORDER else 99)
     return {
         "status": worst,
+        "samples": samples,
+        "seed": seed,
+        "lines": line_statistics(days),
         "line_days": days,
         "total_delay_s": float(sum(d["total_delay_s"] for d in days)),
         "energy_kwh": float(sum(d["energy_kwh"] for d in days)),
     }
 
 
-__all__ = ["line_day", "network_day"]
+def line_statistics(days: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per line (file) over its line-days: the number of days, how often each status came out, the
+    conflicts of the planned timetable (counted on unsampled days only: sampled days skip that
+    check) and per train the delay statistics (``delay_stats``: mean, p50, p95, max [s]; None and
+    ``unfinished`` when the train did not finish on some day) and the mean operated energy [kWh]."""
+    by_file: dict[str, list[dict[str, Any]]] = {}
+    for d in days:
+        by_file.setdefault(d["file"], []).append(d)
+    out = []
+    for file, group in by_file.items():
+        statuses: dict[str, int] = {}
+        for d in group:
+            statuses[d["status"]] = statuses.get(d["status"], 0) + 1
+        delays: dict[str, list[float | None]] = {}
+        energy: dict[str, list[float | None]] = {}
+        for d in group:
+            for t in d["trains"]:
+                delays.setdefault(t["id"], []).append(t["delay_s"])
+                energy.setdefault(t["id"], []).append(t["energy_kwh"])
+        unsampled = [d for d in group if d["sample"] is None]
+        out.append(
+            {
+                "file": file,
+                "line": group[0]["line"],
+                "days": len(group),
+                "statuses": statuses,
+                "conflicts": sum(d["conflicts"] for d in unsampled) if unsampled else None,
+                "total_delay_s": delay_stats([d["total_delay_s"] for d in group]),
+                "trains": [
+                    {
+                        "id": k,
+                        "delay_s": delay_stats(v),
+                        "energy_kwh_mean": None
+                        if any(e is None for e in energy[k])
+                        else round(float(np.mean(energy[k])), 3),
+                    }
+                    for k, v in delays.items()
+                ],
+            }
+        )
+    return out
+
+
+def run_network_day(
+    files: Sequence[str | Path],
+    samples: int = 0,
+    seed: int | None = None,
+    scheduler: str | None = None,
+    local_workers: int | None = None,
+) -> dict[str, Any]:
+    """``network_day`` in this process (neither ``scheduler`` nor ``local_workers``), on the Dask
+    scheduler at ``scheduler`` (an address such as ``tcp://10.0.0.5:8786``) or on a local Dask cluster
+    of ``local_workers`` processes started and closed here. A scheduler that cannot be reached is a
+    ``ClusterLostError`` (``trainsim`` exits with 4)."""
+    if scheduler is not None and local_workers is not None:
+        raise InputError(
+            "give a scheduler address or a number of local workers, not both",
+            field="--scheduler/--local-workers",
+            value=(scheduler, local_workers),
+        )
+    if local_workers is not None and not (
+        isinstance(local_workers, int) and 1 <= local_workers <= MAX_LOCAL_WORKERS
+    ):
+        raise InputError(
+            "invalid number of local workers",
+            field="--local-workers",
+            value=local_workers,
+            allowed=f"1 .. {MAX_LOCAL_WORKERS}",
+        )
+    _tasks(files, samples, seed)  # bad input is refused before a cluster is started
+    if scheduler is None and local_workers is None:
+        return network_day(files, samples, seed)
+    from distributed import Client
+
+    from trainsim.batch.executors import ClusterLostError
+
+    try:
+        if scheduler is not None:
+            client = Client(str(scheduler), timeout=f"{CONNECT_TIMEOUT_S}s")
+        else:
+            client = Client(
+                n_workers=local_workers, threads_per_worker=1, processes=True, dashboard_address=None
+            )
+    except OSError as exc:  # distributed raises OSError (TimeoutError) when it cannot connect
+        raise ClusterLostError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}") from None
+    with client:
+        return network_day(files, samples, seed, client=client)
+
+
+__all__ = ["line_day", "line_statistics", "network_day", "run_network_day"]

@@ -8,11 +8,28 @@ from typing import Annotated
 
 import typer
 
-from trainsim.cli.context import console, echo_warnings, exit_for_status, require_file, user_errors
+from trainsim.cli.context import (
+    ExitCode,
+    console,
+    echo_warnings,
+    exit_for_status,
+    fail,
+    require_file,
+    user_errors,
+)
+from trainsim.errors import InputError
+
+#: The most sampled days of a network-day (as many as the batch layer's Monte Carlo samples).
+MAX_DAYS = 10_000
 
 
 def operate(
-    file: Annotated[Path, typer.Argument(help="Operation file (schema: trainsim/operation).")],
+    files: Annotated[
+        list[Path],
+        typer.Argument(
+            help="Operation file (schema: trainsim/operation); several files: a network-day of those lines."
+        ),
+    ],
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="Directory for summary, tables (CSV) and plots.")
     ] = None,
@@ -25,12 +42,39 @@ def operate(
         int, typer.Option("--samples", help="Monte Carlo: days with entry delays sampled from 'delays'.")
     ] = 0,
     seed: Annotated[int | None, typer.Option("--seed", help="Seed of the Monte Carlo samples.")] = None,
+    days: Annotated[
+        int,
+        typer.Option(
+            "--days",
+            help="Network-day: simulate this many sampled days of every line (its 'delays' or "
+            "'disturbances' block); 0: each line's own timetable once.",
+        ),
+    ] = 0,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            "--scheduler", help="Network-day on the Dask scheduler at this address (tcp://host:8786)."
+        ),
+    ] = None,
+    local_workers: Annotated[
+        int | None,
+        typer.Option("--local-workers", help="Network-day on a local Dask cluster of this many processes."),
+    ] = None,
 ) -> None:
     """Simulate the trains of an operation file together: delays, conflicts, headways, capacity.
 
+    With several files, --days, --scheduler or --local-workers: a network-day (every line simulated
+    independently, locally or on Dask, with the same results), summarised per line and train (mean,
+    median, 95th percentile and maximum delay over the days, conflicts, statuses).
+
     Exit code 3 when the status is not ok: 'conflicts' (the planned timetable has overlapping blocking
-    times), 'deadlock' (trains could not finish; the summary names them) or 'stalled'.
+    times), 'deadlock' (trains could not finish; the summary names them) or 'stalled'. Exit code 4 when
+    the Dask scheduler cannot be reached.
     """
+    if len(files) > 1 or days or scheduler is not None or local_workers is not None:
+        _network_day(files, out, as_json, parquet, samples, seed, days, scheduler, local_workers)
+        return
+    file = files[0]
     with user_errors():
         require_file(file, "operation file")
         from trainsim.io.operation_run import run_operation_file
@@ -44,6 +88,68 @@ def operate(
         return
     _print(summary, out)
     exit_for_status(status)
+
+
+def _network_day(
+    files: list[Path],
+    out: Path | None,
+    as_json: bool,
+    parquet: bool,
+    samples: int,
+    seed: int | None,
+    days: int,
+    scheduler: str | None,
+    local_workers: int | None,
+) -> None:
+    with user_errors():
+        if samples:
+            raise InputError(
+                "a network-day samples its days with --days, not --samples", field="--samples", value=samples
+            )
+        if not 0 <= days <= MAX_DAYS:
+            raise InputError("invalid number of days", field="--days", value=days, allowed=f"0 .. {MAX_DAYS}")
+        if parquet:
+            raise InputError("--parquet writes the tables of a single operation file", field="--parquet")
+        for f in files:
+            require_file(f, "operation file")
+        from trainsim.batch.executors import ClusterLostError
+        from trainsim.batch.network_day import run_network_day
+
+        try:
+            summary = run_network_day(files, days, seed, scheduler, local_workers)
+        except ClusterLostError as exc:
+            raise fail(str(exc), ExitCode.INFRASTRUCTURE) from None
+        if out is not None:
+            out.mkdir(parents=True, exist_ok=True)
+            (out / "network_day.json").write_text(json.dumps(summary, indent=2, allow_nan=False))
+    if as_json:
+        typer.echo(json.dumps(summary, indent=2, allow_nan=False))
+    else:
+        _print_network_day(summary, out)
+    exit_for_status(summary["status"])
+
+
+def _print_network_day(summary: dict, out: Path | None) -> None:
+    from rich.table import Table
+
+    con = console()
+    n = summary["samples"]
+    what = f"{n} sampled days" if n else "the timetable of each line"
+    con.print(f"[bold]network-day[/bold], {what}: status [bold]{summary['status']}[/bold]")
+    for line in summary["lines"]:
+        conflicts = "" if line["conflicts"] is None else f", {line['conflicts']} conflicts"
+        con.print(f"[bold]{line['line']}[/bold] ({line['file']}): {line['statuses']}{conflicts}")
+        table = Table("train", "mean delay s", "p50 s", "p95 s", "max s", "energy kWh")
+        for t in line["trains"]:
+            d = t["delay_s"]
+            table.add_row(
+                t["id"], _num(d["mean"]), _num(d["p50"]), _num(d["p95"]), _num(d["max"]),
+                _num(t["energy_kwh_mean"], 2),
+            )  # fmt: skip
+        con.print(table)
+    con.print(f"total delay {summary['total_delay_s']:.1f} s, energy {summary['energy_kwh']:.1f} kWh")
+    if out is not None:
+        con.print(f"written to {out}/network_day.json")
 
 
 def _print(summary: dict, out: Path | None) -> None:

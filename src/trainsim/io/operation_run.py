@@ -58,30 +58,37 @@ def monte_carlo(op: Operation, samples: int, seed: int | None = None) -> dict[st
             delays[t.id].append(t.delay_s)
         totals.append(sum(t.delay_s for t in res.trains))
 
-    def stats(x: list[float]) -> dict[str, float | None]:
-        a = np.asarray(x, dtype=float)
-        if not np.all(np.isfinite(a)):
-            return {
-                "mean": None,
-                "p50": None,
-                "p95": None,
-                "max": None,
-                "unfinished": int(np.sum(~np.isfinite(a))),
-            }
-        return {
-            "mean": round(float(a.mean()), 3),
-            "p50": round(float(np.percentile(a, 50)), 3),
-            "p95": round(float(np.percentile(a, 95)), 3),
-            "max": round(float(a.max()), 3),
-        }
-
     return {
         "samples": samples,
         "seed": sampler.seed if seed is None else seed,
         "statuses": statuses,
-        "total_delay_s": stats(totals),
-        "trains": [{"id": k, "delay_s": stats(v)} for k, v in delays.items()],
+        "total_delay_s": delay_stats(totals),
+        "trains": [{"id": k, "delay_s": delay_stats(v)} for k, v in delays.items()],
         "runs": {"computed": cache.computed, "reused": cache.hits},
+    }
+
+
+def delay_stats(delays_s: list[float | None]) -> dict[str, float | int | None]:
+    """Mean, median, 95th percentile and maximum of delays over sampled days [s] (numpy's linear
+    percentile), rounded to 1 ms; when a train did not finish on some day (delay infinite or None)
+    the figures are None and ``unfinished`` counts those days: a mean over the days it finished would
+    hide them."""
+    import numpy as np
+
+    a = np.asarray([np.inf if x is None else x for x in delays_s], dtype=float)
+    if not np.all(np.isfinite(a)):
+        return {
+            "mean": None,
+            "p50": None,
+            "p95": None,
+            "max": None,
+            "unfinished": int(np.sum(~np.isfinite(a))),
+        }
+    return {
+        "mean": round(float(a.mean()), 3),
+        "p50": round(float(np.percentile(a, 50)), 3),
+        "p95": round(float(np.percentile(a, 95)), 3),
+        "max": round(float(a.max()), 3),
     }
 
 
