@@ -73,7 +73,7 @@ def test_route_and_railml_together_are_refused(tmp_path):
     path = _write(tmp_path, "line_railml2.xml", railml_extra="  route: somewhere.yaml")
     with pytest.raises(InputError) as err:
         read_operation(path)
-    assert "line.route or line.railml" in str(err.value)
+    assert "line.route, line.railml or line.spreadsheet" in str(err.value)
 
 
 def test_a_missing_railml_file_names_the_field(tmp_path):

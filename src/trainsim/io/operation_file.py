@@ -85,9 +85,16 @@ class _Railml(_Spec):
     line_resistance: _LineResistance | None = None
 
 
+class _Spreadsheet(_Spec):
+    """The line read from a workbook or CSV folder: its track tables and its signalling tables."""
+
+    file: str
+
+
 class _Line(_Spec):
     route: str | None = None
     railml: _Railml | None = None
+    spreadsheet: _Spreadsheet | None = None
     layout: Literal["double_track", "single_track"]
     stations: list[_Station] = []
     signalling: _Signalling
@@ -355,16 +362,20 @@ def read_operation(path: str | Path) -> Operation:
             return None
 
     signalling_read = None
-    if (spec.line.route is None) == (spec.line.railml is None):
+    given = [k for k in ("route", "railml", "spreadsheet") if getattr(spec.line, k) is not None]
+    if len(given) != 1:
         raise InputError(
-            "the line needs its route: give either 'route' (a route file) or 'railml' (a railML file "
-            "with signals), not both",
+            "the line needs its route: give one of 'route' (a route file), 'railml' (a railML file "
+            "with signals) or 'spreadsheet' (a workbook or CSV folder with signal tables)",
             file=file,
             field="line",
-            allowed="line.route or line.railml",
+            value=given,
+            allowed="line.route, line.railml or line.spreadsheet",
         )
     if spec.line.railml is not None:
         geometry, signalling_read = _railml_line(spec.line.railml, base, file, problems)
+    elif spec.line.spreadsheet is not None:
+        geometry, signalling_read = _spreadsheet_line(spec.line.spreadsheet, base, file, problems)
     else:
         assert spec.line.route is not None
         geometry = load("route", spec.line.route, "line.route")
@@ -394,7 +405,9 @@ def read_operation(path: str | Path) -> Operation:
             block_signals_m = {d: v for d, v in read_blocks.items() if v}
     if not line_stations:
         problems.append(
-            Problem("a line needs its stations", file=file, field="line.stations", allowed="a list of stations")
+            Problem(
+                "a line needs its stations", file=file, field="line.stations", allowed="a list of stations"
+            )
         )
     stations = []
     for i, s in enumerate(line_stations):
@@ -518,8 +531,33 @@ def _railml_line(railml: _Railml, base: Path, file: str, problems: list[Problem]
         return None, None
 
 
+def _spreadsheet_line(sheet: _Spreadsheet, base: Path, file: str, problems: list[Problem]):
+    """The route and the signalling of ``line.spreadsheet`` (None, None with problems when unreadable)."""
+    from trainsim.io.interchange import detect_and_load
+    from trainsim.io.spreadsheet import is_spreadsheet, read_spreadsheet_signalling
+
+    target = (base / sheet.file).resolve()
+    if not (target.exists() and is_spreadsheet(target)):
+        problems.append(
+            Problem(
+                "spreadsheet not found" if not target.exists() else "not a spreadsheet",
+                file=file,
+                field="line.spreadsheet.file",
+                value=sheet.file,
+                allowed="an Excel workbook (.xlsx) or a folder of CSV tables, relative to the operation file",
+            )
+        )
+        return None, None
+    try:
+        route = detect_and_load(target, "route")
+        return route, read_spreadsheet_signalling(target, route)
+    except InputError as e:
+        problems.extend(p if p.file else replace(p, file=str(target)) for p in e.problems)
+        return None, None
+
+
 def _stations_with_signals(read, given: list[_Station]) -> list[_Station]:
-    """The stations of a railML line with the signal distances read for the up direction (the line model
+    """The stations of a railML or spreadsheet line with the signal distances read for the up direction (the line model
     holds one value for both directions); a station given in the operation file overrides, field by
     field, what was read."""
     by_name = {s.name: s for s in given}

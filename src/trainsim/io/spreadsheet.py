@@ -33,6 +33,18 @@ Track tables
       ``tunnel length (m)`` (a tunnel from the section's start; touching tunnels are one tunnel),
       ``limiting gradient`` (yes/no), ``voltage (V)``.
 
+Signalling tables of a line in operation (``line.spreadsheet`` of an operation file, read with the
+track tables above by :func:`read_spreadsheet_signalling`; positions are route positions, the
+coordinate of the ``stations`` table)
+    * ``signals``: ``name``, ``position (m)``, ``direction`` (``up``: governs trains running towards
+      increasing positions, ``down``: the other way), ``kind`` (``main``, ``block`` or ``distant``;
+      default ``main``). Block signals of a double-track line give its blocks (``block_signals_m``);
+      main signals give the stations' entry signal distances and exit signal offsets.
+    * ``station tracks`` (or ``station_tracks``): ``station`` (a name of the ``stations`` table),
+      ``tracks`` (platform tracks, 1 .. 50; a station not listed has 1).
+    * ``detection points`` (or ``detection_points``): ``name``, ``position (m)``, ``kind``
+      (``axle_counter``, ``track_circuit_border`` or ``detector``; default ``detector``).
+
 Header names are matched without case, spaces or underscores mattering; units are any trainsim
 knows (km/h or m/s, t or kg, kN or N, ‰ or %...). A column that needs a unit and has none, an
 unknown unit, an unknown column or a cell that is not a number are errors naming the file, the
@@ -60,10 +72,18 @@ from trainsim.io import railml_common as rc
 from trainsim.io.units import UNITS, Unit, format_units
 from trainsim.model import Route, Train, bounds
 
-__all__ = ["is_spreadsheet", "read_spreadsheet", "write_spreadsheet"]
+__all__ = ["is_spreadsheet", "read_spreadsheet", "read_spreadsheet_signalling", "write_spreadsheet"]
 
 TRAIN_SHEETS = ("train", "vehicles", "traction", "braking", "regenerative")
 ROUTE_SHEETS = ("route", "stations", "sections")
+#: Signalling tables of a line in operation, each under any of its names.
+SIGNAL_SHEETS = {
+    "signals": ("signals",),
+    "station tracks": ("station tracks", "station_tracks"),
+    "detection points": ("detection points", "detection_points"),
+}
+#: Most platform tracks at one station.
+MAX_STATION_TRACKS = 50
 EXCEL_SUFFIXES = (".xlsx", ".xlsm")
 
 _EXTRA = {"‰": UNITS["‰"], "permil": UNITS["‰"], "o/oo": UNITS["‰"], "m/s/s": UNITS["m/s^2"]}
@@ -869,7 +889,8 @@ def read_spreadsheet(path: str | Path, *, line_resistance: dict[str, str] | None
     sheets = read_sheets(path)
     kind = "xlsx" if Path(path).is_file() else "CSV folder"
     content = rc.Content(format=f"spreadsheet ({kind})", file=str(path))
-    unknown = [n for n in sheets if n not in TRAIN_SHEETS + ROUTE_SHEETS]
+    signal_names = {n for names in SIGNAL_SHEETS.values() for n in names}
+    unknown = [n for n in sheets if n not in TRAIN_SHEETS + ROUTE_SHEETS and n not in signal_names]
     if unknown:
         content.ignored = [f"table '{n}' ({sheets[n].source})" for n in unknown]
     if {"traction", "vehicles", "train"} & set(sheets):
@@ -886,6 +907,144 @@ def read_spreadsheet(path: str | Path, *, line_resistance: dict[str, str] | None
     content.train = rc.plain(content.train) if content.train is not None else None
     content.route = rc.plain(content.route) if content.route is not None else None
     return content
+
+
+# ====================================================================== signalling
+def _signal_sheet(sheets: dict[str, Sheet], key: str) -> Sheet | None:
+    found = [sheets[n] for n in SIGNAL_SHEETS[key] if n in sheets]
+    if len(found) > 1:
+        raise InputError(
+            f"the '{key}' table is given twice", file=found[1].source, allowed=" or ".join(SIGNAL_SHEETS[key])
+        )
+    return found[0] if found else None
+
+
+def _choice(sheet: Sheet, row: int, col: int, allowed: Sequence[str], default: str | None = None) -> str:
+    text = _value(sheet, row, col, "text").strip()
+    if not text and default is not None:
+        return default
+    if text.lower() not in allowed:
+        raise sheet.error(
+            "not one of the allowed values", row=row, col=col, value=text, allowed=", ".join(allowed)
+        )
+    return text.lower()
+
+
+def _placed_rows(sheet: Sheet, start_m: float, end_m: float, extra: Sequence[Column]):
+    """Rows of a table of named items at route positions: (row, name, position [m], column map)."""
+    cols = _columns(
+        sheet,
+        [
+            Column("name", ("name", "id"), kind="text"),
+            Column("position", ("position", "pos", "km"), "length"),
+            *extra,
+        ],
+        ["name", "position"],
+    )
+    for r in range(len(sheet.rows)):
+        name = _value(sheet, r, cols["name"][0], "text")
+        pos = _value(sheet, r, cols["position"][0], "number", cols["position"][1])
+        if not name or pos is None:
+            raise sheet.error(
+                "every row needs a name and a position",
+                row=r,
+                col=cols["name"][0] if not name else cols["position"][0],
+            )
+        if not start_m - 1e-9 <= pos <= end_m + 1e-9:
+            raise sheet.error(
+                "position off the route",
+                row=r,
+                col=cols["position"][0],
+                value=sheet.rows[r][cols["position"][0]],
+                allowed=f"{start_m:g} .. {end_m:g} m (the route of the track tables)",
+            )
+        yield r, name, pos, cols
+
+
+def read_spreadsheet_signalling(path: str | Path, route: Route | None = None):  # -> LineSignalling
+    """The signals, station tracks and train detection points of a line from a workbook or CSV folder
+    (the module docstring gives the tables), along ``route`` (default: the route of the file's own
+    track tables), in the form the railML reader gives (:class:`~trainsim.io.railml_signalling.
+    LineSignalling`), so that an operation file takes its line from either.
+
+    Raises:
+        InputError naming the file, the sheet, the cell, the value and what is allowed.
+    """
+    from trainsim.io.railml_signalling import DetectionPoint, LineSignalling, SignalAt, StationTracks
+
+    sheets = read_sheets(path)
+    if route is None:
+        route = rc.build_route(read_spreadsheet(path))
+    found = {key: _signal_sheet(sheets, key) for key in SIGNAL_SHEETS}
+    if found["signals"] is None:
+        raise InputError(
+            "no 'signals' table",
+            file=str(path),
+            allowed="tables: signals (name, position, direction, kind), station tracks, detection points",
+        )
+    start_m, end_m = float(route.start_m), float(route.end_m)
+    tracks: dict[str, int] = {}
+    st = found["station tracks"]
+    if st is not None:
+        cols = _columns(
+            st,
+            [
+                Column("station", ("station", "name"), kind="text"),
+                Column("tracks", ("tracks", "platform tracks"), kind="int"),
+            ],
+            ["station", "tracks"],
+        )
+        names = [x.name for x in route.stations]
+        for r in range(len(st.rows)):
+            name = _value(st, r, cols["station"][0], "text")
+            if name not in names:
+                raise st.error(
+                    "unknown station", row=r, col=cols["station"][0], value=name, allowed=", ".join(names)
+                )
+            if name in tracks:
+                raise st.error("station given twice", row=r, col=cols["station"][0], value=name)
+            n = _value(st, r, cols["tracks"][0], "int")
+            if n is None or not 1 <= n <= MAX_STATION_TRACKS:
+                raise st.error(
+                    "invalid number of tracks",
+                    row=r,
+                    col=cols["tracks"][0],
+                    value=st.rows[r][cols["tracks"][0]],
+                    allowed=f"1 .. {MAX_STATION_TRACKS}",
+                )
+            tracks[name] = n
+    out = LineSignalling(
+        name=route.name,
+        start_m=start_m,
+        end_m=end_m,
+        stations=[StationTracks(x.name, x.position_m, tracks.get(x.name, 1)) for x in route.stations],
+    )
+    sig = found["signals"]
+    extra = [
+        Column("direction", ("direction", "dir"), kind="text"),
+        Column("kind", ("kind", "type"), kind="text"),
+    ]
+    for r, name, pos, cols in _placed_rows(sig, start_m, end_m, extra):
+        if "direction" not in cols:
+            raise sig.error("missing column 'direction'", allowed="direction (up or down)")
+        direction = _choice(sig, r, cols["direction"][0], ("up", "down"))
+        kind = (
+            _choice(sig, r, cols["kind"][0], ("main", "block", "distant"), "main")
+            if "kind" in cols
+            else "main"
+        )
+        out.signals.append(SignalAt(name, pos, direction, kind, f"{sig.source}, row {r + 2}"))  # type: ignore[arg-type]
+    det = found["detection points"]
+    if det is not None:
+        kinds = ("axle_counter", "track_circuit_border", "detector")
+        for r, name, pos, cols in _placed_rows(
+            det, start_m, end_m, [Column("kind", ("kind", "type"), kind="text")]
+        ):
+            kind = _choice(det, r, cols["kind"][0], kinds, "detector") if "kind" in cols else "detector"
+            out.detection_points.append(DetectionPoint(name, pos, kind, f"{det.source}, row {r + 2}"))
+    out.signals.sort(key=lambda x: (x.direction != "up", x.position_m))
+    out.detection_points.sort(key=lambda d: d.position_m)
+    return out
 
 
 # ====================================================================== writing
