@@ -171,7 +171,7 @@ class FeedbackSpec(_Spec):
     enabled: bool = True
     max_iterations: Annotated[int, Field(ge=1, le=50)] = 10
     tolerance: Annotated[float, Field(gt=0, lt=0.5)] = 1e-3
-    method: Literal["per_stretch", "constant"] = "per_stretch"
+    method: Literal["per_step", "per_stretch", "constant"] = "per_stretch"
     knock_on: bool = False
     buffer_s: NonNegative = 0.0
 

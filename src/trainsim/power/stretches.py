@@ -58,10 +58,13 @@ class JoinedRun:
     warnings: list[str]
 
 
-def joined_run(train, route: Route, settings, caps_w: np.ndarray) -> JoinedRun:
+def joined_run(
+    train, route: Route, settings, caps_w: np.ndarray, shares: np.ndarray | None = None
+) -> JoinedRun:
     """The fastest run of ``train`` on ``route`` with traction power at the wheel capped at
     ``caps_w[k]`` [W] on stretch k (inf: not capped), one stretch per pair of consecutive
-    :func:`stop_positions`."""
+    :func:`stop_positions`; with ``shares``, the tractive effort on stretch k is also scaled by
+    ``shares[k]`` [-] (``EffortCurve.scaled``)."""
     stops = stop_positions(route)
     dwell = {s.position_m: s.dwell_s for s in route.stations if s.stop}
     parts: list[list[np.ndarray]] = [[], [], [], [], []]
@@ -70,6 +73,8 @@ def joined_run(train, route: Route, settings, caps_w: np.ndarray) -> JoinedRun:
         capped = train
         if np.isfinite(caps_w[k]):
             capped = dataclasses.replace(train, traction=train.traction.capped(power_cap_w=float(caps_w[k])))
+        if shares is not None and shares[k] != 1.0:
+            capped = dataclasses.replace(capped, traction=capped.traction.scaled(float(shares[k])))
         run = run_fastest(capped, _stretch(route, float(stops[k]), float(stops[k + 1])), settings)
         tr = run.trace
         running += run.running_time_s

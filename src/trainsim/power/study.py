@@ -25,12 +25,14 @@ from typing import Any
 
 import numpy as np
 
+from trainsim.constants import KWH
 from trainsim.errors import InputError
 from trainsim.model.scenario import Scenario
 from trainsim.power.network import Network
 from trainsim.power.onboard import OnboardStorage
 from trainsim.power.simulation import PowerResult, TrainLoad, simulate, train_load_from_run
 from trainsim.power.stretches import JoinedRun, joined_run, stop_positions
+from trainsim.power.traction_share import SHARE_FLOOR, ShareProfile, route_with_share, step_spans
 from trainsim.sim.result import RunResult
 
 __all__ = ["FeedbackSettings", "TrainService", "run_study"]
@@ -69,9 +71,11 @@ class FeedbackSettings:
         max_iterations: network solutions at most (the first one included).
         tolerance: a departure is consistent when it gets at least 1 - tolerance of the traction
             energy it asks [-].
-        method: ``per_stretch`` (a cap per stretch between two stops, where the line limited
-            that stretch; fastest runs only, others fall back to ``constant``) or ``constant``
-            (one cap for the whole run).
+        method: ``per_step`` (the share of traction the line gave at each limited time step,
+            laid over the positions the train covered in that step, see
+            :mod:`trainsim.power.traction_share`; any strategy), ``per_stretch`` (a cap per
+            stretch between two stops, where the line limited that stretch; fastest runs only,
+            others fall back to ``constant``) or ``constant`` (one cap for the whole run).
         knock_on: the timetable says a train may not depart before the previous departure of the
             same train (service) has made up its delay: each later departure of a service is
             shifted by the previous one's shift plus its time lost, less ``buffer_s``. False (the
@@ -94,9 +98,9 @@ class FeedbackSettings:
                 value=self.max_iterations,
                 allowed="1 .. 50",
             )
-        if self.method not in ("per_stretch", "constant"):
+        if self.method not in ("per_step", "per_stretch", "constant"):
             raise InputError("unknown feedback method", field="simulation.feedback.method", value=self.method,
-                             allowed="per_stretch, constant")  # fmt: skip
+                             allowed="per_step, per_stretch, constant")  # fmt: skip
         if not (np.isfinite(self.buffer_s) and self.buffer_s >= 0):
             raise InputError("invalid buffer time", field="simulation.feedback.buffer_s", value=self.buffer_s,
                              allowed=">= 0 s")  # fmt: skip
@@ -149,8 +153,10 @@ def _load(service: TrainService, run: RunResult, name: str, departure_s: float) 
         auxiliary_power_w=el.auxiliary_power_w,
         power_factor=el.power_factor,
     )
-    return load if service.onboard_storage is None else dataclasses.replace(
-        load, onboard_storage=service.onboard_storage
+    return (
+        load
+        if service.onboard_storage is None
+        else dataclasses.replace(load, onboard_storage=service.onboard_storage)
     )
 
 
@@ -172,12 +178,12 @@ def run_study(
     if not services:
         raise InputError("no trains", field="trains", allowed="one or more trains")
     runs: dict[tuple, RunResult | JoinedRun] = {}
-    per_stretch = [
-        feedback.method == "per_stretch" and s.scenario.strategy == "fastest" for s in services
-    ]
+    per_stretch = [feedback.method == "per_stretch" and s.scenario.strategy == "fastest" for s in services]
     stops = [stop_positions(s.scenario.route) for s in services]
 
-    def run_of(k: int, cap: np.ndarray | float) -> RunResult | JoinedRun:
+    def run_of(k: int, cap: np.ndarray | float | ShareProfile) -> RunResult | JoinedRun:
+        if isinstance(cap, ShareProfile):
+            return shared_run(k, cap)
         caps_k = np.atleast_1d(np.asarray(cap, dtype=float))
         key = (k, tuple(round(c, 3) if np.isfinite(c) else np.inf for c in caps_k))
         if key not in runs:
@@ -195,12 +201,34 @@ def run_study(
             runs[key] = run
         return runs[key]
 
+    def shared_run(k: int, profile: ShareProfile) -> RunResult:
+        key = (k, "share", profile.key())
+        if key not in runs:
+            sc = services[k].scenario
+            shared = dataclasses.replace(sc, route=route_with_share(sc.route, sc.train, profile))
+            run = _run(shared, np.inf)
+            if run.status != "ok":
+                raise InputError(
+                    f"the run of train {services[k].id} under the line's traction limitation is not possible: "
+                    + "; ".join(run.warnings),
+                    field=f"trains[{k}]",
+                    value=services[k].id,
+                )
+            runs[key] = run
+        return runs[key]  # type: ignore[return-value]
+
     departures = [
         (k, f"{s.id}#{j}" if len(s.departures_s) > 1 else s.id, dep)
         for k, s in enumerate(services)
         for j, dep in enumerate(s.departures_s)
     ]
-    caps = [np.full(len(stops[k]) - 1 if per_stretch[k] else 1, np.inf) for k, _, _ in departures]
+    per_step = feedback.method == "per_step"
+    caps: list = [
+        ShareProfile.full(services[k].scenario.route.start_m, services[k].scenario.route.end_m)
+        if per_step
+        else np.full(len(stops[k]) - 1 if per_stretch[k] else 1, np.inf)
+        for k, _, _ in departures
+    ]
     shift = np.zeros(len(departures))
 
     def time_lost(i: int) -> tuple[float, float]:
@@ -208,7 +236,9 @@ def run_study(
         same way (joined stretches or the whole run), so that no cap means no loss."""
         k = departures[i][0]
         actual = run_of(k, caps[i])
-        if isinstance(actual, JoinedRun):
+        if isinstance(caps[i], ShareProfile):
+            nominal = run_of(k, ShareProfile.full(caps[i].x_m[0], caps[i].x_m[-1]))
+        elif isinstance(actual, JoinedRun):
             sc = services[k].scenario
             nominal = joined_run(sc.train, sc.route, sc.settings, np.full(len(caps[i]), np.inf))
         else:
@@ -234,21 +264,39 @@ def run_study(
             _load(services[k], run_of(k, caps[i]), name, dep + shift[i])
             for i, (k, name, dep) in enumerate(departures)
         ]
+        if per_step:
+            # the network is asked what each train would draw at full supply, and applies the limitation
+            loads = [_full_demand(load, run_of(k, caps[i]), caps[i]) for load, (i, (k, _, _)) in
+                     zip(loads, enumerate(departures), strict=True)]  # fmt: skip
         result = simulate(network, loads, dt_s=dt_s, start_s=start_s, end_s=end_s)
         asked = np.nansum(result.traction_demand_w, axis=0)
         got = np.nansum(result.traction_delivered_w, axis=0)
-        ratio = np.where(asked > 0, got / np.where(asked > 0, asked, 1.0), 1.0)
-        limited = ratio < 1.0 - feedback.tolerance
+        if per_step:
+            # consistent: the network gives each train the traction its run used (the run's share of the
+            # full demand), step by step summed over the run
+            used = np.array([np.nansum(_run_share(result, i, services[k], caps[i]) * result.traction_demand_w[:, i])
+                             for i, (k, _, _) in enumerate(departures)])  # fmt: skip
+            mismatch = np.abs(got - used) / np.maximum(used, 1e-30)
+            limited = mismatch > feedback.tolerance
+        else:
+            ratio = np.where(asked > 0, got / np.where(asked > 0, asked, 1.0), 1.0)
+            mismatch = 1.0 - ratio
+            limited = ratio < 1.0 - feedback.tolerance
         settled = not feedback.knock_on or bool(np.allclose(knock_on(), shift, rtol=0.0, atol=1e-6))
         consistent = not limited.any() and settled
         if consistent or not feedback.enabled or iterations >= feedback.max_iterations:
             break
         short = result.traction_delivered_w < result.traction_demand_w * (1.0 - feedback.tolerance)
         for i in np.flatnonzero(limited):
+            if per_step:
+                caps[i] = _measured_share(result, i, services[departures[i][0]], caps[i])
+                continue
             k = departures[i][0]
             svc = services[k]
             # the stretch of each limited step: back from chainage to the route's own position
-            s_route = svc.scenario.route.start_m + svc.direction * (result.train_position_m[short[:, i], i] - svc.origin_m)
+            s_route = svc.scenario.route.start_m + svc.direction * (
+                result.train_position_m[short[:, i], i] - svc.origin_m
+            )
             stretch = np.clip(np.searchsorted(stops[k], s_route, side="right") - 1, 0, len(caps[i]) - 1)
             delivered = result.traction_delivered_w[short[:, i], i]
             for j in np.unique(stretch) if len(caps[i]) > 1 else [0]:
@@ -259,6 +307,10 @@ def run_study(
     trains: list[dict[str, Any]] = []
     for i, (_, name, _) in enumerate(departures):
         actual, nominal = time_lost(i)
+        if isinstance(caps[i], ShareProfile):
+            trains.append(_share_summary(name, actual, nominal, caps[i], float(shift[i])))
+            trains[-1]["traction_used_kwh"] = float(used[i]) * result.dt_s / KWH
+            continue
         finite = np.isfinite(caps[i])
         trains.append(
             {
@@ -279,10 +331,14 @@ def run_study(
             "enabled": feedback.enabled,
             "iterations": iterations,
             "consistent": bool(consistent),
+            "mismatch": float(np.max(mismatch, initial=0.0)),
             "knock_on": feedback.knock_on,
             "buffer_s": feedback.buffer_s,
             "method": (
-                "a cap on the traction power at the wheel per stretch between two stops: the least power "
+                "the share of traction the line gave at each limited step, over the positions the train "
+                "covered in that step (a share of tractive effort along the route)"
+                if per_step
+                else "a cap on the traction power at the wheel per stretch between two stops: the least power "
                 "delivered at a limited step of that stretch"
                 if feedback.method == "per_stretch"
                 else "constant cap on the traction power at the wheel: least power delivered at a limited step"
@@ -290,3 +346,63 @@ def run_study(
         },
     }
     return dataclasses.replace(result, extra=extra)
+
+
+def _route_positions(result: PowerResult, i: int, service: TrainService) -> tuple[np.ndarray, np.ndarray]:
+    """(steps where departure ``i`` is on the network, its route positions there [m]): chainage
+    back to the route's own position."""
+    on = np.flatnonzero(np.isfinite(result.train_position_m[:, i]))
+    route = service.scenario.route
+    return on, route.start_m + service.direction * (result.train_position_m[on, i] - service.origin_m)
+
+
+def _run_share(result: PowerResult, i: int, service: TrainService, profile: ShareProfile) -> np.ndarray:
+    """The share of tractive effort departure ``i``'s run had at each step (NaN off the network)."""
+    out = np.full(len(result.time_s), np.nan)
+    on, s_route = _route_positions(result, i, service)
+    out[on] = profile.at(s_route)
+    return out
+
+
+def _full_demand(load: TrainLoad, run: RunResult, profile: ShareProfile) -> TrainLoad:
+    """The load of a run made under ``profile`` with the traction power it would ask at full supply:
+    the run's traction power over its share at each point (a share below SHARE_FLOOR counts as that,
+    so that a train held at nothing still shows what it asks)."""
+    if not profile.limited:
+        return load
+    share = np.maximum(profile.at(run.trace.position_m), SHARE_FLOOR)
+    return dataclasses.replace(load, traction_power_w=load.traction_power_w / share)
+
+
+def _measured_share(
+    result: PowerResult, i: int, service: TrainService, profile: ShareProfile
+) -> ShareProfile:
+    """Departure ``i``'s share of tractive effort as the network gave it: at each step where it asked
+    for traction, delivered / asked (the EN 50388 limitation at its pantograph voltage) over the
+    stretch of line that step stands for; 1 elsewhere (see :mod:`trainsim.power.traction_share`)."""
+    on, s_route = _route_positions(result, i, service)
+    lo, hi = step_spans(s_route)
+    asked = result.traction_demand_w[on, i]
+    hit = asked > 0.0
+    share = result.traction_delivered_w[on[hit], i] / asked[hit]
+    full = ShareProfile.full(profile.x_m[0], profile.x_m[-1])
+    return full.lowered(lo[hit], hi[hit], np.clip(share, SHARE_FLOOR, 1.0))
+
+
+def _share_summary(
+    name: str, actual_s: float, nominal_s: float, profile: ShareProfile, delay_s: float
+) -> dict[str, Any]:
+    """A departure's summary under per-step feedback: running times, the least share of tractive
+    effort the line allowed and the length of line where it was limited."""
+    limited = profile.share < 1.0
+    return {
+        "id": name,
+        "running_time_s": actual_s,
+        "nominal_running_time_s": nominal_s,
+        "time_lost_s": actual_s - nominal_s,
+        "traction_power_cap_kw": None,
+        "departure_delay_s": delay_s,
+        "traction_power_caps_kw": None,
+        "traction_share_min": float(np.min(profile.share)),
+        "traction_limited_length_m": float(np.sum(np.diff(profile.x_m)[limited])),
+    }
