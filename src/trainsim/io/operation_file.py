@@ -557,9 +557,9 @@ def _spreadsheet_line(sheet: _Spreadsheet, base: Path, file: str, problems: list
 
 
 def _stations_with_signals(read, given: list[_Station]) -> list[_Station]:
-    """The stations of a railML or spreadsheet line with the signal distances read for the up direction (the line model
-    holds one value for both directions); a station given in the operation file overrides, field by
-    field, what was read."""
+    """The stations of a railML or spreadsheet line with the signal distances read for the up direction
+    (the line model holds one value for both directions); a station given in the operation file
+    overrides, field by field, what was read."""
     by_name = {s.name: s for s in given}
     out = []
     for entry in read.station_signals("up"):
