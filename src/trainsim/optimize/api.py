@@ -33,6 +33,7 @@ from trainsim.model.train import Train
 from trainsim.optimize.constraints import DrivingConstraints, constrained_route, constrained_train
 from trainsim.optimize.optimal import TIME_TOLERANCE_S, SectionPlan, SectionSolver
 from trainsim.optimize.timetable import Timetable
+from trainsim.optimize.windows import enforce_windows
 from trainsim.sim import kernel
 from trainsim.sim.fastest import run_fastest, stops_of
 from trainsim.sim.profile import line_resistance_profile, speed_ceiling
@@ -383,6 +384,12 @@ def _run_optimal(train, route, timetable, settings, fastest) -> OptimizationResu
                 f"the line schedule of {total:.1f} s is shorter than the fastest run "
                 f"({sum(fastest_s):.1f} s): the fastest run is returned"
             )
+    if timetable.timing_points:
+        # windows the optimum misses are enforced section by section, each keeping its time
+        for k, (sv, T) in enumerate(zip(solvers, targets, strict=True)):
+            outcome = enforce_windows(sv, T, timetable.timing_points, plans[k], settings)
+            plans[k] = outcome.plan
+            warnings += outcome.notes
     return _result(
         "optimal", train, route, settings, fastest, plans, targets, warnings, timetable.timing_points, solvers
     )

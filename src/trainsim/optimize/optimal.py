@@ -90,7 +90,13 @@ def regenerative_holding_speed(train: Train, mu: float, eta_r: float) -> float:
         return float("inf")
     # psi(W) = W^2 (c1 + 2 c2 W) = mu / eta_r, increasing in W
     target = mu / eta_r
-    return float(brentq(lambda w: w * w * (law.c1 + 2.0 * law.c2 * w) - target, 0.0, 1e4))
+
+    def excess(w: float) -> float:
+        return w * w * (law.c1 + 2.0 * law.c2 * w) - target
+
+    if excess(1e4) < 0.0:
+        return float("inf")  # the price of time of a run far above every limit: it never holds W
+    return float(brentq(excess, 0.0, 1e4))
 
 
 def key_equation_braking_speed(train: Train, holding_speed_mps: float) -> float:
@@ -134,7 +140,17 @@ class _JumpError(RuntimeError):
 class SectionSolver:
     """Energy-optimal runs of one section [s0, s1] for any running time."""
 
-    def __init__(self, train: Train, route: Route, s0: float, s1: float, settings: RunSettings | None = None):
+    def __init__(
+        self,
+        train: Train,
+        route: Route,
+        s0: float,
+        s1: float,
+        settings: RunSettings | None = None,
+        breaks_m: tuple[float, ...] = (),
+    ):
+        """``breaks_m``: positions inside the section that must be grid points (binding timing
+        points, where the holding speed may change, ``stretches``)."""
         settings = settings or RunSettings()
         b = train.braking
         if (
@@ -148,7 +164,12 @@ class SectionSolver:
             regen = b.regenerative.capped(force_cap_n=b.service_force.force_cap_n)
             train = dataclasses.replace(train, braking=dataclasses.replace(b, regenerative=regen))
         self.train, self.route, self.s0, self.s1 = train, route, s0, s1
-        self.track, _, _ = compile_track(route, train, [s0, s1], settings.max_step_m)
+        inner = sorted(float(b) for b in breaks_m if s0 < b < s1)
+        self.track, _, _ = compile_track(route, train, [s0, *inner, s1], settings.max_step_m)
+        #: fixed holding speeds of the stretches before binding timing points: ((end [m], V [m/s]), ...)
+        #: in order; the holding speed a plan is built for holds after the last end (see
+        #: ``trainsim.optimize.windows``). Empty: one holding speed for the whole section.
+        self.stretches: tuple[tuple[float, float], ...] = ()
         P, trac, brk = kernel_parameters(train, settings)
         self.P = P
         self.curves = (*trac, *brk, *regenerative_arrays(train))
@@ -227,7 +248,8 @@ class SectionSolver:
         braking; brake to lower limits and the stop; with the departures ahead of steep descents
         (``excursions``) and lower limits (``limit_coasting``) that lower energy + mu x time."""
         tr = self.track
-        if not np.isfinite(holding_speed) or holding_speed >= 10.0 * float(tr.vlim.max()):
+        fast = not np.isfinite(holding_speed) or holding_speed >= 10.0 * float(tr.vlim.max())
+        if fast and all(v >= 10.0 * float(tr.vlim.max()) for _, v in self.stretches):
             return self.fastest
         self._decisions = {}
         self._has_long_excursions = False
@@ -236,12 +258,15 @@ class SectionSolver:
         last = self._last_departure_speed
         self._near_last_speed = last is not None and abs(np.log(holding_speed / last)) < WARM_START_LOG_SPEED
         self._last_departure_speed = holding_speed
-        vhold = np.minimum(tr.vlim, holding_speed)
-        W = regenerative_holding_speed(self.train, price_of_time_w(self.train, holding_speed), self.eta_r)
-        vtop = np.maximum(np.minimum(tr.vlim, W), vhold)
+        # the holding speed of every interval: a binding timing point ends a stretch with its own
+        # (the price of time jumps there; Albrecht et al. 2016, Part 1, interior time constraints)
+        V_int, mu_int, W_int = self._interval_speeds(holding_speed)
+        vhold = np.minimum(tr.vlim, V_int)
+        vtop = np.maximum(np.minimum(tr.vlim, W_int), vhold)
         Cr, US, modes = self._ceiling(vtop)
-        mu = price_of_time_w(self.train, holding_speed)
-        steep_down = self._steep_descents(holding_speed, vhold, vtop)
+        steep_down = self._steep_descents(V_int, vhold, vtop)
+        # a stretch driven fastest (no price of time) never leaves its arc early
+        steep_down &= np.isfinite(mu_int)
         if not self.excursions:
             steep_down[:] = False
         pieces: list[tuple[np.ndarray, ...]] = []
@@ -260,8 +285,10 @@ class SectionSolver:
                 if descent is None:
                     break
                 a, after, v_rejoin = descent
+                k = self._interval_of(a)
                 found = self._best_departure(
-                    seg, last_pos, a, W, holding_speed, mu, ("descent", round(after)), v_rejoin,
+                    seg, last_pos, a, float(W_int[k]), float(V_int[k]), float(mu_int[k]), ("descent", round(after)),
+                    v_rejoin,
                     self._next_steep_start(steep_down, after),
                 )  # fmt: skip
             if found is None:
@@ -270,15 +297,58 @@ class SectionSolver:
             p, excursion, q = found
             keep = seg[0] < p
             pieces.append(tuple(arr[keep] for arr in seg))
+            excursion, q = self._cut_at_stretch_end(excursion, q, p)
             pieces.append(excursion)
             start = q
             last_pos = tr.x[q[0]] + q[1]
         points = tuple(np.concatenate([pc[k] for pc in pieces]) for k in range(4))
         if self.limit_coasting:
-            points = self._coast_before_limits(points, vtop, Cr, US, modes, mu)
+            points = self._coast_before_limits(points, vtop, Cr, US, modes, mu_int)
         return points
 
-    def _coast_before_limits(self, points, vtop, Cr, US, modes, mu: float):
+    def _cut_at_stretch_end(self, excursion, q, p: float):
+        """An excursion that leaves a stretch at p and would rejoin beyond the stretch's end stops
+        at that end: the next stretch holds its own speed from there (the holding arc it would
+        rejoin belongs to the previous price of time). (points, start state of the next holding)."""
+        ends = [e for e, _ in self.stretches if e > p + 1e-9]
+        if not ends:
+            return excursion, q
+        tr = self.track
+        end = ends[0]
+        if tr.x[q[0]] + q[1] <= end + 1e-9:
+            return excursion, q
+        s, v, t, _ = excursion
+        at = np.flatnonzero(np.abs(s - end) <= 1e-7)
+        if not len(at):
+            return excursion, q  # (not emitted at the end: left as it is)
+        j = int(at[0])
+        i_end = int(np.searchsorted(tr.x, end - 1e-7, side="left"))
+        return tuple(arr[:j] for arr in excursion), (i_end, 0.0, float(v[j]), float(t[j]))
+
+    def _interval_of(self, s_m: float) -> int:
+        """The grid interval that holds position ``s_m`` [m] (the last one at the section's end)."""
+        tr = self.track
+        return int(np.clip(np.searchsorted(tr.x, s_m, side="right") - 1, 0, len(tr.a0) - 1))
+
+    def _interval_speeds(self, holding_speed: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(V, mu, W) of every grid interval [m/s, W, m/s]: the fixed ``stretches`` up to their ends,
+        ``holding_speed`` after the last one."""
+        tr = self.track
+        mid = 0.5 * (tr.x[:-1] + tr.x[1:])
+        V = np.full(len(tr.a0), float(holding_speed))
+        for end, speed in reversed(self.stretches):
+            V[mid < end] = speed
+        mu = np.empty_like(V)
+        W = np.empty_like(V)
+        for speed in np.unique(V):
+            at = np.equal(V, speed)
+            # far above every limit a stretch is driven fastest: no price of time holds it back
+            fastest = not np.isfinite(speed) or speed >= 10.0 * float(tr.vlim.max())
+            mu[at] = np.inf if fastest else price_of_time_w(self.train, float(speed))
+            W[at] = regenerative_holding_speed(self.train, float(mu[at][0]), self.eta_r)
+        return V, mu, W
+
+    def _coast_before_limits(self, points, vtop, Cr, US, modes, mu_int: np.ndarray):
         """Coast ahead of every lower limit instead of holding up to its braking curve.
 
         For each braking run down to a lower limit (not the stop), the train leaves its holding or
@@ -297,6 +367,12 @@ class SectionSolver:
                 return points
             self._has_limit_braking = True
             q, b = episode
+            mu = float(mu_int[self._interval_of(q)])
+            if not np.isfinite(mu):
+                # a stretch driven fastest brakes to the limit at the last moment
+                self._decisions[("limit", round(b))] = (q, p_floor, q)
+                p_floor = after = b
+                continue
             i_last = int(np.searchsorted(tr.x, b - 1e-9, side="right")) - 1
             cum = np.empty(len(s))
             pk.path_energy(
@@ -304,7 +380,7 @@ class SectionSolver:
                 self.inv_eta_t, self.eta_r, cum, self.tk, self.bk, self.rk,
             )  # fmt: skip
 
-            def cost(p: float, keep: bool = False, points=points, cum=cum, q=q, b=b, i_last=i_last):
+            def cost(p: float, keep: bool = False, points=points, cum=cum, q=q, b=b, i_last=i_last, mu=mu):
                 s = points[0]
                 i, u, vp, tp, _ = self._state_at(points, p)
                 n, status, i_r, u_r, v_r, t_r, e_coast = pk.coast_to_curve(
@@ -782,9 +858,12 @@ class SectionSolver:
             return (self.s1 - s_event if status == pk.HIT_CEILING else s_event - self.s1), points
 
         step = max(50.0, (self.s1 - self.s0) / 200.0)
+        # the final coast starts after the last binding timing point: before it the stretches hold
+        # their own speeds (the final phase is driven by one price of time)
+        floor = self.stretches[-1][0] if self.stretches else self.s0
         guess = self._coast_point_guess(holding_speed_mps)
         below = None  # a coasting point after which the run stops short, with its residual
-        if guess is not None and self.s0 < guess < self.s1:
+        if guess is not None and floor < guess < self.s1:
             # warm start: the outer solve moves V a little at a time and the coasting point with
             # it, so the bracket grows outwards from the previous one
             width = WARM_COAST_STEP_M
@@ -803,9 +882,13 @@ class SectionSolver:
             lo, r_lo = below
         else:
             while True:
-                lo = max(hi - step, self.s0)
+                lo = max(hi - step, floor)
                 r_lo, points = residual(lo)
-                if r_lo < 0.0 or lo <= self.s0:
+                if r_lo < 0.0:
+                    break
+                if lo <= floor:
+                    # even coasting from the floor the train meets the braking curve: coast from there
+                    hi, best = lo, points
                     break
                 hi, best = lo, points
                 step *= 1.5
@@ -1000,7 +1083,9 @@ class SectionSolver:
         return (res.energy_kwh.net - res.energy_kwh.auxiliary) * KWH
 
     def _solve_once(self, running_time_s: float) -> SectionPlan:
-        if running_time_s <= self.fastest_time_s + TIME_TOLERANCE_S:
+        # (with fixed stretches the fastest run is not a plan of this solver: the search below
+        # ends at the fastest plan that keeps them)
+        if running_time_s <= self.fastest_time_s + TIME_TOLERANCE_S and not self.stretches:
             s, v, t, m = self.fastest
             m = m.copy()
             m[-1] = kernel.DWELL
