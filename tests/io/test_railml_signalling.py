@@ -166,8 +166,11 @@ def test_an_operational_point_without_id_is_a_clear_error(tmp_path):
         read_signalling(path, ocps=["A", "B", "C"])
 
 
-@pytest.mark.parametrize("name", FILES)
-def test_mutated_files_read_or_refused_never_a_traceback(name, tmp_path):
+@pytest.mark.parametrize(
+    ("name", "double_track"),
+    [*((f, False) for f in FILES), ("double_track_railml2.xml", True), ("double_track_railml3.xml", True)],
+)
+def test_mutated_files_read_or_refused_never_a_traceback(name, double_track, tmp_path):
     # seeded structural mutations (an attribute changed or removed, an element removed or renamed):
     # each file is read or refused with an InputError, nothing else
     import random
@@ -194,7 +197,7 @@ def test_mutated_files_read_or_refused_never_a_traceback(name, tmp_path):
         path = tmp_path / f"m{seed}.xml"
         path.write_bytes(etree.tostring(root))
         try:
-            read_signalling(path, ocps=["A", "B", "C"])
+            read_signalling(path, ocps=["A", "B", "C"], double_track=double_track)
             outcomes["read"] += 1
         except InputError:
             outcomes["refused"] += 1

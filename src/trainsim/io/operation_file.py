@@ -83,6 +83,8 @@ class _Railml(_Spec):
     train_id: str | None = None
     ocps: list[str] | None = None
     line_resistance: _LineResistance | None = None
+    #: read the down track too (the route's stations in reverse order through the other track)
+    double_track: bool = False
 
 
 class _Spreadsheet(_Spec):
@@ -525,7 +527,10 @@ def _railml_line(railml: _Railml, base: Path, file: str, problems: list[Problem]
         route = detect_and_load(target, "route", **options)
         if route is None:
             raise InputError("not a railML file", file=str(target), field="line.railml.file")
-        return route, read_signalling(target, train_id=railml.train_id, ocps=railml.ocps)
+        read = read_signalling(
+            target, train_id=railml.train_id, ocps=railml.ocps, double_track=railml.double_track
+        )
+        return route, read
     except InputError as e:
         problems.extend(p if p.file else replace(p, file=str(target)) for p in e.problems)
         return None, None

@@ -24,17 +24,33 @@ The kind of a signal (trainsim's reading of the railML enumerations, :data:`SIGN
 ``distant`` (type distant or repeater). Other types (shunting...) are not read and noted.
 
 Direction: ``up`` for a signal that governs trains running along the route's path, ``down`` for one
-that faces the other way on the same tracks (single track). For the other track of a double-track
-line, read the path of a train in the other direction.
+that faces the other way on the same tracks (single track).
+
+Double track (``double_track=True``): the down path is the route's stations in reverse order through
+the tracks that are not on the route's path (each station must lie on such a track). Signals, train
+detection points and switches of the down path are mapped to route positions piecewise linearly
+between the stations both paths pass (beyond the first and last, at the same scale: 1 m down is 1 m
+back), so that the two tracks may differ in length and mileage. A signal of the down track that faces
+along the down path is a ``down`` signal; one facing the other way (wrong-line running) is not read
+and noted. Station tracks are then counted per direction: the tracks of a station on the up side
+(not on the down path) and on the down side.
+
+Tracks (:class:`TrackAt`, ``LineSignalling.tracks``): railML 2 ``tracks/track@type,@mainDir``; railML 3
+``functionalInfrastructure/tracks/track@type,@mainDirection`` with the netElements of its
+``linearLocation/associatedNetElement`` (``@keepsOrientation`` false turns the direction round). Each
+is given with its extent along a path and its main direction relative to the route (``up``, ``down``,
+``both`` or None). In railML 3 a station's tracks are the functional tracks its operational point lies
+on (two netElements of one track count once); netElements outside every track count one each.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
+import numpy as np
 from lxml import etree
 
 from trainsim.errors import InputError
@@ -49,6 +65,7 @@ __all__ = [
     "SignalAt",
     "StationTracks",
     "SwitchAt",
+    "TrackAt",
     "read_signalling",
 ]
 
@@ -86,6 +103,7 @@ class DetectionPoint:
     position_m: float
     kind: str  #: ``axle_counter``, ``track_circuit_border`` or ``detector``
     source: str
+    path: Direction = "up"  #: read on the route's path (``up``) or on the down path of a double track
 
 
 @dataclass(frozen=True)
@@ -95,15 +113,32 @@ class SwitchAt:
     name: str
     position_m: float
     source: str
+    path: Direction = "up"  #: read on the route's path (``up``) or on the down path of a double track
+
+
+@dataclass(frozen=True)
+class TrackAt:
+    """A railML track along a path: ``start_m`` .. ``end_m`` route positions [m], its railML type and
+    its main direction relative to the route (``up``, ``down``, ``both``, or None when not given)."""
+
+    name: str
+    kind: str | None
+    main_direction: str | None
+    start_m: float
+    end_m: float
+    path: Direction
+    source: str
 
 
 @dataclass(frozen=True)
 class StationTracks:
-    """A station of the route at ``position_m`` [m] with the number of tracks it lies on."""
+    """A station of the route at ``position_m`` [m] with the number of tracks it lies on (on a double
+    track read with its down path: the tracks on the up side, and ``down_tracks`` on the down side)."""
 
     name: str
     position_m: float
     tracks: int
+    down_tracks: int | None = None
 
 
 @dataclass
@@ -117,6 +152,7 @@ class LineSignalling:
     signals: list[SignalAt] = field(default_factory=list)
     detection_points: list[DetectionPoint] = field(default_factory=list)
     switches: list[SwitchAt] = field(default_factory=list)
+    tracks: list[TrackAt] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
 
     def station_signals(self, direction: Direction = "up") -> list[dict[str, float | str | int]]:
@@ -136,7 +172,7 @@ class LineSignalling:
             before = sign * ordered[k - 1].position_m if k > 0 else -float("inf")
             after = sign * ordered[k + 1].position_m if k + 1 < len(ordered) else float("inf")
             entry: dict[str, float | str | int] = {"name": st.name, "position_m": st.position_m}
-            entry["tracks"] = st.tracks
+            entry["tracks"] = st.tracks if direction == "up" or st.down_tracks is None else st.down_tracks
             home = [x for x in mains if before < x < p]
             if home and k > 0:
                 entry["entry_signal_distance_m"] = p - home[-1]
@@ -200,7 +236,9 @@ def _placed_v3(reader: Reader, names: Sequence[str]) -> list[_Placed]:
     for el in _below(reader.infra, names):
         reader.d.use_containers(el)
         reader.usage.use(el, deep=True)
-        dirs = _DIRS_V3.get(next((s.get("applicationDirection") for s in children(el, "spotLocation")), ""), (1, -1))
+        dirs = _DIRS_V3.get(
+            next((s.get("applicationDirection") for s in children(el, "spotLocation")), ""), (1, -1)
+        )
         places = reader.d.spot(el, topology.net, topology.measures, reader.d.lps_units())
         if not places:
             reader.problems.add(el, "no position on a netElement (spotLocation)")
@@ -208,10 +246,8 @@ def _placed_v3(reader: Reader, names: Sequence[str]) -> list[_Placed]:
     return out
 
 
-def _on_path(reader: Reader, item: _Placed) -> tuple[float, int] | None:
+def _on_path(path: rc.RoutePath, item: _Placed) -> tuple[float, int] | None:
     """Route position [m] and the direction (+1 along the path, -1 against it) of a placed element."""
-    path = reader.path
-    assert path is not None
     for leg, s0 in zip(path.legs, path.offsets, strict=True):
         if leg.edge == item.edge and leg.covers(item.pos):
             return round(s0 + abs(item.pos - leg.start), 9), leg.direction
@@ -238,31 +274,199 @@ def _source(el: etree._Element) -> str:
     return f"{label(el)} at line {el.sourceline}"
 
 
+# ---------------------------------------------------------------------- double track
+@dataclass
+class _DownPath:
+    """The down path of a double-track line and its mapping to route positions."""
+
+    path: rc.RoutePath
+    down_m: np.ndarray  #: station positions along the down path, increasing [m]
+    up_m: np.ndarray  #: the same stations' route positions, decreasing [m]
+    up_side: frozenset[str]  #: edges joined to the route's path without crossing the down path
+    down_side: frozenset[str]  #: edges joined to the down path without crossing the route's path
+
+    def route_position(self, down_m: float) -> float:
+        """Route position of a down-path position: linear between the stations, at the same scale
+        beyond them."""
+        if down_m < self.down_m[0]:
+            return float(self.up_m[0] + (self.down_m[0] - down_m))
+        if down_m > self.down_m[-1]:
+            return float(self.up_m[-1] - (down_m - self.down_m[-1]))
+        return float(np.interp(down_m, self.down_m, self.up_m))
+
+
+def _down_path(reader: Reader) -> _DownPath:
+    """The route's stations in reverse order through the tracks that are not on its path."""
+    assert reader.path is not None and reader.topology is not None
+    file = str(reader.file)
+    net = reader.topology.net
+    up_edges = {leg.edge for leg in reader.path.legs}
+    side = rc.Network()
+    for edge, (begin, end) in net.extent.items():
+        if edge not in up_edges:
+            side.add_edge(edge, begin, end, net.elements[edge])
+    for port in net.ports.values():
+        if port.edge not in up_edges:
+            side.add_port(port)
+    stops: list[rc.Stop] = []
+    for st in reversed(reader.stations):
+        places = tuple((e, x) for e, x in reader.station_places[st.element] if e not in up_edges)
+        if not places:
+            raise InputError(
+                f"double track: station '{st.name}' lies on no track besides the route's path, so the down "
+                "track cannot be found",
+                file=file,
+                field="double_track",
+                value=st.name,
+                allowed="each station placed on both tracks (railML 2 crossSection@ocpRef, railML 3 "
+                "spotLocation of the operational point)",
+            )
+        stops.append(rc.Stop(st.name, places, st.element))
+    problems = rc.Problems(file)
+    path = rc.route_path(side, stops, problems)
+    if path is None:
+        first = problems.items[0] if problems.items else None
+        raise InputError(
+            "double track: no down path through the tracks beside the route's path"
+            + (f" ({first.text()})" if first is not None else ""),
+            file=file,
+            field="double_track",
+            allowed="a second track joining the stations in reverse order",
+        )
+    down, up = [], []
+    after = -np.inf
+    for stop, st in zip(stops, reversed(reader.stations), strict=True):
+        found = [x for e, q in stop.locations if (x := path.position(e, q, after)) is not None]
+        after = min(found)
+        down.append(after)
+        up.append(st.position_m)
+    if not (np.all(np.diff(down) > 0) and np.all(np.diff(up) < 0)):
+        raise InputError(  # pragma: no cover - route_path visits the stops in order
+            "double track: the stations do not lie in reverse order along the down path",
+            file=file,
+            field="double_track",
+        )
+    down_edges = {leg.edge for leg in path.legs}
+    return _DownPath(
+        path, np.array(down), np.array(up), _side(net, up_edges, down_edges), _side(net, down_edges, up_edges)
+    )
+
+
+def _side(net: rc.Network, start: set[str], stop: set[str]) -> frozenset[str]:
+    """The edges reached from ``start`` through the ports without entering ``stop``: the tracks on one
+    side of a double-track line (its passing loops), to count a station's tracks per direction."""
+    seen, todo = set(start), list(start)
+    while todo:
+        for port in net.by_edge.get(todo.pop(), []):
+            other = net.ports.get(port.partner or "")
+            if other is not None and other.edge not in seen and other.edge not in stop:
+                seen.add(other.edge)
+                todo.append(other.edge)
+    return frozenset(seen)
+
+
+# ---------------------------------------------------------------------- tracks
+_MAIN_V2 = {"up": 1, "down": -1, "both": 0}
+_MAIN_V3 = {"normal": 1, "reverse": -1, "both": 0}
+
+
+def _railml_tracks(reader: Reader, v3: bool) -> list[tuple[etree._Element, dict[str, int]]]:
+    """Each railML track with its edges: edge -> main direction in edge coordinates (+1, -1, 0 both,
+    2 not given). railML 2: every track is its own edge."""
+    out: list[tuple[etree._Element, dict[str, int]]] = []
+    assert reader.topology is not None
+    if not v3:
+        for tid, track in reader.topology.net.elements.items():
+            out.append((track, {tid: _MAIN_V2.get((track.get("mainDir") or "").strip(), 2)}))
+        return out
+    holder = child(child(reader.infra, "functionalInfrastructure"), "tracks")
+    for track in children(holder, "track"):
+        reader.usage.use(holder)
+        reader.usage.use(track, deep=True)
+        main = _MAIN_V3.get((track.get("mainDirection") or "").strip(), 2)
+        edges: dict[str, int] = {}
+        for loc in children(track, "linearLocation"):
+            for assoc in children(loc, "associatedNetElement"):
+                ref = assoc.get("netElementRef")
+                if ref not in reader.topology.net.extent:
+                    reader.problems.add(
+                        assoc, "a track on an unknown netElement", attribute="netElementRef", value=ref
+                    )
+                    continue
+                flip = -1 if (assoc.get("keepsOrientation") or "").strip() == "false" else 1
+                edges[ref] = main * flip if main in (1, -1) else main
+        if not edges:
+            reader.problems.add(track, "a track needs its netElements (linearLocation/associatedNetElement)")
+        out.append((track, edges))
+    return out
+
+
+def _tracks_on(path: rc.RoutePath, which: Direction, tracks, reader: Reader) -> list[TrackAt]:
+    out: list[TrackAt] = []
+    for track, edges in tracks:
+        spans = [
+            (
+                s0,
+                s0 + leg.length,
+                edges[leg.edge] * leg.direction if edges[leg.edge] in (1, -1) else edges[leg.edge],
+            )
+            for leg, s0 in zip(path.legs, path.offsets, strict=True)
+            if leg.edge in edges
+        ]
+        if not spans:
+            continue
+        along = {m for _a, _b, m in spans}
+        if along <= {1} or along <= {-1}:
+            up_along = next(iter(along)) == (1 if which == "up" else -1)
+            main: str | None = "up" if up_along else "down"
+        else:
+            main = "both" if along == {0} else None
+        kind = (track.get("type") or track.get("trackType") or "").strip() or None
+        start, end = min(a for a, _b, _m in spans), max(b for _a, b, _m in spans)
+        out.append(TrackAt(_name(reader, track), kind, main, start, end, which, _source(track)))
+    return out
+
+
+def _station_track_count(places, tracks, v3: bool) -> int:
+    """Distinct tracks at the places of a station: railML 3 functional tracks (a netElement outside
+    every track counts alone), railML 2 tracks."""
+    edges = {e for e, _x in places}
+    if not v3 or not tracks:
+        return len(edges)
+    owner = {e: i for i, (_t, es) in enumerate(tracks) for e in es}
+    return len({owner.get(e, e) for e in edges})
+
+
 # ---------------------------------------------------------------------- reading
 def read_signalling(
     path: str | Path,
     *,
     train_id: str | None = None,
     ocps: Sequence[str] | None = None,
+    double_track: bool = False,
     tree: etree._ElementTree | None = None,
 ) -> LineSignalling:
-    """The signals, train detection points, switches and station tracks of a railML 2 or 3 file along
-    the path of a timetable train (``train_id``, default the first) or through the operational
-    points ``ocps``.
+    """The signals, train detection points, switches, tracks and station tracks of a railML 2 or 3
+    file along the path of a timetable train (``train_id``, default the first) or through the
+    operational points ``ocps``; with ``double_track`` also along the down track (module docstring).
 
     Raises:
         InputError naming the element and its line for every problem found (a signal off its track,
-        a route that cannot be read).
+        a route that cannot be read, a down track that cannot be found).
     """
     from trainsim.io import railml2, railml3
 
     tree = tree if tree is not None else rc.parse_xml(path)
     root = tree.getroot()
-    dialect: type[Dialect] | None = next((d for d in (railml2.Railml2, railml3.Railml3) if d.detect(root)), None)
+    dialect: type[Dialect] | None = next(
+        (d for d in (railml2.Railml2, railml3.Railml3) if d.detect(root)), None
+    )
     if dialect is None:
         raise InputError("not a railML 2 or 3 file (root element 'railml' or 'railML')", file=str(path))
     reader = Reader(path, tree, dialect)
-    route, _, _ = reader.route(train_id=train_id, ocps=ocps, line_resistance=None, require_line_resistance=False)
+    route, _, _ = reader.route(
+        train_id=train_id, ocps=ocps, line_resistance=None, require_line_resistance=False
+    )
     if route is None or reader.path is None:
         raise InputError(
             "no route: the file has no timetable; give the operational points of the path",
@@ -278,51 +482,99 @@ def read_signalling(
         signals = _placed_v2(reader, "ocsElements", ("signal",))
         detectors = _placed_v2(reader, "ocsElements", ("trainDetector", "trackCircuitBorder"))
         switches = _placed_v2(reader, "trackTopology", ("switch",))
+    tracks = _railml_tracks(reader, v3)
     reader.problems.raise_if_any()
+    down = _down_path(reader) if double_track else None
+    stations = []
+    for st in reader.stations:
+        places = reader.station_places[st.element]
+        if down is None:
+            stations.append(StationTracks(st.name, st.position_m, _station_track_count(places, tracks, v3)))
+            continue
+        up_side = [(e, x) for e, x in places if e in down.up_side]
+        down_side = [(e, x) for e, x in places if e in down.down_side]
+        stations.append(
+            StationTracks(
+                st.name, st.position_m, _station_track_count(up_side, tracks, v3),
+                _station_track_count(down_side, tracks, v3),
+            )
+        )  # fmt: skip
     out = LineSignalling(
-        name=str(route["name"]),
-        start_m=reader.path.start_m,
-        end_m=reader.path.end_m,
-        stations=[
-            StationTracks(st.name, st.position_m, len({e for e, _ in reader.station_places[st.element]}))
-            for st in reader.stations
-        ],
+        name=str(route["name"]), start_m=reader.path.start_m, end_m=reader.path.end_m, stations=stations
     )
+    out.tracks = _tracks_on(reader.path, "up", tracks, reader)
+    if down is not None:
+        out.tracks += [
+            replace(t, start_m=down.route_position(t.end_m), end_m=down.route_position(t.start_m))
+            for t in _tracks_on(down.path, "down", tracks, reader)
+        ]
+
+    def where(item: _Placed) -> tuple[float, int, Direction] | None:
+        """Route position, direction relative to the path it lies on (+1 along), and that path."""
+        found = _on_path(reader.path, item)
+        if found is not None:
+            return found[0], found[1], "up"
+        if down is None:
+            return None
+        found = _on_path(down.path, item)
+        if found is None:
+            return None
+        pos = down.route_position(found[0])
+        if not out.start_m - 1e-6 <= pos <= out.end_m + 1e-6:
+            out.notes.append(f"{_source(item.element)}: on the down track beyond the route's ends, not read")
+            return None
+        return round(pos, 9), found[1], "down"
+
     off_path: dict[str, int] = {}
     for item in signals:
-        where = _on_path(reader, item)
+        place = where(item)
         kind = _signal_kind(item.element, v3)
         if kind is None:
             reader.usage.skip(item.element, "not a main, block or distant signal")
             out.notes.append(f"{_source(item.element)}: not a main, block or distant signal, not read")
             continue
-        if where is None:
+        if place is None:
             off_path["signals"] = off_path.get("signals", 0) + 1
             continue
-        pos, leg_dir = where
+        pos, leg_dir, which = place
         if len(item.directions) != 1:
-            reader.problems.add(item.element, "a signal needs its direction", attribute="dir" if not v3 else None)
+            reader.problems.add(
+                item.element, "a signal needs its direction", attribute="dir" if not v3 else None
+            )
             continue
-        direction: Direction = "up" if item.directions[0] == leg_dir else "down"
+        along = item.directions[0] == leg_dir
+        if which == "down" and not along:
+            out.notes.append(
+                f"{_source(item.element)}: faces the up direction on the down track (wrong-line), not read"
+            )
+            continue
+        direction: Direction = "down" if which == "down" or not along else "up"
         out.signals.append(SignalAt(_name(reader, item.element), pos, direction, kind, _source(item.element)))
     for item in detectors:
-        where = _on_path(reader, item)
-        if where is None:
+        place = where(item)
+        if place is None:
             off_path["train detection points"] = off_path.get("train detection points", 0) + 1
             continue
         out.detection_points.append(
-            DetectionPoint(_name(reader, item.element), where[0], _detector_kind(item.element), _source(item.element))
+            DetectionPoint(
+                _name(reader, item.element),
+                place[0],
+                _detector_kind(item.element),
+                _source(item.element),
+                place[2],
+            )
         )
     for item in switches:
-        where = _on_path(reader, item)
-        if where is None:
+        place = where(item)
+        if place is None:
             off_path["switches"] = off_path.get("switches", 0) + 1
             continue
-        out.switches.append(SwitchAt(_name(reader, item.element), where[0], _source(item.element)))
+        out.switches.append(SwitchAt(_name(reader, item.element), place[0], _source(item.element), place[2]))
     reader.problems.raise_if_any()
     out.signals.sort(key=lambda s: (s.direction != "up", s.position_m))
-    out.detection_points.sort(key=lambda d: d.position_m)
-    out.switches.sort(key=lambda s: s.position_m)
+    out.detection_points.sort(key=lambda d: (d.path != "up", d.position_m))
+    out.switches.sort(key=lambda s: (s.path != "up", s.position_m))
+    out.tracks.sort(key=lambda t: (t.path != "up", t.start_m))
     out.notes += [f"{what} not on the route's path, not read: {n}" for what, n in off_path.items()]
     return out
 
