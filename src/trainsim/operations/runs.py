@@ -129,18 +129,35 @@ class Movement:
     ) -> Trajectory:
         """The trajectory when the train leaves stop ``k`` at ``departures_s[k]`` (one per stop but the
         last) [s]; the last stop is held for ``final_dwell_s`` [s]."""
-        t, s, v = self.time_s, self.position_m, self.speed_mps
-        ts, ss, vs = [], [], []
-        for k, dep in enumerate(departures_s):
-            i0, i1 = int(self.departure_index[k]), int(self.arrival_index[k + 1])
-            ts.append(t[i0 : i1 + 1] - t[i0] + dep)
-            ss.append(s[i0 : i1 + 1])
-            vs.append(v[i0 : i1 + 1])
-        end_t = ts[-1][-1]
-        ts.append(np.array([end_t + final_dwell_s]))
-        ss.append(np.array([ss[-1][-1]]))
-        vs.append(np.array([0.0]))
-        return Trajectory(np.concatenate(ts), np.concatenate(ss), np.concatenate(vs), length_m)
+        rel, seg, position_m, speed_mps = self._pieces(len(departures_s))
+        dep = np.append(np.asarray(departures_s, dtype=float), 0.0)
+        # per sample (t - t[i0]) + dep, in that order: the same floats as slicing stretch by stretch
+        time_s = rel + dep[seg]
+        time_s[-1] = time_s[-2] + final_dwell_s
+        # position and speed do not depend on the departures: every trajectory shares them (read-only)
+        return Trajectory(time_s, position_m, speed_mps, length_m)
+
+    def _pieces(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The first ``n`` joined stretches (the last sample repeated for the final stand): time from
+        each stretch's start, the stretch of each sample, position and speed, computed once per
+        movement."""
+        cache = self.__dict__.setdefault("_pieces_cache", {})
+        found = cache.get(n)
+        if found is None:
+            idx, seg = [], []
+            for k in range(n):
+                i0, i1 = int(self.departure_index[k]), int(self.arrival_index[k + 1])
+                idx.append(np.arange(i0, i1 + 1))
+                seg.append(np.full(i1 + 1 - i0, k))
+            idx.append(idx[-1][-1:])
+            seg.append(np.array([n]))
+            idx_a, seg_a = np.concatenate(idx), np.concatenate(seg)
+            starts = self.time_s[self.departure_index[:n].astype(int)]
+            t0 = np.append(starts, 0.0)[seg_a]
+            position_m, speed_mps = self.position_m[idx_a], self.speed_mps[idx_a]
+            position_m.flags.writeable = speed_mps.flags.writeable = False
+            found = cache[n] = (self.time_s[idx_a] - t0, seg_a, position_m, speed_mps)
+        return found
 
     def energy_kwh(self, standing_s: float, auxiliary_power_w: float) -> float:
         """Net energy from the line of the runs plus the auxiliaries while standing ``standing_s`` [kWh]."""
@@ -161,6 +178,7 @@ class RunCache:
         self._runs: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray, RunResult]] = {}
         self._keep: list[object] = []
         self._routes: dict[tuple, Route] = {}
+        self._movements: dict[tuple, Movement] = {}
         self.computed = 0
         self.hits = 0
 
@@ -212,7 +230,22 @@ class RunCache:
         limits: Sequence[SpeedLimit] = (),
     ) -> Movement:
         """The fastest run of ``train`` on ``directed`` through ``stops`` (names and running positions)
-        under the extra ceilings ``limits`` (running positions)."""
+        under the extra ceilings ``limits`` (running positions); one object per train, route, stop
+        positions and limits (identical trains, or a train trying the same stops again, share it)."""
+        key = (
+            id(train), id(directed), tuple(round(p, 6) for _n, p in stops),
+            tuple((round(x.start_m, 6), round(x.end_m, 6), round(x.limit_mps, 9)) for x in limits),
+        )  # fmt: skip
+        found = self._movements.get(key)
+        if found is not None:
+            self.hits += len(stops) - 1
+            return found
+        found = self._movements[key] = self._movement(train, directed, stops, limits)
+        return found
+
+    def _movement(
+        self, train: Train, directed: Route, stops: list[tuple[str, float]], limits: Sequence[SpeedLimit]
+    ) -> Movement:
         ss, vs, ts, results = [], [], [], []
         arr, dep = [0], [0]
         n = 0
