@@ -183,3 +183,19 @@ def test_a_down_track_that_needs_reversing_is_an_error(tmp_path: Path) -> None:
         _read_path(bad, double_track=True)
     text = str(err.value)
     assert "no down path" in text and "no way from 'B' to 'A'" in text and "double_track" in text
+
+
+@pytest.mark.parametrize("name", ["testline_railml2.xml", "testline_railml3.xml"])
+def test_the_shipped_test_line_tracks_and_its_single_track(name: str) -> None:
+    path = Path(__file__).resolve().parents[1] / "interchange" / "data" / name
+    line = read_signalling(path)
+    if name.endswith("2.xml"):  # railML 2: each track along the path, from the route's mileage
+        assert [(t.name, t.start_m, t.end_m) for t in line.tracks] == [
+            ("Testline track 1", 1000.0, 6000.0),
+            ("Testline track 2", 6000.0, 10000.0),
+        ]
+    else:  # the railML 3 twin has no functional tracks: none read, stations count netElements
+        assert line.tracks == []
+    assert [s.tracks for s in line.stations] == [1, 1, 1, 1]
+    with pytest.raises(InputError, match="station 'Dunmore' lies on no track besides the route's path"):
+        read_signalling(path, double_track=True)
