@@ -1033,7 +1033,8 @@ def read_spreadsheet_signalling(path: str | Path, route: Route | None = None):  
             if "kind" in cols
             else "main"
         )
-        out.signals.append(SignalAt(name, pos, direction, kind, f"{sig.source}, row {r + 2}"))  # type: ignore[arg-type]
+        where = f"{sig.source}, row {r + 2}"
+        out.signals.append(SignalAt(name, pos, direction, kind, where))  # type: ignore[arg-type]
     det = found["detection points"]
     if det is not None:
         kinds = ("axle_counter", "track_circuit_border", "detector")
