@@ -125,3 +125,29 @@ def test_the_cli_reports_a_bad_sheet_in_one_line_exit_2(tmp_path: Path) -> None:
     (tmp_path / "op2.yaml").write_text(text.replace("{file: line}", "{file: nowhere}"))
     result = CliRunner().invoke(app, ["operate", str(tmp_path / "op2.yaml")])
     assert result.exit_code == 2 and "line.spreadsheet.file" in result.stderr
+
+
+def test_mutated_tables_read_or_refused_never_a_traceback(tmp_path: Path) -> None:
+    # seeded mutations of one cell (header or body) of a signalling table: each folder is read or
+    # refused with an InputError, nothing else
+    import random
+
+    tables = ["signals.csv", "station_tracks.csv", "detection_points.csv"]
+    values = ["", "-1", "1e309", "nan", "x", "99999", "up", "block", "2,5", "1,500", "B", "Position (km)", "Kind (m)"]
+    outcomes = {"read": 0, "refused": 0}
+    for seed in range(120):
+        rng = random.Random(seed)
+        d = tmp_path / f"m{seed}"
+        shutil.copytree(LINE, d)
+        f = d / rng.choice(tables)
+        rows = [r.split(",") for r in f.read_text().splitlines()]
+        r = rng.randrange(len(rows))
+        c = rng.randrange(len(rows[r]))
+        rows[r][c] = rng.choice(values)
+        f.write_text("\n".join(",".join(x) for x in rows) + "\n")
+        try:
+            read_spreadsheet_signalling(d)
+            outcomes["read"] += 1
+        except InputError:
+            outcomes["refused"] += 1
+    assert outcomes["read"] > 0 and outcomes["refused"] > 0, outcomes
