@@ -123,6 +123,22 @@ def final_phase_regen(
     P, curves, tk, bk, Cr, US, mu, inv_eta_t, eta_r, has_regen, h_max,
     out_s, out_v, out_t, out_m, n, force_mode, v_hold, phi_start, stop_mode, sk, rk, W, w_end,
 ):  # fmt: skip
+    """``final_phase_modes`` with the braking curves ``Cr``/``US`` all of ``stop_mode`` (BRAKE:
+    service braking; REGEN: regenerative braking only); ``sk``, their kinks, is ``bk`` or ``rk``."""
+    curve_modes = np.full(len(Cr), stop_mode, dtype=np.int64)
+    return final_phase_modes(
+        x, a0, a1, b0, b1, vcap, tscale, i_start, u_start, v_start, t_start, i_end,
+        P, curves, tk, bk, Cr, US, mu, inv_eta_t, eta_r, has_regen, h_max,
+        out_s, out_v, out_t, out_m, n, force_mode, v_hold, phi_start, curve_modes, rk, W, w_end,
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def final_phase_modes(
+    x, a0, a1, b0, b1, vcap, tscale, i_start, u_start, v_start, t_start, i_end,
+    P, curves, tk, bk, Cr, US, mu, inv_eta_t, eta_r, has_regen, h_max,
+    out_s, out_v, out_t, out_m, n, force_mode, v_hold, phi_start, curve_modes, rk, W, w_end,
+):  # fmt: skip
     """From (x[i_start] + u_start, v_start), leaving the holding arc (phi just below 1/eta_t), drive
     by the adjoint to the stop at x[i_end], holding the speed limit ``vcap`` if the train reaches
     it. Appends points; returns (n, status): HIT_CEILING when the train meets the braking curve
@@ -131,8 +147,13 @@ def final_phase_regen(
     ``force_mode`` >= 0 replaces the adjoint's choice by a fixed regime (source 004's braking).
     The adjoint starts at ``phi_start``, by default (< 0) just below 1/eta_t: leaving a holding
     arc; leaving an arc held by braking on a descent it starts just below eta_r (or 0).
-    ``Cr``/``US`` are the braking curves of ``stop_mode`` (BRAKE: service braking; REGEN:
-    regenerative braking only), ``sk`` their kinks; the run follows them where it meets them.
+    ``Cr``/``US`` are the braking curves, those of interval k (indexed as ``Cr``) of the braking
+    mode ``curve_modes[k]`` (BRAKE: service braking, kinks ``bk``; REGEN: regenerative braking
+    only, kinks ``rk``); the run follows them where it meets them. A train with regeneration
+    brakes to lower limits with its electric brake alone: along such an arc the adjoint lies in
+    (0, eta_r], where friction braking (phi <= 0) is not optimal; the service brake's blend spends
+    the difference in the friction brake (CN_Songjiazhuang_Yizhuang 3906-6272 m, KISS at +5 %:
+    0.9 kWh).
     ``rk`` are the kinks of the regenerative curve (its steps integrated exactly, as the energy
     accounting does: across a kink the run would otherwise move with the step).
     With a regenerative holding speed ``W`` > 0 (mu = eta_r W^2 R'(W)), where the adjoint comes down
@@ -168,8 +189,8 @@ def final_phase_regen(
                 phi = eta_r * (1.0 + 1e-9)
             if on_w:
                 n, u, E, t, done, status = _regen_arc_step(
-                    x, a0, a1, b0, b1, i, u, E, t, i_end, W, w_end, h_max, w, line, P, curves, bk, sk,
-                    Cr, US, kk, stop_mode, out_s, out_v, out_t, out_m, n,
+                    x, a0, a1, b0, b1, i, u, E, t, i_end, W, w_end, h_max, w, line, P, curves, bk, rk,
+                    Cr, US, kk, curve_modes, out_s, out_v, out_t, out_m, n,
                 )  # fmt: skip
                 if done:
                     return n, status, u, arc_start, arc_end
@@ -244,7 +265,9 @@ def final_phase_regen(
                     if not 0.0 < h_try < h:
                         break
                     Et = E if mode == CRUISE else step_energy(E, u, h_try, mode, line, P, curves, kinks)
-                    Emt = E if mode == CRUISE else step_energy(E, u, 0.5 * h_try, mode, line, P, curves, kinks)
+                    Emt = (
+                        E if mode == CRUISE else step_energy(E, u, 0.5 * h_try, mode, line, P, curves, kinks)
+                    )
                     g = phi_step(phi, E, Et, u, h_try, b0[i], b1[i], P, mu, Emt) - thr
                     if (g > 0.0) == (phi > thr):
                         lo_h = h_try
@@ -272,15 +295,17 @@ def final_phase_regen(
                     phi1 = thr - 1e-12 if phi1 < phi else thr + 1e-12
                     cut = True
             # the braking curve to the stop (and to lower limits) must not be crossed
-            if mode != stop_mode and u + h > US[kk]:
-                c1 = _curve_speed(u + h, w, Cr[kk], stop_mode, line, P, curves, sk)
+            cm = curve_modes[kk]
+            ck = rk if cm == REGEN else bk
+            if mode != cm and u + h > US[kk]:
+                c1 = _curve_speed(u + h, w, Cr[kk], cm, line, P, curves, ck)
                 if v1 > c1 + 1e-9:
-                    hm = _meet_curve(E, u, u + h, mode, w, Cr[kk], stop_mode, line, P, curves, kinks, sk)
+                    hm = _meet_curve(E, u, u + h, mode, w, Cr[kk], cm, line, P, curves, kinks, ck)
                     Em, dtm = step_energy_time(E, u, hm - u, mode, line, P, curves, kinks)
                     n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
                     n, j, uj, tj, found = _brake_to_plateau(
-                        x, a0, a1, b0, b1, i, hm, Em, t + dtm, i_end, P, curves, sk, Cr, US, kk,
-                        out_s, out_v, out_t, out_m, n, stop_mode,
+                        x, a0, a1, b0, b1, i, hm, Em, t + dtm, i_end, P, curves, bk, rk, Cr, US, kk,
+                        out_s, out_v, out_t, out_m, n, curve_modes,
                     )  # fmt: skip
                     if not found:
                         return n, HIT_CEILING, x[i] + hm, arc_start, arc_end
@@ -305,14 +330,15 @@ def final_phase_regen(
         if not jumped:
             u = 0.0
             i += 1
-    n = _emit(out_s, out_v, out_t, out_m, n, x[i_end], np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, stop_mode)
+    v_end = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+    n = _emit(out_s, out_v, out_t, out_m, n, x[i_end], v_end, t, curve_modes[len(Cr) - 1])
     return n, HIT_CEILING, x[i_end], arc_start, arc_end
 
 
 @njit(cache=True)
 def _regen_arc_step(
-    x, a0, a1, b0, b1, i, u, E, t, i_end, W, w_end, h_max, w, line, P, curves, bk, sk, Cr, US, kk,
-    stop_mode, out_s, out_v, out_t, out_m, n,
+    x, a0, a1, b0, b1, i, u, E, t, i_end, W, w_end, h_max, w, line, P, curves, bk, rk, Cr, US, kk,
+    curve_modes, out_s, out_v, out_t, out_m, n,
 ):  # fmt: skip
     """One step of the regenerative holding arc at W from offset u of interval i: coasting up to W,
     then holding it with braking, never past ``w_end`` nor where the hold stops needing braking
@@ -325,28 +351,21 @@ def _regen_arc_step(
     h = max(h, 1e-9)
     v = np.sqrt(2.0 * E) if E > 0.0 else 0.0
     mode, h, E1, dt = _capped_coast_step(E, v, u, h, W, line, P, curves, bk)
+    cm = curve_modes[kk]
+    ck = rk if cm == REGEN else bk
     if u + h > US[kk]:
         v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
-        if v1 > _curve_speed(u + h, w, Cr[kk], stop_mode, line, P, curves, sk) + 1e-9:
+        if v1 > _curve_speed(u + h, w, Cr[kk], cm, line, P, curves, ck) + 1e-9:
             if mode == CRUISE:
-                # the held speed meets the curve where the curve comes down to it (bisection)
-                lo, hi = u, u + h
-                for _ in range(80):
-                    mid = 0.5 * (lo + hi)
-                    if v >= _curve_speed(mid, w, Cr[kk], stop_mode, line, P, curves, sk):
-                        hi = mid
-                    else:
-                        lo = mid
-                    if hi - lo < 1e-10:
-                        break
-                hm, Em, dtm = hi, E, (hi - u) / v
+                hm = _held_speed_meets_curve(v, u, u + h, w, Cr[kk], cm, line, P, curves, ck, 1e-10)
+                Em, dtm = E, (hm - u) / v
             else:
-                hm = _meet_curve(E, u, u + h, COAST, w, Cr[kk], stop_mode, line, P, curves, bk, sk)
+                hm = _meet_curve(E, u, u + h, COAST, w, Cr[kk], cm, line, P, curves, bk, ck)
                 Em, dtm = step_energy_time(E, u, hm - u, COAST, line, P, curves, bk)
             n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
             n, _, _, _, found = _brake_to_plateau(
-                x, a0, a1, b0, b1, i, hm, Em, t + dtm, i_end, P, curves, sk, Cr, US, kk,
-                out_s, out_v, out_t, out_m, n, stop_mode,
+                x, a0, a1, b0, b1, i, hm, Em, t + dtm, i_end, P, curves, bk, rk, Cr, US, kk,
+                out_s, out_v, out_t, out_m, n, curve_modes,
             )  # fmt: skip
             # (a lower limit below W on the descent: the arc never reaches it, its curve is the stop's)
             return n, x[i] + hm, Em, t + dtm, True, HIT_CEILING if not found else STOPPED_SHORT
@@ -356,20 +375,24 @@ def _regen_arc_step(
 
 @njit(cache=True)
 def _brake_to_plateau(
-    x, a0, a1, b0, b1, i, u, E, t, i_end, P, curves, bk, Cr, US, kk, out_s, out_v, out_t, out_m, n, mode
+    x, a0, a1, b0, b1, i, u, E, t, i_end, P, curves, bk, rk, Cr, US, kk, out_s, out_v, out_t, out_m, n,
+    curve_modes,
 ):  # fmt: skip
-    """Maximum braking of ``mode`` (service or regenerative) along the speed ceiling from (x[i] + u) until it reaches the plateau
-    of a lower limit. Returns (n, j, u_j, t_j, found): the plateau's start at offset u_j of interval
-    j, or (found False) the stop at x[i_end], where the run then ends."""
+    """Maximum braking along the speed ceiling from (x[i] + u), in each interval k (indexed as
+    ``Cr``) in the mode of its curve ``curve_modes[k]`` (service or regenerative), until it reaches
+    the plateau of a lower limit. Returns (n, j, u_j, t_j, found): the plateau's start at offset
+    u_j of interval j, or (found False) the stop at x[i_end], where the run then ends."""
     k = kk
+    mode = curve_modes[k]
     for j in range(i, i_end):
         w = x[j + 1] - x[j]
         line = (a0[j], a1[j], b0[j], b1[j])
         if j > i and u < US[k] - 1e-9:  # (in the first interval the run is on the curve already)
             return n, j, u, t, True
+        mode = curve_modes[k]
         if u < w:
             n = _emit(out_s, out_v, out_t, out_m, n, x[j] + u, np.sqrt(2.0 * E) if E > 0.0 else 0.0, t, mode)
-            _, dt = step_energy_time(E, u, w - u, mode, line, P, curves, bk)
+            _, dt = step_energy_time(E, u, w - u, mode, line, P, curves, rk if mode == REGEN else bk)
             t += dt
         E = 0.5 * Cr[k] * Cr[k]
         u = 0.0
@@ -399,6 +422,22 @@ def _curve_speed(u, w, Crk, brake_mode, line, P, curves, bk):
     """Speed [m/s] at offset u of the braking curve of ``brake_mode`` ending at (w, Crk)."""
     Eb = step_energy(0.5 * Crk * Crk, w, u - w, brake_mode, line, P, curves, bk)
     return np.sqrt(2.0 * Eb) if Eb > 0.0 else 0.0
+
+
+@njit(cache=True)
+def _held_speed_meets_curve(v, lo, hi, w, Crk, brake_mode, line, P, curves, bk, tol_m):
+    """Offset in (lo, hi] where a speed v [m/s] held from offset lo meets the braking curve of
+    ``brake_mode`` ending at (w, Crk), to ``tol_m`` [m]: the curve falls monotonically towards its
+    end, so bisection on v >= curve speed (below it at lo, above it at hi)."""
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if v >= _curve_speed(mid, w, Crk, brake_mode, line, P, curves, bk):
+            hi = mid
+        else:
+            lo = mid
+        if hi - lo < tol_m:
+            break
+    return hi
 
 
 @njit(cache=True)
@@ -704,7 +743,9 @@ def path_energy(s, v, m, x, a0, a1, b0, b1, tscale, P, curves, inv_eta_t, eta_r,
             Em = step_energy(0.5 * v[k] * v[k], u0, 0.5 * ds, mode, line, P, curves, kinks)
             vm = np.sqrt(2.0 * Em) if Em > 0.0 else 0.0
         ftm, frm = point_forces(mode, vm, u0 + 0.5 * ds, line, P, curves)
-        out[k + 1] = out[k] + ds / 6.0 * ((ft0 + 4.0 * ftm + ft1) * inv_eta_t - eta_r * (fr0 + 4.0 * frm + fr1))
+        out[k + 1] = out[k] + ds / 6.0 * (
+            (ft0 + 4.0 * ftm + ft1) * inv_eta_t - eta_r * (fr0 + 4.0 * frm + fr1)
+        )
 
 
 @njit(cache=True)
@@ -742,17 +783,9 @@ def coast_to_curve(
                 v1 = np.sqrt(2.0 * E1)
                 if v1 >= vb - 1e-9:
                     if mode == CRUISE:
-                        hm = uu + h
-                        lo, hi = uu, uu + h
-                        for _ in range(60):
-                            mid = 0.5 * (lo + hi)
-                            if v >= _curve_speed(mid, w, Cr[k], mode_b, line, P, curves, bkk):
-                                hi = mid
-                            else:
-                                lo = mid
-                            if hi - lo < 1e-7:
-                                break
-                        hm = hi
+                        hm = _held_speed_meets_curve(
+                            v, uu, uu + h, w, Cr[k], mode_b, line, P, curves, bkk, 1e-7
+                        )
                         dtm = (hm - uu) / v
                         Em = E
                     else:
