@@ -125,14 +125,26 @@ class Movement:
         return self.time_s[self.arrival_index[1:]] - self.time_s[self.departure_index[:-1]]
 
     def trajectory(
-        self, departures_s: list[float], length_m: float, final_dwell_s: float = 0.0
+        self,
+        departures_s: list[float],
+        length_m: float,
+        final_dwell_s: float = 0.0,
+        time_factors: Sequence[float] | None = None,
     ) -> Trajectory:
         """The trajectory when the train leaves stop ``k`` at ``departures_s[k]`` (one per stop but the
-        last) [s]; the last stop is held for ``final_dwell_s`` [s]."""
+        last) [s]; the last stop is held for ``final_dwell_s`` [s]. ``time_factors[k]`` (>= 1) stretches
+        the run from stop ``k`` in time (a running-time disturbance: the same path driven slower, speed
+        divided by the factor, so that the train is late at every point by the share of the running
+        time it has run)."""
         rel, seg, position_m, speed_mps = self._pieces(len(departures_s))
         dep = np.append(np.asarray(departures_s, dtype=float), 0.0)
-        # per sample (t - t[i0]) + dep, in that order: the same floats as slicing stretch by stretch
-        time_s = rel + dep[seg]
+        if time_factors is None:
+            # per sample (t - t[i0]) + dep, in that order: the same floats as slicing stretch by stretch
+            time_s = rel + dep[seg]
+        else:
+            f = np.append(np.asarray(time_factors, dtype=float), 1.0)[seg]
+            time_s = rel * f + dep[seg]
+            speed_mps = speed_mps / f  # a new array: the shared one stays as it is
         time_s[-1] = time_s[-2] + final_dwell_s
         # position and speed do not depend on the departures: every trajectory shares them (read-only)
         return Trajectory(time_s, position_m, speed_mps, length_m)

@@ -55,7 +55,7 @@ from trainsim.operations.blocking import (
 from trainsim.operations.ceiling import MIN_CEILING_MPS, driver_braking_steps, release_steps
 from trainsim.operations.line import Direction, Line, Route, RouteStep
 from trainsim.operations.runs import Movement, RunCache, auxiliary_power_w
-from trainsim.operations.separation import EtcsBraking, etcs_approach_distance
+from trainsim.operations.separation import EtcsBraking, etcs_approach_distance, ma_indication_steps
 
 Rule = Literal["fcfs", "priority"]
 #: Times closer than this are the same instant (a follower at exactly the minimum headway) [s].
@@ -76,8 +76,8 @@ class ScheduledStop:
         arrival_s: scheduled arrival [s], or None (the planned run's arrival).
         departure_s: scheduled departure [s], or None (arrival + dwell).
         track: platform track to use, or None (the dispatcher's choice).
-        extra_dwell_s: a sampled disturbance [s]: time lost at the stop (or lumped there from the
-            next stretch's running time) that the operated run takes and the planned one does not.
+        extra_dwell_s: a sampled disturbance [s]: time lost at the stop that the operated run takes
+            and the planned one does not.
     """
 
     station: str
@@ -103,6 +103,10 @@ class TrainService:
         priority: higher runs first under the ``priority`` rule.
         entry_delay_s: delay at the origin [s] (given or sampled).
         origin_track: platform track at the origin, or None.
+        running_extra_s: running-time disturbances [s], one per stretch between two scheduled stops
+            (origin, stops, destination), or empty: the operated run of a stretch is the same path
+            driven slower, its running time longer by this much (spread in proportion to the running
+            time, not lumped at a stop); the planned run does not have it.
     """
 
     id: str
@@ -115,6 +119,7 @@ class TrainService:
     priority: int = 0
     entry_delay_s: float = 0.0
     origin_track: int | None = None
+    running_extra_s: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -269,9 +274,16 @@ class _Stop:
 
 class _TrainState:
     def __init__(
-        self, index: int, svc: TrainService, line: Line, directed: GeometryRoute, cache: RunCache
+        self,
+        index: int,
+        svc: TrainService,
+        line: Line,
+        directed: GeometryRoute,
+        cache: RunCache,
+        ma_steps: Callable[[float, float, float], tuple[SpeedLimit, ...]] | None = None,
     ) -> None:
         self.index = index
+        self.ma_steps = ma_steps
         self.svc = svc
         self.line = line
         self.directed = directed
@@ -296,11 +308,20 @@ class _TrainState:
                 continue
             self.stops.append(
                 _Stop(
-                    s.station, path.stop_m[s.station], "stop", s.dwell_s, s.departure_s, s.track,
+                    s.station,
+                    path.stop_m[s.station],
+                    "stop",
+                    s.dwell_s,
+                    s.departure_s,
+                    s.track,
                     s.extra_dwell_s,
                 )
             )
         self.stops.append(_Stop(svc.destination, p1, "destination", dest_dwell, None))
+        # running-time disturbances as time factors per scheduled stretch (None: none), from its
+        # unhindered run
+        self.stretch_m = np.array([s.position_m for s in self.stops])
+        self.factors: np.ndarray | None = None
         self.dest_dwell_s = dest_dwell
         self.tracks = {s.name: s.track for s in self.stops if s.track is not None}
         self.override: dict[float, float] = {}  # stop position -> decided departure
@@ -324,7 +345,45 @@ class _TrainState:
         self.limits: list[SpeedLimit] = []  # driver's braking curves to signals (running positions)
         # signal stop position -> (its braking curve's steps, trajectory before, signal position)
         self.approaches: dict[float, tuple[tuple[SpeedLimit, ...], Trajectory, float]] = {}
+        if ma_steps is not None:
+            self.limits.extend(self._stop_ceilings())
         self.refresh_movement()
+        if any(svc.running_extra_s) and self.movement.status == "ok":
+            rt = self.movement.running_times_s()
+            extra = np.asarray(svc.running_extra_s, dtype=float)
+            self.factors = 1.0 + np.divide(extra, rt, out=np.zeros_like(extra), where=rt > 0)
+            self.refresh_trajectory()
+
+    def factor_at(self, x_m: float) -> float:
+        """The time factor of the scheduled stretch at running position ``x_m``."""
+        if self.factors is None:
+            return 1.0
+        k = int(np.searchsorted(self.stretch_m, x_m, side="right")) - 1
+        return float(self.factors[min(max(k, 0), len(self.factors) - 1)])
+
+    def time_factors(self) -> list[float] | None:
+        """The time factor of each stretch between two of the current stops (signal stops included),
+        or None when the train has no running-time disturbance."""
+        if self.factors is None:
+            return None
+        return [self.factor_at(0.5 * (a.position_m + b.position_m)) for a, b in pairwise(self.stops)]
+
+    def _stop_ceilings(self) -> list[SpeedLimit]:
+        """ETCS: a train asks for the route beyond a stop only while it stands there, so it runs into
+        every stop under an MA ending at the end of the stop's entry route; the indication limit of
+        that MA is part of its run (planned and operated alike)."""
+        out: list[SpeedLimit] = []
+        for prev, stop in pairwise(self.stops):
+            entry = [
+                st for j, st in enumerate(self.path.steps)
+                if j in self.steps and st.kind == "entry" and st.station == stop.name
+            ]  # fmt: skip
+            if not entry:
+                continue
+            eoa = min(r.end_m for r in entry[0].alternatives)
+            if eoa >= stop.position_m:
+                out.extend(self.ma_steps(eoa, prev.position_m, stop.position_m))
+        return out
 
     # -- runs and trajectories
     def candidate(self, stops: list[_Stop], limits: Sequence[SpeedLimit]) -> Movement:
@@ -345,6 +404,8 @@ class _TrainState:
     def departures(self, planned: bool = False) -> list[float]:
         m = self.movement
         rt = m.running_times_s()
+        if not planned and self.factors is not None:
+            rt = rt * self.time_factors()
         deps: list[float] = []
         for k, s in enumerate(self.stops[:-1]):
             arrival = s.scheduled_departure_s if k == 0 else deps[-1] + rt[k - 1]
@@ -356,7 +417,9 @@ class _TrainState:
         return deps
 
     def refresh_trajectory(self) -> None:
-        self.trajectory = self.movement.trajectory(self.departures(), self.length_m, self.dest_dwell_s)
+        self.trajectory = self.movement.trajectory(
+            self.departures(), self.length_m, self.dest_dwell_s, self.time_factors()
+        )
         # a counter, not id(): a discarded trajectory's id can be reused by the next one
         self.trajectory_version += 1
 
@@ -629,12 +692,12 @@ class _Dispatcher:
         # released at the next point of a fixed grid (a little later: on the safe side), so that
         # identical trains released near the same place share their run
         p_c = min(float(np.ceil(position_at_time(traj, t_seen, q) / RELEASE_GRID_M) * RELEASE_GRID_M), q)
-        v_c = traj.speed_at(p_c)
+        v_c = traj.speed_at(p_c) * st.factor_at(p_c)  # the run's speed, not the disturbed one
         if v_c < MIN_CEILING_MPS:
             return False
         stops = [s for s in st.stops if not (s.kind == "signal" and s.position_m == q)]
         limits = [x for x in st.limits if not any(x is y for y in steps)]
-        kept = release_steps(steps, p_c, v_c, slowed=v_c < before.speed_at(p_c) - 1e-6)
+        kept = release_steps(steps, p_c, v_c, slowed=v_c < before.speed_at(p_c) * st.factor_at(p_c) - 1e-6)
         # kept is None: cleared before the train had to slow down, it runs as if it had seen proceed
         limits_new = limits if kept is None else limits + list(kept)
         movement = st.candidate(stops, limits_new)
@@ -664,7 +727,9 @@ class _Dispatcher:
         if kept is not None:
             lost = st.trajectory.first_time_at(signal_m)[0] - before.first_time_at(signal_m)[0]
             where = f"signal {choice[0][1].signal}"
-            st.hindrances.append(Hindrance("slowed", where, p_c, st.waiting_since, float(lost), choice[0][1].name))
+            st.hindrances.append(
+                Hindrance("slowed", where, p_c, st.waiting_since, float(lost), choice[0][1].name)
+            )
         st.waiting_since = None
         st.waiting_stop = None
         if st.index in self.waiting:
@@ -710,7 +775,12 @@ class _Dispatcher:
                         f"aspect only {q - a:.0f} m before (warning too late for its braking distance)"
                     )
                 start = max(a, float(pos[pos < q - 1e-9].max(initial=a)))
-                steps = driver_braking_steps(st.trajectory.speed_at(start), start, q)
+                if st.ma_steps is not None:
+                    # ETCS: the MA ends at this route's start; the driver brakes to its indication limit
+                    steps = st.ma_steps(step.start_m, start, q)
+                else:
+                    v_start = st.trajectory.speed_at(start) * st.factor_at(start)  # the run's speed
+                    steps = driver_braking_steps(v_start, start, q)
                 st.approaches[q] = (steps, st.trajectory, step.start_m)
                 st.limits.extend(steps)
                 st.refresh_movement()
@@ -872,6 +942,17 @@ def _check_services(line: Line, services: Sequence[TrainService]) -> None:
                         allowed=">= 0 s",
                     )
                 )
+        n_stretches = 1 + sum(1 for s in svc.stops if s.station != svc.destination)
+        extra = svc.running_extra_s
+        if extra and not (len(extra) == n_stretches and all(np.isfinite(x) and x >= 0 for x in extra)):
+            problems.append(
+                Problem(
+                    "one finite running-time disturbance >= 0 s per stretch between scheduled stops",
+                    field=f"{where}.running_extra_s",
+                    value=extra,
+                    allowed=f"{n_stretches} values >= 0 s",
+                )
+            )
         if not (np.isfinite(svc.departure_s) and np.isfinite(svc.entry_delay_s) and svc.entry_delay_s >= 0):
             problems.append(
                 Problem(
@@ -944,8 +1025,14 @@ def simulate(
     directed = {d: cache.directed(geometry, line.length_m, d) for d in ("up", "down")}
     approach: dict[int, Callable | None] = {}
     states = []
+    ma_steps: dict[int, Callable] = {}
     for i, svc in enumerate(services):
-        st = _TrainState(i, svc, line, directed[svc.direction], cache)
+        ma = None
+        if line.signalling.system == "etcs_l2":
+            ma = ma_steps.get(id(svc.train))
+            if ma is None:
+                ma = ma_steps[id(svc.train)] = ma_indication_steps(svc.train, etcs, line.signalling.overlap_m)
+        st = _TrainState(i, svc, line, directed[svc.direction], cache, ma)
         approach[i] = approach_function(line, svc.train, settings, etcs)
         st._brake = braking_distance_table(
             service_braking_deceleration(svc.train, settings.braking_fraction), svc.train.max_speed_mps
@@ -1034,8 +1121,12 @@ def _planned(st: _TrainState) -> _Plan:
     return _Plan(traj, st.movement, deps, energy)
 
 
-def _standing_s(movement: Movement, deps: list[float], final_dwell_s: float) -> float:
+def _standing_s(
+    movement: Movement, deps: list[float], final_dwell_s: float, factors: Sequence[float] | None = None
+) -> float:
     rt = movement.running_times_s()
+    if factors is not None:
+        rt = rt * np.asarray(factors)
     standing = final_dwell_s
     for k in range(1, len(deps)):
         standing += deps[k] - (deps[k - 1] + rt[k - 1])
@@ -1051,6 +1142,8 @@ def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutc
     deps = st.departures() if not stuck else None
     traj = st.trajectory if not stuck else None
     rt = st.movement.running_times_s()
+    if st.factors is not None:
+        rt = rt * st.time_factors()
     sched = {s.station: s for s in svc.stops}
     plan_rt = plan.movement.running_times_s()
     plan_arr = [None] + [plan.departures[k] + plan_rt[k] for k in range(len(plan.departures))]
@@ -1087,7 +1180,7 @@ def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutc
         stop_times.append(StopTimes(s.name, s.kind, s_arr, s_dep, arr, dep, d, track))
     if stuck or st.stalled_m is not None:
         delay = np.inf
-    standing = _standing_s(st.movement, deps, st.dest_dwell_s) if deps is not None else 0.0
+    standing = _standing_s(st.movement, deps, st.dest_dwell_s, st.time_factors()) if deps is not None else 0.0
     energy = st.movement.energy_kwh(standing, auxiliary_power_w(svc.train)) if deps is not None else np.nan
     return TrainOutcome(
         svc.id, svc.direction, status, stop_times, float(delay), energy, plan.energy_kwh,

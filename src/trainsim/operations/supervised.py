@@ -55,7 +55,9 @@ class SupervisedRun:
 
 def _ceiling(curves: SupervisionCurves, kind: str):
     if kind not in SUPERVISED_KINDS:
-        raise InputError("unknown supervision curve", field="ceiling", value=kind, allowed=", ".join(SUPERVISED_KINDS))
+        raise InputError(
+            "unknown supervision curve", field="ceiling", value=kind, allowed=", ".join(SUPERVISED_KINDS)
+        )
     fn = getattr(curves, kind)
     return lambda x: np.asarray(fn(np.asarray(x, dtype=float)), dtype=float)
 
