@@ -7,19 +7,21 @@ an interrupted study loses little work. The rows of a run depend only on its par
 executor gives the same results.
 
 * ``serial``: in this process, chunk after chunk (debugging, tiny studies, the reference).
-* ``processes``: a :class:`concurrent.futures.ProcessPoolExecutor` with ``workers`` processes
-  (forked, see :func:`_pool_context`); each process receives the payload once (initializer) and loads
-  the compiled kernel before its first chunk.
+* ``processes``: ``workers`` independent processes (forked, see :func:`_pool_context`), each with its
+  own pipe; each process receives the payload once and loads the compiled kernel before its first
+  chunk, computes one chunk at a time and sends every run's row back as soon as it is computed.
 * ``dask``: a ``distributed`` cluster: the scheduler at ``scheduler`` (an address or a
   ``distributed.Client``), or Dask's configured ``scheduler-address``, or else a local cluster of
   ``workers`` processes. The payload is scattered to every worker once.
 
-Lost workers (see docs/BATCH.md, "When workers or the cluster are lost"): a chunk whose worker
-process died is submitted again, at most :data:`MAX_RESUBMITS` times (a process pool that broke is
-started again with the chunks that were in flight; on Dask the scheduler itself reassigns the tasks of
-a lost worker, and a chunk that killed ``allowed-failures`` workers is submitted again by us). When
-nothing can compute any more (the Dask scheduler is lost, no worker has been connected for
-``worker_timeout_s``, or a chunk was resubmitted too often) the executor raises
+Lost workers (see docs/BATCH.md, "When workers or the cluster are lost"): when a worker process
+dies, the rows it sent are kept and the rest of its chunk is computed by the others (a new process
+takes its place): a kill loses the one run it was computing; a run is computed again at most
+:data:`MAX_RESUBMITS` times. On Dask the scheduler itself reassigns the tasks of a lost worker (the
+chunk is computed again: chunks hold about :data:`~trainsim.batch.runner.CHUNK_TARGET_S` of work),
+and a chunk that killed ``allowed-failures`` workers is submitted again by us. When nothing can
+compute any more (the Dask scheduler is lost, no worker has been connected for ``worker_timeout_s``,
+or a run or chunk was lost too often) the executor raises
 :class:`ClusterLostError`: the chunks completed so far are written, the study resumes when run again,
 and ``trainsim batch`` exits with code 4 (:data:`INFRASTRUCTURE_EXIT_CODE`).
 """
@@ -33,13 +35,13 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
-from concurrent.futures import FIRST_COMPLETED, CancelledError, Future, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
+from concurrent.futures import CancelledError
 from contextlib import contextmanager
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from trainsim.batch.expand import RunTask
-from trainsim.batch.worker import Payload, init_process, run_chunk, run_chunk_in_process
+from trainsim.batch.worker import Payload, run_chunk, serve_process
 from trainsim.errors import TrainsimError
 
 __all__ = [
@@ -105,13 +107,19 @@ class _Serial:
 
     def __init__(self, payload: Payload) -> None:
         self.payload = payload
+        self.measured: list[tuple[int, float]] = []  # (run index, CPU s) of each run
 
     def start(self) -> None:
         pass
 
     def results(self, chunks: Iterator[list[RunTask]]) -> Iterator[Rows]:
         for chunk in chunks:
-            yield run_chunk(self.payload, chunk)
+            rows = []
+            for task in chunk:
+                c0 = time.process_time()
+                rows.extend(run_chunk(self.payload, [task]))
+                self.measured.append((task[0], time.process_time() - c0))
+            yield rows
 
     def close(self) -> None:
         pass
@@ -134,76 +142,142 @@ def _pool_context():
     return multiprocessing.get_context("spawn")
 
 
+@dataclass
+class _Worker:
+    """One process of the pool, its pipe, and the chunk it is computing (rows received so far)."""
+
+    process: Any
+    conn: Any
+    chunk: list[RunTask] | None = None
+    rows: Rows = field(default_factory=list)
+
+
 class _Processes:
+    """A pool of independent worker processes, each fed one chunk at a time through its own pipe.
+
+    Every run's row comes back as soon as it is computed (:func:`~trainsim.batch.worker.serve_process`),
+    so a worker killed in the middle of a chunk loses only the run it was computing: the rows it sent
+    are kept, that run and the rest of its chunk go to the other workers, and a new process takes its
+    place. The other workers are not disturbed (a ``ProcessPoolExecutor`` whose process dies breaks:
+    every chunk in flight on every worker is lost). A run that killed its worker more than
+    :data:`MAX_RESUBMITS` times stops the study (ClusterLostError, resumable).
+    """
+
     def __init__(self, payload: Payload, workers: int) -> None:
         self.payload = payload
         self.workers = workers
-        self.pool: ProcessPoolExecutor | None = None
-        self.pending: dict[Future, tuple[list[RunTask], int]] = {}
+        self.ctx: Any = None
+        self.pool: list[_Worker] = []
         self.restarts = 0
+        self.attempts: dict[int, int] = {}  # run index -> times its worker died while computing it
+        self.retry: list[list[RunTask]] = []
+        self.measured: list[tuple[int, float]] = []  # (run index, CPU s) of the runs received
+
+    @property
+    def processes(self) -> list[int]:
+        """Process ids of the workers (for tests and diagnostics)."""
+        return [w.process.pid for w in self.pool]
+
+    def _spawn(self) -> _Worker:
+        parent, child = self.ctx.Pipe(duplex=True)
+        process = self.ctx.Process(target=serve_process, args=(self.payload, child), daemon=True)
+        process.start()
+        child.close()  # only the worker holds its end: a dead worker's pipe reads as closed
+        return _Worker(process, parent)
 
     def start(self) -> None:
-        self.pool = ProcessPoolExecutor(
-            max_workers=self.workers,
-            mp_context=_pool_context(),
-            initializer=init_process,
-            initargs=(self.payload,),
-        )
-        # the first submission starts the worker processes, before the caller starts any thread
-        self.pool.submit(os.getpid).result()
+        self.ctx = _pool_context()
+        self.pool = [self._spawn() for _ in range(self.workers)]
 
-    def _submit(self, chunk: list[RunTask], attempts: int) -> None:
-        assert self.pool is not None
-        self.pending[self.pool.submit(run_chunk_in_process, chunk)] = (chunk, attempts)
+    def _send(self, w: _Worker, chunk: list[RunTask]) -> None:
+        w.chunk, w.rows = chunk, []
+        with contextlib.suppress(OSError):  # a worker that just died: its sentinel tells, below
+            w.conn.send(chunk)
 
-    def _restart(self, exc: BaseException) -> None:
-        """A worker process died (killed, out of memory...): the pool is broken. Start a new one and
-        submit again every chunk that was in flight, each at most MAX_RESUBMITS times."""
-        lost = list(self.pending.values())
-        self.pending = {}
-        over = [c for c, a in lost if a >= MAX_RESUBMITS]
-        if over:
-            first = over[0][0][0][0]
-            raise ClusterLostError(
-                f"a worker process died {MAX_RESUBMITS + 1} times while computing the chunk starting at "
-                f"run {first} ({exc}); the runs written so far are kept and the study resumes when "
-                "run again"
-            ) from None
-        assert self.pool is not None
-        self.pool.shutdown(wait=False, cancel_futures=True)
-        self.restarts += 1
-        self.start()
-        for chunk, attempts in lost:
-            self._submit(chunk, attempts + 1)
-
-    def _collect(self) -> Iterator[Rows]:
-        done, _ = wait(list(self.pending), return_when=FIRST_COMPLETED)
-        broken: BaseException | None = None
-        for fut in done:
+    def _receive(self, w: _Worker) -> bool:
+        """Read what ``w`` sent; True when its chunk is complete."""
+        assert w.chunk is not None
+        while w.conn.poll():
             try:
-                rows = fut.result()
-            except BrokenProcessPool as exc:
-                broken = exc
-                continue
-            del self.pending[fut]
-            yield rows
-        if broken is not None:
-            self._restart(broken)
+                index, row, cpu_s = w.conn.recv()
+            except (EOFError, OSError):
+                break
+            w.rows.append((index, row))
+            self.measured.append((index, cpu_s))
+        return len(w.rows) == len(w.chunk)
+
+    def _replace(self, w: _Worker) -> Rows:
+        """``w`` died: keep the rows it sent, queue the rest of its chunk, start a new process."""
+        rows = w.rows if w.chunk is not None else []
+        if w.chunk is not None:
+            done = {i for i, _ in w.rows}
+            rest = [t for t in w.chunk if t[0] not in done]
+            if rest:
+                lost = rest[0][0]  # the run it was computing
+                self.attempts[lost] = self.attempts.get(lost, 0) + 1
+                if self.attempts[lost] > MAX_RESUBMITS:
+                    raise ClusterLostError(
+                        f"a worker process died {MAX_RESUBMITS + 1} times while computing run {lost}; the "
+                        "runs written so far are kept and the study resumes when run again"
+                    )
+                self.retry.append(rest)
+        with contextlib.suppress(OSError):
+            w.conn.close()
+        w.process.join(timeout=1.0)
+        self.restarts += 1
+        self.pool[self.pool.index(w)] = self._spawn()
+        return rows
 
     def results(self, chunks: Iterator[list[RunTask]]) -> Iterator[Rows]:
-        assert self.pool is not None
-        for chunk in chunks:
-            self._submit(chunk, 0)
-            while len(self.pending) >= 2 * self.workers:
-                yield from self._collect()
-        while self.pending:
-            yield from self._collect()
+        from multiprocessing.connection import wait as mp_wait
+
+        feed = iter(chunks)
+
+        def feed_idle() -> None:
+            # the runs of a dead worker first, then the next chunks
+            for w in self.pool:
+                if w.chunk is None:
+                    chunk = self.retry.pop(0) if self.retry else next(feed, None)
+                    if chunk is None:
+                        return
+                    self._send(w, chunk)
+
+        feed_idle()
+        while True:
+            busy = [w for w in self.pool if w.chunk is not None]
+            if not busy:
+                return
+            ready = set(mp_wait([w.conn for w in busy] + [w.process.sentinel for w in busy]))
+            for w in busy:
+                if w.conn not in ready and w.process.sentinel not in ready:
+                    continue
+                if self._receive(w):
+                    rows = w.rows
+                    w.chunk, w.rows = None, []
+                    feed_idle()  # before the caller writes the rows: the worker goes on meanwhile
+                    yield rows
+                elif not w.process.is_alive():
+                    rows = self._replace(w)
+                    feed_idle()
+                    if rows:
+                        yield rows
 
     def close(self) -> None:
-        if self.pool is not None:
-            # after an error or Ctrl-C in the parent: drop the queued chunks, do not wait for them
-            self.pool.shutdown(wait=not self.pending, cancel_futures=True)
-            self.pool = None
+        for w in self.pool:
+            if w.chunk is None and w.process.is_alive():
+                with contextlib.suppress(OSError):
+                    w.conn.send(None)
+            else:
+                # after an error or Ctrl-C in the parent: do not wait for the chunk in flight
+                w.process.terminate()
+        for w in self.pool:
+            w.process.join(timeout=5.0)
+            if w.process.is_alive():
+                w.process.kill()
+                w.process.join()
+            with contextlib.suppress(OSError):
+                w.conn.close()
+        self.pool = []
 
 
 class _Dask:

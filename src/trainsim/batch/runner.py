@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -83,9 +84,17 @@ MIN_CHUNK, MAX_CHUNK = 10, 200
 #: Parquet file: about 10 ms), short enough that a killed study loses little and the last chunks end
 #: together. Runs costing more than this go one per chunk.
 CHUNK_TARGET_S = 0.5
-#: Cost of one run predicted before any is measured [s] (2-core development machine): a metro fastest
-#: run, an energy-efficient run of the optimiser, a multi-point run of the heavy-haul example.
+#: Cost of one run of the examples predicted before any is measured [s] (2-core development machine):
+#: a metro fastest run, an energy-efficient run of the optimiser, a multi-point run of the heavy-haul
+#: example (106 vehicles, 50 km, 0.05 s steps).
 PREDICTED_RUN_S = {"fastest": 0.0025, "driving": 0.3, "multi_point": 3.0}
+#: Work units of those example runs (:func:`run_work`): the metro (4.59 km, 4 stops) and heavy haul.
+_EXAMPLE_WORK = {"fastest": 4.59 + 4, "driving": 4.59 + 4, "multi_point": 106 * 50.0}
+#: Largest study whose runs are ordered by predicted cost (longest first) before they are chunked.
+MAX_ORDERED_RUNS = 20_000
+#: Default largest step of the multi-point integrator [s] (MultiPointSettings.time_step_s).
+_MP_STEP_S = 0.05
+_FORMATION_COUNT = re.compile(r"^train\.formation\[(\d+)\]\.count$")
 
 
 def auto_chunk_size(remaining: int, workers: int, run_s: float = PREDICTED_RUN_S["fastest"]) -> int:
@@ -102,33 +111,156 @@ def auto_chunk_size(remaining: int, workers: int, run_s: float = PREDICTED_RUN_S
     return max(1, min(guided, by_cost))
 
 
-class _Cost:
-    """The cost of a run [s of one worker]: predicted from the kind of study, then measured from the
-    rate at which chunks complete after the first one (so that the workers' start-up does not count):
-    wall time x workers / runs."""
+def _number(x: Any, default: float) -> float:
+    return float(x) if isinstance(x, int | float) and not isinstance(x, bool) and x > 0 else default
 
-    def __init__(self, expansion: Expansion) -> None:
-        kind = "multi_point" if expansion.multi_point else "driving" if expansion.driving else "fastest"
-        self.run_s = PREDICTED_RUN_S[kind]
+
+def run_work(data: dict[str, Any], overrides: tuple = ()) -> tuple[str, float]:
+    """Kind of a run and its predicted work from its scenario data, in units proportional to its cost.
+
+    Single-point runs: route length [km] + stops (the cost model of docs/reference/performance.md:
+    time per km and per stop, about one km's worth per stop). Multi-point runs: vehicles x route length
+    [km] x (0.05 s / time step): the integrator's work per step is linear in the vehicles
+    (docs/MULTIPOINT.md, "Cost"). Values the run's ``overrides`` set (model, time step, a formation
+    count, the route length) are taken into account; a route or train given as a file name counts as
+    the examples' (the figures then come from the measured costs).
+    """
+    model = data.get("model", "single_point")
+    mp = data.get("multi_point") if isinstance(data.get("multi_point"), dict) else {}
+    step = _number(mp.get("time_step_s"), _MP_STEP_S)
+    train = data.get("train")
+    formation = train.get("formation") if isinstance(train, dict) else None
+    counts = (
+        [_number(v.get("count", 1), 1.0) if isinstance(v, dict) else 1.0 for v in formation]
+        if isinstance(formation, list)
+        else None
+    )
+    route = data.get("route")
+    length_km = _number(route.get("length_m"), 0.0) / 1e3 if isinstance(route, dict) else 0.0
+    stops = data.get("stops")
+    n_stops = len(stops) if isinstance(stops, list) else None
+    if n_stops is None and isinstance(route, dict) and isinstance(route.get("stations"), list):
+        n_stops = len(route["stations"])
+    for path, value, relative in overrides:
+        if path == "model":
+            model = value
+        elif path == "multi_point.time_step_s":
+            step = _number(value * step if relative else value, step)
+        elif path == "route.length_m":
+            length_km = _number(value * length_km * 1e3 if relative else value, length_km * 1e3) / 1e3
+        elif path == "stops" and isinstance(value, list):
+            n_stops = len(value)
+        elif counts is not None and (m := _FORMATION_COUNT.match(path)) and int(m.group(1)) < len(counts):
+            k = int(m.group(1))
+            counts[k] = _number(value * counts[k] if relative else value, counts[k])
+    if model == "multi_point":
+        vehicles = sum(counts) if counts else 106.0
+        return "multi_point", vehicles * (length_km or 50.0) * _MP_STEP_S / step
+    kind = "driving" if data.get("driving") is not None else "fastest"
+    return kind, (length_km or 4.59) + (n_stops if n_stops is not None else 4)
+
+
+class _Cost:
+    """The cost of each run [s of one worker]: its predicted work (:func:`run_work`) times seconds per
+    unit of work of its kind, predicted from the examples (:data:`PREDICTED_RUN_S`) until runs are
+    measured, then the ratio of the measured CPU time of every run received to their predicted work.
+    Executors that do not time single runs (Dask) are measured from the rate at which chunks complete
+    after the first one (so that the workers' start-up does not count): wall time x workers / runs."""
+
+    def __init__(self, expansion: Expansion, entries: tuple[dict[str, Any], ...] = ()) -> None:
+        self.expansion = expansion
+        self.entries = entries
+        default = "multi_point" if expansion.multi_point else "driving" if expansion.driving else "fastest"
+        self.kind = default
+        self.unit_s = {k: PREDICTED_RUN_S[k] / _EXAMPLE_WORK[k] for k in PREDICTED_RUN_S}
+        # the work of an entry's runs, and whether some swept value changes it (else it is the entry's)
+        self._entry_work = [run_work(e) for e in entries]
+        paths = {c.path for c in getattr(expansion, "_overrides", ())}
+        self._per_run = any(
+            p in ("model", "multi_point.time_step_s", "route.length_m", "stops") or _FORMATION_COUNT.match(p)
+            for p in paths
+        )
+        self._sums: dict[str, list[float]] = {}  # kind -> [measured s, predicted work]
         self.first: tuple[float, int] | None = None
         self.done = 0
+        self.rate_s: float | None = None
+
+    def work(self, i: int) -> tuple[str, float]:
+        """Kind and predicted work of run ``i``."""
+        if not self.entries:
+            return self.kind, _EXAMPLE_WORK[self.kind]
+        if not self._per_run:
+            return self._entry_work[self.expansion.entry[i]]
+        task = self.expansion.task(i)
+        return run_work(self.entries[task[1]], task[3])
+
+    def seconds(self, i: int) -> float:
+        """Predicted cost of run ``i`` [s]."""
+        kind, work = self.work(i)
+        if self.rate_s is not None and not self._sums:
+            return self.rate_s * work / _EXAMPLE_WORK[self.kind]
+        return self.unit_s[kind] * work
+
+    @property
+    def run_s(self) -> float:
+        """Cost of a run of the study's kind with the examples' work [s]."""
+        return self.unit_s[self.kind] * _EXAMPLE_WORK[self.kind]
+
+    @run_s.setter
+    def run_s(self, value: float) -> None:
+        self.unit_s[self.kind] = value / _EXAMPLE_WORK[self.kind]
+
+    def measured(self, runs: list[tuple[int, float]]) -> None:
+        """Runs timed by the executor: (run index, CPU s) each."""
+        for i, cpu_s in runs:
+            kind, work = self.work(i)
+            acc = self._sums.setdefault(kind, [0.0, 0.0])
+            acc[0] += cpu_s
+            acc[1] += work
+            if acc[1] > 0 and acc[0] > 0:
+                self.unit_s[kind] = acc[0] / acc[1]
 
     def update(self, runs: int, workers: int) -> None:
+        """A chunk of ``runs`` completed (the fallback measure when runs are not timed one by one)."""
         self.done += runs
         now = time.perf_counter()
         if self.first is None:
             self.first = (now, self.done)
-        elif self.done > self.first[1]:
+        elif self.done > self.first[1] and not self._sums:
             self.run_s = (now - self.first[0]) * max(workers, 1) / (self.done - self.first[1])
+
+    def order(self, todo: list[int]) -> list[int]:
+        """The runs longest predicted first (a study of at most :data:`MAX_ORDERED_RUNS` runs whose
+        costs differ): the long runs start first and the short ones fill the gaps at the end, so that
+        the workers finish together. Otherwise, and among equal costs, in run order."""
+        if len(todo) > MAX_ORDERED_RUNS or not self.entries:
+            return todo
+        works = [self.seconds(i) for i in todo]
+        if max(works) <= min(works) * 1.0000001:
+            return todo
+        return [i for _, i in sorted(zip(works, todo, strict=True), key=lambda p: -p[0])]
 
 
 def _chunks(
     expansion: Expansion, todo: list[int], size: int | None, workers: int, cost: _Cost | None = None
 ) -> Iterator[list[RunTask]]:
+    """The runs ``todo`` in chunks: of ``size`` runs, or else sized by their predicted cost (at most
+    :data:`CHUNK_TARGET_S` of work, at most the guided size of :func:`auto_chunk_size`), the costs
+    read again before each chunk as measured runs come in."""
     k = 0
     while k < len(todo):
-        run_s = cost.run_s if cost is not None else PREDICTED_RUN_S["fastest"]
-        n = size or auto_chunk_size(len(todo) - k, workers, run_s)
+        if size:
+            n = size
+        elif cost is None:
+            n = auto_chunk_size(len(todo) - k, workers)
+        else:
+            limit = auto_chunk_size(len(todo) - k, workers, 0.0)
+            n, total = 0, 0.0
+            while k + n < len(todo) and n < limit:
+                total += cost.seconds(todo[k + n])
+                if n and total > CHUNK_TARGET_S:
+                    break
+                n += 1
         yield [expansion.task(i) for i in todo[k : k + n]]
         k += n
 
@@ -258,9 +390,13 @@ def run_study(
             n_workers = ex.workers
             # the bar (a thread) starts once the workers are running
             bar = _Progress(study.name, len(expansion), already, progress)
-            cost = _Cost(expansion)
+            cost = _Cost(expansion, payload.entries)
+            order = todo if size else cost.order(todo)
             try:
-                for rows in ex.results(_chunks(expansion, todo, size, n_workers, cost)):
+                for rows in ex.results(_chunks(expansion, order, size, n_workers, cost)):
+                    cost.measured(getattr(ex, "measured", []))
+                    if hasattr(ex, "measured"):
+                        ex.measured.clear()
                     cost.update(len(rows), n_workers)
                     sizes.append(len(rows))
                     sink.write(rows)

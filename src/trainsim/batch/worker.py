@@ -49,6 +49,7 @@ __all__ = [
     "driving_figures",
     "multipoint_figures",
     "run_chunk",
+    "serve_process",
     "state_for",
 ]
 
@@ -600,3 +601,26 @@ def run_chunk_in_process(tasks: list[RunTask]) -> list[tuple[int, dict[str, Any]
     """The task function of the process pool (the payload came with the initializer)."""
     assert _PAYLOAD is not None, "process not initialised with a study payload"
     return run_chunk(_PAYLOAD, tasks)
+
+
+def serve_process(payload: Payload, conn: Any) -> None:
+    """Main function of a worker process of the ``processes`` executor: receive chunks of runs on the
+    pipe ``conn`` (None: stop) and send back every run's ``(run_index, row, cpu_s)`` as soon as it is
+    computed, so that a worker killed in the middle of a chunk loses only the run it was computing
+    (the runs it sent are kept, the rest of the chunk goes to another worker). ``cpu_s`` is the run's
+    CPU time in this process [s], which the chunk sizing uses as the measured cost of the run."""
+    import time
+
+    init_process(payload)
+    state = state_for(payload)
+    while True:
+        try:
+            tasks = conn.recv()
+        except (EOFError, OSError):  # the study's process is gone
+            return
+        if tasks is None:
+            return
+        for task in tasks:
+            c0 = time.process_time()
+            row = state.run(task)
+            conn.send((task[0], row, time.process_time() - c0))
