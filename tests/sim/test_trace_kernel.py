@@ -17,7 +17,13 @@ from trainsim.model import EffortCurve, Electrical, ElectrificationSection, Quad
 from trainsim.model.scenario import RunSettings
 from trainsim.sim import result as res
 from trainsim.sim.fastest import run_fastest, stops_of
-from trainsim.sim.profile import PiecewiseLinear, compile_track, line_voltage, traction_availability
+from trainsim.sim.profile import (
+    PiecewiseLinear,
+    compile_route,
+    compile_track,
+    line_voltage,
+    traction_availability,
+)
 from trainsim.sim.trace_kernel import curve_value, piecewise_value
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -143,3 +149,44 @@ def test_piecewise_value_is_piecewise_linear_call():
     for f in (step, ramp):
         got = np.array([piecewise_value(res._law_arrays(f), q) for q in s])
         np.testing.assert_array_equal(got, f(s))
+
+
+def _numpy_laws(route, train, x, profile, ceiling, available):
+    """The per-interval laws as compile_track computed them with numpy before they were compiled."""
+    left, right = x[:-1], x[1:]
+    width = right - left
+    eps = 1e-9 * np.maximum(1.0, np.abs(left))
+
+    def law(f):
+        v0 = f(left + eps)
+        v1 = f(right - eps)
+        slope = (v1 - v0) / np.maximum(width - 2 * eps, 1e-12)
+        return v0 - slope * eps, slope
+
+    g0, g1 = law(profile.gradient)
+    c0, c1 = law(profile.curve)
+    t0, t1 = law(profile.tunnel)
+    g = route.gravity_mps2
+    b0, b1 = law(profile.tunnel_v2)
+    mid = 0.5 * (left + right)
+    return g * (g0 + c0 + t0), g * (g1 + c1 + t1), g * b0, g * b1, ceiling(mid), available(mid)
+
+
+@pytest.mark.parametrize("name,case", list(_cases()), ids=[n for n, _ in _cases()])
+def test_compiled_track_laws_equal_numpy(name, case):
+    train, route, settings = case
+    train = train.at_gravity(route.gravity_mps2)
+    stops = stops_of(route)
+    compiled = compile_route(route, train, stops, settings.max_step_m)
+    track = compiled.track
+    # every breakpoint of every law lies on the grid (merged only with a point closer than 1e-6 m)
+    pr = compiled.profile
+    for f in (pr.gradient, pr.curve, pr.tunnel, pr.tunnel_v2, compiled.ceiling, compiled.available):
+        inside = f.x[(f.x > stops[0]) & (f.x < stops[-1])]
+        assert all(np.min(np.abs(track.x - b)) <= 1e-6 for b in inside.tolist())
+    ref = _numpy_laws(route, train, track.x, compiled.profile, compiled.ceiling, compiled.available)
+    got = (track.a0, track.a1, track.b0, track.b1, track.vlim, track.traction_scale)
+    for label, a, b in zip(("a0", "a1", "b0", "b1", "vlim", "traction_scale"), got, ref, strict=True):
+        np.testing.assert_array_equal(a, b, err_msg=f"{name}: {label}")
+    if name in ("trainruns_strip", "electrification_gap"):
+        assert np.any(track.a1 != 0.0)  # averaged over the length: the interpolating branch is compared

@@ -15,7 +15,7 @@ from trainsim.model.scenario import RunSettings, Scenario
 from trainsim.model.train import Train
 from trainsim.sim import kernel
 from trainsim.sim.parameters import kernel_parameters, kink_speeds, regenerative_arrays
-from trainsim.sim.profile import compile_track
+from trainsim.sim.profile import compile_route
 from trainsim.sim.result import RunResult, build_result
 
 #: Stretches shorter than this in both distance [m] and time [s] are root-finding residue.
@@ -200,7 +200,8 @@ def run_fastest(
     settings = settings or RunSettings()
     train = train.at_gravity(route.gravity_mps2)
     stops = stops_of(route)
-    track, profile, ceiling = compile_track(route, train, stops, settings.max_step_m)
+    compiled = compile_route(route, train, stops, settings.max_step_m)
+    track, profile, ceiling = compiled.track, compiled.profile, compiled.ceiling
     P, (ts, tc, tf, tp), (bs, bc, bf, bp) = kernel_parameters(train, settings)
     tk = kink_speeds(ts, tc, tf, tp)
     bk = kink_speeds(bs, bc, bf, bp)
@@ -273,6 +274,8 @@ def run_fastest(
         kind="fastest",
         warnings=warnings,
         with_trace=trace,
+        availability=compiled.available,
+        voltage=compiled.voltage,
     )
 
 

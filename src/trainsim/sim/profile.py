@@ -120,12 +120,13 @@ def speed_ceiling(route: Route, train: Train) -> PiecewiseLinear:
     x = np.array(sorted(pts))
     mid = 0.5 * (x[:-1] + x[1:])
     ceiling = np.full(len(mid), train.max_speed_mps)
-    for lim in route.speed_limits:
-        # a limit on [a, b) binds head positions in [a, b + L): the rear leaves it at b + L;
-        # mid is increasing, so the covered pieces are one slice
-        j0 = int(np.searchsorted(mid, lim.start_m, side="left"))
-        j1 = int(np.searchsorted(mid, lim.end_m + L, side="left"))
-        np.minimum(ceiling[j0:j1], lim.limit_mps, out=ceiling[j0:j1])
+    limits = route.speed_limits
+    # a limit on [a, b) binds head positions in [a, b + L): the rear leaves it at b + L; mid is
+    # increasing, so the covered pieces are one slice (all slices found in one call)
+    j0 = np.searchsorted(mid, np.array([lim.start_m for lim in limits], dtype=float), side="left").tolist()
+    j1 = np.searchsorted(mid, np.array([lim.end_m + L for lim in limits], dtype=float), side="left").tolist()
+    for lim, a, b in zip(limits, j0, j1, strict=True):
+        np.minimum(ceiling[a:b], lim.limit_mps, out=ceiling[a:b])
     return PiecewiseLinear(x, ceiling.copy(), ceiling.copy())
 
 
@@ -212,10 +213,13 @@ def line_voltage(route: Route, train: Train) -> PiecewiseLinear:
     return PiecewiseLinear(voltage.x, value.copy(), value.copy())
 
 
-def traction_availability(route: Route, train: Train) -> PiecewiseLinear:
+def traction_availability(
+    route: Route, train: Train, voltage: PiecewiseLinear | None = None
+) -> PiecewiseLinear:
     """Share of the tractive effort available over head position [-]: an electric train (one with
-    electrical data) has none where the line is not electrified; other trains have it everywhere."""
-    voltage = line_voltage(route, train)
+    electrical data) has none where the line is not electrified; other trains have it everywhere.
+    ``voltage``: ``line_voltage(route, train)`` when the caller has it already."""
+    voltage = line_voltage(route, train) if voltage is None else voltage
     if train.electrical is None:
         ones = np.ones(len(voltage.left))
         return PiecewiseLinear(voltage.x, ones, ones.copy())
@@ -263,25 +267,44 @@ def _graded(a: float, b: float, max_step: float, grade_left: bool, grade_right: 
     return sorted(pts)
 
 
-def compile_track(
-    route: Route, train: Train, stops_m: list[float], max_step_m: float
-) -> tuple[KernelTrack, LineResistanceProfile, PiecewiseLinear]:
-    """Build the kernel grid for a run between the first and last of ``stops_m``."""
+@dataclass(frozen=True)
+class CompiledRoute:
+    """Everything a run derives from its route and train once: the kernel's arrays, the line
+    resistance laws, the speed ceiling, the traction availability and the line voltage."""
+
+    track: KernelTrack
+    profile: LineResistanceProfile
+    ceiling: PiecewiseLinear
+    available: PiecewiseLinear
+    voltage: PiecewiseLinear
+
+
+def _breakpoints_inside(functions: tuple[PiecewiseLinear, ...], lo: float, hi: float) -> list[np.ndarray]:
+    return [f.x[(f.x > lo) & (f.x < hi)] for f in functions]
+
+
+def compile_route(route: Route, train: Train, stops_m: list[float], max_step_m: float) -> CompiledRoute:
+    """Build the kernel grid for a run between the first and last of ``stops_m``, with the laws
+    the result needs too (``compile_track`` returns its first three)."""
+    from trainsim.sim.trace_kernel import interval_laws
+
     profile = line_resistance_profile(route, train)
     ceiling = speed_ceiling(route, train)
-    available = traction_availability(route, train)
+    voltage = line_voltage(route, train)
+    available = traction_availability(route, train, voltage)
     lo, hi = stops_m[0], stops_m[-1]
-    breaks = {lo, hi, *stops_m}
-    for f in (profile.gradient, profile.curve, profile.tunnel, profile.tunnel_v2, ceiling, available):
-        breaks.update(float(p) for p in f.x if lo < p < hi)
-    coarse = np.array(sorted(breaks))
+    laws = (profile.gradient, profile.curve, profile.tunnel, profile.tunnel_v2, ceiling, available)
+    # the set of breakpoints, sorted (np.unique: the same values as a set of floats)
+    coarse = np.unique(
+        np.concatenate([[lo, hi], np.asarray(stops_m, dtype=float), *_breakpoints_inside(laws, lo, hi)])
+    )
     keep = np.concatenate([[True], np.diff(coarse) > POSITION_TOLERANCE_M])
     coarse = coarse[keep]
     stop_set = set(stops_m)
     # uniform subdivision of every coarse interval, vectorised; grading only next to stops
     widths = np.diff(coarse)
     counts = np.maximum(np.ceil(widths / max_step_m - 1e-9).astype(np.int64), 1)
-    graded = np.array([a in stop_set or b in stop_set for a, b in pairwise(coarse)])
+    graded = np.array([a in stop_set or b in stop_set for a, b in pairwise(coarse.tolist())])
     counts[graded] = 1
     starts = np.repeat(coarse[:-1], counts)
     within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
@@ -293,25 +316,30 @@ def compile_track(
     x = np.unique(np.concatenate([uniform, coarse[-1:], np.array(extra)]))
     if np.any(np.diff(x) <= 0):
         raise InputError("internal: grid not increasing", field="route")
-    left, right = x[:-1], x[1:]
-    width = right - left
-    eps = 1e-9 * np.maximum(1.0, np.abs(left))
-
-    def law(f: PiecewiseLinear) -> tuple[np.ndarray, np.ndarray]:
-        # evaluate just inside each interval so a jump at a breakpoint belongs to the right piece
-        v0 = f(left + eps)
-        v1 = f(right - eps)
-        slope = (v1 - v0) / np.maximum(width - 2 * eps, 1e-12)
-        return v0 - slope * eps, slope
-
-    g0, g1 = law(profile.gradient)
-    c0, c1 = law(profile.curve)
-    t0, t1 = law(profile.tunnel)
-    g = route.gravity_mps2
-    a0, a1 = g * (g0 + c0 + t0), g * (g1 + c1 + t1)
-    b0, b1 = law(profile.tunnel_v2)
-    b0, b1 = g * b0, g * b1
-    vlim = ceiling(0.5 * (left + right))
-    traction_scale = available(0.5 * (left + right))
+    # per-interval laws, evaluated just inside each interval so a jump at a breakpoint belongs to the
+    # right piece (compiled: one pass instead of eight interpolations and their temporaries)
+    a0, a1, b0, b1, vlim, traction_scale = interval_laws(
+        x, *(_law_arrays(f) for f in laws), float(route.gravity_mps2)
+    )
     stop_index = np.searchsorted(x, np.array(stops_m) - POSITION_TOLERANCE_M)
-    return KernelTrack(x, a0, a1, b0, b1, vlim, traction_scale, stop_index.astype(np.int64)), profile, ceiling
+    track = KernelTrack(x, a0, a1, b0, b1, vlim, traction_scale, stop_index.astype(np.int64))
+    return CompiledRoute(track, profile, ceiling, available, voltage)
+
+
+def _law_arrays(f: PiecewiseLinear) -> tuple:
+    """A ``PiecewiseLinear`` as the compiled kernels take it: ``(x, left, right, piecewise constant)``."""
+    return (
+        np.ascontiguousarray(f.x, dtype=float),
+        np.ascontiguousarray(f.left, dtype=float),
+        np.ascontiguousarray(f.right, dtype=float),
+        bool(f._steps),
+    )
+
+
+def compile_track(
+    route: Route, train: Train, stops_m: list[float], max_step_m: float
+) -> tuple[KernelTrack, LineResistanceProfile, PiecewiseLinear]:
+    """Build the kernel grid for a run between the first and last of ``stops_m``: the kernel's
+    arrays, the line resistance laws and the speed ceiling (see ``compile_route``)."""
+    compiled = compile_route(route, train, stops_m, max_step_m)
+    return compiled.track, compiled.profile, compiled.ceiling

@@ -15,7 +15,7 @@ from trainsim.physics import electrical as el
 from trainsim.sim.energy import run_works
 from trainsim.sim.kernel import BRAKE, CRUISE, DWELL, FOLLOW, REGEN, REGIME_NAMES, TRACTION
 from trainsim.sim.parameters import _NO_CURVE
-from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear
+from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear, _law_arrays
 from trainsim.sim.trace_kernel import TRACE_ROWS, run_arrays
 
 #: What a run's ``status`` can say (``RunResult.status`` and ``summary()["status"]``); anything but
@@ -477,16 +477,6 @@ def _trace_and_peaks_numpy(
     return trace, peak_current, peak_paper
 
 
-def _law_arrays(f: PiecewiseLinear) -> tuple:
-    """A ``PiecewiseLinear`` as the compiled kernels take it: ``(x, left, right, piecewise constant)``."""
-    return (
-        np.ascontiguousarray(f.x, dtype=float),
-        np.ascontiguousarray(f.left, dtype=float),
-        np.ascontiguousarray(f.right, dtype=float),
-        bool(f._steps),
-    )
-
-
 def _trace_and_peaks(
     train: Train,
     settings: RunSettings,
@@ -607,11 +597,15 @@ def build_result(
     level: np.ndarray | None = None,
     stop_names: list[str] | None = None,
     with_trace: bool = True,
+    availability: PiecewiseLinear | None = None,
+    voltage: PiecewiseLinear | None = None,
 ) -> RunResult:
+    """Evaluate forces, powers, currents and energies along a run given as points; without
+    ``with_trace`` only the summary figures (sections, totals, energy balance), the same numbers.
+    ``availability`` and ``voltage`` are the route's ``traction_availability`` and ``line_voltage``
+    for this train, computed here when the caller does not have them."""
     from trainsim.sim.profile import line_voltage, traction_availability
 
-    """Evaluate forces, powers, currents and energies along a run given as points; without
-    ``with_trace`` only the summary figures (sections, totals, energy balance), the same numbers."""
     warnings = list(warnings or [])
     train = train.at_gravity(route.gravity_mps2)
     problems = _invariant_violations(s, v, t)
@@ -627,8 +621,9 @@ def build_result(
     # point values in each point's own regime, line resistance from the right of the point
     s_right = np.minimum(s + 1e-7, route.end_m)
     level = np.ones(n) if level is None else np.asarray(level, dtype=float)
-    availability = traction_availability(route, train)
-    voltage = line_voltage(route, train)
+    # the caller's, when it has them (``profile.compile_route``): the same laws of the same route
+    voltage = line_voltage(route, train) if voltage is None else voltage
+    availability = traction_availability(route, train, voltage) if availability is None else availability
     dt = np.diff(t)
 
     # work integrals: exact between the events of each stretch's motion (trainsim.sim.energy)

@@ -8,7 +8,8 @@ mechanical, electrical and paper-convention powers and the line currents (I = P 
 resistance at its middle, whose currents enter the running peaks. Every expression is written in the
 order numpy evaluates it, so that the arrays are the same bits (IEEE operations without contraction
 into fused multiply-adds, which numba does not do without ``fastmath``); with ``with_trace`` false
-only the peaks are stored, which is what a summary needs.
+only the peaks are stored, which is what a summary needs. ``interval_laws`` evaluates the kernel
+grid's per-interval line laws the same way (``profile.compile_track``).
 
 A line law is passed as ``(x, left, right, steps)``, the arrays of a ``profile.PiecewiseLinear`` and
 whether it is piecewise constant; an effort curve as ``EffortCurve.as_arrays()``.
@@ -237,3 +238,48 @@ def run_arrays(
             out[13, i] = paper_power
             out[14, i] = paper_current
     return out, peak, peak_paper
+
+
+@njit(cache=True, error_model="numpy")
+def _inside_law(law, lo, hi, span, eps):
+    """(value at the interval's start, slope) of the line through a law's values at lo and hi,
+    just inside an interval that starts eps before lo and whose inside is ``span`` long."""
+    f0 = piecewise_value(law, lo)
+    slope = (piecewise_value(law, hi) - f0) / span
+    return f0 - slope * eps, slope
+
+
+@njit(cache=True, error_model="numpy")
+def interval_laws(x, gradient, curve, tunnel, tunnel_v2, ceiling, available, g):
+    """Per-interval laws of a kernel grid ``x`` [m] (``profile.compile_track``): specific line
+    resistance a0 + a1 u [N/kg] and v^2 coefficient b0 + b1 u [N s^2/(kg m^2)] over the offset u into
+    each interval, each law read just inside the interval so that a jump at a grid point belongs to
+    the interval on its right, and the speed ceiling [m/s] and available share of tractive effort
+    at the interval's middle. Laws as ``(x, left, right, steps)`` (``piecewise_value``); g [m/s^2].
+    The same operations, in the same order, as the numpy form it replaced."""
+    n = len(x) - 1
+    a0 = np.empty(n)
+    a1 = np.empty(n)
+    b0 = np.empty(n)
+    b1 = np.empty(n)
+    vlim = np.empty(n)
+    scale = np.empty(n)
+    for i in range(n):
+        left = x[i]
+        right = x[i + 1]
+        eps = 1e-9 * max(1.0, abs(left))
+        span = _nmax(right - left - 2.0 * eps, 1e-12)
+        lo = left + eps
+        hi = right - eps
+        g0, g1 = _inside_law(gradient, lo, hi, span, eps)
+        c0, c1 = _inside_law(curve, lo, hi, span, eps)
+        t0, t1 = _inside_law(tunnel, lo, hi, span, eps)
+        k0, k1 = _inside_law(tunnel_v2, lo, hi, span, eps)
+        a0[i] = g * (g0 + c0 + t0)
+        a1[i] = g * (g1 + c1 + t1)
+        b0[i] = g * k0
+        b1[i] = g * k1
+        mid = 0.5 * (left + right)
+        vlim[i] = piecewise_value(ceiling, mid)
+        scale[i] = piecewise_value(available, mid)
+    return a0, a1, b0, b1, vlim, scale
