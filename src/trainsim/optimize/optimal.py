@@ -246,20 +246,46 @@ class SectionSolver:
         """The run for holding speed V up to the stop, before the final coast: maximum traction to
         min(V, limit), hold it; coast down steep descents up to min(limit, W) and hold there with
         braking; brake to lower limits and the stop; with the departures ahead of steep descents
-        (``excursions``) and lower limits (``limit_coasting``) that lower energy + mu x time."""
+        (``excursions``) and lower limits (``limit_coasting``) that lower energy + mu x time.
+
+        With ``stretches`` (binding timing points) each stretch is driven so with its own holding
+        speed, from the state in which the previous one ends: the price of time jumps at a binding
+        point, the speed does not (Albrecht et al. 2016, Part 1, interior time constraints)."""
         tr = self.track
-        fast = not np.isfinite(holding_speed) or holding_speed >= 10.0 * float(tr.vlim.max())
-        if fast and all(v >= 10.0 * float(tr.vlim.max()) for _, v in self.stretches):
-            return self.fastest
         self._decisions = {}
         self._has_long_excursions = False
+        if not self.stretches:
+            if not np.isfinite(holding_speed) or holding_speed >= 10.0 * float(tr.vlim.max()):
+                return self.fastest
+            return self._phase_a_from(holding_speed, (-1, 0.0, 0.0, 0.0), self.s0)
+        pieces = []
+        start, s_from = (-1, 0.0, 0.0, 0.0), self.s0
+        for end, V in (*self.stretches, (self.s1, holding_speed)):
+            points = self._phase_a_from(V, start, s_from)
+            if end >= self.s1 or not np.isfinite(points[2][-1]):
+                pieces.append(points)
+                break
+            i, u, v, t, _ = self._state_at(points, end)
+            if v <= 0.0:
+                return self._stalled()
+            keep = points[0] < end - 1e-9
+            pieces.append(tuple(arr[keep] for arr in points))
+            start, s_from = (i, u, v, t), end
+        return tuple(np.concatenate([pc[k] for pc in pieces]) for k in range(4))
+
+    def _phase_a_from(self, holding_speed: float, start: tuple[int, float, float, float], s_from: float):
+        """Phase A for holding speed V [m/s] from ``start`` (interval, offset [m], speed [m/s], time
+        [s]; interval -1: at rest at the section's start, which is ``s_from`` [m])."""
+        tr = self.track
         # close to the last holding speed the best departures ahead of lower limits move little:
-        # searched near the last ones first
+        # searched near the last ones first (not between stretches, whose speeds alternate)
         last = self._last_departure_speed
-        self._near_last_speed = last is not None and abs(np.log(holding_speed / last)) < WARM_START_LOG_SPEED
+        self._near_last_speed = (
+            not self.stretches
+            and last is not None
+            and abs(np.log(holding_speed / last)) < WARM_START_LOG_SPEED
+        )
         self._last_departure_speed = holding_speed
-        # the holding speed of every interval: a binding timing point ends a stretch with its own
-        # (the price of time jumps there; Albrecht et al. 2016, Part 1, interior time constraints)
         V_int, mu_int, W_int = self._interval_speeds(holding_speed)
         vhold = np.minimum(tr.vlim, V_int)
         vtop = np.maximum(np.minimum(tr.vlim, W_int), vhold)
@@ -270,8 +296,7 @@ class SectionSolver:
         if not self.excursions:
             steep_down[:] = False
         pieces: list[tuple[np.ndarray, ...]] = []
-        start = (-1, 0.0, 0.0, 0.0)
-        last_pos = self.s0
+        last_pos = s_from
         for _ in range(10_000):
             seg = self._holding(vhold, vtop, Cr, US, modes, start)
             if seg is None:
@@ -297,7 +322,6 @@ class SectionSolver:
             p, excursion, q = found
             keep = seg[0] < p
             pieces.append(tuple(arr[keep] for arr in seg))
-            excursion, q = self._cut_at_stretch_end(excursion, q, p)
             pieces.append(excursion)
             start = q
             last_pos = tr.x[q[0]] + q[1]
@@ -306,47 +330,20 @@ class SectionSolver:
             points = self._coast_before_limits(points, vtop, Cr, US, modes, mu_int)
         return points
 
-    def _cut_at_stretch_end(self, excursion, q, p: float):
-        """An excursion that leaves a stretch at p and would rejoin beyond the stretch's end stops
-        at that end: the next stretch holds its own speed from there (the holding arc it would
-        rejoin belongs to the previous price of time). (points, start state of the next holding)."""
-        ends = [e for e, _ in self.stretches if e > p + 1e-9]
-        if not ends:
-            return excursion, q
-        tr = self.track
-        end = ends[0]
-        if tr.x[q[0]] + q[1] <= end + 1e-9:
-            return excursion, q
-        s, v, t, _ = excursion
-        at = np.flatnonzero(np.abs(s - end) <= 1e-7)
-        if not len(at):
-            return excursion, q  # (not emitted at the end: left as it is)
-        j = int(at[0])
-        i_end = int(np.searchsorted(tr.x, end - 1e-7, side="left"))
-        return tuple(arr[:j] for arr in excursion), (i_end, 0.0, float(v[j]), float(t[j]))
-
     def _interval_of(self, s_m: float) -> int:
         """The grid interval that holds position ``s_m`` [m] (the last one at the section's end)."""
         tr = self.track
         return int(np.clip(np.searchsorted(tr.x, s_m, side="right") - 1, 0, len(tr.a0) - 1))
 
     def _interval_speeds(self, holding_speed: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(V, mu, W) of every grid interval [m/s, W, m/s]: the fixed ``stretches`` up to their ends,
-        ``holding_speed`` after the last one."""
+        """(V, mu, W) on every grid interval [m/s, W, m/s] for holding speed V; far above every
+        limit (a stretch before a binding point driven fastest) no price of time holds it back."""
         tr = self.track
-        mid = 0.5 * (tr.x[:-1] + tr.x[1:])
-        V = np.full(len(tr.a0), float(holding_speed))
-        for end, speed in reversed(self.stretches):
-            V[mid < end] = speed
-        mu = np.empty_like(V)
-        W = np.empty_like(V)
-        for speed in np.unique(V):
-            at = np.equal(V, speed)
-            # far above every limit a stretch is driven fastest: no price of time holds it back
-            fastest = not np.isfinite(speed) or speed >= 10.0 * float(tr.vlim.max())
-            mu[at] = np.inf if fastest else price_of_time_w(self.train, float(speed))
-            W[at] = regenerative_holding_speed(self.train, float(mu[at][0]), self.eta_r)
-        return V, mu, W
+        fastest = not np.isfinite(holding_speed) or holding_speed >= 10.0 * float(tr.vlim.max())
+        mu = np.inf if fastest else price_of_time_w(self.train, holding_speed)
+        W = regenerative_holding_speed(self.train, mu, self.eta_r)
+        n = len(tr.a0)
+        return np.full(n, float(holding_speed)), np.full(n, mu), np.full(n, W)
 
     def _coast_before_limits(self, points, vtop, Cr, US, modes, mu_int: np.ndarray):
         """Coast ahead of every lower limit instead of holding up to its braking curve.
@@ -738,7 +735,15 @@ class SectionSolver:
         s, _, _, m = phase_a
         return bool(m[j] == kernel.CRUISE and v > v_hold * (1.0 + 1e-6) and s[min(j + 1, len(s) - 1)] > s_c)
 
-    def _phase_b(self, phase_a, s_c: float, mu: float, force_mode: int = -1, v_hold: float = np.inf):
+    def _phase_b(
+        self,
+        phase_a,
+        s_c: float,
+        mu: float,
+        force_mode: int = -1,
+        v_hold: float = np.inf,
+        phi_start: float | None = None,
+    ):
         tr = self.track
         i, u, v, t, j = self._state_at(phase_a, s_c)
         if u >= tr.x[i + 1] - tr.x[i] - 1e-12 and i + 1 < self.i1:
@@ -747,11 +752,12 @@ class SectionSolver:
         out_v = np.empty(self.n_max)
         out_t = np.empty(self.n_max)
         out_m = np.empty(self.n_max, dtype=np.int8)
-        phi_start = -1.0
+        given_phi = phi_start
+        phi_start = -1.0 if given_phi is None else given_phi
         # the final phase meets the service braking curves (following the regenerative ones instead,
         # ``self.Cr_regen``, cost 1.6 % on test_coasts_ahead_of_a_lower_limit: not used)
         Cr, US, stop_mode, sk = self.Cr, self.US, kernel.BRAKE, self.bk
-        if self._braking_arc_start(phase_a, j, s_c, v, v_hold):
+        if given_phi is None and self._braking_arc_start(phase_a, j, s_c, v, v_hold):
             # on an arc held above V by braking (a steep descent) the adjoint sits at eta_r (a
             # regenerative holding arc; at 0 without regeneration), not at 1/eta_t: the train
             # leaves it braking
@@ -821,6 +827,31 @@ class SectionSolver:
                 short.append((mid, s_event))
         return lo
 
+    def _leave_at_floor(self, residual, floor: float, coasting):
+        """The final phase from the last binding timing point (``floor``) when coasting from there
+        still meets the braking curve ahead of the stop: the adjoint there is not 1/eta_t (the
+        train was not holding under the new price of time) but lies between the braking threshold
+        (eta_r, or 0 without regeneration) and 1/eta_t; the value with which the run stops exactly
+        at the stop, by bisection (the run brakes sooner the lower it starts)."""
+        lo = self.eta_r * (1.0 - 1e-9) if self.has_regen else 0.0
+        hi = self.inv_eta_t * (1.0 - 1e-9)
+        r_lo, points = residual(floor, lo)
+        if r_lo >= 0.0:
+            return points  # braking from the point on, the train still meets the braking curve
+        best = coasting
+        for _ in range(80):
+            if hi - lo <= 1e-13 * hi:
+                break
+            mid = 0.5 * (lo + hi)
+            r_mid, points = residual(floor, mid)
+            if r_mid >= 0.0:
+                hi, best = mid, points
+            else:
+                if self.s1 - (self.s1 + r_mid) <= STOP_TOLERANCE_M:
+                    return points
+                lo = mid
+        return best
+
     def _coast_point_guess(self, holding_speed_mps: float) -> float | None:
         """Where the final coast of holding speed V probably starts: from the plans of this solve
         with the closest holding speeds (this variant's if it has any), interpolated between the
@@ -852,8 +883,8 @@ class SectionSolver:
         # The last coasting point from which the train still reaches the stop: on a hilly line the
         # outcome is not monotone in the coasting point, and the optimum leaves the holding arc as
         # late as possible, so search backwards from the stop for a bracket first.
-        def residual(s_c: float):
-            points, status, s_event = self._phase_b(phase_a, s_c, mu, v_hold=holding_speed_mps)
+        def residual(s_c: float, phi: float | None = None):
+            points, status, s_event = self._phase_b(phase_a, s_c, mu, v_hold=holding_speed_mps, phi_start=phi)
             # < 0: stops short of the station by that much; >= 0: meets the braking curve to it
             return (self.s1 - s_event if status == pk.HIT_CEILING else s_event - self.s1), points
 
@@ -887,8 +918,10 @@ class SectionSolver:
                 if r_lo < 0.0:
                     break
                 if lo <= floor:
-                    # even coasting from the floor the train meets the braking curve: coast from there
+                    # even coasting from the floor the train meets the braking curve: leave there
                     hi, best = lo, points
+                    if self.stretches:
+                        best = self._leave_at_floor(residual, floor, points)
                     break
                 hi, best = lo, points
                 step *= 1.5

@@ -207,5 +207,3 @@ def timetable_from_journey(journey, route):  # (Journey, Route) -> (Route, Timet
             )
         points.append(dataclasses.replace(p, earliest_s=shift[0], latest_s=shift[1]))
     return new_route, Timetable(sections=tuple(sections), source=journey.name, timing_points=tuple(points))
-
-
