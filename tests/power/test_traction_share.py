@@ -8,22 +8,14 @@ import numpy as np
 import pytest
 
 import trainsim
-from trainsim.errors import InputError
 from trainsim.power import Network, Substation, Track, standard_limits
 from trainsim.power.stretches import joined_run, stop_positions
 from trainsim.power.study import FeedbackSettings, TrainService, run_study
 from trainsim.power.traction_share import (
     SHARE_RESOLUTION_M,
     ShareProfile,
-    core_takes_traction_share,
     route_with_share,
     step_spans,
-)
-
-CORE = pytest.mark.skipif(
-    not core_takes_traction_share(),
-    reason="the core has no ElectrificationSection.traction_share yet (patch /tmp/patches/h18_core.patch, "
-    "described in docs/POWER.md)",
 )
 
 
@@ -72,15 +64,6 @@ def test_lowered_takes_the_lower_share_and_merges_equal_pieces():
                                   [1.0, 1.0, 0.5, 0.5, 0.7, 1.0, 1.0])  # fmt: skip
 
 
-@pytest.mark.skipif(core_takes_traction_share(), reason="the core takes a share of tractive effort")
-def test_per_step_without_the_core_input_is_a_clear_error():
-    with pytest.raises(InputError) as info:
-        _study("per_step")
-    assert info.value.problems[0].field == "simulation.feedback.method"
-    assert "traction_share" in str(info.value)
-
-
-@CORE
 def test_a_constant_share_per_stretch_equals_the_joined_run():
     """Where the share is constant over each stretch between two stops, the run over the marked route
     is the per-stretch run with the tractive effort scaled on each stretch (EffortCurve.scaled)."""
@@ -106,7 +89,6 @@ def test_a_constant_share_per_stretch_equals_the_joined_run():
     assert abs(run.energy_balance["relative_error"]) < 1e-6
 
 
-@CORE
 def test_weak_feed_per_step_loses_time_converges_and_the_books_close():
     result = _study("per_step", tolerance=1e-4)
     summary = result.summary()
@@ -124,7 +106,6 @@ def test_weak_feed_per_step_loses_time_converges_and_the_books_close():
     assert train["traction_demand_kwh"] > 1.5 * train["traction_delivered_kwh"]
 
 
-@CORE
 def test_per_step_is_never_more_conservative_than_per_stretch():
     """per_stretch caps each stretch at the least power delivered at a limited step, until the line
     delivers all it is asked (the pantograph kept above the ramp); per_step lets the train draw what

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from itertools import pairwise
 from typing import Literal
@@ -89,11 +90,31 @@ class Tunnel:
 
 @dataclass(frozen=True)
 class ElectrificationSection:
-    """Electrification on ``[start_m, end_m)``: ``voltage_v`` [V], 0 for a non-electrified part."""
+    """Electrification on ``[start_m, end_m)``: ``voltage_v`` [V], 0 for a non-electrified part.
+
+    ``traction_share`` [-] is the share of its tractive effort an electric train (one with electrical
+    data) may use on the section, in (0, 1]: what the power supply lets it draw there when the
+    pantograph voltage falls (``trainsim.power.traction_share``, method ``per_step``). 1 (the
+    default) is the train's full effort. Trains without electrical data are not fed by the line and
+    ignore it (see ``trainsim.sim.profile.traction_availability``).
+    """
 
     start_m: float
     end_m: float
     voltage_v: float
+    traction_share: float = 1.0
+
+    def __post_init__(self) -> None:
+        share = self.traction_share
+        # a share of 0 would be an unelectrified section: that is voltage_v 0, not a share
+        number = isinstance(share, int | float) and not isinstance(share, bool)
+        if not (number and math.isfinite(share) and 0.0 < share <= 1.0):
+            raise InputError(
+                "invalid share of tractive effort on an electrification section",
+                field="electrification.traction_share",
+                value=share,
+                allowed="a number 0 < x <= 1 (1: the train's full tractive effort)",
+            )
 
 
 @dataclass(frozen=True)

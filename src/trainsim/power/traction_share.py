@@ -23,8 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trainsim.errors import InputError
-from trainsim.model.route import ElectrificationSection, Route
+from trainsim.model.route import Route
 from trainsim.model.spans import electrification_cover, split_spans
 from trainsim.model.train import Train
 
@@ -32,7 +31,6 @@ __all__ = [
     "SHARE_FLOOR",
     "SHARE_RESOLUTION_M",
     "ShareProfile",
-    "core_takes_traction_share",
     "route_with_share",
     "step_spans",
 ]
@@ -44,12 +42,6 @@ SHARE_FLOOR = 1e-3
 #: Positions where the share changes are rounded to this [m]: the network's own node resolution
 #: (trainsim.power.network rounds positions to 0.1 m), and no piece of line shorter than that.
 SHARE_RESOLUTION_M = 0.1
-
-
-def core_takes_traction_share() -> bool:
-    """Whether the core reads a share of tractive effort per electrification section
-    (``ElectrificationSection.traction_share``, honoured by ``sim.profile.traction_availability``)."""
-    return "traction_share" in {f.name for f in dataclasses.fields(ElectrificationSection)}
 
 
 @dataclass(frozen=True)
@@ -114,14 +106,6 @@ def route_with_share(route: Route, train: Train, profile: ShareProfile) -> Route
     voltage, which is what the core assumes there)."""
     if not profile.limited:
         return route
-    if not core_takes_traction_share():
-        raise InputError(
-            "per-step voltage feedback needs a share of tractive effort per electrification section in "
-            "the core (ElectrificationSection.traction_share, see docs/POWER.md)",
-            field="simulation.feedback.method",
-            value="per_step",
-            allowed="per_stretch, constant",
-        )
     nominal = train.electrical.line_voltage_v if train.electrical else 0.0
     pieces = split_spans(electrification_cover(route, nominal), profile.x_m[1:-1])
     mid = np.array([0.5 * (e.start_m + e.end_m) for e in pieces])

@@ -217,13 +217,26 @@ def traction_availability(
     route: Route, train: Train, voltage: PiecewiseLinear | None = None
 ) -> PiecewiseLinear:
     """Share of the tractive effort available over head position [-]: an electric train (one with
-    electrical data) has none where the line is not electrified; other trains have it everywhere.
+    electrical data) has none where the line is not electrified and the section's
+    ``traction_share`` where it is (1 where the route has no section); other trains are not fed by
+    the line, so they have all of it everywhere, whatever the sections' shares.
     ``voltage``: ``line_voltage(route, train)`` when the caller has it already."""
     voltage = line_voltage(route, train) if voltage is None else voltage
     if train.electrical is None:
         ones = np.ones(len(voltage.left))
         return PiecewiseLinear(voltage.x, ones, ones.copy())
     on = (voltage.left > 0).astype(float)
+    sections = route.electrification
+    if any(e.traction_share != 1.0 for e in sections):
+        # the share as a step function on the voltage's own breakpoints (both are cut at the same
+        # section ends), 1 where no section covers the route
+        starts, ends = [e.start_m for e in sections], [e.end_m for e in sections]
+        lo, hi = voltage.x[0], voltage.x[-1]
+        covered = step_function(starts, ends, [1.0] * len(sections), lo, hi)
+        share = step_function(starts, ends, [e.traction_share for e in sections], lo, hi)
+        mid = 0.5 * (voltage.x[:-1] + voltage.x[1:])
+        k = np.clip(np.searchsorted(share.x, mid, side="right") - 1, 0, len(share.left) - 1)
+        on = on * np.where(covered.left[k] > 0, share.left[k], 1.0)
     return PiecewiseLinear(voltage.x, on, on.copy())
 
 
