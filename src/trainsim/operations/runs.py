@@ -17,6 +17,7 @@ import numpy as np
 from trainsim.constants import KWH
 from trainsim.model import Route, SpeedLimit, Station, Train
 from trainsim.model.scenario import RunSettings
+from trainsim.model.spans import route_between
 from trainsim.operations.blocking import Trajectory
 from trainsim.operations.ceiling import with_limits
 from trainsim.sim.fastest import run_fastest
@@ -58,15 +59,6 @@ def direction_route(geometry: Route, length_m: float, direction: str) -> Route:
     )
 
 
-def _clip(items: tuple, a: float, b: float) -> tuple:
-    out = []
-    for x in items:
-        lo, hi = max(x.start_m, a), min(x.end_m, b)
-        if hi > lo + 1e-9:
-            out.append(replace(x, start_m=lo, end_m=hi))
-    return tuple(out)
-
-
 def service_route(
     directed: Route, stops: list[tuple[str, float]], limits: Sequence[SpeedLimit] = ()
 ) -> Route:
@@ -74,19 +66,7 @@ def service_route(
     every ``(name, running position)`` of ``stops``, with the extra speed ceilings ``limits`` (running
     positions) laid over the line's limits."""
     a, b = stops[0][1], stops[-1][1]
-    route = Route(
-        name=directed.name,
-        start_m=a,
-        end_m=b,
-        stations=tuple(Station(n, p, 0.0, True) for n, p in stops),
-        speed_limits=_clip(directed.speed_limits, a, b),
-        gradients=_clip(directed.gradients, a, b),
-        curves=_clip(directed.curves, a, b),
-        tunnels=_clip(directed.tunnels, a, b),
-        electrification=_clip(directed.electrification, a, b),
-        line_resistance=directed.line_resistance,
-        gravity_mps2=directed.gravity_mps2,
-    )
+    route = route_between(directed, a, b, [Station(n, p, 0.0, True) for n, p in stops])
     return with_limits(route, limits)
 
 
