@@ -34,6 +34,12 @@ WINDOW_TIME_TOLERANCE_S = 1e-3
 WINDOW_ENFORCE_TOLERANCE_S = 1e-3
 #: Holding speeds above this many times the highest limit give the fastest run [-].
 FAST_FACTOR = 1000.0
+#: Holding speed of the slowest run after the last binding point [m/s] (a walk: the section's solver
+#: refuses schedules that need less).
+WALKING_SPEED_MPS = 0.5
+#: A run after a binding point may fall short of the section's time by this much [s] before the
+#: stretch speeds are lowered (the section's time is then met to the solver's own tolerance).
+TIME_SLACK_S = 1e-6
 #: Rounds of correction where the final coast or a departure choice looks across a binding point.
 CORRECTION_ROUNDS = 10
 
@@ -116,7 +122,22 @@ def enforce_windows(
         outcome = _solve_binding(ws, running_time_s, binding)
         first_miss = _first_missed(outcome.plan, inside, tuple(b[0] for b in binding))
     ws.stretches = ()
+    if outcome.notes and _total_miss_s(outcome.plan, inside) > _total_miss_s(plan, inside) + 1e-9:
+        # the stretches could not meet a window, and the run without them comes closer to every
+        # window: that one is kept, with a note per window it misses
+        missed = [w for w in inside if window_miss_s(passing_time_s(plan, w.position_m), w) != 0.0]
+        notes = tuple(
+            f"{w.name or f'timing point at {w.position_m:.0f} m'}: no run of the optimal strategy that keeps "
+            "the section's schedule passes it closer to its window than the optimum without it"
+            for w in missed
+        )
+        return WindowOutcome(plan, (), (plan.holding_speed_mps,), notes)
     return outcome
+
+
+def _total_miss_s(plan: SectionPlan, windows: Sequence[TimingPoint]) -> float:
+    """How far a plan passes outside all the windows, summed [s]."""
+    return sum(abs(window_miss_s(passing_time_s(plan, w.position_m), w)) for w in windows)
 
 
 def _first_missed(plan: SectionPlan, inside, bound) -> TimingPoint | None:
@@ -146,6 +167,12 @@ def _solve_binding(ws: SectionSolver, running_time_s: float, binding) -> WindowO
     for _ in range(CORRECTION_ROUNDS):
         speeds, notes = _stretch_speeds(ws, binding, aims, big)
         ws.stretches = tuple((w.position_m, v) for (w, _), v in zip(binding, speeds, strict=True))
+        if _longest_s(ws) < running_time_s - TIME_SLACK_S:
+            plan, speeds, note = _lose_time_after(ws, running_time_s, binding, speeds)
+            k = len(binding) - 1
+            if note:
+                notes[k] = f"{notes[k]}; {note}" if k in notes else note
+            break
         plan = ws.solve(running_time_s)
         if plan.running_time_s > running_time_s + max(0.5, 5e-4 * running_time_s):
             plan, speeds, note = _keep_schedule(ws, running_time_s, binding, speeds, big)
@@ -276,5 +303,51 @@ def _keep_schedule(ws: SectionSolver, running_time_s: float, binding, speeds: li
         f"{w.name or f'timing point at {w.position_m:.0f} m'}: no run can meet its earliest time and the "
         f"section's schedule: passing at {target:.1f} s leaves {slack:.1f} s to the stop, the fastest run "
         f"from there takes {rest:.1f} s; it passes at {passed:.1f} s, {target - passed:.1f} s early"
+    )
+    return plan, [*speeds[:-1], V], note
+
+
+def _longest_s(ws: SectionSolver) -> float:
+    """The longest running time of the section with its stretch speeds as set [s]: the slowest holding
+    speed after the last binding point (coasting from there when the train is faster)."""
+    return ws.plan(WALKING_SPEED_MPS).running_time_s
+
+
+def _lose_time_after(ws: SectionSolver, running_time_s: float, binding, speeds: list[float]):
+    """Where passing the last binding point by its latest time leaves more time to the stop than the
+    run can take after it (coasting from there it still arrives early: braking down to a lower
+    holding speed is not among the strategy's arcs): the run that keeps the section's schedule and
+    passes that point as early as it then can, the last stretch's holding speed lowered until the
+    longest run after it takes the section's time; (plan, stretch speeds, note)."""
+    w, target = binding[-1]
+    fixed = [(b.position_m, v) for (b, _), v in zip(binding[:-1], speeds[:-1], strict=True)]
+
+    def spare(log_v: float) -> float:
+        ws.stretches = (*fixed, (w.position_m, float(np.exp(log_v))))
+        return _longest_s(ws) - running_time_s
+
+    hi = float(np.log(speeds[-1]))
+    lo = hi
+    while spare(lo) < 0.0:
+        hi, lo = lo, lo - np.log(1.3)
+        if lo < np.log(WALKING_SPEED_MPS):
+            ws.stretches = tuple(fixed)
+            return ws.solve(running_time_s), speeds, ""  # not a window's doing: the caller reports
+    if hi > lo:
+        lo = brentq(spare, lo, hi, xtol=1e-10, rtol=1e-12, maxiter=100)
+    # a little below the root, on the side where the schedule can be kept
+    for _ in range(20):
+        if spare(lo) >= 0.0:
+            break
+        lo -= 1e-9
+    V = float(np.exp(lo))
+    ws.stretches = (*fixed, (w.position_m, V))
+    plan = ws.solve(running_time_s)
+    passed = passing_time_s(plan, w.position_m)
+    note = (
+        f"{w.name or f'timing point at {w.position_m:.0f} m'}: passes at {passed:.1f} s, "
+        f"{passed - target:.1f} s after its latest time, keeping the section's schedule: passing earlier "
+        "would leave more time to the stop than the slowest run from there (coasting) takes (braking "
+        "down to a lower holding speed is not among the optimal strategy's arcs)"
     )
     return plan, [*speeds[:-1], V], note
