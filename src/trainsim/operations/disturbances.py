@@ -5,8 +5,10 @@ A running-time extension of a stretch between two scheduled stops is spread alon
 slower run is: the stretch's run is driven over the same path with time stretched by the factor
 1 + extension / running time (``TrainService.running_extra_s``), so the train is late at every point
 by the extension's share of the running time it has run (extension x elapsed / running time) and
-arrives exactly the extension later. Its energy stays that of the fastest run (a slower run would
-take a little less: on the safe side). Draws are taken in a fixed order (per train: entry, then per
+arrives exactly the extension later. Its energy is that of a slower run of the same running time:
+the fastest run under a lower speed cap over the stretch (``RunCache.slowed_energy_kwh``,
+interpolated between caps 5 % of the top speed apart; a time beyond a run at a fifth of the top speed
+counts as standing at auxiliary power, with a warning), and the outcome's ``energy_note`` says so. Draws are taken in a fixed order (per train: entry, then per
 stop dwell, then per stretch running time; two draws each), so a seed gives the same disturbances
 whatever the outcome.
 """

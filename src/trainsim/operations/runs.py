@@ -25,6 +25,10 @@ from trainsim.sim.result import RunResult
 
 #: Two stops of one run closer than this are merged (the core needs them >= 1 m apart) [m].
 MIN_STOP_SPACING_M = 2.0
+#: Speed caps of the slowed runs of a stretch (running-time disturbances), as fractions of the top
+#: speed of its undisturbed run [-]; 1 is the undisturbed run. Steps of 5 % keep linear
+#: interpolation of the energy in running time within a few 0.1 % (tests/operations/test_slowed_energy.py).
+SLOWED_CAP_FRACTIONS = tuple(round(1.0 - 0.05 * k, 2) for k in range(17))  # 1.0 .. 0.2
 
 
 def _mirror_spans(items: tuple, length_m: float, **fields) -> tuple:
@@ -213,6 +217,66 @@ class RunCache:
         self._runs[key] = found
         self.computed += 1
         return found
+
+    def slowed(
+        self,
+        train: Train,
+        directed: Route,
+        a: tuple[str, float],
+        b: tuple[str, float],
+        limits: Sequence[SpeedLimit] = (),
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The stretch from stop ``a`` to stop ``b`` run slower: the fastest run under an extra speed cap
+        over the whole stretch at each of :data:`SLOWED_CAP_FRACTIONS` of the undisturbed run's top
+        speed (the same driving, at a lower line speed). Returns the caps [m/s], running times [s]
+        (strictly increasing) and net energies from the line [kWh, auxiliaries included]; the first
+        entry is the undisturbed run. Caps whose run is not ``ok`` or not slower end the table."""
+        limits = tuple(x for x in limits if x.end_m > a[1] and x.start_m < b[1])
+        key = (
+            "slowed", id(train), id(directed), round(a[1], 6), round(b[1], 6),
+            tuple((round(x.start_m, 6), round(x.end_m, 6), round(x.limit_mps, 9)) for x in limits),
+        )  # fmt: skip
+        found = self._runs.get(key)
+        if found is not None:
+            return found
+        _s, v, t, result = self.stretch(train, directed, a, b, limits)
+        top = float(np.max(v))
+        caps, times, energies = [top], [float(t[-1] - t[0])], [float(result.energy_kwh.net)]
+        if result.status == "ok":
+            for f in SLOWED_CAP_FRACTIONS[1:]:
+                cap = SpeedLimit(a[1], b[1], f * top)
+                run = run_fastest(
+                    train, service_route(directed, [a, b], (*limits, cap)), self.settings, trace=False
+                )
+                if run.status != "ok" or run.running_time_s <= times[-1]:
+                    break
+                caps.append(cap.limit_mps)
+                times.append(float(run.running_time_s))
+                energies.append(float(run.energy_kwh.net))
+                self.computed += 1
+        found = (np.array(caps), np.array(times), np.array(energies))
+        self._runs[key] = found
+        return found
+
+    def slowed_energy_kwh(
+        self,
+        train: Train,
+        directed: Route,
+        a: tuple[str, float],
+        b: tuple[str, float],
+        limits: Sequence[SpeedLimit],
+        running_time_s: float,
+    ) -> tuple[float, float]:
+        """Net energy from the line [kWh] of the stretch from ``a`` to ``b`` run slower so that it takes
+        ``running_time_s`` [s]: linear in running time between two of the capped runs of ``slowed``
+        (each one the core's run, auxiliaries included). Returns it with the time beyond the slowest
+        capped run [s] (0 inside the table), counted as standing at auxiliary power: a longer running
+        time than a run at a fifth of the top speed is a stand somewhere on the stretch."""
+        _caps, times, energies = self.slowed(train, directed, a, b, limits)
+        if running_time_s <= times[-1]:
+            return float(np.interp(running_time_s, times, energies)), 0.0
+        beyond = float(running_time_s - times[-1])
+        return float(energies[-1] + auxiliary_power_w(train) * beyond / KWH), beyond
 
     def movement(
         self,

@@ -106,7 +106,8 @@ class TrainService:
         running_extra_s: running-time disturbances [s], one per stretch between two scheduled stops
             (origin, stops, destination), or empty: the operated run of a stretch is the same path
             driven slower, its running time longer by this much (spread in proportion to the running
-            time, not lumped at a stop); the planned run does not have it.
+            time, not lumped at a stop), its energy that of a slower run of that running time
+            (``TrainOutcome.energy_note``); the planned run does not have it.
     """
 
     id: str
@@ -181,6 +182,9 @@ class TrainOutcome:
     warnings: list[str] = field(default_factory=list)
     #: the core's runs of the operated movement, one per stretch between two stops (signal stops too)
     runs: tuple = ()
+    #: how the operated energy was found when it is not the sum of ``runs`` (running-time
+    #: disturbances), else empty
+    energy_note: str = ""
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -196,6 +200,7 @@ class TrainOutcome:
                 for h in self.hindrances
             ],
             "warnings": self.warnings,
+            **({"energy_note": self.energy_note} if self.energy_note else {}),
         }
 
 
@@ -1182,10 +1187,46 @@ def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutc
         delay = np.inf
     standing = _standing_s(st.movement, deps, st.dest_dwell_s, st.time_factors()) if deps is not None else 0.0
     energy = st.movement.energy_kwh(standing, auxiliary_power_w(svc.train)) if deps is not None else np.nan
+    note = ""
+    if deps is not None and st.factors is not None:
+        extra_kwh, note, beyond = _slowed_energy(st)
+        energy += extra_kwh
+        warnings.extend(beyond)
     return TrainOutcome(
         svc.id, svc.direction, status, stop_times, float(delay), energy, plan.energy_kwh,
-        st.hindrances, traj, plan.trajectory, list(st.granted), warnings, st.movement.results,
+        st.hindrances, traj, plan.trajectory, list(st.granted), warnings, st.movement.results, note,
     )  # fmt: skip
+
+
+def _slowed_energy(st: _TrainState) -> tuple[float, str, list[str]]:
+    """What the running-time disturbances change in the operated energy [kWh]: each disturbed stretch
+    counts the energy of a slower run of the same running time (``RunCache.slowed_energy_kwh``)
+    instead of its fastest run's; with the note saying so and a warning per stretch whose running time
+    goes beyond the slowest capped run (the rest counted standing at auxiliary power)."""
+    m = st.movement
+    rt = m.running_times_s()
+    limits = tuple(st.limits)
+    delta, slowed, beyond = 0.0, 0, []
+    for k, (f, r) in enumerate(zip(st.time_factors(), m.results, strict=False)):
+        if f <= 1.0 or r.status != "ok":
+            continue
+        a, b = st.stops[k], st.stops[k + 1]
+        e, over_s = st.cache.slowed_energy_kwh(
+            st.svc.train, st.directed, (a.name, a.position_m), (b.name, b.position_m), limits, rt[k] * f
+        )
+        delta += e - r.energy_kwh.net
+        slowed += 1
+        if over_s > 0:
+            beyond.append(
+                f"running-time disturbance {a.name} - {b.name}: {rt[k] * f:.0f} s is {over_s:.0f} s longer "
+                "than a run at a fifth of the top speed; that time is counted standing at auxiliary power"
+            )
+    note = (
+        f"operated energy of {slowed} disturbed stretch(es) from slower runs of the disturbed running time "
+        "(the fastest run under a lower speed cap, interpolated in running time between caps 5 % of the "
+        "top speed apart); the trajectory is the fastest run's path driven slower"
+    )
+    return delta, note if slowed else "", beyond
 
 
 def _planned_blocking(
