@@ -468,6 +468,22 @@ def _meet_curve(E, u, end, mode, w, Crk, brake_mode, line, P, curves, kinks, bk)
     return hi
 
 
+#: The force a hold needs is read this far [m] ahead of the point where the regime is chosen: past the
+#: rounding of a bound it was located on (1e-16 of a force of order 1e5 N), far below any stretch of
+#: running that moves energy or time by 1e-9.
+NEED_LOOKAHEAD_M = 1e-7
+
+
+@njit(cache=True)
+def need_ahead(need_u, need_e, span):
+    """The force [N] needed to hold the speed NEED_LOOKAHEAD_M ahead of offset u, from its values at u
+    (``need_u``) and ``span`` [m] further (``need_e``): linear along an interval (the grade and the
+    tunnel factor are), so this is exact."""
+    if span <= NEED_LOOKAHEAD_M:
+        return need_e
+    return need_u + (need_e - need_u) * (NEED_LOOKAHEAD_M / span)
+
+
 @njit(cache=True)
 def holding_segment(
     x, a0, a1, b0, b1, vhold, vtop, tscale, i0, i1, P, curves, tk, bk, rk, Cr, US, brake_modes,
@@ -513,13 +529,19 @@ def holding_segment(
                 break
             need_u = resistance_force(v, u, line, P)
             need_e = resistance_force(v, end, line, P)
+            # the regime is chosen by the force needed just ahead of u, not at u: where a hold ended
+            # at u because that force crossed a bound (0 at a descent's end), it sits on the bound
+            # to rounding and its sign at u said nothing; the train then coasted (or ran traction
+            # clamped) to the next grid point, a switch that moved with the step (heavy_haul: 1.7e-6
+            # of net energy on halving it)
+            need_a = need_ahead(need_u, need_e, end - u)
             fmax = P[P_TRACTION_SCALE] * effort(v, curves[0], curves[1], curves[2], curves[3])
             at_hold = abs(v - vh) <= tol * max(1.0, vh)
             at_top = v >= vt - tol * max(1.0, vt)
             hold_lo, hold_hi = 1.0, -1.0  # empty: no holding
-            if at_top and need_u <= 0.0:
+            if at_top and need_a <= 0.0:
                 hold_lo, hold_hi = -np.inf, 0.0  # hold the top speed with braking
-            elif at_hold and 0.0 <= need_u <= fmax:
+            elif at_hold and 0.0 <= need_a <= fmax:
                 hold_lo, hold_hi = 0.0, fmax  # hold the holding speed with partial traction
             if hold_lo <= hold_hi:
                 stop_at = end
@@ -533,14 +555,14 @@ def holding_segment(
                     u = stop_at
                     E = 0.5 * v * v
                     continue
-            if v < vh - tol * max(1.0, vh) or (at_hold and need_u > 0.0):
+            if v < vh - tol * max(1.0, vh) or (at_hold and need_a > 0.0):
                 mode = TRACTION
                 kinks = tk
                 target = vh
             else:
                 mode = COAST
                 kinks = bk
-                target = vh if (v > vh and need_u > 0.0) else vt
+                target = vh if (v > vh and need_a > 0.0) else vt
             E1, dt = step_energy_time(E, u, end - u, mode, line, P, curves, kinks)
             v1 = np.sqrt(2.0 * E1) if E1 > 0.0 else 0.0
             h = end - u
