@@ -141,6 +141,13 @@ class VoltageLimits:
 
 #: EN 50163:2004 + A1:2007 Table 1 (= IEC 60850:2014 Table 1): (Umin2, Umin1, Un, Umax1, Umax2,
 #: Umax3) [V] per system name. Umin2 = Umin1 for DC; Umax3 is the 20 ms long-term overvoltage.
+#: Cross-checked (issue 18) against the traction-system table of IEC 60038 (lowest permanent Umin1,
+#: nominal Un, highest permanent Umax1) as reproduced by S. McFadyen, "Voltage Levels to IEC 60038",
+#: https://myelectrical.com/notes/entryid/203/voltage-levels-to-iec-60038: 600 V 400/600/720,
+#: 750 V 500/750/900, 3 kV 2000/3000/3600, 15 kV 12000/15000/17250, 25 kV 19000/25000/27500 agree;
+#: for 1.5 kV that page prints a highest voltage of 1600 V, taken here as a misprint of 1800 V (every
+#: other system's Umax1 is 1.2 Un, and 1800 V is EN 50163's value); kept at 1800 V. Umin2, Umax2 and
+#: Umax3 were not found in a public source reachable here and are as read from EN 50163 + A1.
 EN50163: dict[str, tuple[float, float, float, float, float, float]] = {
     "dc_600": (400.0, 400.0, 600.0, 720.0, 800.0, 1015.0),
     "dc_750": (500.0, 500.0, 750.0, 900.0, 1000.0, 1270.0),
