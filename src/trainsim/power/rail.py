@@ -61,25 +61,40 @@ def segment_leakage_a(
     tanh(alpha x0) = V_a sinh(alpha L) / (V_a cosh(alpha L) - V_b), the positive part only)."""
     va, vb, length, r, g = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
                                                   (va_v, vb_v, length_m, r_ohm_per_m, g_s_per_m)))  # fmt: skip
+    shape = va.shape
+    va, vb, length, r, g = (np.ravel(a) for a in (va, vb, length, r, g))
     alpha = np.sqrt(r * g)
     al = alpha * length
     lin = al < 1e-4
     a_safe = np.where(lin, 1.0, alpha)
-    sh, ch = np.sinh(al), np.cosh(al)
     total = np.where(lin, (va + vb) * length / 2, (va + vb) * np.tanh(al / 2) / a_safe)
-    change = (va * vb < 0)
-    # integral of V from 0 to the sign change x0
-    with np.errstate(all="ignore"):  # the sign-change branch is computed everywhere, used where it applies
-        x0_lin = length * va / (va - vb)
-        x0_hyp = np.arctanh(np.clip(va * sh / (va * ch - vb), -1 + 1e-16, 1 - 1e-16)) / a_safe
-        x0 = np.where(lin, x0_lin, x0_hyp)
-        first_lin = va * x0 / 2
-        first_hyp = (va * (ch - np.cosh(alpha * (length - x0))) + vb * (np.cosh(alpha * x0) - 1)) / (a_safe * sh)
-    first = np.where(lin, first_lin, first_hyp)
-    positive = np.where(
-        change, np.where(va > 0, first, total - first), np.where(va + vb > 0, total, 0.0)
-    )
-    return g * np.maximum(positive, 0.0)
+    change = va * vb < 0
+    positive = np.where(va + vb > 0, total, 0.0)
+    if change.any():
+        # the integral of V from 0 to the sign change x0, on the few segments where V changes sign
+        # (elementwise, so the same values as computed over every segment)
+        c = np.flatnonzero(change)
+        va_c, vb_c, len_c, al_c, alpha_c, as_c, lin_c = (
+            va[c],
+            vb[c],
+            length[c],
+            al[c],
+            alpha[c],
+            a_safe[c],
+            lin[c],
+        )
+        sh, ch = np.sinh(al_c), np.cosh(al_c)
+        with np.errstate(all="ignore"):  # each branch is computed on all of them, used where it applies
+            x0_lin = len_c * va_c / (va_c - vb_c)
+            x0_hyp = np.arctanh(np.clip(va_c * sh / (va_c * ch - vb_c), -1 + 1e-16, 1 - 1e-16)) / as_c
+            x0 = np.where(lin_c, x0_lin, x0_hyp)
+            first_lin = va_c * x0 / 2
+            first_hyp = (
+                va_c * (ch - np.cosh(alpha_c * (len_c - x0))) + vb_c * (np.cosh(alpha_c * x0) - 1)
+            ) / (as_c * sh)
+        first = np.where(lin_c, first_lin, first_hyp)
+        positive[c] = np.where(va_c > 0, first, total[c] - first)
+    return (g * np.maximum(positive, 0.0)).reshape(shape)
 
 
 def train_substation_rail_potential_v(

@@ -328,6 +328,26 @@ def _stamp(a: np.ndarray, b: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.
     return rows, cols, vals
 
 
+def _with_earth(v: np.ndarray) -> np.ndarray:
+    """``v`` with the earth's potential 0 appended: indexing it with a node id of -1 (earth) gives 0,
+    so ``_with_earth(v)[nodes]`` is ``_potential(v, nodes)`` without masks."""
+    out = np.empty(len(v) + 1, dtype=v.dtype)
+    out[:-1] = v
+    out[-1] = 0
+    return out
+
+
+def _bins(nodes: np.ndarray, n: int) -> np.ndarray:
+    """Node ids with earth (-1) sent to a spare bin n, for :func:`_injection_into`."""
+    return np.where(nodes < 0, n, nodes)
+
+
+def _injection_into(n: int, bins: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """:func:`_injection` (real) for node ids already mapped by :func:`_bins`: what goes to earth is
+    summed in the spare bin and dropped; every other bin sums the same values in the same order."""
+    return np.bincount(bins, weights=values, minlength=n + 1)[:n]
+
+
 def _potential(v: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     out = np.zeros(len(nodes), dtype=v.dtype)
     ok = nodes >= 0
@@ -388,6 +408,19 @@ class _Pattern:
         rows, cols, take, sign = self.parts[k]
         return np.bincount(rows, weights=y[take] * sign * v[cols], minlength=self.n)
 
+    def fixed_matvec(self, k: int, y: np.ndarray):
+        """``v -> self.matvec(k, y, v)`` for admittances ``y`` that stay the same over many
+        products: the signed element weights are formed once (the same products in the same order,
+        so the result is bit for bit that of :meth:`matvec`)."""
+        rows, cols, take, sign = self.parts[k]
+        w = y[take] * sign
+        n = self.n
+
+        def product(v: np.ndarray) -> np.ndarray:
+            return np.bincount(rows, weights=w * v[cols], minlength=n)
+
+        return product
+
 
 def solve_step(
     net: Network, loads: StepLoads, substation_on: np.ndarray | None = None, guess: StepGuess | None = None
@@ -442,7 +475,9 @@ def solve_step(
     un = lim.nominal_v
     tol = VOLTAGE_TOLERANCE_SHARE * un
     if ac:
-        v, iterations, converged, on_ac = _active_set_ac(net, asm, loads, sub_p, sub_n, e, ys, tol, reversible)
+        v, iterations, converged, on_ac = _active_set_ac(
+            net, asm, loads, sub_p, sub_n, e, ys, tol, reversible
+        )
     else:
         iterations = 0
         converged = False
@@ -529,14 +564,14 @@ def solve_step(
                 iterations += its
                 if not converged:
                     break
-    us = _potential(v, sub_p) - _potential(v, sub_n)
+    ve = _with_earth(v)
     # results
-    uc = _potential(v, asm.train_c) - _potential(v, asm.train_r)
+    uc = ve[asm.train_c] - ve[asm.train_r]
     umag = np.abs(uc)
     a_share = traction_availability(umag, lim.min1_v, lim.traction_full_v)
     r_share = regen_acceptance(umag, lim.regen_full_v, lim.regen_zero_v)
     p_train = loads.traction_w * a_share + loads.auxiliary_w - loads.regen_w * r_share
-    us = _potential(v, sub_p) - _potential(v, sub_n)
+    us = ve[sub_p] - ve[sub_n]
     if ac:
         on = on_ac
         i_sub = (e - us) * ys * on
@@ -558,7 +593,7 @@ def solve_step(
         p_src = e * i_sub.real
         i_sub_signed = i_sub.real
         i_train = p_train / np.maximum(umag, 1e-3 * un)
-    dv = _potential(v, asm.a) - _potential(v, asm.b)
+    dv = ve[asm.a] - ve[asm.b]
     line_loss = float(np.sum(np.abs(dv) ** 2 * np.real(asm.y)))
     sub_loss = float(np.sum(p_src - p_bus))
     rail = (
@@ -567,15 +602,15 @@ def solve_step(
     stray = float("nan")
     if len(rail) and asm.leaky_segments is not None:
         la, lb, ll, lr, lg = asm.leaky_segments
-        stray = float(np.sum(segment_leakage_a(_potential(v, la), _potential(v, lb), ll, lr, lg)))
+        stray = float(np.sum(segment_leakage_a(ve[la], ve[lb], ll, lr, lg)))
     p_storage = None
     if n_st:
-        u_st = _potential(v, asm.storage_c) - _potential(v, asm.storage_r)
+        u_st = ve[asm.storage_c] - ve[asm.storage_r]
         p_storage, _ = storage_power_w(np.real(u_st), *asm.storage_limits)
     guess_out = None
     if not ac:
         fixed_v = np.where(asm.fixed_index >= 0, v[np.maximum(asm.fixed_index, 0)], 0.0)
-        guess_out = StepGuess(fixed_v, _potential(v, asm.train_c), _potential(v, asm.train_r))
+        guess_out = StepGuess(fixed_v, ve[asm.train_c], ve[asm.train_r])
     return StepSolution(
         guess=guess_out,
         storage_power_w=p_storage,
@@ -660,31 +695,38 @@ def _newton_dc(
     tc, tr = asm.train_c, asm.train_r
     u_floor = 1e-3 * un
     ftol = CURRENT_TOLERANCE_SHARE * max(float(np.sum(np.abs(e * ys))), 1.0)
+    # the residual is evaluated a few times per Newton iteration: what does not depend on v is
+    # formed once (the same operations in the same order as before, so the same figures bit for bit)
+    lines_times, subs_times = pattern.fixed_matvec(0, asm.y), pattern.fixed_matvec(1, ys_on)
+    tc_bins, tr_bins = _bins(tc, n), _bins(tr, n)
+    dp_bins, dn_bins = _bins(dp_, n), _bins(dn_, n)
+    st_c_bins, st_r_bins = _bins(st_c, n), _bins(st_r, n)
 
     def residual(v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        u = _potential(v, tc) - _potential(v, tr)
+        ve = _with_earth(v)
+        u = ve[tc] - ve[tr]
         uu = np.maximum(u, u_floor)
         a_s = traction_availability(uu, lim.min1_v, lim.traction_full_v)
         r_s = regen_acceptance(uu, lim.regen_full_v, lim.regen_zero_v)
         p = loads.traction_w * a_s + loads.auxiliary_w - loads.regen_w * r_s
         i_t = p / uu
         f = (
-            pattern.matvec(0, asm.y, v)
-            + pattern.matvec(1, ys_on, v)
+            lines_times(v)
+            + subs_times(v)
             - j_src
-            + _injection(n, tc, i_t, float)
-            - _injection(n, tr, i_t, float)
+            + _injection_into(n, tc_bins, i_t)
+            - _injection_into(n, tr_bins, i_t)
         )
         if len(de):
-            x, _ = asm.sources.x(d_index, de, _potential(v, dp_) - _potential(v, dn_))
+            x, _ = asm.sources.x(d_index, de, ve[dp_] - ve[dn_])
             forward = np.where(d_exact, x, _smooth_max(x, delta))
             i_d = (forward + reverse_share * (x - forward)) * dy
-            f += _injection(n, dn_, i_d, float) - _injection(n, dp_, i_d, float)
+            f += _injection_into(n, dn_bins, i_d) - _injection_into(n, dp_bins, i_d)
         if len(st_c):
-            us = np.maximum(_potential(v, st_c) - _potential(v, st_r), u_floor)
+            us = np.maximum(ve[st_c] - ve[st_r], u_floor)
             ps, _ = storage_power_w(us, *asm.storage_limits)
             i_s = ps / us
-            f += _injection(n, st_c, i_s, float) - _injection(n, st_r, i_s, float)
+            f += _injection_into(n, st_c_bins, i_s) - _injection_into(n, st_r_bins, i_s)
         return f, uu, p
 
     f, uu, p = residual(v)
@@ -698,12 +740,13 @@ def _newton_dc(
         )
         di = np.where(uu > u_floor, dp / uu - p / uu**2, 0.0)
         data = g_data + pattern.values(2, di)
+        ve = _with_earth(v)
         if len(de):
-            x, dxdu = asm.sources.x(d_index, de, _potential(v, dp_) - _potential(v, dn_))
+            x, dxdu = asm.sources.x(d_index, de, ve[dp_] - ve[dn_])
             slope = np.where(d_exact, 1.0, _smooth_max_slope(x, delta))
             data = data + pattern.values(3, -dxdu * dy * (slope + reverse_share * (1.0 - slope)))
         if len(st_c):
-            us = np.maximum(_potential(v, st_c) - _potential(v, st_r), u_floor)
+            us = np.maximum(ve[st_c] - ve[st_r], u_floor)
             ps, dps = storage_power_w(us, *asm.storage_limits)
             data = data + pattern.values(4, dps / us - ps / us**2)
         pattern.matrix.data[:] = data
@@ -715,7 +758,8 @@ def _newton_dc(
         # its regeneration stops (above it only constant-power auxiliaries remain, whose negative
         # incremental conductance would send Newton the wrong way in a section with every rectifier
         # blocked)
-        du = _potential(dv, tc) - _potential(dv, tr)
+        dve = _with_earth(dv)
+        du = dve[tc] - dve[tr]
         rising = (loads.regen_w > 0) & (du > 0) & (uu < lim.regen_zero_v)
         if rising.any():
             room = np.min(0.9 * (lim.regen_zero_v - uu[rising]) / du[rising])
@@ -817,7 +861,8 @@ def _fixed_point_ac(net, asm: _Assembly, loads: StepLoads, sub_p, sub_n, e, ys, 
     v = lu.solve(j_src) if v0 is None else v0.copy()
     tc, tr = asm.train_c, asm.train_r
     for it in range(1, MAX_FIXED_POINT_ITERATIONS + 1):
-        u = _potential(v, tc) - _potential(v, tr)
+        ve = _with_earth(v)
+        u = ve[tc] - ve[tr]
         um = np.maximum(np.abs(u), 1e-3 * lim.nominal_v)
         a_s = traction_availability(um, lim.min1_v, lim.traction_full_v)
         r_s = regen_acceptance(um, lim.regen_full_v, lim.regen_zero_v)
