@@ -55,7 +55,12 @@ def batch(
         ),
     ] = None,
     chunk_size: Annotated[
-        int | None, typer.Option("--chunk-size", min=1, help="Runs per task (default: automatic, 10-200).")
+        int | None,
+        typer.Option(
+            "--chunk-size",
+            min=1,
+            help="Runs per task (default: sized by each run's predicted, then measured, cost: 1-200 runs of about 0.5 s of work).",
+        ),
     ] = None,
     restart: Annotated[
         bool,
