@@ -464,6 +464,9 @@ def _execute(solver: SectionSolver, sw: LesovSwitching) -> SectionPlan:
 #: The steady speed is refined until the run meets its schedule to this share of it: source 004's
 #: epsilon (0.5 s) left the run, and its energy, free to move with the step within that window.
 SCHEDULE_MATCH_FRACTION = 1e-10
+#: A run meets its schedule when it takes its scheduled time to this [s]; a run further off (up to
+#: source 004's epsilon) is reported with a warning, not passed as met.
+SCHEDULE_MATCH_S = 1e-6
 
 
 def _exact_schedule(
@@ -475,7 +478,8 @@ def _exact_schedule(
     then bisected; where the running time jumps over T (the paper's speed steps change the switching
     points in jumps), the side closer to T is kept."""
     vmax = train.max_speed_mps / KMH
-    tol = SCHEDULE_MATCH_FRACTION * T
+    # (the absolute bound only binds on sections longer than 5000 s)
+    tol = min(SCHEDULE_MATCH_FRACTION * T, 0.5 * SCHEDULE_MATCH_S)
 
     def run(v_kmh: float) -> tuple[float, SectionPlan]:
         sw_v = switching_for_speed(train, route, solver.s0, solver.s1, v_kmh, T, sw.iterations, budgets=False)
@@ -572,10 +576,20 @@ def lesov_plans(
                 if abs(plan.running_time_s - T) <= 0.1:
                     break
         plan = _exact_schedule(solver, lt, route, T, sw, plan)
-        if abs(plan.running_time_s - T) > max(0.5, 5e-4 * T):
+        off_s = plan.running_time_s - T
+        if abs(off_s) > max(0.5, 5e-4 * T):
             warnings.append(
-                f"source 004's method: section {sv.s0:.0f}-{sv.s1:.0f} m runs {plan.running_time_s - T:+.1f} s "
+                f"source 004's method: section {sv.s0:.0f}-{sv.s1:.0f} m runs {off_s:+.1f} s "
                 "off its schedule after its corrections"
+            )
+        elif abs(off_s) > SCHEDULE_MATCH_S:
+            # within the paper's epsilon, but not met: the running time jumps over the schedule as
+            # the steady speed crosses a value (a switch that moves in jumps), and the run closest
+            # to it is kept (freight_000: 6.6e-5 s while the holding phase switched at grid points)
+            warnings.append(
+                f"source 004's method: section {sv.s0:.0f}-{sv.s1:.0f} m runs {off_s:+.2g} s off its "
+                f"schedule: its running time jumps over it at a steady speed of {plan.holding_speed_mps / KMH:.6f} "
+                "km/h"
             )
         plans.append(plan)
     return plans, warnings
