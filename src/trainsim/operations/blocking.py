@@ -27,9 +27,8 @@ compressed span over the pattern period is its capacity consumption.
 from __future__ import annotations
 
 from bisect import bisect_left
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
@@ -62,7 +61,7 @@ class Trajectory:
         """
         s, t, v = self.position_m, self.time_s, self.speed_mps
         if isinstance(x_m, float | int):
-            return np.array([self._first_time_scalar(float(x_m))])
+            return np.array([self.first_time_s(float(x_m))])
         x = np.atleast_1d(np.asarray(x_m, dtype=float))
         i = np.searchsorted(s, x, side="left")
         out = np.empty_like(x)
@@ -85,8 +84,10 @@ class Trajectory:
         out[mid] = np.where(ok, kin, lin)
         return out
 
-    def _first_time_scalar(self, x: float) -> float:
-        # the same as the vectorised form, for one position (most calls of the dispatcher)
+    def first_time_s(self, x: float) -> float:
+        """``first_time_at`` for one position ``x`` [m], as a float [s] (most calls of the
+        dispatcher): the same arithmetic without the arrays."""
+        x = float(x)
         s = self.position_m
         i = int(s.searchsorted(x, side="left"))
         if i == 0:
@@ -108,10 +109,10 @@ class Trajectory:
     def last_time_at(self, x_m: float) -> float:
         """The last time the head is at ``x_m`` (the departure if the train stops there) [s]."""
         s, t = self.position_m, self.time_s
-        j = int(np.searchsorted(s, x_m, side="right")) - 1
+        j = int(s.searchsorted(x_m, side="right")) - 1
         if j >= 0 and abs(s[j] - x_m) < 1e-9:
             return float(t[j])
-        return self._first_time_scalar(float(x_m))
+        return self.first_time_s(float(x_m))
 
     def speed_at(self, x_m: float) -> float:
         """Speed where the head first reaches ``x_m`` (linear in position) [m/s]."""
@@ -150,6 +151,32 @@ class BlockingTime:
     end_s: float
     from_m: float
     to_m: float
+
+
+_new = object.__new__
+
+
+def blocking_time(
+    train: str,
+    route: str,
+    resource: str,
+    step: int,
+    start_s: float,
+    approach_s: float,
+    entry_s: float,
+    clear_s: float,
+    end_s: float,
+    from_m: float,
+    to_m: float,
+) -> BlockingTime:
+    """``BlockingTime(...)`` without the frozen dataclass's ``__init__``, which sets each of its 11
+    fields through ``object.__setattr__`` (twice as slow): a day of 1,000 trains makes some 150,000."""
+    b = _new(BlockingTime)
+    d = b.__dict__
+    d["train"], d["route"], d["resource"], d["step"] = train, route, resource, step
+    d["start_s"], d["approach_s"], d["entry_s"], d["clear_s"] = start_s, approach_s, entry_s, clear_s
+    d["end_s"], d["from_m"], d["to_m"] = end_s, from_m, to_m
+    return b
 
 
 @dataclass(frozen=True)
@@ -238,11 +265,26 @@ def approach_start_m(
     return p
 
 
-@lru_cache(maxsize=65536)
+#: route_release_points by (id(route), release): (route, points); keyed by id because hashing a
+#: route hashes all its resources, on every call of the dispatcher
+_RELEASE_POINTS: dict[tuple[int, str], tuple[Route, tuple[float, ...]]] = {}
+
+
 def route_release_points(route: Route, release: str) -> tuple[float, ...]:
     """Release point of each resource of ``route`` (running coordinate) [m]: its end, or the route's
     end plus overlap for the resource that reaches the route's end; with whole-route release, the
     farthest of them for all."""
+    found = _RELEASE_POINTS.get((id(route), release))
+    if found is not None and found[0] is route:
+        return found[1]
+    if len(_RELEASE_POINTS) > 65536:
+        _RELEASE_POINTS.clear()
+    points = _release_points(route, release)
+    _RELEASE_POINTS[(id(route), release)] = (route, points)
+    return points
+
+
+def _release_points(route: Route, release: str) -> tuple[float, ...]:
     route_end = route.end_m + route.overlap_m
     points = [max(r.end_m, route_end) if r.end_m >= route.end_m - 1e-9 else r.end_m for r in route.resources]
     if release == "whole_route":
@@ -260,6 +302,8 @@ def blocking_times(
     signalling: Signalling,
     line_position: Callable[[np.ndarray], np.ndarray] | None = None,
     approach_distance_m: Callable[[float], float] | None = None,
+    given_at: Mapping[str, float] | None = None,
+    released: Mapping[tuple[str, str], float] | None = None,
 ) -> list[BlockingTime]:
     """The blocking times of every resource of every route a train takes.
 
@@ -274,6 +318,9 @@ def blocking_times(
         line_position: maps running coordinates (an array) to line positions (for ``from_m``/``to_m``);
             None: the same.
         approach_distance_m: ETCS / moving block: approach distance over speed [m].
+        given_at, released: a dispatcher's own times [s]: when each route (by name) was given, the
+            start instead of the one from the trajectory; when each resource (route, resource) was
+            released, the end instead (and the clearing ``release_s`` before it).
     """
     sig = signalling
     if not steps:
@@ -290,34 +337,40 @@ def blocking_times(
         i = bisect_left(stops, route.start_m)
         if i > 0 and stops[i - 1] >= a - 1e-9:
             stand[k] = stops[i - 1]
-    t_pass = trajectory.first_time_at(approach)
-    t_see = np.array([t_pass[k] if q is None else trajectory.last_time_at(q) for k, q in enumerate(stand)])
-    entries = trajectory.first_time_at(np.array([route.start_m for _j, route in steps]))
+    starts = np.array([route.start_m for _j, route in steps])
     points = [route_release_points(route, sig.release) for _j, route in steps]
     flat = np.array([p for ps in points for p in ps]) + length
-    clears = trajectory.first_time_at(flat)
+    # one call for the three sets of positions (element by element the same as three)
+    times = trajectory.first_time_at(np.concatenate([approach, starts, flat]))
+    t_pass, entries, clears = times[:n].tolist(), times[n : 2 * n].tolist(), times[2 * n :]
+    t_see = [t_pass[k] if q is None else trajectory.last_time_at(q) for k, q in enumerate(stand)]
     # a train leaves the line at the end of its trajectory (its destination, after the dwell there)
-    clears = np.where(np.isfinite(clears), clears, trajectory.time_s[-1])
-    starts = np.array([route.start_m for _j, route in steps])
+    clears = np.where(np.isfinite(clears), clears, trajectory.time_s[-1]).tolist()
     ends = flat - length
     if line_position is not None:
         starts, ends = (
             np.asarray(line_position(starts), dtype=float),
             np.asarray(line_position(ends), dtype=float),
         )
+    starts, ends = starts.tolist(), ends.tolist()
     out: list[BlockingTime] = []
     c = 0
+    release_s = sig.release_s
     for k, (j, route) in enumerate(steps):
-        start = float(t_see[k]) - sig.reaction_s - sig.setup_s
-        lo = float(starts[k])
+        see = float(t_see[k])
+        start = see - sig.reaction_s - sig.setup_s
+        if given_at is not None:
+            start = given_at.get(route.name, start)
+        lo, entry = starts[k], entries[k]
         for res in route.resources:
-            clear = float(clears[c])
+            clear = clears[c]
+            end = clear + release_s
+            if released is not None:
+                end = released.get((route.name, res.name), end)
+                clear = end - release_s
             out.append(
-                BlockingTime(
-                    train_id, route.name, res.name, j, start, float(t_see[k]), float(entries[k]), clear,
-                    clear + sig.release_s, lo, float(ends[c]),
-                )
-            )  # fmt: skip
+                blocking_time(train_id, route.name, res.name, j, start, see, entry, clear, end, lo, ends[c])
+            )
             c += 1
     return out
 

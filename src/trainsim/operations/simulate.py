@@ -30,9 +30,10 @@ a hindered train (one more stop) needs a new run.
 from __future__ import annotations
 
 import heapq
+import math
 from bisect import bisect_left, bisect_right
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from itertools import pairwise
 from typing import Literal
 
@@ -451,16 +452,18 @@ class _TrainState:
         j, step = self.pending_step()
         sig = self.line.signalling
         a = approach_start_m(self.path, j, sig, self.trajectory, approach_fn)
-        pos = self.stop_positions()
-        inside = pos[(pos >= a - 1e-9) & (pos < step.start_m)]
-        if step.start_m <= pos[0] + 1e-9:
+        # a few stops, asked some 50 times per train: plain floats beat numpy's per-call cost
+        pos = [s.position_m for s in self.stops]
+        lo, hi = a - 1e-9, step.start_m
+        inside = [p for p in pos if lo <= p < hi]
+        if hi <= pos[0] + 1e-9:
             # the route into the origin's platform: the train stands in it until it leaves
             inside = pos[:1]
-        if inside.size:
-            q = float(inside.max())
+        if inside:
+            q = float(max(inside))
             t_see = self.trajectory.last_time_at(q)
             return t_see - sig.reaction_s - sig.setup_s, q, a
-        t_see = float(self.trajectory.first_time_at(a)[0])
+        t_see = self.trajectory.first_time_s(a)
         return t_see - sig.reaction_s - sig.setup_s, None, a
 
     def horizon_m(self, approach_fn) -> float:
@@ -479,7 +482,7 @@ class _TrainState:
         if head > self.stops[-1].position_m + 1e-9:
             # the train leaves the line at its destination after its dwell there
             return float(self.trajectory.time_s[-1]) + sig.release_s
-        return float(self.trajectory.first_time_at(head)[0]) + sig.release_s
+        return self.trajectory.first_time_s(head) + sig.release_s
 
 
 class _Dispatcher:
@@ -511,7 +514,7 @@ class _Dispatcher:
         for h in st.held:
             if h[3] is None and h[1] + st.length_m <= horizon + 1e-9:
                 h[3] = st.release_time(h[1])
-            if h[3] is not None and np.isfinite(h[3]) and (best is None or (h[3], 0) < best):
+            if h[3] is not None and math.isfinite(h[3]) and (best is None or (h[3], 0) < best):
                 best = (max(h[3], self.now), 0)
         if best is None:
             if st.pending_step() is None and (not st.held or st.stalled_m is not None):
@@ -688,7 +691,7 @@ class _Dispatcher:
         t_seen = t_clear + sig.reaction_s
         steps, before, signal_m = st.approaches[q]
         traj = st.trajectory
-        if traj.first_time_at(q)[0] <= t_seen + TIME_TOLERANCE_S:
+        if traj.first_time_s(q) <= t_seen + TIME_TOLERANCE_S:
             return False  # it stands at the signal by then
         later = [s.position_m for s in st.stops if s.position_m > q + 1e-9]
         if not later:
@@ -701,7 +704,8 @@ class _Dispatcher:
         if v_c < MIN_CEILING_MPS:
             return False
         stops = [s for s in st.stops if not (s.kind == "signal" and s.position_m == q)]
-        limits = [x for x in st.limits if not any(x is y for y in steps)]
+        mine = {id(y) for y in steps}
+        limits = [x for x in st.limits if id(x) not in mine]
         kept = release_steps(steps, p_c, v_c, slowed=v_c < before.speed_at(p_c) * st.factor_at(p_c) - 1e-6)
         # kept is None: cleared before the train had to slow down, it runs as if it had seen proceed
         limits_new = limits if kept is None else limits + list(kept)
@@ -711,14 +715,14 @@ class _Dispatcher:
         old = (st.stops, st.limits, st.movement, st.trajectory)
         st.stops, st.limits, st.movement = stops, limits_new, movement
         st.refresh_trajectory()
-        t_release = st.trajectory.first_time_at(nxt)[0]
-        passes = st.trajectory.first_time_at(signal_m)[0]
+        t_release = st.trajectory.first_time_s(nxt)
+        passes = st.trajectory.first_time_s(signal_m)
         # stopping and starting again: the stand ends when the driver has seen the signal clear
         st.stops, st.limits, st.movement, st.trajectory = old
         prev = st.override.get(q)
         st.override[q] = max(st.override.get(q, -np.inf), t_seen)
         st.refresh_trajectory()
-        t_stop = st.trajectory.first_time_at(nxt)[0]
+        t_stop = st.trajectory.first_time_s(nxt)
         if prev is None:
             del st.override[q]
         else:
@@ -730,7 +734,7 @@ class _Dispatcher:
         st.stops, st.limits, st.movement = stops, limits_new, movement
         st.refresh_trajectory()
         if kept is not None:
-            lost = st.trajectory.first_time_at(signal_m)[0] - before.first_time_at(signal_m)[0]
+            lost = st.trajectory.first_time_s(signal_m) - before.first_time_s(signal_m)
             where = f"signal {choice[0][1].signal}"
             st.hindrances.append(
                 Hindrance("slowed", where, p_c, st.waiting_since, float(lost), choice[0][1].name)
@@ -818,11 +822,11 @@ class _Dispatcher:
 def position_at_time(traj: Trajectory, t_s: float, upto_m: float) -> float:
     """Where the head is at ``t_s`` [m] (bisection on ``first_time_at``; at most ``upto_m``)."""
     lo, hi = float(traj.position_m[0]), float(upto_m)
-    if traj.first_time_at(hi)[0] <= t_s:
+    if traj.first_time_s(hi) <= t_s:
         return hi
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        if traj.first_time_at(mid)[0] <= t_s:
+        if traj.first_time_s(mid) <= t_s:
             lo = mid
         else:
             hi = mid
@@ -1079,13 +1083,12 @@ def simulate(
             # the dispatcher's own times: when each route was given and each resource released (a
             # train held at its origin got its platform, and left the switches behind it, before it
             # knew when it would leave)
-            for b in blocking_times(
-                st.svc.id, st.trajectory, st.path, st.granted, list(st.stop_positions()), sig,
-                _line_pos(line, st.svc.direction), fn,
-            ):  # fmt: skip
-                start = st.given_at.get(b.route, b.start_s)
-                end = st.released.get((b.route, b.resource), b.end_s)
-                blocking.append(replace(b, start_s=start, end_s=end, clear_s=end - sig.release_s))
+            blocking.extend(
+                blocking_times(
+                    st.svc.id, st.trajectory, st.path, st.granted, list(st.stop_positions()), sig,
+                    _line_pos(line, st.svc.direction), fn, st.given_at, st.released,
+                )
+            )  # fmt: skip
         warnings.extend(f"train {st.svc.id}: {w}" for w in outcome.warnings)
     _check_invariants(outcomes, blocking)
     planned_blocking, conflict_list = _planned_blocking(line, states, planned, approach, conflicts)
@@ -1154,6 +1157,10 @@ def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutc
     plan_arr = [None] + [plan.departures[k] + plan_rt[k] for k in range(len(plan.departures))]
     stop_times = []
     station_stops = [k for k, s in enumerate(st.stops) if s.kind != "signal"]
+    tracks: dict[str | None, int] = {}  # the track of the first route given into each station
+    for _j, r in st.granted:
+        if r.track is not None:
+            tracks.setdefault(r.station, r.track)
     delay = 0.0
     for pk, k in enumerate(station_stops):
         s = st.stops[k]
@@ -1181,7 +1188,7 @@ def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutc
                 f"scheduled arrival at {s.name} ({sc.arrival_s:.0f} s) is earlier than the train can make it "
                 f"on time ({p_arr:.0f} s): the timetable is too tight there"
             )
-        track = next((r.track for _j, r in st.granted if r.station == s.name and r.track is not None), None)
+        track = tracks.get(s.name)
         stop_times.append(StopTimes(s.name, s.kind, s_arr, s_dep, arr, dep, d, track))
     if stuck or st.stalled_m is not None:
         delay = np.inf
