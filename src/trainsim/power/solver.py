@@ -422,6 +422,72 @@ class _Pattern:
         return product
 
 
+@dataclass(frozen=True)
+class _Constants:
+    """What every step of a network needs and only the network decides (built once per network)."""
+
+    sub_p: np.ndarray  # substations' positive / negative unknowns (-1 earth)
+    sub_n: np.ndarray
+    e: np.ndarray  # no-load voltages [V]
+    ys: np.ndarray  # internal admittances [S]
+    sources: _Sources
+    linear: np.ndarray  # reversible Thevenin sources: linear, in the matrix
+    storage_c: np.ndarray | None  # wayside storages' contact / rail unknowns
+    storage_r: np.ndarray | None
+    storage_thresholds: tuple  # charge above, discharge below, ramp [V]
+
+
+def _constants(net: Network) -> _Constants:
+    """The network's :class:`_Constants`, kept on its topology (the network is immutable)."""
+    topo = net.topology
+    cached = getattr(topo, "_solver_constants", None)
+    if cached is not None:
+        return cached
+    subs = net.substations
+    sub_p = np.array([topo.substation_nodes[i][0] for i in range(len(subs))], dtype=np.int64)
+    sub_n = np.array([topo.substation_nodes[i][1] for i in range(len(subs))], dtype=np.int64)
+    if topo.earthed:
+        earthed = np.fromiter(topo.earthed, dtype=np.int64)
+        sub_n = np.where(np.isin(sub_n, earthed), -1, sub_n)
+    # fixed node ids keep their order below n_fixed except for dropped earthed ones: remap
+    remap = np.full(topo.n_fixed + 1, -1, dtype=np.int64)
+    used = np.ones(topo.n_fixed, dtype=bool)
+    if topo.earthed:
+        used[list(topo.earthed)] = False
+    remap[:-1][used] = np.arange(int(used.sum()))
+    sub_p, sub_n = remap[sub_p], remap[sub_n]
+    storage_c = storage_r = None
+    if net.storages:
+        st_c = np.array([c for c, _ in topo.storage_nodes], dtype=np.int64)
+        st_r = np.array([r for _, r in topo.storage_nodes], dtype=np.int64)
+        if topo.earthed:
+            st_r = np.where(np.isin(st_r, np.fromiter(topo.earthed, dtype=np.int64)), -1, st_r)
+        storage_c, storage_r = remap[st_c], remap[st_r]
+    e = np.array([s.no_load_voltage_v for s in subs])
+    z = np.array([complex(s.internal_resistance_ohm, s.internal_reactance_ohm) for s in subs])
+    ys = 1.0 / z if net.system == "ac" else 1.0 / z.real
+    sources = _Sources(subs)
+    out = _Constants(
+        sub_p=sub_p,
+        sub_n=sub_n,
+        e=e,
+        ys=ys,
+        sources=sources,
+        linear=sources.reversible & ~sources.curved,
+        storage_c=storage_c,
+        storage_r=storage_r,
+        storage_thresholds=(
+            np.array([st.charge_above_v for st in net.storages]),
+            np.array([st.discharge_below_v for st in net.storages]),
+            np.array([st.ramp_v for st in net.storages]),
+        ),
+    )
+    for a in (sub_p, sub_n, e, ys, out.linear, sources.reversible, sources.curved):
+        a.flags.writeable = False  # shared by every step: a step that wrote into one would corrupt the next
+    topo._solver_constants = out
+    return out
+
+
 def solve_step(
     net: Network, loads: StepLoads, substation_on: np.ndarray | None = None, guess: StepGuess | None = None
 ) -> StepSolution:
@@ -437,41 +503,17 @@ def solve_step(
     lim = net.limits
     ac = net.system == "ac"
     subs = net.substations
-    sub_p = np.array([topo.substation_nodes[i][0] for i in range(len(subs))], dtype=np.int64)
-    sub_n = np.array([topo.substation_nodes[i][1] for i in range(len(subs))], dtype=np.int64)
-    if topo.earthed:
-        earthed = np.fromiter(topo.earthed, dtype=np.int64)
-        sub_n = np.where(np.isin(sub_n, earthed), -1, sub_n)
-    # fixed node ids keep their order below n_fixed except for dropped earthed ones: remap
-    remap = np.full(topo.n_fixed + 1, -1, dtype=np.int64)
-    used = np.ones(topo.n_fixed, dtype=bool)
-    if topo.earthed:
-        used[list(topo.earthed)] = False
-    remap[:-1][used] = np.arange(int(used.sum()))
-    sub_p, sub_n = remap[sub_p], remap[sub_n]
+    k = _constants(net)
+    sub_p, sub_n, e, ys = k.sub_p, k.sub_n, k.e, k.ys
     n_st = len(net.storages)
     if n_st:
-        st_c = np.array([c for c, _ in topo.storage_nodes], dtype=np.int64)
-        st_r = np.array([r for _, r in topo.storage_nodes], dtype=np.int64)
-        if topo.earthed:
-            st_r = np.where(np.isin(st_r, np.fromiter(topo.earthed, dtype=np.int64)), -1, st_r)
-        asm.storage_c, asm.storage_r = remap[st_c], remap[st_r]
+        asm.storage_c, asm.storage_r = k.storage_c, k.storage_r
         cmax = np.zeros(n_st) if loads.storage_charge_max_w is None else loads.storage_charge_max_w
         dmax = np.zeros(n_st) if loads.storage_discharge_max_w is None else loads.storage_discharge_max_w
-        asm.storage_limits = (
-            cmax,
-            dmax,
-            np.array([st.charge_above_v for st in net.storages]),
-            np.array([st.discharge_below_v for st in net.storages]),
-            np.array([st.ramp_v for st in net.storages]),
-        )
-    e = np.array([s.no_load_voltage_v for s in subs])
-    z = np.array([complex(s.internal_resistance_ohm, s.internal_reactance_ohm) for s in subs])
-    ys = 1.0 / z if ac else 1.0 / z.real
-    asm.sources = _Sources(subs)
+        asm.storage_limits = (cmax, dmax, *k.storage_thresholds)
+    asm.sources = k.sources
     reversible = asm.sources.reversible
-    # reversible Thevenin sources are linear (in the matrix); diodes and regulation curves are not
-    linear = reversible & ~asm.sources.curved
+    linear = k.linear
     un = lim.nominal_v
     tol = VOLTAGE_TOLERANCE_SHARE * un
     if ac:
