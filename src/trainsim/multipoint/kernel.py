@@ -160,8 +160,24 @@ ELECTRIC_FADE_MPS = 1.0
 MAX_NEWTON = 12
 
 
+# Every kernel is compiled with numpy's error model: a division by zero gives inf / nan (which the Newton
+# iterations reject as not finite) instead of a Python exception, and the compiled code carries no check
+# before each division (-16 % on the coupler forces, issue 14).
+
+
 # ============================================================================ smoothed piecewise laws
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def tanh(z):
+    """np.tanh(z), without the library call where tanh(z) rounds to +-1 (|z| >= 22: 1 - tanh(z) < 1e-19,
+    below half an ulp of 1): the direction factors of dry friction are +-1 whenever a vehicle moves."""
+    if z >= 22.0:
+        return 1.0
+    if z <= -22.0:
+        return -1.0
+    return np.tanh(z)
+
+
+@njit(cache=True, error_model="numpy")
 def ramp(z, eps):
     """max(z, 0) with the kink rounded over [-eps, eps] by a quadratic (C1)."""
     if z <= -eps:
@@ -171,7 +187,7 @@ def ramp(z, eps):
     return (z + eps) * (z + eps) / (4.0 * eps)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ramp_slope(z, eps):
     """d ramp / dz: a step from 0 to 1 rounded linearly over [-eps, eps]."""
     if z <= -eps:
@@ -181,7 +197,7 @@ def ramp_slope(z, eps):
     return (z + eps) / (2.0 * eps)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ramp_curvature(z, eps):
     """d^2 ramp / dz^2."""
     if z <= -eps or z >= eps:
@@ -189,7 +205,7 @@ def ramp_curvature(z, eps):
     return 0.5 / eps
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ramp_integral(z, eps):
     """Integral of ramp from -inf to z (potential energy of a unit spring engaged at 0)."""
     if z <= -eps:
@@ -199,7 +215,7 @@ def ramp_integral(z, eps):
     return (z + eps) ** 3 / (12.0 * eps)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def coupler_force(delta, rate, cp):
     """Tension of a coupling [N] (positive in draft) at extension ``delta`` [m] and extension rate
     ``rate`` [m/s]: ``(spring, damper, d tension / d delta, d tension / d rate)``."""
@@ -233,7 +249,7 @@ def coupler_force(delta, rate, cp):
     return spring, damper, k, c
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def coupler_energy(delta, cp):
     """Potential energy stored in a coupling's springs [J] at extension ``delta`` [m]."""
     kd, kb = cp[C_KD], cp[C_KB]
@@ -249,7 +265,7 @@ def coupler_energy(delta, cp):
 
 
 # ============================================================================ effort curves, profiles
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def effort_slope(v, c, cs, cc, coff, cfc, cpc, vsel=-1.0):
     """Force [N] and its slope d F / d v [N s/m] of curve ``c`` of the bank at speed v >= 0 [m/s]
     (the law of ``trainsim.sim.kernel.effort``). The law's interval is the one of speed ``vsel`` if
@@ -286,7 +302,7 @@ def effort_slope(v, c, cs, cc, coff, cfc, cpc, vsel=-1.0):
     return f, df
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def profile_at(p, s, poff, px, pval, cache, i):
     """Values of line-resistance profile ``p`` at position s: (gradient ratio, curve ratio, tunnel
     ratio, tunnel v^2 coefficient [s^2/m^2]); ``cache[i]`` keeps vehicle i's last piece."""
@@ -315,7 +331,7 @@ def profile_at(p, s, poff, px, pval, cache, i):
     return g, c, tu, b
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def step_value(s, sx, sval):
     """Value of a piecewise constant function (value ``sval[k]`` on ``[sx[k], sx[k+1])``)."""
     k = np.searchsorted(sx, s, side="right") - 1
@@ -326,7 +342,7 @@ def step_value(s, sx, sval):
     return sval[k]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def linear_value(s, x, left, right):
     """A ``PiecewiseLinear`` at s (the value from the right at a breakpoint)."""
     k = np.searchsorted(x, s, side="right") - 1
@@ -344,7 +360,7 @@ def linear_value(s, x, left, right):
 
 
 # ============================================================================ forces
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, out, D, detail, parts):
     """External force on every vehicle [N] at midpoint positions ``xm`` and speeds ``w`` into ``out``,
     minus its derivative with respect to the vehicle's own speed into ``D``; with ``detail`` the
@@ -378,7 +394,7 @@ def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pc
     for i in range(n):
         v = w[i]
         av = abs(v)
-        sgn = np.tanh((2.0 * v - v0[i]) / veps)
+        sgn = tanh((2.0 * v - v0[i]) / veps)
         dsgn = 2.0 * (1.0 - sgn * sgn) / veps  # d sgn / d w
         m = VP[i, V_MASS]
         L = VP[i, V_LENGTH]
@@ -466,7 +482,7 @@ def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pc
             parts[i, 6] = tunnel
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def coupler_forces(xm, w, VP, CP, Ts, Td, K, C):
     """Spring and damper tension of every coupling, and their derivatives, at positions ``xm`` and
     speeds ``w``."""
@@ -480,7 +496,7 @@ def coupler_forces(xm, w, VP, CP, Ts, Td, K, C):
         C[k] = c
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def thomas(diag, off, rhs, out, cprime):
     """Solve the symmetric tridiagonal system (diagonal ``diag``, off-diagonal ``off``) for ``rhs``."""
     n = len(diag)
@@ -499,7 +515,7 @@ def thomas(diag, off, rhs, out, cprime):
 
 
 # ============================================================================ one implicit step
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def implicit_step(x0, v0, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, ws):
     """Solve the implicit midpoint step of length h from (x0, v0) for the midpoint speeds ``w``
     (given as the initial guess). Returns the number of Newton iterations, -1 without convergence.
@@ -551,7 +567,7 @@ def implicit_step(x0, v0, h, w, VP, CP, SP, CMD, trac, elec, bm, bank, prof, ava
 
 
 # ============================================================================ brake command history
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def history_value(t, hist, nh):
     """Friction brake command at time t from the history (times in column 0, values in column 1)."""
     if nh <= 1 or t >= hist[nh - 1, 0]:
@@ -568,7 +584,7 @@ def history_value(t, hist, nh):
 
 
 # ============================================================================ controller
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def reference_speed(s, ref_s, ref_v2):
     """Reference speed at head position s [m/s]: v^2 linear in position between the points."""
     n = len(ref_s)
@@ -584,7 +600,7 @@ def reference_speed(s, ref_s, ref_v2):
     return np.sqrt(max(ref_v2[k] + (ref_v2[k + 1] - ref_v2[k]) * f, 0.0))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def reference_acceleration(s, ref_s, ref_v2):
     """Acceleration of the reference at head position s: d(v^2/2)/ds of its stretch [m/s^2]."""
     n = len(ref_s)
@@ -597,7 +613,7 @@ def reference_acceleration(s, ref_s, ref_v2):
     return 0.5 * (ref_v2[k + 1] - ref_v2[k]) / ds
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def reference_regime(s, ref_s, ref_m):
     """Regime of the reference stretch containing head position s."""
     n = len(ref_s)
@@ -612,7 +628,7 @@ def reference_regime(s, ref_s, ref_m):
     return ref_m[k]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
     """Command in [-1, 1], regime and mean speed that follow the reference profile.
 
@@ -639,7 +655,7 @@ def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
         mtot += mi
         mom += mi * v[i]
         av = abs(v[i])
-        sgn = np.tanh(v[i] / veps)
+        sgn = tanh(v[i] / veps)
         r = VP[i, V_R0] + VP[i, V_R1] * av + VP[i, V_R2] * av * av
         gr, cu, tu, b2 = profile_at(int(VP[i, V_PROFILE]), x[i], poff, px, pval, pcache, i)
         resist += r * sgn + VP[i, V_MASS] * g * (gr + (cu + tu + b2 * v[i] * v[i]) * sgn)
@@ -723,7 +739,7 @@ def control(x, v, VP, SP, bank, prof, avail, pcache, ref, ceiling):
 
 
 # ============================================================================ the main loop
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def force_error(Tend, tmem, tmem_t, nmem, t1):
     """Largest deviation of the coupler forces at the end of a step (time t1) from their quadratic
     extrapolation through the ends of the three previous steps [N]: a third difference (about
@@ -742,7 +758,7 @@ def force_error(Tend, tmem, tmem_t, nmem, t1):
     return err
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def run(
     mode,
     t_end,
@@ -804,6 +820,7 @@ def run(
     ws = (xm, F, D, Ts, Td, K, C, G, diag, off, dw, cprime, parts)
     w = np.empty(n)
     bm = np.empty(n)
+    tgt = np.empty(n)
     x1 = np.empty(n)
     v1 = np.empty(n)
     Tend = np.zeros(nc)
@@ -849,10 +866,12 @@ def run(
         tm = t
         while True:
             tm = t + 0.5 * h
+            decay = np.exp(-0.5 * h / build) if build > 0.0 else 0.0
             for i in range(n):
                 target = history_value(tm - VP[i, V_DELAY], hist, nh)
+                tgt[i] = target
                 if build > 0.0:
-                    bm[i] = target + (b[i] - target) * np.exp(-0.5 * h / build)
+                    bm[i] = target + (b[i] - target) * decay
                 else:
                     bm[i] = target
                 w[i] = v[i] + 0.5 * h * a_last[i]
@@ -902,13 +921,14 @@ def run(
         line_power = p_tr / eta_t - p_el * eta_r
         if line_power > acc[A_PEAK_POWER]:
             acc[A_PEAK_POWER] = line_power
+        decay = np.exp(-h / build) if build > 0.0 else 0.0
         for i in range(n):
             a_last[i] = (v1[i] - v[i]) / h
             x[i] = x1[i]
             v[i] = v1[i]
-            target = history_value(tm - VP[i, V_DELAY], hist, nh)
+            target = tgt[i]
             if build > 0.0:
-                b[i] = target + (b[i] - target) * np.exp(-h / build)
+                b[i] = target + (b[i] - target) * decay
             else:
                 b[i] = target
         t += h
@@ -993,7 +1013,7 @@ def run(
     return status, nh, nrec
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def record(nrec, t, x, v, a_last, VP, CP, CMD, parts, acc, rec_t, rec_x, rec_v, rec_a, rec_T, rec_agg):
     """Store the state at time t as record ``nrec``; the forces (``parts``) are those of the last
     step's midpoint."""
