@@ -7,15 +7,27 @@ no intermediate stop) and a regional train (TrainRuns.jl's Desiro, stopping ever
 train every ``HEADWAY_S``, some of them late at entry (seeded). Figures are printed as ratios
 against a baseline timed in the same run: one fastest run of the Intercity over the whole line.
 
-Run: python benchmarks/bench_operations.py [--trains 1000] [--sizes 125,250,500,1000]
+Wall time on a shared machine depends on its load: the CPU time of the process is printed beside it
+(the target, 1,000 trains in <= 10 s, is wall time on an idle machine, where the two agree).
+
+Speed work must change no figure: ``--save FILE`` writes a digest of every outcome (each size's day
+and every example of examples/operations: statuses, warnings, stop times, delays, energies,
+hindrances, blocking times, headways, conflicts, and a hash of every trajectory array) and
+``--compare FILE`` exits 1 unless a later run gives the same digest bit for bit.
+
+Run: python benchmarks/bench_operations.py [--sizes 125,250,500,1000] [--save|--compare FILE]
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
+import pickle
+import sys
 import time
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -75,35 +87,110 @@ def services(n: int, ic, local, names, seed: int = 1) -> list[TrainService]:
     return out
 
 
+def _array_digest(a) -> tuple:
+    a = np.ascontiguousarray(np.asarray(a, dtype=float))
+    return a.shape, hashlib.sha256(a.tobytes()).hexdigest()
+
+
+def digest(res) -> dict[str, Any]:
+    """Every figure of an ``OperationResult``, floats by their repr and arrays by a hash of their bytes."""
+
+    def traj(t):
+        if t is None:
+            return None
+        return (
+            _array_digest(t.time_s),
+            _array_digest(t.position_m),
+            _array_digest(t.speed_mps),
+            repr(t.length_m),
+        )
+
+    return {
+        "status": res.status,
+        "warnings": list(res.warnings),
+        "deadlock": list(res.deadlock),
+        "conflicts": [repr(c) for c in res.conflicts],
+        "headways": [repr(h) for h in res.headways],
+        "blocking": [repr(b) for b in res.blocking],
+        "planned_blocking": [repr(b) for b in res.planned_blocking],
+        "runs": (res.runs_computed, res.runs_reused),
+        "trains": [
+            {
+                "id": t.id, "status": t.status, "stops": [repr(s) for s in t.stops], "delay": repr(t.delay_s),
+                "energy": repr(t.energy_kwh), "planned_energy": repr(t.planned_energy_kwh),
+                "energy_note": getattr(t, "energy_note", ""), "hindrances": [repr(h) for h in t.hindrances],
+                "trajectory": traj(t.trajectory), "planned_trajectory": traj(t.planned_trajectory),
+                "routes": [(j, r.name) for j, r in t.routes], "warnings": list(t.warnings),
+            }
+            for t in res.trains
+        ],
+    }  # fmt: skip
+
+
+def example_digests() -> dict[str, Any]:
+    """``digest`` of every operation file of examples/operations."""
+    from trainsim.io.operation_file import read_operation
+    from trainsim.io.operation_run import run_operation
+
+    out = {}
+    for path in sorted((ROOT / "examples" / "operations").rglob("*.yaml")):
+        if "schema: trainsim/operation" in path.read_text():
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                out[str(path.relative_to(ROOT))] = digest(run_operation(read_operation(path)))
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="125,250,500,1000")
+    parser.add_argument("--save", metavar="FILE", help="write the digest of every outcome")
+    parser.add_argument("--compare", metavar="FILE", help="exit 1 unless every outcome is as saved")
     args = parser.parse_args()
+    digests: dict[str, Any] = {}
     ic, local, line, geometry, names, positions = setup()
     route = Route(
         "baseline", 0.0, LENGTH_M, (Station("a", 1000.0), Station("b", positions[-1])), geometry.speed_limits
     )
     trainsim.run_fastest(ic, route, SETTINGS)  # warm-up (numba)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for _ in range(20):
         trainsim.run_fastest(ic, route, SETTINGS)
-    base = (time.perf_counter() - t0) / 20
-    print(f"baseline: one fastest run of the Intercity over 98 km: {base * 1e3:.2f} ms")
+    base, base_cpu = (time.perf_counter() - t0) / 20, (time.process_time() - c0) / 20
+    print(
+        f"baseline: one fastest run of the Intercity over 98 km: {base * 1e3:.2f} ms (CPU {base_cpu * 1e3:.2f} ms)"
+    )
     simulate(line, geometry, services(8, ic, local, names), SETTINGS)  # warm-up
     previous = None
     for n in [int(x) for x in args.sizes.split(",")]:
         svcs = services(n, ic, local, names)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         res = simulate(line, geometry, svcs, SETTINGS, rule="priority")
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        digests[f"day of {n} trains"] = digest(res)
         hindered = sum(1 for t in res.trains if t.hindrances)
         growth = "" if previous is None else f", x{wall / previous[1]:.2f} for x{n / previous[0]:.1f} trains"
         print(
-            f"{n:5d} trains: {wall:6.2f} s = {wall / base:8.0f} baseline runs ({wall / n * 1e3:.1f} ms/train{growth}); "
+            f"{n:5d} trains: {wall:6.2f} s = {wall / base:8.0f} baseline runs ({wall / n * 1e3:.1f} ms/train{growth}; "
+            f"CPU {cpu:.2f} s = {cpu / base_cpu:.0f} baseline runs); "
             f"status {res.status}, runs computed {res.runs_computed} / reused {res.runs_reused}, hindered {hindered}, "
             f"total delay {sum(t.delay_s for t in res.trains) / 60:.0f} min, conflicts {len(res.conflicts)}"
         )
         previous = (n, wall)
+    if args.save or args.compare:
+        digests.update(example_digests())
+    if args.save:
+        Path(args.save).write_bytes(pickle.dumps(digests))
+        print(f"saved {len(digests)} outcomes to {args.save}")
+    if args.compare:
+        saved = pickle.loads(Path(args.compare).read_bytes())
+        differ = [k for k in sorted(set(saved) | set(digests)) if saved.get(k) != digests.get(k)]
+        for k in differ:
+            fields = [f for f in saved.get(k, {}) if saved[k][f] != digests.get(k, {}).get(f)]
+            print(f"DIFFERS: {k} {fields}")
+        print(f"compared {len(digests)} outcomes: {len(differ)} differ")
+        if differ:
+            sys.exit(1)
 
 
 if __name__ == "__main__":

@@ -175,8 +175,21 @@ class RunCache:
         self._keep: list[object] = []
         self._routes: dict[tuple, Route] = {}
         self._movements: dict[tuple, Movement] = {}
+        self._limit_keys: dict[int, tuple[SpeedLimit, tuple[float, float, float]]] = {}
         self.computed = 0
         self.hits = 0
+
+    def _limits_key(self, limits: Sequence[SpeedLimit]) -> tuple:
+        """The limits rounded (1 um, 1 nm/s) for the cache keys, each limit rounded once: a train's
+        braking steps are asked for again at every stretch and every new stop."""
+        keys = self._limit_keys
+        out = []
+        for x in limits:
+            found = keys.get(id(x))
+            if found is None or found[0] is not x:
+                found = keys[id(x)] = (x, (round(x.start_m, 6), round(x.end_m, 6), round(x.limit_mps, 9)))
+            out.append(found[1])
+        return tuple(out)
 
     def directed(self, geometry: Route, length_m: float, direction: str) -> Route:
         """``direction_route(geometry, length_m, direction)``, one object per geometry and direction (the
@@ -201,7 +214,7 @@ class RunCache:
         limits = tuple(x for x in limits if x.end_m > a[1] and x.start_m < b[1])
         key = (
             id(train), id(directed), round(a[1], 6), round(b[1], 6),
-            tuple((round(x.start_m, 6), round(x.end_m, 6), round(x.limit_mps, 9)) for x in limits),
+            self._limits_key(limits),
         )  # fmt: skip
         found = self._runs.get(key)
         if found is not None:
@@ -234,7 +247,7 @@ class RunCache:
         limits = tuple(x for x in limits if x.end_m > a[1] and x.start_m < b[1])
         key = (
             "slowed", id(train), id(directed), round(a[1], 6), round(b[1], 6),
-            tuple((round(x.start_m, 6), round(x.end_m, 6), round(x.limit_mps, 9)) for x in limits),
+            self._limits_key(limits),
         )  # fmt: skip
         found = self._runs.get(key)
         if found is not None:
@@ -290,7 +303,7 @@ class RunCache:
         positions and limits (identical trains, or a train trying the same stops again, share it)."""
         key = (
             id(train), id(directed), tuple(round(p, 6) for _n, p in stops),
-            tuple((round(x.start_m, 6), round(x.end_m, 6), round(x.limit_mps, 9)) for x in limits),
+            self._limits_key(limits),
         )  # fmt: skip
         found = self._movements.get(key)
         if found is not None:
