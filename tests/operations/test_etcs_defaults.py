@@ -61,9 +61,14 @@ def test_default_value(clause: str, name: str, expected: object) -> None:
     assert getattr(NV, name) == pytest.approx(expected), clause
 
 
-@pytest.mark.parametrize(("clause", "name"), [("A.3.2 Kv_int (freight)", "kv_int_freight"),
-                                             ("A.3.2 Kv_int (passenger, set a)", "kv_int_passenger_a"),
-                                             ("A.3.2 Kv_int (passenger, set b)", "kv_int_passenger_b")])
+@pytest.mark.parametrize(
+    ("clause", "name"),
+    [
+        ("A.3.2 Kv_int (freight)", "kv_int_freight"),
+        ("A.3.2 Kv_int (passenger, set a)", "kv_int_passenger_a"),
+        ("A.3.2 Kv_int (passenger, set b)", "kv_int_passenger_b"),
+    ],
+)
 def test_default_kv_int_is_one_step_of_0_7(clause: str, name: str) -> None:
     fn = getattr(NV, name)
     assert list(fn.values) == [0.7], clause
@@ -89,6 +94,9 @@ def test_conversion_model_coefficients() -> None:
     assert CONVERSION_BUILD_UP["service"]["freight_p"][1][1] == (10.50, 0.32, 0.18)
     # A.3.8.4-5: Ct
     assert CONVERSION_CT == {"passenger_p": 0.20, "freight_p": 0.20, "freight_g": 0.16}
-    # NOT verified: the constant a of the emergency build-up time of freight trains in P longer than
-    # 900 m (A.3.8.2) is -0.40 here; the implementation consulted has -0.50 for P and -0.40 for G.
-    assert CONVERSION_BUILD_UP["emergency"]["freight_p"][1][1][1:] == (1.60, 0.03)
+    # A.3.8.2 / A.3.8.3 above 900 m, read in SUBSET-026-3 v4.0.0: a = -0.40, b = 1.60, c = 0.03 for
+    # freight trains in P and in G alike (cesarBLG/ETCS has a = -0.5 for P, against the text)
+    assert CONVERSION_BUILD_UP["emergency"]["freight_p"][1][1] == (-0.40, 1.60, 0.03)
+    assert CONVERSION_BUILD_UP["emergency"]["freight_g"][1][1] == (-0.40, 1.60, 0.03)
+    assert CONVERSION_BUILD_UP["emergency"]["freight_p"][0][1] == (2.30, 0.0, 0.17)
+    assert CONVERSION_BUILD_UP["service"]["freight_g"][0][1] == (3.00, 2.77, 0.0)

@@ -738,6 +738,9 @@ CONVERSION_AD_COEFFICIENTS: tuple[tuple[float, float, float, float], ...] = (
 CONVERSION_SPEED_LIMITS_KMH: tuple[float, ...] = (100.0, 120.0, 150.0, 180.0)
 #: A.3.8.1-3 (emergency) and A.3.9.1-3 (service): T_brake_basic = a + b (L/100) + c (L/100)^2 [s], L in
 #: m, per brake position: ((longest train length [m] of the row, (a, b, c), length floored at 400 m), ...).
+#: Every row read against the text of SUBSET-026-3 v4.0.0 A.3.8-A.3.9, including freight P in
+#: emergency above 900 m, a = -0.40 (A.3.8.2; so also open-etcs/openetcs-sdm, src/ETCS/SDM/Intern.hs;
+#: cesarBLG/ETCS, EVC/Supervision/conversion_model.cpp, has -0.5 there, against the text).
 CONVERSION_BUILD_UP: dict[str, dict[str, tuple[tuple[float, tuple[float, float, float], bool], ...]]] = {
     "emergency": {
         "passenger_p": ((math.inf, (2.30, 0.0, 0.17), True),),
