@@ -1,0 +1,73 @@
+"""Coasting over a crest ahead of a steep descent that ends at the stop, with a regenerative brake
+(``SectionSolver._coast_over_crest``): source 002's metro on a 20 per mille hump."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_optimal_structure import net_energy_j, reference_energy_j
+
+import trainsim
+from trainsim.constants import KMH
+from trainsim.model import GradientSection, Route, SpeedLimit, Station
+from trainsim.optimize.optimal import SectionSolver, regenerative_holding_speed
+from trainsim.sim import kernel
+
+ROOT = Path(__file__).resolve().parents[2]
+METRO = trainsim.load_scenario(ROOT / "examples" / "metro_b" / "scenario.yaml").train
+
+
+def hump_solver(regen: bool = True) -> SectionSolver:
+    train = METRO
+    if regen:
+        braking = dataclasses.replace(METRO.braking, regenerative=METRO.traction.scaled(0.8))
+        train = dataclasses.replace(METRO, braking=braking)
+    route = Route(
+        name="hump",
+        start_m=0.0,
+        end_m=3000.0,
+        stations=(Station("A", 0.0), Station("B", 3000.0)),
+        speed_limits=(SpeedLimit(0.0, 3000.0, 80 * KMH),),
+        gradients=(GradientSection(1000.0, 2000.0, 20.0), GradientSection(2000.0, 3000.0, -20.0)),
+    )
+    return SectionSolver(train, route, 0.0, 3000.0)
+
+
+def test_metro_with_regeneration_coasts_over_the_crest_as_the_reference():
+    solver = hump_solver()
+    T = solver.fastest_time_s * 1.20
+    plan = solver.solve(T)
+    assert plan.feasible
+    assert abs(plan.running_time_s - T) <= max(0.5, 5e-4 * T)
+    # the train leaves its holding arc on the climb and coasts over the crest
+    climb_end = (plan.s > 1800.0) & (plan.s < 2000.0)
+    assert np.all(plan.regime[climb_end] == kernel.COAST)
+    at_crest = float(np.interp(2000.0, plan.s, plan.v))
+    assert at_crest < plan.holding_speed_mps - 10 * KMH
+    # on the descent it comes up to the regenerative holding speed W and brakes electrically only
+    W = regenerative_holding_speed(solver.train, plan.price_of_time_w, solver.eta_r)
+    descent = plan.s > 2000.0
+    assert plan.v[descent].max() == pytest.approx(W, rel=1e-3)
+    # (the service brake only in the last metres, where its curve to the stop lies below the
+    # regenerative one: 150 kN under 5 km/h)
+    assert not np.any((plan.regime == kernel.BRAKE) & (plan.s < solver.s1 - 10.0))
+    assert np.any(plan.regime[descent] == kernel.REGEN)
+    energy = net_energy_j(solver, plan)
+    assert energy == pytest.approx(reference_energy_j(solver, T), rel=5e-3)
+    # holding V up to the crest instead (the strategy before the crest coast) costs more
+    solver._coast_over_crest = lambda seg, *args: seg
+    plain = solver.solve(T)
+    assert net_energy_j(solver, plain) > energy * 1.02
+
+
+def test_without_regeneration_the_hump_run_is_left_as_it_was():
+    solver = hump_solver(regen=False)
+    T = solver.fastest_time_s * 1.20
+    plan = solver.solve(T)
+    solver._coast_over_crest = lambda seg, *args: seg
+    plain = hump_solver(regen=False).solve(T)
+    np.testing.assert_array_equal(plan.s, plain.s)
+    np.testing.assert_array_equal(plan.v, plain.v)
