@@ -3,9 +3,20 @@
 from __future__ import annotations
 
 import numpy as np
+from powercases import metro_network
 
+from trainsim.power.limits import regen_acceptance, traction_availability
 from trainsim.power.rail import segment_leakage_a
-from trainsim.power.solver import _bins, _injection, _injection_into, _potential, _with_earth
+from trainsim.power.solver import (
+    _bins,
+    _dc_load_residual,
+    _injection,
+    _injection_into,
+    _Pattern,
+    _potential,
+    _with_earth,
+    assemble,
+)
 
 
 def test_potentials_with_the_earth_appended_equal_the_masked_gather():
@@ -44,3 +55,45 @@ def test_rail_leakage_is_elementwise():
     np.testing.assert_array_equal(together, alone)
     assert np.any(va * vb < 0) and np.all(together >= 0)
     assert np.ndim(segment_leakage_a(1.0, 2.0, 100.0, 1e-5, 1e-7)) == 0
+
+
+def test_compiled_dc_residual_equals_the_numpy_form():
+    """The residual kernel against the numpy operations it replaces (gathers, EN 50388 / EN 50163
+    ramps, bincounts): the same doubles, on a metro network with trains on the ramps and beyond."""
+    net = metro_network(reversible=True)
+    lim = net.limits
+    rng = np.random.default_rng(5)
+    m = 40
+    track = rng.integers(0, 2, size=m)
+    position = rng.uniform(0.0, net.tracks[0].end_m, size=m)
+    asm = assemble(net, track, position)
+    n = asm.n
+    sub_p = np.array([net.topology.substation_nodes[i][0] for i in range(len(net.substations))])
+    sub_n = np.array([net.topology.substation_nodes[i][1] for i in range(len(net.substations))])
+    ys = np.full(len(sub_p), 1 / 0.03)
+    pattern = _Pattern(n, [(asm.a, asm.b), (sub_p, sub_n), (asm.train_c, asm.train_r)])
+    j_src = rng.normal(size=n) * 1e4
+    tw, aux, rw = rng.uniform(0, 3e6, m), np.full(m, 5e4), rng.uniform(0, 2e6, m)
+    tc, tr = asm.train_c, asm.train_r
+    # contact potentials spread over the traction ramp, the curtailment ramp and beyond both
+    v = np.where(np.isin(np.arange(n), asm.rail_nodes), rng.normal(size=n) * 5.0, rng.uniform(400, 1100, n))
+    u_floor = 1e-3 * lim.nominal_v
+    f, uu, p = _dc_load_residual(
+        v, tc, tr, np.where(tc < 0, n, tc), np.where(tr < 0, n, tr), *pattern.weights(0, asm.y),
+        *pattern.weights(1, ys), j_src, tw, aux, rw, u_floor, lim.min1_v, lim.traction_full_v,
+        lim.regen_full_v, lim.regen_zero_v,
+    )  # fmt: skip
+    u = _potential(v, tc) - _potential(v, tr)
+    uu_ref = np.maximum(u, u_floor)
+    a_s = traction_availability(uu_ref, lim.min1_v, lim.traction_full_v)
+    r_s = regen_acceptance(uu_ref, lim.regen_full_v, lim.regen_zero_v)
+    p_ref = tw * a_s + aux - rw * r_s
+    i_t = p_ref / uu_ref
+    f_ref = (
+        pattern.matvec(0, asm.y, v) + pattern.matvec(1, ys, v) - j_src
+        + _injection(n, tc, i_t, float) - _injection(n, tr, i_t, float)
+    )  # fmt: skip
+    assert np.sum((a_s > 0) & (a_s < 1)) > 0 or np.sum((r_s > 0) & (r_s < 1)) > 0
+    np.testing.assert_array_equal(uu, uu_ref)
+    np.testing.assert_array_equal(p, p_ref)
+    np.testing.assert_array_equal(f, f_ref)

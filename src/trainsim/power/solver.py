@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 from scipy.sparse.linalg import splu
 
 from trainsim.power.limits import (
@@ -348,6 +349,52 @@ def _injection_into(n: int, bins: np.ndarray, values: np.ndarray) -> np.ndarray:
     return np.bincount(bins, weights=values, minlength=n + 1)[:n]
 
 
+@njit(cache=True, error_model="numpy")
+def _dc_load_residual(
+    v, tc, tr, tc_bins, tr_bins, rows0, cols0, w0, rows1, cols1, w1, j_src,
+    traction_w, auxiliary_w, regen_w, u_floor, min1_v, full_v, regen_full_v, regen_zero_v,
+):  # fmt: skip
+    """The DC residual of the lines, the linear sources and the trains (constant-power loads on the
+    EN 50388 / EN 50163 ramps), and each train's voltage uu (floored) and power p: the operations of
+    the numpy form (gathers, clips, bincounts in input order, then ((L + S) - J) + A - B), one by
+    one in the same order, so the same doubles bit for bit, without its dozens of array temporaries
+    per call (the network of a metro line has about a hundred nodes: the calls cost more than the
+    arithmetic)."""
+    n = len(j_src)
+    m = len(tc)
+    uu = np.empty(m)
+    p = np.empty(m)
+    ramp = full_v - min1_v
+    regen_ramp = regen_zero_v - regen_full_v
+    inj = np.zeros(n + 1)
+    out = np.zeros(n + 1)
+    for k in range(m):
+        vc = v[tc[k]] if tc[k] >= 0 else 0.0
+        vr = v[tr[k]] if tr[k] >= 0 else 0.0
+        u = vc - vr
+        u = u if u >= u_floor else u_floor
+        a = (u - min1_v) / ramp
+        a = min(max(a, 0.0), 1.0)
+        r = (regen_zero_v - u) / regen_ramp
+        r = min(max(r, 0.0), 1.0)
+        uu[k] = u
+        p[k] = traction_w[k] * a + auxiliary_w[k] - regen_w[k] * r
+    lines = np.zeros(n)
+    for k in range(len(rows0)):
+        lines[rows0[k]] += w0[k] * v[cols0[k]]
+    subs = np.zeros(n)
+    for k in range(len(rows1)):
+        subs[rows1[k]] += w1[k] * v[cols1[k]]
+    for k in range(m):
+        inj[tc_bins[k]] += p[k] / uu[k]
+    for k in range(m):
+        out[tr_bins[k]] += p[k] / uu[k]
+    f = np.empty(n)
+    for i in range(n):
+        f[i] = (((lines[i] + subs[i]) - j_src[i]) + inj[i]) - out[i]
+    return f, uu, p
+
+
 def _potential(v: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     out = np.zeros(len(nodes), dtype=v.dtype)
     ok = nodes >= 0
@@ -408,18 +455,11 @@ class _Pattern:
         rows, cols, take, sign = self.parts[k]
         return np.bincount(rows, weights=y[take] * sign * v[cols], minlength=self.n)
 
-    def fixed_matvec(self, k: int, y: np.ndarray):
-        """``v -> self.matvec(k, y, v)`` for admittances ``y`` that stay the same over many
-        products: the signed element weights are formed once (the same products in the same order,
-        so the result is bit for bit that of :meth:`matvec`)."""
+    def weights(self, k: int, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(rows, cols, signed element weights) of part k with admittances y: ``matvec`` is the
+        bincount of ``weights * v[cols]`` over ``rows``."""
         rows, cols, take, sign = self.parts[k]
-        w = y[take] * sign
-        n = self.n
-
-        def product(v: np.ndarray) -> np.ndarray:
-            return np.bincount(rows, weights=w * v[cols], minlength=n)
-
-        return product
+        return rows, cols, y[take] * sign
 
 
 @dataclass(frozen=True)
@@ -739,26 +779,21 @@ def _newton_dc(
     ftol = CURRENT_TOLERANCE_SHARE * max(float(np.sum(np.abs(e * ys))), 1.0)
     # the residual is evaluated a few times per Newton iteration: what does not depend on v is
     # formed once (the same operations in the same order as before, so the same figures bit for bit)
-    lines_times, subs_times = pattern.fixed_matvec(0, asm.y), pattern.fixed_matvec(1, ys_on)
     tc_bins, tr_bins = _bins(tc, n), _bins(tr, n)
     dp_bins, dn_bins = _bins(dp_, n), _bins(dn_, n)
     st_c_bins, st_r_bins = _bins(st_c, n), _bins(st_r, n)
 
+    kernel_args = (
+        tc, tr, tc_bins, tr_bins, *pattern.weights(0, asm.y), *pattern.weights(1, ys_on), j_src,
+        np.asarray(loads.traction_w, dtype=float), np.asarray(loads.auxiliary_w, dtype=float),
+        np.asarray(loads.regen_w, dtype=float), float(u_floor), float(lim.min1_v), float(lim.traction_full_v),
+        float(lim.regen_full_v), float(lim.regen_zero_v),
+    )  # fmt: skip
+
     def residual(v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        ve = _with_earth(v)
-        u = ve[tc] - ve[tr]
-        uu = np.maximum(u, u_floor)
-        a_s = traction_availability(uu, lim.min1_v, lim.traction_full_v)
-        r_s = regen_acceptance(uu, lim.regen_full_v, lim.regen_zero_v)
-        p = loads.traction_w * a_s + loads.auxiliary_w - loads.regen_w * r_s
-        i_t = p / uu
-        f = (
-            lines_times(v)
-            + subs_times(v)
-            - j_src
-            + _injection_into(n, tc_bins, i_t)
-            - _injection_into(n, tr_bins, i_t)
-        )
+        f, uu, p = _dc_load_residual(v, *kernel_args)
+        if len(de) or len(st_c):
+            ve = _with_earth(v)
         if len(de):
             x, _ = asm.sources.x(d_index, de, ve[dp_] - ve[dn_])
             forward = np.where(d_exact, x, _smooth_max(x, delta))
