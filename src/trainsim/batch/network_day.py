@@ -5,18 +5,22 @@ Dask cluster with the same results.
 The unit of work is one line on one day (``line_day``): it reads its operation file, samples the day
 (sample ``k`` of ``n`` uses the ``k``-th stream spawned from the seed, exactly as
 ``trainsim.io.operation_run.monte_carlo``) and simulates it. Lines of a network are simulated
-independently: trains do not pass from one file's line to another's.
+independently, except where a file's ``connections`` make a train wait at its origin for a train of
+another file's line (a passenger connection, or the same unit turning round): the lines so joined
+are simulated together, feeders first, and a late feeder makes the waiting train late (knock-on). Each
+line keeps its own sampled stream, so a line's disturbances do not depend on the lines it is joined to.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from trainsim.errors import InputError
+from trainsim.errors import InputError, Problem
 from trainsim.io.operation_file import read_operation
 from trainsim.io.operation_run import delay_stats, run_operation
 
@@ -28,12 +32,38 @@ CONNECT_TIMEOUT_S = 10
 STATUS_ORDER = ("ok", "conflicts", "stalled", "deadlock")
 
 
+#: Arrivals of the trains of the lines simulated so far: (line name, train, station) -> time [s], None
+#: when the train did not arrive there.
+Arrivals = dict[tuple[str, str, str], float | None]
+
+
 def line_day(
     path: str, sample: int | None = None, samples: int = 0, seed: int | None = None
 ) -> dict[str, Any]:
     """Simulate one line's day: the file's own timetable (``sample`` None) or sample ``sample`` of
     ``samples`` sampled days (seed: ``seed``, default the file's). Returns a picklable summary: per
-    train its delay [s] and operated energy [kWh], the status, totals and the run-cache counts."""
+    train its delay [s] and operated energy [kWh], the status, totals and the run-cache counts. The
+    file's connections are not applied (``lines_day`` applies them)."""
+    return _line_day(path, sample, samples, seed, None)[0]
+
+
+def lines_day(
+    paths: Sequence[str], sample: int | None = None, samples: int = 0, seed: int | None = None
+) -> list[dict[str, Any]]:
+    """``line_day`` of each of ``paths`` in turn (feeders first), each line's trains waiting for the
+    feeders of its connections as the lines before it ran them."""
+    arrivals: Arrivals = {}
+    out = []
+    for path in paths:
+        day, found = _line_day(path, sample, samples, seed, arrivals)
+        arrivals.update(found)
+        out.append(day)
+    return out
+
+
+def _line_day(
+    path: str, sample: int | None, samples: int, seed: int | None, arrivals: Arrivals | None
+) -> tuple[dict[str, Any], Arrivals]:
     op = read_operation(path)
     services = op.services
     if sample is not None:
@@ -45,7 +75,30 @@ def line_day(
         base = sampler.seed if seed is None else seed
         stream = np.random.SeedSequence(base).spawn(samples)[sample]
         services = sampler.sample(op.given_services, np.random.default_rng(stream))
+    knock_on = []
+    if arrivals is not None:
+        services = list(services)
+        for c in op.connections:
+            k = next(i for i, svc in enumerate(services) if svc.id == c.train)
+            svc = services[k]
+            station = c.station or _destination(c, arrivals)
+            arrived = arrivals[(c.line, c.feeder, station)]
+            entry = {"train": c.train, "line": c.line, "feeder": c.feeder, "station": station}
+            if arrived is None:
+                # the feeder never arrives: the train leaves as planned (the feeder's line is not ok)
+                knock_on.append({**entry, "feeder_arrival_s": None, "delay_s": None})
+                continue
+            late = arrived + c.min_s - (svc.departure_s + svc.entry_delay_s)
+            if late > 0:
+                services[k] = replace(svc, entry_delay_s=svc.entry_delay_s + late)
+            knock_on.append({**entry, "feeder_arrival_s": float(arrived), "delay_s": float(max(late, 0.0))})
     res = run_operation(op, services, conflicts=sample is None, headways=False)
+    found: Arrivals = {
+        (op.name, t.id, s.station): (float(s.arrival_s) if s.arrival_s is not None else None)
+        for t in res.trains
+        for s in t.stops
+        if s.kind != "origin"
+    }
     trains = [
         {
             "id": t.id,
@@ -55,7 +108,7 @@ def line_day(
         }
         for t in res.trains
     ]
-    return {
+    summary = {
         "file": str(path),
         "line": op.name,
         "sample": sample,
@@ -65,6 +118,88 @@ def line_day(
         "total_delay_s": float(sum(t.delay_s for t in res.trains if np.isfinite(t.delay_s))),
         "energy_kwh": float(sum(t.energy_kwh for t in res.trains if np.isfinite(t.energy_kwh))),
     }
+    if op.connections:
+        summary["knock_on"] = knock_on
+    return summary, found
+
+
+def _destination(c: Any, arrivals: Arrivals) -> str:
+    """The destination of the feeder of connection ``c``: the last station it has an arrival at
+    (a train's stops end at its destination)."""
+    stations = [st for (ln, tr, st) in arrivals if ln == c.line and tr == c.feeder]
+    return stations[-1]
+
+
+def _groups(files: Sequence[str]) -> list[tuple[str, ...]]:
+    """The files as groups simulated together: the files joined by connections (feeders first), every
+    other file alone; in the order of their first file. Bad connections are refused."""
+    ops = {f: read_operation(f) for f in files}
+    if not any(op.connections for op in ops.values()):
+        return [(f,) for f in files]
+    by_name: dict[str, list[str]] = {}
+    for f, op in ops.items():
+        by_name.setdefault(op.name, []).append(f)
+    feeders: dict[str, set[str]] = {f: set() for f in files}
+    problems: list[Problem] = []
+    for f, op in ops.items():
+        for i, c in enumerate(op.connections):
+            where = f"connections[{i}]"
+            found = by_name.get(c.line, [])
+            if len(found) != 1:
+                problems.append(
+                    Problem("no line of that name" if not found else "several lines have that name",
+                            file=f, field=f"{where}.line", value=c.line,
+                            allowed="the name of exactly one other file's line: " + ", ".join(sorted(by_name)))
+                )  # fmt: skip
+                continue
+            other = ops[found[0]]
+            svc = next((x for x in other.services if x.id == c.feeder), None)
+            if svc is None:
+                problems.append(
+                    Problem("unknown feeder train", file=f, field=f"{where}.feeder", value=c.feeder,
+                            allowed=f"a train of '{c.line}'")
+                )  # fmt: skip
+                continue
+            stations = [x.station for x in svc.stops if x.station != svc.destination] + [svc.destination]
+            if c.station is not None and c.station not in stations:
+                problems.append(
+                    Problem("the feeder does not stop there", file=f, field=f"{where}.station",
+                            value=c.station, allowed=", ".join(stations))
+                )  # fmt: skip
+                continue
+            feeders[f].add(found[0])
+    if problems:
+        raise InputError.from_problems(problems)
+    # joined files: union of the connections in either direction
+    parent = {f: f for f in files}
+
+    def root(f: str) -> str:
+        while parent[f] != f:
+            f = parent[f]
+        return f
+
+    for f, ups in feeders.items():
+        for u in ups:
+            parent[root(u)] = root(f)
+    groups: dict[str, list[str]] = {}
+    for f in files:
+        groups.setdefault(root(f), []).append(f)
+    out = []
+    for members in groups.values():
+        order: list[str] = []
+        todo = list(members)
+        while todo:
+            ready = [f for f in todo if feeders[f] <= set(order)]
+            if not ready:
+                raise InputError(
+                    "connections form a cycle: each of these lines waits for another of them",
+                    field="connections", value=[ops[f].name for f in todo],
+                    allowed="feeders that do not wait, directly or not, for the lines they feed",
+                )  # fmt: skip
+            order.extend(ready)
+            todo = [f for f in todo if f not in ready]
+        out.append(tuple(order))
+    return out
 
 
 def _tasks(files: Sequence[str | Path], samples: int, seed: int | None) -> list[tuple]:
@@ -82,9 +217,10 @@ def _tasks(files: Sequence[str | Path], samples: int, seed: int | None) -> list[
                 raise InputError(
                     "sampled days need a 'delays' or 'disturbances' block", file=str(f), field="delays"
                 )
+    groups = _groups([str(f) for f in files])
     if samples == 0:
-        return [(str(f), None, 0, seed) for f in files]
-    return [(str(f), k, samples, seed) for f in files for k in range(samples)]
+        return [(g, None, 0, seed) for g in groups]
+    return [(g, k, samples, seed) for g in groups for k in range(samples)]
 
 
 def network_day(
@@ -98,10 +234,16 @@ def network_day(
     totals ``total_delay_s`` and ``energy_kwh`` over all line-days."""
     tasks = _tasks(files, samples, seed)
     if client is None:
-        days = [line_day(*t) for t in tasks]
+        done = [lines_day(*t) for t in tasks]
     else:
-        futures = client.map(line_day, *zip(*tasks, strict=True), pure=False)
-        days = client.gather(futures)
+        futures = client.map(lines_day, *zip(*tasks, strict=True), pure=False)
+        done = client.gather(futures)
+    # back in the order of the files and samples
+    by_key: dict[tuple[str, int | None], list[dict[str, Any]]] = {}
+    for group in done:
+        for d in group:
+            by_key.setdefault((d["file"], d["sample"]), []).append(d)
+    days = [by_key[(str(f), k)].pop(0) for f in files for k in (range(samples) if samples else [None])]
     worst = max((d["status"] for d in days), key=lambda s: STATUS_ORDER.index(s) if s in STATUS_ORDER else 99)
     return {
         "status": worst,
@@ -203,4 +345,4 @@ def run_network_day(
         return network_day(files, samples, seed, client=client)
 
 
-__all__ = ["line_day", "line_statistics", "network_day", "run_network_day"]
+__all__ = ["line_day", "line_statistics", "lines_day", "network_day", "run_network_day"]

@@ -165,6 +165,14 @@ class _Settings(_Spec):
     braking_fraction: float = 1.0
 
 
+class _Connection(_Spec):
+    train: str
+    line: str
+    feeder: str
+    station: str | None = None
+    min_s: float = 0.0
+
+
 class _Operation(_Spec):
     schema_: str
     version: int
@@ -178,6 +186,7 @@ class _Operation(_Spec):
     disturbances: dict[str, Any] | None = None
     compare_systems: list[Literal["fixed_block", "etcs_l2", "moving_block"]] = []
     pattern_period_s: float | None = None
+    connections: list[_Connection] = []
 
 
 @dataclass(frozen=True)
@@ -198,6 +207,31 @@ class DelayModel:
             extra = float(size) if late < self.probability else 0.0
             out.append(replace(svc, entry_delay_s=svc.entry_delay_s + extra))
         return out
+
+
+@dataclass(frozen=True)
+class Connection:
+    """A train of this line that leaves its origin only when a train of another line (an operation
+    file of the same network-day, by its ``name``) has arrived somewhere, plus a least time: a
+    passenger connection or a turnaround of the same unit (``trainsim.batch.network_day``).
+
+    Attributes:
+        train: the id of the waiting train (this file's).
+        line: the name of the other file's line.
+        feeder: the id of the train there it waits for.
+        station: where the feeder arrives (None: its destination).
+        min_s: the least time from the feeder's arrival to the waiting train's departure [s].
+    """
+
+    train: str
+    line: str
+    feeder: str
+    station: str | None
+    min_s: float
+
+
+#: The longest least time of a connection [s] (a day).
+MAX_CONNECTION_S = 86_400.0
 
 
 @dataclass
@@ -221,6 +255,8 @@ class Operation:
     given_services: list[TrainService] = field(default_factory=list)
     #: sampled entry, dwell and running-time disturbances (instead of ``delays``)
     disturbances: Disturbances | None = None
+    #: trains that wait for trains of other lines (used by a network-day)
+    connections: tuple[Connection, ...] = ()
 
     def with_system(self, system: str) -> Line:
         """The same line with another train separation."""
@@ -492,6 +528,7 @@ def read_operation(path: str | Path) -> Operation:
                 field="disturbances",
             )
         disturbances = disturbances_from_dict(spec.disturbances, file)
+    connections = _connections(spec, services, file)
     given = list(services)
     sampler = disturbances if disturbances is not None else delays
     if sampler is not None:
@@ -499,8 +536,37 @@ def read_operation(path: str | Path) -> Operation:
     return Operation(
         spec.name, file, line, geometry, services, settings, spec.dispatching.rule, etcs,
         list(spec.compare_systems), spec.pattern_period_s, spec.dispatching.lookahead_s, line_args, delays,
-        given, disturbances,
+        given, disturbances, connections,
     )  # fmt: skip
+
+
+def _connections(spec: _Operation, services: list[TrainService], file: str) -> tuple[Connection, ...]:
+    """The file's connections, each checked on its own (the other line is checked by the
+    network-day that has it)."""
+    ids = [s.id for s in services]
+    problems: list[Problem] = []
+    out = []
+    for i, c in enumerate(spec.connections):
+        where = f"connections[{i}]"
+        if c.train not in ids:
+            problems.append(
+                Problem("unknown train", file=file, field=f"{where}.train", value=c.train,
+                        allowed=", ".join(ids[:20]) + (" ..." if len(ids) > 20 else ""))
+            )  # fmt: skip
+        if c.line == spec.name:
+            problems.append(
+                Problem("a train waits for a train of another line", file=file, field=f"{where}.line",
+                        value=c.line, allowed="the name of another operation file's line")
+            )  # fmt: skip
+        if not (np.isfinite(c.min_s) and 0.0 <= c.min_s <= MAX_CONNECTION_S):
+            problems.append(
+                Problem("invalid connection time", file=file, field=f"{where}.min_s", value=c.min_s,
+                        allowed=f"0 .. {MAX_CONNECTION_S:g} s")
+            )  # fmt: skip
+        out.append(Connection(c.train, c.line, c.feeder, c.station, float(c.min_s)))
+    if problems:
+        raise InputError.from_problems(problems)
+    return tuple(out)
 
 
 def _railml_line(railml: _Railml, base: Path, file: str, problems: list[Problem]):
