@@ -160,7 +160,7 @@ def _forces(mode, E, u, lw, level, P, curves, vref=-1.0):
     return acc, ft, fb, fr, running, grad, ct
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _rk4_works(E, u, h, n, mode, lw, level, P, curves, W, vref):
     """Integrate E and the works over [u, u + h] with n RK4 sub-steps, adding the works to W;
     returns E at the end (not clipped at 0)."""
@@ -219,7 +219,7 @@ def _distance_to_speed(E, u, Et, mode, lw, level, P, curves):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _substeps(E, u, h, mode, lw, level, P, curves):
     """Number of RK4 sub-steps over a length h [m] from (u, E): steps of at most ``MAX_SUBSTEP_M``
     and at most ``LENGTH_SCALE_FRACTION`` of the motion's length scale v^2 / |a| (E(s) is analytic
@@ -234,7 +234,7 @@ def _substeps(E, u, h, mode, lw, level, P, curves):
     return min(max(n, 1), MAX_SUBSTEPS)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _dynamic_piece(E, u, h, mode, lw, level, P, curves, kinks, W, v_hint):
     """Works over [u, u + h] along ``mode`` from E, restarted at every kink speed between the
     start speed and ``v_hint`` (the speed the trace records at the stretch's end; a kink just beyond
@@ -245,26 +245,36 @@ def _dynamic_piece(E, u, h, mode, lw, level, P, curves, kinks, W, v_hint):
     # the trace's end speed is exact to about 1e-8 m/s: a kink within KINK_MARGIN_MPS of it is the end
     margin = KINK_MARGIN_MPS * (1.0 + v_hint)
     v_far = v_hint + margin if rising else v_hint - margin
-    for _ in range(len(kinks) + 2):
-        vk = kernel._next_kink(v0, rising, v_far, kinks)
+    # one call site of the (inlined) sub-step count and integration: every piece goes through it
+    n_tries = len(kinks) + 2
+    for attempt in range(n_tries + 1):
+        vk = -1.0
         hk = np.inf
-        if vk >= 0.0 and abs(vk - v_hint) > margin:
-            hk = _distance_to_speed(E, u, 0.5 * vk * vk, mode, lw, level, P, curves)
-        if not (0.0 < hk < remaining - kernel.POSITION_TOLERANCE):
+        if attempt == n_tries:
+            # kinks left after every try: the rest in one piece, on no particular branch
+            final, h_piece, vref = True, remaining, -1.0
+        else:
+            vk = kernel._next_kink(v0, rising, v_far, kinks)
+            if vk >= 0.0 and abs(vk - v_hint) > margin:
+                hk = _distance_to_speed(E, u, 0.5 * vk * vk, mode, lw, level, P, curves)
             # no kink inside: one smooth piece to the end (a kink at its very end is not crossed)
-            v_end = v_hint
-            if vk >= 0.0 and (v_hint > vk if rising else v_hint < vk):
-                v_end = vk
-            n = _substeps(E, u, remaining, mode, lw, level, P, curves)
-            return _rk4_works(E, u, remaining, n, mode, lw, level, P, curves, W, 0.5 * (v0 + v_end))
-        n = _substeps(E, u, hk, mode, lw, level, P, curves)
-        _rk4_works(E, u, hk, n, mode, lw, level, P, curves, W, 0.5 * (v0 + vk))
+            final = not (0.0 < hk < remaining - kernel.POSITION_TOLERANCE)
+            if final:
+                v_end = v_hint
+                if vk >= 0.0 and (v_hint > vk if rising else v_hint < vk):
+                    v_end = vk
+                h_piece, vref = remaining, 0.5 * (v0 + v_end)
+            else:
+                h_piece, vref = hk, 0.5 * (v0 + vk)
+        n = _substeps(E, u, h_piece, mode, lw, level, P, curves)
+        E_piece = _rk4_works(E, u, h_piece, n, mode, lw, level, P, curves, W, vref)
+        if final:
+            return E_piece
         E = 0.5 * vk * vk
         v0 = vk
         u += hk
         remaining -= hk
-    n = _substeps(E, u, remaining, mode, lw, level, P, curves)
-    return _rk4_works(E, u, remaining, n, mode, lw, level, P, curves, W, -1.0)
+    return E
 
 
 @njit(cache=True)
@@ -280,7 +290,7 @@ def _integral_min_linear(b_a, b_b, cap, h):
     return cap * z + 0.5 * (cap + b_b) * (h - z)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _cruise_piece(E, u, h, lw, P, curves, W):
     """Works over [u, u + h] at constant speed: the force that holds it, R(v) + m (g_l(u) + k(u) v^2),
     is linear in u; its positive part is traction, its negative part braking (split at its zero),
@@ -378,7 +388,7 @@ OFF_REGIME_SPEED_MPS = 1e-5
 OFF_REGIME_RELATIVE = 1e-6
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _piece_loop(k, s, v, mode, level, lx, laws, P, curves, tk, bk, rk, row, acc_follow):
     """Integrate stretch k piece by piece of the line laws; returns E at its end."""
     g0, g1, c0, c1, k0, k1, avail = laws
@@ -432,19 +442,28 @@ def stretch_works(s, v, regime, level, lx, laws, P, curves, tk, bk, rk):
             v_end[k] = v[k + 1] if mode == DWELL else v[k]
             continue
         acc_follow = (0.5 * v[k + 1] * v[k + 1] - 0.5 * v[k] * v[k]) / h_total
-        E = _piece_loop(k, s, v, mode, level[k], lx, laws, P, curves, tk, bk, rk, W[k], acc_follow)
-        ve = np.sqrt(2.0 * E) if E > 0.0 else 0.0
-        # compared as kinetic energy per mass (E < 0: the regime stops the train before the end), with
-        # a tolerance of OFF_REGIME_SPEED_MPS in speed at the stretch's speed (dE = v dv)
-        v_max = max(v[k], v[k + 1])
-        tol = (OFF_REGIME_SPEED_MPS + OFF_REGIME_RELATIVE * v_max) * v_max + 1e-12
-        if mode != FOLLOW and abs(E - 0.5 * v[k + 1] * v[k + 1]) > tol:
+        ve = 0.0
+        # one call site of the (inlined) piece loop: the regime's motion, then, if it does not lead
+        # to the stretch's end, the recorded motion
+        for attempt in range(2):
+            E = _piece_loop(
+                k, s, v, mode if attempt == 0 else FOLLOW, level[k] if attempt == 0 else 1.0,
+                lx, laws, P, curves, tk, bk, rk, W[k], acc_follow,
+            )  # fmt: skip
+            if attempt == 1:
+                break
+            ve = np.sqrt(2.0 * E) if E > 0.0 else 0.0
+            # compared as kinetic energy per mass (E < 0: the regime stops the train before the end),
+            # with a tolerance of OFF_REGIME_SPEED_MPS in speed at the stretch's speed (dE = v dv)
+            v_max = max(v[k], v[k + 1])
+            tol = (OFF_REGIME_SPEED_MPS + OFF_REGIME_RELATIVE * v_max) * v_max + 1e-12
+            if not (mode != FOLLOW and abs(E - 0.5 * v[k + 1] * v[k + 1]) > tol):
+                break
             # the recorded motion is not this regime's (e.g. a stop reached later than full braking
             # would reach it): the forces are those the recorded motion needs
             off[k] = True
             for q in range(N_WORKS):
                 W[k, q] = 0.0
-            _piece_loop(k, s, v, FOLLOW, 1.0, lx, laws, P, curves, tk, bk, rk, W[k], acc_follow)
         v_end[k] = ve
     return W, v_end, off
 
