@@ -97,3 +97,52 @@ def test_compiled_dc_residual_equals_the_numpy_form():
     np.testing.assert_array_equal(uu, uu_ref)
     np.testing.assert_array_equal(p, p_ref)
     np.testing.assert_array_equal(f, f_ref)
+
+
+def _pattern_reference(n, pairs):
+    """The numpy form the compiled stamping replaced."""
+    parts, rows_all, cols_all = [], [], []
+    for a, b in pairs:
+        ma, mb = a >= 0, b >= 0
+        both = ma & mb
+        ia, ib, iboth = np.flatnonzero(ma), np.flatnonzero(mb), np.flatnonzero(both)
+        rows = np.concatenate([a[ia], b[ib], a[iboth], b[iboth]])
+        cols = np.concatenate([a[ia], b[ib], b[iboth], a[iboth]])
+        take = np.concatenate([ia, ib, iboth, iboth])
+        sign = np.concatenate([np.ones(len(ia) + len(ib)), -np.ones(2 * len(iboth))])
+        parts.append((rows, cols, take, sign))
+        rows_all.append(rows)
+        cols_all.append(cols)
+    key = np.concatenate(cols_all).astype(np.int64) * n + np.concatenate(rows_all)
+    uniq, inv = np.unique(key, return_inverse=True)
+    return parts, uniq, inv
+
+
+def test_compiled_pattern_equals_the_numpy_stamping():
+    rng = np.random.default_rng(13)
+    n = 60
+    pairs = [
+        (rng.integers(-1, n, 200), rng.integers(-1, n, 200)),  # branches, some to earth
+        (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)),  # an empty part
+        (rng.integers(0, n, 25), np.full(25, -1)),  # all to earth
+        (rng.integers(0, n, 9), rng.integers(0, n, 9)),
+    ]
+    pattern = _Pattern(n, pairs)
+    parts, uniq, inv = _pattern_reference(n, pairs)
+    assert pattern.nnz == len(uniq)
+    bounds = np.cumsum([0] + [len(p[0]) for p in parts])
+    for k, ref in enumerate(parts):
+        for got, want in zip(pattern.parts[k], ref, strict=True):
+            np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(pattern.slots[k], inv[bounds[k] : bounds[k + 1]])
+    np.testing.assert_array_equal(pattern.matrix.indices, (uniq % n).astype(np.int32))
+    # the matrix it builds is the sum of the stamps
+    y = [rng.uniform(1.0, 2.0, len(a)) for a, _ in pairs]
+    pattern.matrix.data[:] = sum(pattern.values(k, y[k]) for k in range(len(pairs)))
+    dense = np.zeros((n, n))
+    for (a, b), yk in zip(pairs, y, strict=True):
+        for i, j, g in zip(a, b, yk, strict=True):
+            for p, q, s in ((i, i, 1), (j, j, 1), (i, j, -1), (j, i, -1)):
+                if p >= 0 and q >= 0:
+                    dense[p, q] += s * g
+    np.testing.assert_allclose(pattern.matrix.toarray(), dense, rtol=1e-13, atol=1e-12)

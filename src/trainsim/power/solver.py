@@ -22,6 +22,7 @@ factorisation per step (simplified impedance model). Convergence is checked on e
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 import scipy.sparse as sp
@@ -413,6 +414,64 @@ def _injection(n: int, nodes: np.ndarray, values: np.ndarray, dtype) -> np.ndarr
     return np.bincount(nodes[ok], weights=np.asarray(values, dtype=float)[ok], minlength=n)
 
 
+@njit(cache=True)
+def _stamp_pattern(a, b, starts, n):
+    """The COO entries of the two-terminal stamps of parts ``a[starts[k]:starts[k + 1]]`` -
+    ``b[...]`` (node ids, -1 earth) and their places in the CSC pattern.
+
+    Per part, in this order: ``a`` to itself where ``a`` is a node, ``b`` to itself where ``b`` is,
+    then ``a`` to ``b`` and ``b`` to ``a`` where both are (sign -1); ``take`` is the element index
+    within its part. Returns (rows, cols, take, sign, bounds, uniq, inv): ``bounds`` the parts'
+    ranges in the entries, ``uniq`` the sorted distinct keys ``col * n + row``, ``inv`` each
+    entry's index in ``uniq`` (what ``np.unique(key, return_inverse=True)`` gives: the inverse does
+    not depend on how equal keys are ordered by the sort)."""
+    n_parts = len(starts) - 1
+    total = 0
+    for i in range(starts[n_parts]):
+        if a[i] >= 0:
+            total += 1
+        if b[i] >= 0:
+            total += 1
+        if a[i] >= 0 and b[i] >= 0:
+            total += 2
+    rows = np.empty(total, np.int64)
+    cols = np.empty(total, np.int64)
+    take = np.empty(total, np.int64)
+    sign = np.empty(total)
+    bounds = np.empty(n_parts + 1, np.int64)
+    pos = 0
+    for k in range(n_parts):
+        bounds[k] = pos
+        lo, hi = starts[k], starts[k + 1]
+        for group in range(4):
+            for i in range(lo, hi):
+                if group == 0 and a[i] >= 0:
+                    rows[pos], cols[pos], sign[pos] = a[i], a[i], 1.0
+                elif group == 1 and b[i] >= 0:
+                    rows[pos], cols[pos], sign[pos] = b[i], b[i], 1.0
+                elif group == 2 and a[i] >= 0 and b[i] >= 0:
+                    rows[pos], cols[pos], sign[pos] = a[i], b[i], -1.0
+                elif group == 3 and a[i] >= 0 and b[i] >= 0:
+                    rows[pos], cols[pos], sign[pos] = b[i], a[i], -1.0
+                else:
+                    continue
+                take[pos] = i - lo
+                pos += 1
+    bounds[n_parts] = pos
+    key = cols * n + rows
+    order = np.argsort(key)
+    inv = np.empty(total, np.int64)
+    uniq = np.empty(total, np.int64)
+    m = -1
+    for j in range(total):
+        kj = key[order[j]]
+        if m < 0 or kj != uniq[m]:
+            m += 1
+            uniq[m] = kj
+        inv[order[j]] = m
+    return rows, cols, take, sign, bounds, uniq[: m + 1].copy(), inv
+
+
 class _Pattern:
     """A fixed sparsity pattern in CSC order, assembled from two-terminal stamps: the matrix is
     built once and only its values change between Newton iterations (no sparse-format
@@ -420,26 +479,16 @@ class _Pattern:
 
     def __init__(self, n: int, pairs: list[tuple[np.ndarray, np.ndarray]]) -> None:
         self.n = n
-        self.parts = []
-        rows_all, cols_all = [], []
-        for a, b in pairs:
-            ma, mb = a >= 0, b >= 0
-            both = ma & mb
-            ia, ib, iboth = np.flatnonzero(ma), np.flatnonzero(mb), np.flatnonzero(both)
-            rows = np.concatenate([a[ia], b[ib], a[iboth], b[iboth]])
-            cols = np.concatenate([a[ia], b[ib], b[iboth], a[iboth]])
-            take = np.concatenate([ia, ib, iboth, iboth])
-            sign = np.concatenate([np.ones(len(ia) + len(ib)), -np.ones(2 * len(iboth))])
-            self.parts.append((rows, cols, take, sign))
-            rows_all.append(rows)
-            cols_all.append(cols)
-        rows = np.concatenate(rows_all)
-        cols = np.concatenate(cols_all)
-        key = cols.astype(np.int64) * n + rows
-        uniq, inv = np.unique(key, return_inverse=True)
+        lengths = [len(a) for a, _ in pairs]
+        starts = np.cumsum([0, *lengths]).astype(np.int64)
+        a_all = np.concatenate([np.asarray(a, dtype=np.int64) for a, _ in pairs])
+        b_all = np.concatenate([np.asarray(b, dtype=np.int64) for _, b in pairs])
+        rows, cols, take, sign, bounds, uniq, inv = _stamp_pattern(a_all, b_all, starts, n)
+        self.parts = [
+            (rows[lo:hi], cols[lo:hi], take[lo:hi], sign[lo:hi]) for lo, hi in pairwise(bounds.tolist())
+        ]
         self.nnz = len(uniq)
-        bounds = np.cumsum([0] + [len(p[0]) for p in self.parts])
-        self.slots = [inv[bounds[k] : bounds[k + 1]] for k in range(len(self.parts))]
+        self.slots = [inv[lo:hi] for lo, hi in pairwise(bounds.tolist())]
         indptr = np.concatenate([[0], np.cumsum(np.bincount(uniq // n, minlength=n))])
         self.matrix = sp.csc_matrix(
             (np.zeros(self.nnz), (uniq % n).astype(np.int32), indptr.astype(np.int32)), shape=(n, n)
