@@ -116,3 +116,17 @@ def test_the_capped_runs_of_a_stretch_get_slower_and_start_at_the_undisturbed_ru
     for k in (0, 3, len(times) - 1):
         e, beyond = cache.slowed_energy_kwh(svc.train, directed, a, b, (), float(times[k]))
         assert e == energies[k] and beyond == 0.0
+
+
+def test_delays_only_leave_the_disturbed_energy_uncomputed_and_say_so() -> None:
+    op, svc = _lone_down_train((20.0, 45.0, 8.0))
+    full = run_operation(op, [svc]).trains[0]
+    quick = run_operation(op, [svc], disturbed_energy=False).trains[0]
+    assert np.isnan(quick.energy_kwh) and "not computed" in quick.energy_note
+    assert quick.to_dict()["energy_kwh"] is None
+    assert quick.delay_s == full.delay_s and np.isfinite(full.energy_kwh)
+    # an undisturbed train keeps its energy either way
+    plain = replace(svc, running_extra_s=())
+    assert run_operation(op, [plain], disturbed_energy=False).trains[0].energy_kwh == pytest.approx(
+        run_operation(op, [plain]).trains[0].energy_kwh, rel=0, abs=0
+    )

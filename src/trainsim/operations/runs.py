@@ -238,38 +238,43 @@ class RunCache:
         a: tuple[str, float],
         b: tuple[str, float],
         limits: Sequence[SpeedLimit] = (),
+        upto_s: float = np.inf,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The stretch from stop ``a`` to stop ``b`` run slower: the fastest run under an extra speed cap
         over the whole stretch at each of :data:`SLOWED_CAP_FRACTIONS` of the undisturbed run's top
         speed (the same driving, at a lower line speed). Returns the caps [m/s], running times [s]
         (strictly increasing) and net energies from the line [kWh, auxiliaries included]; the first
-        entry is the undisturbed run. Caps whose run is not ``ok`` or not slower end the table."""
+        entry is the undisturbed run. Caps whose run is not ``ok`` or not slower end the table. The
+        caps are run in turn only until one takes ``upto_s`` [s] or more (a disturbance of a few
+        seconds needs two or three runs), the rest when a longer time is asked for."""
         limits = tuple(x for x in limits if x.end_m > a[1] and x.start_m < b[1])
         key = (
             "slowed", id(train), id(directed), round(a[1], 6), round(b[1], 6),
             self._limits_key(limits),
         )  # fmt: skip
-        found = self._runs.get(key)
-        if found is not None:
-            return found
-        _s, v, t, result = self.stretch(train, directed, a, b, limits)
-        top = float(np.max(v))
-        caps, times, energies = [top], [float(t[-1] - t[0])], [float(result.energy_kwh.net)]
-        if result.status == "ok":
-            for f in SLOWED_CAP_FRACTIONS[1:]:
-                cap = SpeedLimit(a[1], b[1], f * top)
-                run = run_fastest(
-                    train, service_route(directed, [a, b], (*limits, cap)), self.settings, trace=False
-                )
-                if run.status != "ok" or run.running_time_s <= times[-1]:
-                    break
-                caps.append(cap.limit_mps)
-                times.append(float(run.running_time_s))
-                energies.append(float(run.energy_kwh.net))
-                self.computed += 1
-        found = (np.array(caps), np.array(times), np.array(energies))
-        self._runs[key] = found
-        return found
+        table = self._runs.get(key)
+        if table is None:
+            _s, v, t, result = self.stretch(train, directed, a, b, limits)
+            # [caps, times, energies, index of the next cap to run (len: the table is complete)]
+            table = [[float(np.max(v))], [float(t[-1] - t[0])], [float(result.energy_kwh.net)], 1]
+            if result.status != "ok":
+                table[3] = len(SLOWED_CAP_FRACTIONS)
+            self._runs[key] = table
+        caps, times, energies = table[0], table[1], table[2]
+        while table[3] < len(SLOWED_CAP_FRACTIONS) and times[-1] < upto_s:
+            cap = SpeedLimit(a[1], b[1], SLOWED_CAP_FRACTIONS[table[3]] * caps[0])
+            run = run_fastest(
+                train, service_route(directed, [a, b], (*limits, cap)), self.settings, trace=False
+            )
+            self.computed += 1
+            table[3] += 1
+            if run.status != "ok" or run.running_time_s <= times[-1]:
+                table[3] = len(SLOWED_CAP_FRACTIONS)
+                break
+            caps.append(cap.limit_mps)
+            times.append(float(run.running_time_s))
+            energies.append(float(run.energy_kwh.net))
+        return np.array(caps), np.array(times), np.array(energies)
 
     def slowed_energy_kwh(
         self,
@@ -285,7 +290,7 @@ class RunCache:
         (each one the core's run, auxiliaries included). Returns it with the time beyond the slowest
         capped run [s] (0 inside the table), counted as standing at auxiliary power: a longer running
         time than a run at a fifth of the top speed is a stand somewhere on the stretch."""
-        _caps, times, energies = self.slowed(train, directed, a, b, limits)
+        _caps, times, energies = self.slowed(train, directed, a, b, limits, running_time_s)
         if running_time_s <= times[-1]:
             return float(np.interp(running_time_s, times, energies)), 0.0
         beyond = float(running_time_s - times[-1])

@@ -995,6 +995,7 @@ def simulate(
     etcs: EtcsBraking | None = None,
     lookahead_s: float = 0.0,
     cache: RunCache | None = None,
+    disturbed_energy: bool = True,
 ) -> OperationResult:
     """Simulate ``services`` on ``line`` together in time, and compare with their planned runs.
 
@@ -1009,6 +1010,9 @@ def simulate(
         headways: compute the minimum headway of consecutive trains of each direction.
         etcs: the trains' ETCS braking data (needed for ``etcs_l2``).
         cache: single-train runs to share with other simulations of the same line and settings.
+        disturbed_energy: compute the operated energy of trains with running-time disturbances (a few
+            slower runs per disturbed stretch); False: their energy is NaN, said in ``energy_note``
+            (for studies of delays only).
         lookahead_s: ``priority`` rule: a train standing at a stop is held while a train of higher
             priority will ask for the same resources within this time [s]; 0: no look-ahead.
     """
@@ -1075,7 +1079,7 @@ def simulate(
     sig = line.signalling
     for st, plan in zip(states, planned, strict=True):
         fn = approach[st.index]
-        outcome = _outcome(st, plan, line, stuck=st in stuck)
+        outcome = _outcome(st, plan, line, st in stuck, disturbed_energy)
         outcomes.append(outcome)
         if st not in stuck and st.stalled_m is None and [j for j, _r in st.granted] != st.steps:
             raise RuntimeError(f"train {st.svc.id}: ran without holding every route of its path")
@@ -1141,7 +1145,9 @@ def _standing_s(
     return standing
 
 
-def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutcome:
+def _outcome(
+    st: _TrainState, plan: _Plan, line: Line, stuck: bool, disturbed_energy: bool = True
+) -> TrainOutcome:
     svc = st.svc
     status = "deadlocked" if stuck else ("stalled" if st.movement.status != "ok" else "ok")
     warnings = list(st.warnings)
@@ -1195,7 +1201,10 @@ def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutc
     standing = _standing_s(st.movement, deps, st.dest_dwell_s, st.time_factors()) if deps is not None else 0.0
     energy = st.movement.energy_kwh(standing, auxiliary_power_w(svc.train)) if deps is not None else np.nan
     note = ""
-    if deps is not None and st.factors is not None:
+    if deps is not None and st.factors is not None and not disturbed_energy:
+        energy = np.nan
+        note = "operated energy not computed (running-time disturbances; asked for delays only)"
+    elif deps is not None and st.factors is not None:
         extra_kwh, note, beyond = _slowed_energy(st)
         energy += extra_kwh
         warnings.extend(beyond)
