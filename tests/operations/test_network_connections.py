@@ -10,7 +10,7 @@ import pytest
 from trainsim.batch import network_day as nd
 from trainsim.errors import InputError
 from trainsim.io.operation_file import read_operation
-from trainsim.io.operation_run import run_operation
+from trainsim.io.operation_run import run_operation, run_operation_file
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "operations"
 FEEDER_LINE = "Metro line B, 3-aspect fixed block, 150 s headway"
@@ -103,3 +103,11 @@ def test_bad_connections_are_refused_with_the_field_named(tmp_path: Path) -> Non
         nd.network_day(
             [_waiting(tmp_path, f"  - {{train: U.1, line: '{FEEDER_LINE}', feeder: D.1}}\n"), looped]
         )
+
+
+def test_one_file_with_connections_says_they_are_not_applied(tmp_path: Path) -> None:
+    waiting = _waiting(tmp_path, f"  - {{train: U.1, line: '{FEEDER_LINE}', feeder: D.1, min_s: 3600}}\n")
+    summary, _status = run_operation_file(waiting, plots=False)
+    assert any("not applied" in w and "network-day" in w for w in summary["warnings"])
+    plain, _ = run_operation_file(_copy(tmp_path, "metro_cbtc.yaml", name="plain.yaml"), plots=False)
+    assert not any("connection" in w for w in plain["warnings"])

@@ -149,6 +149,13 @@ def run_operation_file(
     result = run_operation(op)
     summary: dict[str, Any] = {"name": op.name, "file": str(path), "signalling": op.line.signalling.system}
     summary.update(result.summary())
+    if op.connections:
+        # the feeders run on other lines: only a network-day of those files has them
+        summary["warnings"] = [
+            *summary["warnings"],
+            f"{len(op.connections)} connection(s) to trains of other lines not applied: the trains leave "
+            "as planned; give the files of those lines too (a network-day) to apply them",
+        ]
     if op.pattern_period_s:
         summary["capacity"] = capacity(result, op.pattern_period_s)
     if op.compare_systems:
