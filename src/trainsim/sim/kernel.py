@@ -48,7 +48,9 @@ STATUS_OK = 0
 STATUS_STALLED = 1
 
 
-@njit(cache=True)
+# inlined (numba IR) into its few callers, as ``_law``: a call passes two arrays with an atomic
+# reference count increment and decrement each
+@njit(cache=True, inline="always")
 def effort(v, starts, coefs, fcap, pcap):
     """Maximum force [N] of a compiled EffortCurve at speed v [m/s]."""
     j = np.searchsorted(starts, v, side="right") - 1
@@ -65,7 +67,7 @@ def effort(v, starts, coefs, fcap, pcap):
     return f if f > 0.0 else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _law(v, j, coefs):
     """Interval j's law c0 + c1 v + c2 v^2 + ch / v of a compiled EffortCurve [N]."""
     f = coefs[j, 0] + coefs[j, 1] * v + coefs[j, 2] * v * v
