@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +14,7 @@ from test_optimal_structure import net_energy_j, reference_energy_j
 import trainsim
 from trainsim.constants import KMH
 from trainsim.model import GradientSection, Route, SpeedLimit, Station
-from trainsim.optimize.optimal import SectionSolver, regenerative_holding_speed
+from trainsim.optimize.optimal import SectionSolver, _within_service, regenerative_holding_speed
 from trainsim.sim import kernel
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -71,3 +72,35 @@ def test_without_regeneration_the_hump_run_is_left_as_it_was():
     plain = hump_solver(regen=False).solve(T)
     np.testing.assert_array_equal(plan.s, plain.s)
     np.testing.assert_array_equal(plan.v, plain.v)
+
+
+@pytest.mark.parametrize("factor", [1.14, 1.30])
+def test_hump_with_regeneration_near_the_reference_at_other_supplements(factor):
+    solver = hump_solver()
+    T = solver.fastest_time_s * factor
+    plan = solver.solve(T)
+    assert abs(plan.running_time_s - T) <= max(0.5, 5e-4 * T)
+    assert net_energy_j(solver, plan) == pytest.approx(reference_energy_j(solver, T), rel=5e-3)
+
+
+def test_hump_energy_falls_with_running_time():
+    solver = hump_solver()
+    energies = [
+        net_energy_j(solver, solver.solve(solver.fastest_time_s * f)) for f in np.arange(1.10, 1.31, 0.04)
+    ]
+    assert all(later < earlier for earlier, later in pairwise(energies))
+
+
+def test_regenerative_curve_kept_within_the_service_curve():
+    # the metro's regenerative brake (0.8 x traction, 298 kN at standstill) exceeds its service
+    # brake (150 kN below 5 km/h): the solver's electric brake is the lower of the two at every speed
+    regen, service = METRO.traction.scaled(0.8), METRO.braking.service_force
+    v = np.linspace(0.0, 100 * KMH, 5001)
+    assert np.any(regen(v) > service(v))
+    np.testing.assert_allclose(
+        _within_service(regen, service)(v), np.minimum(regen(v), service(v)), atol=1e-6
+    )
+    assert np.all(hump_solver().train.braking.regenerative(v) <= service(v) + 1e-6)
+    # a regenerative curve below the service curve everywhere is kept as it is
+    low = METRO.traction.scaled(0.1)
+    assert _within_service(low, service) is low

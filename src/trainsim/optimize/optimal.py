@@ -26,6 +26,7 @@ from scipy.optimize import brentq
 
 from trainsim.constants import KWH
 from trainsim.errors import InputError
+from trainsim.model.effort import EffortCurve
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
@@ -77,6 +78,44 @@ def price_of_time_w(train: Train, holding_speed_mps: float) -> float:
     slope = law.c1 + 2.0 * law.c2 * holding_speed_mps
     eta_t = train.electrical.traction_efficiency if train.electrical else 1.0
     return holding_speed_mps**2 * slope / eta_t
+
+
+def _within_service(regen: EffortCurve, service: EffortCurve) -> EffortCurve:
+    """The regenerative curve no higher than the service curve at any speed (the electric brake is
+    part of the service brake): min(regen, service) for curves of polynomial laws without caps,
+    with the crossings inside intervals solved exactly; ``regen`` itself where it never exceeds
+    the service curve or where either has a cap or a hyperbolic term (source 002's metro with a
+    regenerative brake of 0.8 x traction: 298 kN against the service brake's 150 kN below 5 km/h)."""
+    rs, rc, rcap, rpow = regen.as_arrays()
+    ss, sc, scap, spow = service.as_arrays()
+    if not (np.isinf(rcap) and np.isinf(rpow) and np.isinf(scap) and np.isinf(spow)):
+        return regen
+    if np.any(rc[:, 3] != 0.0) or np.any(sc[:, 3] != 0.0):
+        return regen
+    starts = np.union1d(rs, ss)
+    cuts = [0.0]
+    rows = []
+    for k, v0 in enumerate(starts):
+        v1 = starts[k + 1] if k + 1 < len(starts) else v0 + 1e3
+        cr = rc[max(int(np.searchsorted(rs, v0, side="right")) - 1, 0)]
+        cs = sc[max(int(np.searchsorted(ss, v0, side="right")) - 1, 0)]
+        d = cr[:3] - cs[:3]  # regen - service = d0 + d1 v + d2 v^2 on [v0, v1)
+        roots = np.roots(d[::-1]) if np.any(d != 0.0) else np.array([])
+        inner = sorted(float(r.real) for r in roots if abs(r.imag) < 1e-12 and v0 < r.real < v1)
+        for a, z in zip([v0, *inner], [*inner, v1], strict=True):
+            mid = 0.5 * (a + z)
+            lower = cr if d[0] + d[1] * mid + d[2] * mid * mid <= 0.0 else cs
+            if a > v0 or k > 0:
+                cuts.append(a)
+            rows.append(lower)
+    if len(rows) == len(starts) and all(
+        np.array_equal(row, rc[max(int(np.searchsorted(rs, v, side="right")) - 1, 0)])
+        for row, v in zip(rows, starts, strict=True)
+    ):
+        return regen
+    return EffortCurve(
+        np.array(cuts), np.array(rows), label=regen.label, adhesion_limit_kg=regen.adhesion_limit_kg
+    )
 
 
 def regenerative_holding_speed(train: Train, mu: float, eta_r: float) -> float:
@@ -163,6 +202,11 @@ class SectionSolver:
             # and the KISS)
             regen = b.regenerative.capped(force_cap_n=b.service_force.force_cap_n)
             train = dataclasses.replace(train, braking=dataclasses.replace(b, regenerative=regen))
+        b = train.braking
+        if b.regenerative is not None and b.service_force is not None:
+            regen = _within_service(b.regenerative, b.service_force)
+            if regen is not b.regenerative:
+                train = dataclasses.replace(train, braking=dataclasses.replace(b, regenerative=regen))
         self.train, self.route, self.s0, self.s1 = train, route, s0, s1
         inner = sorted(float(b) for b in breaks_m if s0 < b < s1)
         self.track, _, _ = compile_track(route, train, [s0, *inner, s1], settings.max_step_m)
@@ -392,6 +436,10 @@ class SectionSolver:
         # the runs are compared braking to the stop with the electric brake alone, as the final
         # phase will: on the service curve the friction brake's share would favour the runs that
         # come slower to the stop
+        # (only to compare them: where the regenerative force exceeds the service force, as the
+        # metro's 298 kN against 150 kN below 5 km/h, that curve brakes harder than the train may;
+        # the run returned brakes to the stop as phase A does, the final phase then replaces that)
+        curves = (Cr, US, modes)
         modes = modes.copy()
         modes[k0 : self.i1] = kernel.REGEN
         Cr, _, US = kernel.braking_ceiling_mixed(
@@ -407,6 +455,8 @@ class SectionSolver:
             vh = vhold.copy()
             vh[i:] = np.minimum(vh[i:], crawl)
             out = self._holding(vh, vtop, Cr, US, modes, (i, u, vp, tp))
+            if keep and out is not None:
+                out = self._holding(vh, vtop, *curves, (i, u, vp, tp))
             if out is None or not np.isfinite(out[2][-1]):
                 return np.inf, None
             e = np.empty(len(out[0]))
@@ -439,6 +489,16 @@ class SectionSolver:
         self._decisions[key] = (p, lo, a)
         keep = seg[0] < p
         return tuple(np.concatenate([arr[keep], o]) for arr, o in zip(seg, out, strict=True))
+
+    def _path_cost(self, points, mu: float) -> float:
+        """Electrical energy [J] + mu [W] x running time [s] of a run to the stop."""
+        tr = self.track
+        cum = np.empty(len(points[0]))
+        pk.path_energy(
+            points[0], points[1], points[3], tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.P,
+            self.curves, self.inv_eta_t, self.eta_r, cum, self.tk, self.bk, self.rk,
+        )  # fmt: skip
+        return float(cum[-1]) + mu * float(points[2][-1])
 
     def _interval_of(self, s_m: float) -> int:
         """The grid interval that holds position ``s_m`` [m] (the last one at the section's end)."""
@@ -1080,6 +1140,13 @@ class SectionSolver:
         if not self._forced:  # runs with imposed departures are no guide to the next V's
             variant = (self.excursions, self.limit_coasting, self.short_excursions, self.braking_arc_exits)
             self._coast_points = [*self._coast_points[-11:], (variant, holding_speed_mps, coast_point)]
+        crest = [d[0] for k, d in self._decisions.items() if k[0] == "crest" and d[0] < d[2]]
+        if crest and self._path_cost(phase_a, mu) < self._path_cost(best, mu):
+            # phase A coasts over the crest and brakes electrically to the stop: a final phase
+            # started on its holding arc just before the departure coasts over the crest as well,
+            # misses the regenerative holding arc and meets the service curve (metro hump at +14 %:
+            # 13.10 kWh against phase A's 7.535, reference 7.537), so the run without a final phase is kept then
+            best, coast_point = phase_a, float(crest[0])
         s, v, t, m = best
         # the stop point closes the section
         s, m = s.copy(), m.copy()
