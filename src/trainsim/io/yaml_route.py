@@ -3,6 +3,7 @@ electrification, line resistance and gravity (docs/FORMAT.md, "Route")."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from collections.abc import Sequence
 from pathlib import Path
@@ -11,7 +12,16 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 from pydantic import Field, model_validator
 
 from trainsim.constants import KMH, STANDARD_GRAVITY
-from trainsim.io.spec import NonNegative, Positive, Spec, _check_increasing, _located, _validate, fail
+from trainsim.io.spec import (
+    Fraction,
+    NonNegative,
+    Positive,
+    Spec,
+    _check_increasing,
+    _located,
+    _validate,
+    fail,
+)
 from trainsim.model import (
     Curve,
     ElectrificationSection,
@@ -22,6 +32,7 @@ from trainsim.model import (
     Station,
     Tunnel,
 )
+from trainsim.model.bounds import Bound
 from trainsim.model.route import ApplyOver, CurveFormula, GradientFormula, TunnelFormula
 from trainsim.physics import line_resistance
 
@@ -114,8 +125,25 @@ class TunnelSpec(_Section):
         return self
 
 
+_SHARE_BOUND = Bound("traction_share", "", 0.0, 1.0, low_open=True, why="a share of tractive effort: (0, 1]")
+
+
 class ElectrificationSpec(_Section):
+    """An electrification entry: ``voltage_v`` (0: not electrified) and ``traction_share``, the share of
+    its tractive effort an electric train may use there (0 < share <= 1, default 1: full effort)."""
+
     voltage_v: NonNegative
+    traction_share: Fraction = 1.0
+
+    @classmethod
+    def _field_names(cls) -> Any:
+        names, generic, suffixed, numeric = super()._field_names()
+        share = numeric.get("traction_share")
+        # a plain name without a unit falls back to the generic coefficient range (+-1e12), which would
+        # tell a reader who wrote true or "x" a range the field refuses: the share's range is (0, 1]
+        if share is not None and share.bound is not _SHARE_BOUND:
+            numeric["traction_share"] = dataclasses.replace(share, bound=_SHARE_BOUND)
+        return names, generic, suffixed, numeric
 
 
 class LineResistanceSpec(Spec):
@@ -306,7 +334,7 @@ class RouteSpec(Spec):
             curves = [Curve(c.from_m, c.stop(), c.radius()) for c in self.curves]
         tunnels = [Tunnel(t.from_m, t.stop(), t.limiting_gradient) for t in self.tunnels]
         electrification = [
-            ElectrificationSection(a, b, x.voltage_v)
+            ElectrificationSection(a, b, x.voltage_v, x.traction_share)
             for (a, b), x in zip(self._ends(self.electrification, end), self.electrification, strict=True)
         ]
         stations = [Station(s.name, s.position_m, s.dwell_s, s.stop) for s in self.stations]
