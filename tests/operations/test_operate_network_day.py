@@ -39,6 +39,9 @@ def test_two_lines_one_day_json_per_line_and_train(tmp_path: Path) -> None:
     lines = {x["file"]: x for x in summary["lines"]}
     assert lines[str(CBTC)]["statuses"] == {"ok": 1} and lines[str(CBTC)]["conflicts"] == 0
     assert lines[str(SINGLE)]["conflicts"] > 0
+    # unsampled days are checked: each line-day has its own count, the per-line figure their sum
+    for day in summary["line_days"]:
+        assert day["conflicts"] == lines[day["file"]]["conflicts"]
     # one day: every statistic of a train is its delay of that day
     for day in summary["line_days"]:
         stats = {t["id"]: t["delay_s"] for t in lines[day["file"]]["trains"]}
@@ -55,9 +58,14 @@ def test_sampled_days_statistics_and_the_local_cluster_agree(tmp_path: Path) -> 
     assert summary["samples"] == 4 and summary["seed"] == 5 and len(summary["line_days"]) == 4
     (line,) = summary["lines"]
     assert line["days"] == 4 and line["conflicts"] is None  # sampled days do not check the plan
+    assert [d["conflicts"] for d in summary["line_days"]] == [None] * 4
+    again = runner.invoke(app, ["operate", str(path), "--days", "4", "--seed", "5", "--json"])
+    assert again.stdout == local.stdout  # the same seed, the same JSON
     # the statistics against numpy over the line-days
     for train in line["trains"]:
-        x = np.array([t["delay_s"] for d in summary["line_days"] for t in d["trains"] if t["id"] == train["id"]])
+        x = np.array(
+            [t["delay_s"] for d in summary["line_days"] for t in d["trains"] if t["id"] == train["id"]]
+        )
         assert train["delay_s"]["mean"] == pytest.approx(x.mean(), abs=1e-3)
         assert train["delay_s"]["p95"] == pytest.approx(np.percentile(x, 95), abs=1e-3)
         assert train["delay_s"]["max"] == pytest.approx(x.max(), abs=1e-3)

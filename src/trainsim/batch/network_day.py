@@ -2,18 +2,38 @@
 optionally sampled days (Monte Carlo of entry delays and disturbances), simulated locally or on a
 Dask cluster with the same results.
 
-The unit of work is one line on one day (``line_day``): it reads its operation file, samples the day
-(sample ``k`` of ``n`` uses the ``k``-th stream spawned from the seed, exactly as
-``trainsim.io.operation_run.monte_carlo``) and simulates it. Lines of a network are simulated
-independently, except where a file's ``connections`` make a train wait at its origin for a train of
-another file's line (a passenger connection, or the same unit turning round): the lines so joined
-are simulated together, feeders first, and a late feeder makes the waiting train late (knock-on). Each
-line keeps its own sampled stream, so a line's disturbances do not depend on the lines it is joined to.
+The unit of work is one line on one day (``line_day``). The operation files are read once, by the
+process that starts the network-day, and the lines read (their trains, routes and timetables) are
+sent to the workers, as ``trainsim batch`` sends its payload: the workers need no access to the
+files, so relative paths and a remote cluster work alike.
+
+Sampled days: day ``k`` of a line draws from its own stream, ``SeedSequence(seed, spawn_key=(k,
+line key...))`` where the line key is taken from the SHA-256 of the line's name and the number of
+earlier files with the same name (:func:`line_stream`). So the lines of a network draw
+independently of each other (one ``--seed`` does not give every line the same draws), a line's
+draws do not depend on which other lines are simulated with it or in what order, and a seed gives
+the same network-day every time.
+
+Lines of a network are simulated independently, except where a file's ``connections`` make a train
+wait at its origin for a train of another file's line (a passenger connection, or the same unit
+turning round): the lines so joined are simulated together, feeders first, and a late feeder makes
+the waiting train late (knock-on). Each line keeps its own sampled stream, so a line's disturbances
+do not depend on the lines it is joined to.
+
+Lost infrastructure: when the Dask scheduler or the workers are lost while the line-days are
+computed (a worker killed too often, the scheduler gone, no worker connected for
+:data:`~trainsim.batch.executors.WORKER_TIMEOUT_S`), ``run_network_day`` and ``network_day`` raise
+:class:`~trainsim.batch.executors.ClusterLostError` (``trainsim operate`` exits with 4). Nothing is
+written then: a network-day has no resume.
 """
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
+import time
 from collections.abc import Sequence
+from concurrent.futures import CancelledError
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -21,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from trainsim.errors import InputError, Problem
-from trainsim.io.operation_file import read_operation
+from trainsim.io.operation_file import Operation, read_operation
 from trainsim.io.operation_run import delay_stats, run_operation
 
 #: The most local Dask worker processes started for a network-day.
@@ -30,6 +50,10 @@ MAX_LOCAL_WORKERS = 256
 CONNECT_TIMEOUT_S = 10
 #: Status order, worst last: the network-day's status is its worst line-day's.
 STATUS_ORDER = ("ok", "conflicts", "stalled", "deadlock")
+#: How long the line-days may wait for a worker when the cluster has none [s] (as ``trainsim batch``).
+WORKER_TIMEOUT_S = 60.0
+#: How often the cluster is looked at while the line-days are computed [s].
+POLL_S = 0.5
 
 
 #: Arrivals of the trains of the lines simulated so far: (line name, train, station) -> time [s], None
@@ -37,34 +61,54 @@ STATUS_ORDER = ("ok", "conflicts", "stalled", "deadlock")
 Arrivals = dict[tuple[str, str, str], float | None]
 
 
+#: One line of a network-day as sent to a worker: the file as given (the label of its results),
+#: the operation read from it, and the key of its sampled streams (``line_key``).
+LineInput = tuple[str, Operation, tuple[int, ...]]
+
+
+def line_key(name: str, occurrence: int = 0) -> tuple[int, ...]:
+    """The key of a line's sampled streams: four 32-bit words of the SHA-256 of its ``name`` and the
+    number of earlier files of the network-day with the same name (``occurrence``), so two copies of
+    one line still draw independently."""
+    digest = hashlib.sha256(name.encode("utf-8")).digest()
+    return (*(int.from_bytes(digest[i : i + 4], "little") for i in range(0, 16, 4)), occurrence)
+
+
+def line_stream(seed: int, day: int, key: tuple[int, ...]) -> np.random.SeedSequence:
+    """The stream of sampled day ``day`` of the line of ``key`` (``line_key``) under ``seed``."""
+    return np.random.SeedSequence(seed, spawn_key=(day, *key))
+
+
 def line_day(
-    path: str, sample: int | None = None, samples: int = 0, seed: int | None = None
+    path: str | Path, sample: int | None = None, samples: int = 0, seed: int | None = None
 ) -> dict[str, Any]:
-    """Simulate one line's day: the file's own timetable (``sample`` None) or sample ``sample`` of
-    ``samples`` sampled days (seed: ``seed``, default the file's). Returns a picklable summary: per
-    train its delay [s] and operated energy [kWh], the status, totals and the run-cache counts. The
-    file's connections are not applied (``lines_day`` applies them)."""
-    return _line_day(path, sample, samples, seed, None)[0]
+    """Simulate one line's day: the file's own timetable (``sample`` None) or sampled day ``sample``
+    (of ``samples``; seed: ``seed``, default the file's; stream: ``line_stream``). Returns a picklable
+    summary: per train its delay [s] and operated energy [kWh], the status, the planned conflicts
+    (None on sampled days: they are not checked) and the totals. The file's connections are not
+    applied (``lines_day`` applies them)."""
+    op = read_operation(path)
+    return _line_day((str(path), op, line_key(op.name)), sample, samples, seed, None)[0]
 
 
 def lines_day(
-    paths: Sequence[str], sample: int | None = None, samples: int = 0, seed: int | None = None
+    lines: Sequence[LineInput], sample: int | None = None, samples: int = 0, seed: int | None = None
 ) -> list[dict[str, Any]]:
-    """``line_day`` of each of ``paths`` in turn (feeders first), each line's trains waiting for the
+    """``line_day`` of each of ``lines`` in turn (feeders first), each line's trains waiting for the
     feeders of its connections as the lines before it ran them."""
     arrivals: Arrivals = {}
     out = []
-    for path in paths:
-        day, found = _line_day(path, sample, samples, seed, arrivals)
+    for line in lines:
+        day, found = _line_day(line, sample, samples, seed, arrivals)
         arrivals.update(found)
         out.append(day)
     return out
 
 
 def _line_day(
-    path: str, sample: int | None, samples: int, seed: int | None, arrivals: Arrivals | None
+    line: LineInput, sample: int | None, samples: int, seed: int | None, arrivals: Arrivals | None
 ) -> tuple[dict[str, Any], Arrivals]:
-    op = read_operation(path)
+    path, op, key = line
     services = op.services
     if sample is not None:
         sampler = op.disturbances if op.disturbances is not None else op.delays
@@ -73,8 +117,7 @@ def _line_day(
                 "sampled days need a 'delays' or 'disturbances' block", file=str(path), field="delays"
             )
         base = sampler.seed if seed is None else seed
-        stream = np.random.SeedSequence(base).spawn(samples)[sample]
-        services = sampler.sample(op.given_services, np.random.default_rng(stream))
+        services = sampler.sample(op.given_services, np.random.default_rng(line_stream(base, sample, key)))
     knock_on = []
     if arrivals is not None:
         services = list(services)
@@ -114,7 +157,8 @@ def _line_day(
         "sample": sample,
         "status": res.status,
         "trains": trains,
-        "conflicts": len(res.conflicts),
+        # sampled days skip the conflict check: 0 there would claim a check that was not made
+        "conflicts": len(res.conflicts) if sample is None else None,
         "total_delay_s": float(sum(t.delay_s for t in res.trains if np.isfinite(t.delay_s))),
         "energy_kwh": float(sum(t.energy_kwh for t in res.trains if np.isfinite(t.energy_kwh))),
     }
@@ -130,18 +174,18 @@ def _destination(c: Any, arrivals: Arrivals) -> str:
     return stations[-1]
 
 
-def _groups(files: Sequence[str]) -> list[tuple[str, ...]]:
-    """The files as groups simulated together: the files joined by connections (feeders first), every
-    other file alone; in the order of their first file. Bad connections are refused."""
-    ops = {f: read_operation(f) for f in files}
-    if not any(op.connections for op in ops.values()):
-        return [(f,) for f in files]
-    by_name: dict[str, list[str]] = {}
-    for f, op in ops.items():
-        by_name.setdefault(op.name, []).append(f)
-    feeders: dict[str, set[str]] = {f: set() for f in files}
+def _groups(files: Sequence[str], ops: Sequence[Operation]) -> list[tuple[int, ...]]:
+    """The files (by position) as groups simulated together: the files joined by connections (feeders
+    first), every other file alone; in the order of their first file. Bad connections are refused."""
+    if not any(op.connections for op in ops):
+        return [(i,) for i in range(len(files))]
+    by_name: dict[str, list[int]] = {}
+    for i, op in enumerate(ops):
+        by_name.setdefault(op.name, []).append(i)
+    feeders: dict[int, set[int]] = {i: set() for i in range(len(files))}
     problems: list[Problem] = []
-    for f, op in ops.items():
+    for at, op in enumerate(ops):
+        f = files[at]
         for i, c in enumerate(op.connections):
             where = f"connections[{i}]"
             found = by_name.get(c.line, [])
@@ -167,13 +211,13 @@ def _groups(files: Sequence[str]) -> list[tuple[str, ...]]:
                             value=c.station, allowed=", ".join(stations))
                 )  # fmt: skip
                 continue
-            feeders[f].add(found[0])
+            feeders[at].add(found[0])
     if problems:
         raise InputError.from_problems(problems)
     # joined files: union of the connections in either direction
-    parent = {f: f for f in files}
+    parent = {f: f for f in feeders}
 
-    def root(f: str) -> str:
+    def root(f: int) -> int:
         while parent[f] != f:
             f = parent[f]
         return f
@@ -181,12 +225,12 @@ def _groups(files: Sequence[str]) -> list[tuple[str, ...]]:
     for f, ups in feeders.items():
         for u in ups:
             parent[root(u)] = root(f)
-    groups: dict[str, list[str]] = {}
-    for f in files:
+    groups: dict[int, list[int]] = {}
+    for f in feeders:
         groups.setdefault(root(f), []).append(f)
     out = []
     for members in groups.values():
-        order: list[str] = []
+        order: list[int] = []
         todo = list(members)
         while todo:
             ready = [f for f in todo if feeders[f] <= set(order)]
@@ -202,25 +246,36 @@ def _groups(files: Sequence[str]) -> list[tuple[str, ...]]:
     return out
 
 
-def _tasks(files: Sequence[str | Path], samples: int, seed: int | None) -> list[tuple]:
+def _tasks(
+    files: Sequence[str | Path], samples: int, seed: int | None
+) -> tuple[list[tuple[LineInput, ...]], list[int | None]]:
+    """The groups of lines simulated together (``_groups``, the lines as ``LineInput``) and the days
+    (None: the timetable; else the sampled days): one task per group and day."""
     if not files:
         raise InputError("a network-day needs at least one operation file", field="files", value=[])
     if not 0 <= samples <= 10_000:
         raise InputError("invalid number of samples", field="samples", value=samples, allowed="0 .. 10000")
+    if seed is not None and not (isinstance(seed, int) and 0 <= seed < 2**63):
+        raise InputError("invalid seed", field="--seed", value=seed, allowed="an integer 0 .. 2**63 - 1")
     missing = [str(f) for f in files if not Path(f).is_file()]
     if missing:
         raise InputError("operation file not found", field="files", value=missing)
+    names = [str(f) for f in files]
+    # read here, once: the workers get the lines read, never a path they may not see
+    ops = [read_operation(f) for f in files]
     if samples:
-        for f in files:
-            op = read_operation(f)
+        for f, op in zip(names, ops, strict=True):
             if op.disturbances is None and op.delays is None:
                 raise InputError(
-                    "sampled days need a 'delays' or 'disturbances' block", file=str(f), field="delays"
+                    "sampled days need a 'delays' or 'disturbances' block", file=f, field="delays"
                 )
-    groups = _groups([str(f) for f in files])
-    if samples == 0:
-        return [(g, None, 0, seed) for g in groups]
-    return [(g, k, samples, seed) for g in groups for k in range(samples)]
+    seen: dict[str, int] = {}
+    lines: list[LineInput] = []
+    for f, op in zip(names, ops, strict=True):
+        lines.append((f, op, line_key(op.name, seen.get(op.name, 0))))
+        seen[op.name] = seen.get(op.name, 0) + 1
+    groups = [tuple(lines[i] for i in g) for g in _groups(names, ops)]
+    return groups, (list(range(samples)) if samples else [None])
 
 
 def network_day(
@@ -228,32 +283,122 @@ def network_day(
 ) -> dict[str, Any]:
     """Simulate every line of ``files`` (its own timetable, or ``samples`` sampled days each) locally
     (``client`` None) or on the Dask cluster of ``client`` (a ``distributed.Client``): the same line-day
-    summaries either way, in the order of the files and samples.
+    summaries either way, in the order of the files and samples. The files are read here; the
+    workers get the lines read. A cluster lost meanwhile is a ``ClusterLostError``.
 
-    Returns ``status`` (the worst line-day status), ``line_days`` (``line_day`` summaries) and the
-    totals ``total_delay_s`` and ``energy_kwh`` over all line-days."""
-    tasks = _tasks(files, samples, seed)
+    Returns ``status`` (the worst line-day status), ``line_days`` (``line_day`` summaries: on sampled
+    days ``conflicts`` is None, as they are not checked) and the totals ``total_delay_s`` and
+    ``energy_kwh`` over all line-days."""
+    groups, days = _tasks(files, samples, seed)
     if client is None:
-        done = [lines_day(*t) for t in tasks]
+        done = [lines_day(g, k, samples, seed) for g in groups for k in days]
     else:
-        futures = client.map(lines_day, *zip(*tasks, strict=True), pure=False)
-        done = client.gather(futures)
+        done = _on_cluster(client, groups, days, samples, seed)
     # back in the order of the files and samples
     by_key: dict[tuple[str, int | None], list[dict[str, Any]]] = {}
     for group in done:
         for d in group:
             by_key.setdefault((d["file"], d["sample"]), []).append(d)
-    days = [by_key[(str(f), k)].pop(0) for f in files for k in (range(samples) if samples else [None])]
-    worst = max((d["status"] for d in days), key=lambda s: STATUS_ORDER.index(s) if s in STATUS_ORDER else 99)
+    line_days = [by_key[(str(f), k)].pop(0) for f in files for k in days]
+    worst = max(
+        (d["status"] for d in line_days), key=lambda s: STATUS_ORDER.index(s) if s in STATUS_ORDER else 99
+    )
     return {
         "status": worst,
         "samples": samples,
         "seed": seed,
-        "lines": line_statistics(days),
-        "line_days": days,
-        "total_delay_s": float(sum(d["total_delay_s"] for d in days)),
-        "energy_kwh": float(sum(d["energy_kwh"] for d in days)),
+        "lines": line_statistics(line_days),
+        "line_days": line_days,
+        "total_delay_s": float(sum(d["total_delay_s"] for d in line_days)),
+        "energy_kwh": float(sum(d["energy_kwh"] for d in line_days)),
     }
+
+
+def _on_cluster(
+    client: Any, groups: list[tuple[LineInput, ...]], days: list[int | None], samples: int, seed: int | None
+) -> list[list[dict[str, Any]]]:
+    """``lines_day`` of every group and day on the cluster of ``client``; each group's lines are sent
+    to the cluster once (not once per day)."""
+    try:
+        sent = client.scatter(groups, hash=False)
+        tasks = [(g, k) for g in sent for k in days]
+        futures = client.map(
+            lines_day, [g for g, _ in tasks], [k for _, k in tasks], [samples] * len(tasks),
+            [seed] * len(tasks), pure=False,
+        )  # fmt: skip
+    except TimeoutError:
+        raise _lost("no worker took the lines") from None
+    except (OSError, CancelledError) as exc:
+        raise _lost(f"the lines could not be sent to the cluster: {exc}") from None
+    return _gather(client, futures)
+
+
+def _lost(why: str) -> Exception:
+    from trainsim.batch.executors import ClusterLostError
+
+    return ClusterLostError(
+        f"the Dask cluster was lost during the network-day ({why}); nothing was written: run the "
+        "command again"
+    )
+
+
+def _wait(futures: list[Any], timeout: float) -> None:
+    from distributed import wait
+
+    wait(futures, timeout=timeout)
+
+
+def _gather(client: Any, futures: list[Any]) -> list[Any]:
+    """The results of ``futures``, in order. Lost infrastructure (the scheduler gone, a line-day that
+    killed its workers: Dask's ``KilledWorker``, futures cancelled, no worker connected for
+    ``WORKER_TIMEOUT_S``) is a ``ClusterLostError``; an error of a line-day itself (an ``InputError``)
+    is raised as it is."""
+    no_workers_since: float | None = None
+    while True:
+        try:
+            _wait(futures, POLL_S)
+            break
+        except TimeoutError:  # (before OSError, of which it is a subclass)
+            no_workers_since = _check_cluster(client, no_workers_since)
+        except CancelledError:
+            break  # the cancelled ones are seen below
+        except OSError as exc:
+            raise _lost(f"the connection to the scheduler was lost: {exc}") from None
+    for i, fut in enumerate(futures):
+        if fut.status == "cancelled":
+            raise _lost("its line-days were cancelled: the scheduler or their workers are gone")
+        if fut.status == "error":
+            exc = fut.exception()
+            if type(exc).__name__ == "KilledWorker":
+                raise _lost(f"line-day task {i} killed the workers that computed it: {exc}")
+            if isinstance(exc, CancelledError):
+                raise _lost(f"line-day task {i} was cancelled")
+            raise exc
+    try:
+        return client.gather(futures)
+    except TimeoutError as exc:
+        raise _lost(f"the results could not be fetched: {exc!r}") from None
+    except (OSError, CancelledError) as exc:
+        raise _lost(f"the results could not be fetched: {exc!r}") from None
+
+
+def _check_cluster(client: Any, no_workers_since: float | None) -> float | None:
+    """Raise ClusterLostError if the scheduler is gone or no worker has been connected for
+    ``WORKER_TIMEOUT_S``; return since when the cluster has had no worker (None: it has some)."""
+    if client.status != "running":  # "connecting" after the scheduler was lost, then "closed"
+        raise _lost("the connection to the scheduler was lost")
+    try:
+        n = len(client.scheduler_info(n_workers=-1).get("workers", {}))
+    except (OSError, KeyError):
+        raise _lost("the scheduler does not answer") from None
+    if n:
+        return None
+    now = time.monotonic()
+    if no_workers_since is None:
+        return now
+    if now - no_workers_since > WORKER_TIMEOUT_S:
+        raise _lost(f"no worker connected for {WORKER_TIMEOUT_S:g} s")
+    return no_workers_since
 
 
 def line_statistics(days: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -308,8 +453,9 @@ def run_network_day(
 ) -> dict[str, Any]:
     """``network_day`` in this process (neither ``scheduler`` nor ``local_workers``), on the Dask
     scheduler at ``scheduler`` (an address such as ``tcp://10.0.0.5:8786``) or on a local Dask cluster
-    of ``local_workers`` processes started and closed here. A scheduler that cannot be reached is a
-    ``ClusterLostError`` (``trainsim`` exits with 4)."""
+    of ``local_workers`` processes started and closed here. A scheduler that cannot be reached, or
+    the scheduler or workers lost during the run, is a ``ClusterLostError`` (``trainsim`` exits with
+    4)."""
     if scheduler is not None and local_workers is not None:
         raise InputError(
             "give a scheduler address or a number of local workers, not both",
@@ -341,8 +487,12 @@ def run_network_day(
             )
     except OSError as exc:  # distributed raises OSError (TimeoutError) when it cannot connect
         raise ClusterLostError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}") from None
-    with client:
+    try:
         return network_day(files, samples, seed, client=client)
+    finally:
+        # the scheduler may be gone already: its loss is the error to report, not the close
+        with contextlib.suppress(OSError, CancelledError):
+            client.close(timeout=5)
 
 
 __all__ = ["line_day", "line_statistics", "lines_day", "network_day", "run_network_day"]

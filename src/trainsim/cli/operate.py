@@ -1,4 +1,5 @@
-"""``trainsim operate``: many trains on a signalled line (a thin layer over trainsim.operations)."""
+"""``trainsim operate``: many trains on a signalled line, or a network-day of several lines (a thin
+layer over trainsim.operations and trainsim.batch.network_day)."""
 
 from __future__ import annotations
 
@@ -41,13 +42,17 @@ def operate(
     samples: Annotated[
         int, typer.Option("--samples", help="Monte Carlo: days with entry delays sampled from 'delays'.")
     ] = 0,
-    seed: Annotated[int | None, typer.Option("--seed", help="Seed of the Monte Carlo samples.")] = None,
+    seed: Annotated[
+        int | None,
+        typer.Option("--seed", help="Seed of the Monte Carlo samples or of the network-day's sampled days."),
+    ] = None,
     days: Annotated[
         int,
         typer.Option(
             "--days",
             help="Network-day: simulate this many sampled days of every line (its 'delays' or "
-            "'disturbances' block); 0: each line's own timetable once.",
+            "'disturbances' block; each line and day its own random stream); 0: each line's own "
+            "timetable once, checked for conflicts.",
         ),
     ] = 0,
     scheduler: Annotated[
@@ -63,13 +68,21 @@ def operate(
 ) -> None:
     """Simulate the trains of an operation file together: delays, conflicts, headways, capacity.
 
-    With several files, --days, --scheduler or --local-workers: a network-day (every line simulated
-    independently, locally or on Dask, with the same results), summarised per line and train (mean,
-    median, 95th percentile and maximum delay over the days, conflicts, statuses).
+    With several files, --days, --scheduler or --local-workers: a network-day, locally or on Dask with
+    the same results. Each line is simulated on its own, except lines joined by a file's
+    'connections' (a train waiting for a train of another line): those are simulated together,
+    feeders first, and a late feeder delays the waiting train. The files are read here and the lines
+    sent to the workers (relative paths work on a remote cluster). Day k of each line draws from its
+    own stream of --seed (or the file's seed), keyed by the line's name and the day: the lines draw
+    independently, and a seed gives the same result every time. Summary per line and train: mean,
+    median, 95th percentile and maximum delay over the days, planned conflicts, statuses. In the JSON,
+    each entry of 'line_days' has 'conflicts': the planned conflicts of the line's own timetable, or
+    null on a sampled day (sampled days are not checked for conflicts).
 
     Exit code 3 when the status is not ok: 'conflicts' (the planned timetable has overlapping blocking
     times), 'deadlock' (trains could not finish; the summary names them) or 'stalled'. Exit code 4 when
-    the Dask scheduler cannot be reached.
+    the Dask scheduler cannot be reached, or the scheduler or the workers are lost during the run
+    (nothing is written; run the command again).
     """
     if len(files) > 1 or days or scheduler is not None or local_workers is not None:
         _network_day(files, out, as_json, parquet, samples, seed, days, scheduler, local_workers)
