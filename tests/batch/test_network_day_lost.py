@@ -109,3 +109,24 @@ def test_operate_exits_4_with_a_message_when_its_workers_die(monkeypatch) -> Non
     assert "Traceback" not in result.output
     assert "the Dask cluster was lost during the network-day" in result.stderr
     assert "killed the workers" in result.stderr
+
+
+def test_a_real_scheduler_lost_mid_run_is_cluster_lost() -> None:
+    distributed = pytest.importorskip("distributed")
+    import threading
+    import time
+
+    with (
+        distributed.LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as c,
+        distributed.Client(c) as client,
+    ):
+        futures = [client.submit(time.sleep, 60, pure=False)]
+        closer = threading.Timer(1.0, c.close)  # the scheduler goes away while the task runs
+        closer.start()
+        t0 = time.monotonic()
+        with pytest.raises(ClusterLostError, match="the Dask cluster was lost during the network-day"):
+            nd._gather(client, futures)
+        closer.join()
+    assert time.monotonic() - t0 < 30  # noticed, not waited out
