@@ -93,6 +93,7 @@ def test_the_table_is_printed_without_json(tmp_path: Path) -> None:
         (["--local-workers", "2", "--scheduler", "tcp://127.0.0.1:1"], ["not both"]),
         (["--days", "1", "--samples", "3"], ["--samples", "--days"]),
         (["--parquet", "--days", "1"], ["--parquet"]),
+        (["--local-workers", "1", "--seed", "-1"], ["--seed", "-1", "0 .. 2**63 - 1"]),
     ],
 )
 def test_bad_network_day_options_exit_2_with_the_option_named(args: list[str], words: list[str]) -> None:

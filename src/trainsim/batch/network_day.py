@@ -289,7 +289,17 @@ def network_day(
     Returns ``status`` (the worst line-day status), ``line_days`` (``line_day`` summaries: on sampled
     days ``conflicts`` is None, as they are not checked) and the totals ``total_delay_s`` and
     ``energy_kwh`` over all line-days."""
-    groups, days = _tasks(files, samples, seed)
+    return _network_day(files, samples, seed, client, _tasks(files, samples, seed))
+
+
+def _network_day(
+    files: Sequence[str | Path],
+    samples: int,
+    seed: int | None,
+    client: Any,
+    tasks: tuple[list[tuple[LineInput, ...]], list[int | None]],
+) -> dict[str, Any]:
+    groups, days = tasks
     if client is None:
         done = [lines_day(g, k, samples, seed) for g in groups for k in days]
     else:
@@ -471,9 +481,9 @@ def run_network_day(
             value=local_workers,
             allowed=f"1 .. {MAX_LOCAL_WORKERS}",
         )
-    _tasks(files, samples, seed)  # bad input is refused before a cluster is started
+    tasks = _tasks(files, samples, seed)  # bad input is refused before a cluster is started
     if scheduler is None and local_workers is None:
-        return network_day(files, samples, seed)
+        return _network_day(files, samples, seed, None, tasks)
     from distributed import Client
 
     from trainsim.batch.executors import ClusterLostError
@@ -488,7 +498,7 @@ def run_network_day(
     except OSError as exc:  # distributed raises OSError (TimeoutError) when it cannot connect
         raise ClusterLostError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}") from None
     try:
-        return network_day(files, samples, seed, client=client)
+        return _network_day(files, samples, seed, client, tasks)
     finally:
         # the scheduler may be gone already: its loss is the error to report, not the close
         with contextlib.suppress(OSError, CancelledError):
