@@ -3,7 +3,7 @@ defaults), and the conversion model's A.3.7 coefficients.
 
 Cross-checked against an independent open-source on-board implementation (cesarBLG/ETCS, MPL-2.0:
 EVC/Supervision/national_values.cpp, fixed_values.cpp and conversion_model.cpp), whose values are
-restated here as numbers, not copied code. The SUBSET-026 text itself was not available to compare.
+restated here as numbers, not copied code. The A.3.8 freight build-up row is also pinned against the text of SUBSET-026-3 v4.0.0 (docs/ETCS.md).
 """
 
 from __future__ import annotations

@@ -1223,7 +1223,7 @@ def _slowed_energy(st: _TrainState) -> tuple[float, str, list[str]]:
     rt = m.running_times_s()
     limits = tuple(st.limits)
     delta, slowed, beyond = 0.0, 0, []
-    for k, (f, r) in enumerate(zip(st.time_factors(), m.results, strict=False)):
+    for k, (f, r) in enumerate(zip(st.time_factors(), m.results, strict=True)):
         if f <= 1.0 or r.status != "ok":
             continue
         a, b = st.stops[k], st.stops[k + 1]
