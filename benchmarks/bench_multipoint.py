@@ -9,8 +9,9 @@ machine's load average (other processes on the machine slow the wall time down).
 
 With ``--scaling`` it also runs the example's train with 50, 100 and 200 wagons (the wagons repeated or
 cut, locomotives at the head and in the middle) over the same line and prints each wall time as a ratio
-to the 100-wagon run of the same process, and the growth exponent of the wall time in the number of
-vehicles (log-log slope; 1 = linear).
+to the 100-wagon run of the same process (median CPU time), its ratio to the baseline, the CPU time per
+vehicle and step, and the growth exponent of the CPU time in the number of vehicles (least-squares
+log-log slope; 1 = linear).
 
 Run: python benchmarks/bench_multipoint.py [--repeat N] [--scaling]
 """
@@ -23,9 +24,9 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import argparse
 import dataclasses
-import statistics
-import time
 from pathlib import Path
+
+from _timing import loglog_slope, machine, paired
 
 import trainsim
 from trainsim.io.multipoint_spec import load_multipoint_scenario
@@ -64,26 +65,27 @@ def main() -> None:
         f"{train.name}: {len(train.vehicles)} vehicles ({wagons} wagons), {train.mass_kg / 1e3:,.0f} t, "
         f"{scenario.route.length_m / 1e3:.0f} km; single-point running time {reference.running_time_s:.0f} s"
     )
+    print(machine())
     print(
-        f"{'case':32s} {'median s':>9s} {'best s':>7s} {'cpu s':>6s} {'steps':>7s} {'it/step':>7s} {'run s':>7s} {'load':>5s}"
+        f"{'case':32s} {'median s':>9s} {'best s':>7s} {'cpu s':>6s} {'x base':>7s} {'x base cpu':>10s} "
+        f"{'steps':>7s} {'it/step':>7s} {'run s':>7s}"
     )
     for name, settings in settings_list:
-        run_multipoint_fastest(
-            train, scenario.route, settings, scenario.settings, reference=reference
-        )  # warm-up
-        walls, cpus = [], []
-        for _ in range(args.repeat):
-            t0, c0 = time.perf_counter(), time.process_time()
-            result = run_multipoint_fastest(
-                train, scenario.route, settings, scenario.settings, reference=reference
-            )
-            walls.append(time.perf_counter() - t0)
-            cpus.append(time.process_time() - c0)
+        out = []
+
+        def case(settings=settings, out=out):
+            out[:] = [
+                run_multipoint_fastest(
+                    train, scenario.route, settings, scenario.settings, reference=reference
+                )
+            ]
+
+        p = paired(case, args.repeat)
+        result = out[0]
         st = result.statistics
-        load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
         print(
-            f"{name:32s} {statistics.median(walls):9.2f} {min(walls):7.2f} {min(cpus):6.2f} {st['steps']:7.0f} "
-            f"{st['newton_iterations'] / st['steps']:7.2f} {result.running_time_s:7.0f} {load:5.1f}"
+            f"{name:32s} {p.median:9.2f} {p.best:7.2f} {p.cpu:6.2f} {p.ratio:7.1f} {p.ratio_cpu:10.1f} "
+            f"{st['steps']:7.0f} {st['newton_iterations'] / st['steps']:7.2f} {result.running_time_s:7.0f}"
         )
     if args.scaling:
         scaling(scenario, args.repeat)
@@ -108,30 +110,40 @@ def with_wagons(train, wagons: int):
 
 
 def scaling(scenario, repeat: int) -> None:
-    """Wall time against the number of vehicles, as ratios to the 100-wagon run, and the exponent."""
-    import math
-
+    """CPU time against the number of vehicles, as ratios to the 100-wagon run and to the baseline."""
     rows = []
     for wagons in (100, 50, 200):
         train = with_wagons(scenario.train, wagons)
         settings = MultiPointSettings(locomotive_positions=(0, (wagons + 2) // 2))
         reference = trainsim.run_fastest(train, scenario.route, scenario.settings)
-        run_multipoint_fastest(train, scenario.route, settings, scenario.settings, reference=reference)
-        walls, its = [], 0.0
-        for _ in range(repeat):
-            t0 = time.perf_counter()
-            r = run_multipoint_fastest(
-                train, scenario.route, settings, scenario.settings, reference=reference
-            )
-            walls.append(time.perf_counter() - t0)
-            its = r.statistics["newton_iterations"] / r.statistics["steps"]
-        rows.append((len(train.vehicles), min(walls), its))
-    base = rows[0][1]
-    print(f"{'vehicles':>8s} {'best s':>7s} {'ratio to 102':>12s} {'it/step':>7s}")
-    for n, wall, its in sorted(rows):
-        print(f"{n:8d} {wall:7.2f} {wall / base:12.2f} {its:7.2f}")
-    (n0, w0, _), (n1, w1, _) = min(rows), max(rows)
-    print(f"growth exponent (log-log, {n0} -> {n1} vehicles): {math.log(w1 / w0) / math.log(n1 / n0):.2f}")
+        out = []
+
+        def case(train=train, settings=settings, reference=reference, out=out):
+            out[:] = [
+                run_multipoint_fastest(
+                    train, scenario.route, settings, scenario.settings, reference=reference
+                )
+            ]
+
+        p = paired(case, repeat)
+        st = out[0].statistics
+        rows.append((len(train.vehicles), p, st["steps"], st["newton_iterations"] / st["steps"]))
+    base = rows[0][1].cpu
+    print(
+        f"{'vehicles':>8s} {'best s':>7s} {'cpu s':>6s} {'ratio to 102':>12s} {'x base cpu':>10s} "
+        f"{'steps':>7s} {'it/step':>7s} {'ns/veh/step':>11s}"
+    )
+    for n, p, steps, its in sorted(rows, key=lambda r: r[0]):
+        print(
+            f"{n:8d} {p.best:7.2f} {p.cpu:6.2f} {p.cpu / base:12.2f} {p.ratio_cpu:10.1f} {steps:7.0f} "
+            f"{its:7.2f} {p.cpu / steps / n * 1e9:11.0f}"
+        )
+    ns = [r[0] for r in rows]
+    print(
+        f"growth exponent of the CPU time in vehicles (log-log, {min(ns)} -> {max(ns)}): "
+        f"{loglog_slope(ns, [r[1].cpu for r in rows]):.2f}; of the steps: "
+        f"{loglog_slope(ns, [r[2] for r in rows]):.2f}"
+    )
 
 
 if __name__ == "__main__":
