@@ -113,3 +113,26 @@ def test_cli_check_accepts_and_rejects(tmp_path):
     assert bad.exit_code == 2, bad.output
     assert "traction_share" in bad.output and "1.5" in bad.output
     assert "Traceback" not in bad.output
+
+
+def test_a_share_survives_writing_the_route_back_to_yaml(tmp_path) -> None:
+    """``trainsim convert`` writes the share where it is not 1, and the file reads back to the same
+    electrification (routes without shares are written as before)."""
+    import dataclasses
+
+    from trainsim.io.convert import dump_yaml, route_document
+    from trainsim.model.route import ElectrificationSection
+
+    line = trainsim.load_route("examples/metro_b/route.yaml")
+    mid = 0.5 * (line.start_m + line.end_m)
+    full = (ElectrificationSection(line.start_m, mid, 750.0), ElectrificationSection(mid, line.end_m, 750.0))
+    route = dataclasses.replace(line, electrification=full)
+    half = dataclasses.replace(full[0], traction_share=0.5)
+    shared = dataclasses.replace(route, electrification=(half, full[1]))
+    doc = route_document(shared)
+    assert doc["electrification"][0]["traction_share"] == 0.5
+    assert all("traction_share" not in e for e in doc["electrification"][1:])
+    assert all("traction_share" not in e for e in route_document(route)["electrification"])
+    path = tmp_path / "route.yaml"
+    path.write_text(dump_yaml(doc))
+    assert trainsim.load_route(path).electrification == shared.electrification

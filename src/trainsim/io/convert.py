@@ -157,7 +157,10 @@ def route_document(route: Any) -> dict[str, Any]:
         ]
     if route.electrification:
         doc["electrification"] = [
-            {"from_m": e.start_m, "to_m": e.end_m, "voltage_v": e.voltage_v} for e in route.electrification
+            {"from_m": e.start_m, "to_m": e.end_m, "voltage_v": e.voltage_v}
+            # written only where it is not the default, so routes without it read back unchanged
+            | ({"traction_share": e.traction_share} if e.traction_share != 1.0 else {})
+            for e in route.electrification
         ]
     lr = route.line_resistance
     doc["line_resistance"] = {

@@ -97,6 +97,7 @@ _BY_NAME: dict[str, str] = {
     "power_factor": "efficiency",
     "fraction": "fraction",
     "braking_fraction": "efficiency",
+    "traction_share": "efficiency",
     "service_fraction": "efficiency",
 }
 
