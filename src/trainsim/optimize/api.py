@@ -283,7 +283,11 @@ def _result(
     timing_points: tuple[TimingPoint, ...] = (),
     solvers: list[SectionSolver] | None = None,
 ) -> OptimizationResult:
-    run = _assemble(train, route, settings, plans, kind=strategy)
+    # the optimal run is integrated with the train its plans were built for: the solver's electric brake is
+    # part of the service brake (never above its curve or cap), so a regenerative stretch is the same
+    # motion and the same energy on every path (``SectionSolver.energy_j``)
+    planned = solvers[0].train if solvers and strategy == "optimal" else train
+    run = _assemble(planned, route, settings, plans, kind=strategy)
     deviations = [sec.running_time_s - T for sec, T in zip(run.sections, targets, strict=True)]
     warnings = list(extra_warnings or [])
     for k, (sec, T, dev) in enumerate(zip(run.sections, targets, deviations, strict=True)):
