@@ -118,9 +118,7 @@ def resistance_force(v, u, line, P):
     return running + P[P_MASS] * ((a0 + a1 * u) + (b0 + b1 * u) * v * v)
 
 
-# inlined into its callers (numba IR): a call passes the six effort-curve arrays and P, each with an
-# atomic reference count increment and decrement per call, which took about a fifth of a fastest run
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def acceleration(mode, E, u, line, P, curves, vref=-1.0):
     """dE/ds = acceleration [m/s^2] in a regime with maximum effort. ``curves`` holds the compiled
     traction, service braking and regenerative braking EffortCurves,
