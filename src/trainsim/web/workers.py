@@ -101,13 +101,18 @@ def in_daemon_thread(fn: Callable[[], Any]) -> asyncio.Future:
         else:
             future.set_result(value)
 
+    def hand_over(value: Any, error: BaseException | None) -> None:
+        # the server may have stopped (its loop closed) while the work ran: nobody awaits it then
+        with contextlib.suppress(RuntimeError):
+            loop.call_soon_threadsafe(settle, value, error)
+
     def work() -> None:
         try:
             value = fn()
         except BaseException as exc:  # handed to the awaiting coroutine
-            loop.call_soon_threadsafe(settle, None, exc)
+            hand_over(None, exc)
         else:
-            loop.call_soon_threadsafe(settle, value, None)
+            hand_over(value, None)
 
     threading.Thread(target=work, daemon=True, name="trainsim-web-spawn").start()
     return future
