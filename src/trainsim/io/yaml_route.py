@@ -3,7 +3,6 @@ electrification, line resistance and gravity (docs/FORMAT.md, "Route")."""
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 from collections.abc import Sequence
 from pathlib import Path
@@ -32,7 +31,6 @@ from trainsim.model import (
     Station,
     Tunnel,
 )
-from trainsim.model.bounds import Bound
 from trainsim.model.route import ApplyOver, CurveFormula, GradientFormula, TunnelFormula
 from trainsim.physics import line_resistance
 
@@ -125,25 +123,12 @@ class TunnelSpec(_Section):
         return self
 
 
-_SHARE_BOUND = Bound("traction_share", "", 0.0, 1.0, low_open=True, why="a share of tractive effort: (0, 1]")
-
-
 class ElectrificationSpec(_Section):
     """An electrification entry: ``voltage_v`` (0: not electrified) and ``traction_share``, the share of
     its tractive effort an electric train may use there (0 < share <= 1, default 1: full effort)."""
 
     voltage_v: NonNegative
     traction_share: Fraction = 1.0
-
-    @classmethod
-    def _field_names(cls) -> Any:
-        names, generic, suffixed, numeric = super()._field_names()
-        share = numeric.get("traction_share")
-        # a plain name without a unit falls back to the generic coefficient range (+-1e12), which would
-        # tell a reader who wrote true or "x" a range the field refuses: the share's range is (0, 1]
-        if share is not None and share.bound is not _SHARE_BOUND:
-            numeric["traction_share"] = dataclasses.replace(share, bound=_SHARE_BOUND)
-        return names, generic, suffixed, numeric
 
 
 class LineResistanceSpec(Spec):

@@ -201,6 +201,14 @@ class RunCache:
             found = self._routes[key] = direction_route(geometry, length_m, direction)
         return found
 
+    def _stretch_key(
+        self, train: Train, directed: Route, a: tuple[str, float], b: tuple[str, float], limits
+    ) -> tuple[tuple[SpeedLimit, ...], tuple]:
+        """The extra limits that reach into the stretch from ``a`` to ``b``, and the cache key of a run
+        of ``train`` over it under them."""
+        limits = tuple(x for x in limits if x.end_m > a[1] and x.start_m < b[1])
+        return limits, (id(train), id(directed), round(a[1], 6), round(b[1], 6), self._limits_key(limits))
+
     def stretch(
         self,
         train: Train,
@@ -211,11 +219,7 @@ class RunCache:
     ):
         """The fastest run from stop ``a`` to stop ``b`` (names and running positions) under the extra
         ceilings ``limits``: (position, speed, time, result)."""
-        limits = tuple(x for x in limits if x.end_m > a[1] and x.start_m < b[1])
-        key = (
-            id(train), id(directed), round(a[1], 6), round(b[1], 6),
-            self._limits_key(limits),
-        )  # fmt: skip
+        limits, key = self._stretch_key(train, directed, a, b, limits)
         found = self._runs.get(key)
         if found is not None:
             self.hits += 1
@@ -247,11 +251,8 @@ class RunCache:
         entry is the undisturbed run. Caps whose run is not ``ok`` or not slower end the table. The
         caps are run in turn only until one takes ``upto_s`` [s] or more (a disturbance of a few
         seconds needs two or three runs), the rest when a longer time is asked for."""
-        limits = tuple(x for x in limits if x.end_m > a[1] and x.start_m < b[1])
-        key = (
-            "slowed", id(train), id(directed), round(a[1], 6), round(b[1], 6),
-            self._limits_key(limits),
-        )  # fmt: skip
+        limits, key = self._stretch_key(train, directed, a, b, limits)
+        key = ("slowed", *key)
         table = self._runs.get(key)
         if table is None:
             _s, v, t, result = self.stretch(train, directed, a, b, limits)
