@@ -53,8 +53,10 @@ Data railML has no place for are trainsim attributes in their own namespace (``t
 :data:`~trainsim.io.railml_common.EXTENSION_NS`): the line-resistance formulas
 (``infrastructure@ts:curveFormula, ts:tunnelFormula, ts:gradientFormula, ts:applyOver``), the
 power factor and the line receptivity (``propulsion@ts:powerFactor, ts:receptivity``), tunnels on a
-ruling gradient (``tunnel@ts:limitingGradient``) and the braking table kind
-(``trainBrakeOperation@ts:tableIs``). Without the formulas in the file, they must be given.
+ruling gradient (``tunnel@ts:limitingGradient``), the braking table kind
+(``trainBrakeOperation@ts:tableIs``) and the share of tractive effort an electric train may use
+(``electrificationChange@ts:tractionShare``, 0 < share <= 1, default 1). Without the formulas in
+the file, they must be given.
 """
 
 from __future__ import annotations
@@ -474,7 +476,8 @@ class Railml2(Dialect):
                     continue
                 if pos is None or not self.r.within(el, pos, begin, end):
                     continue
-                changes.append((pos, voltage, el))
+                share = rc.traction_share(el, p)
+                changes.append((pos, voltage if share == 1.0 else (voltage, share), el))
             changes.sort(key=lambda c: c[0])
             self._same_position(changes, "electrificationChange")
             spans["electrification"] += list(rc.regions(changes, tid, end))
@@ -758,7 +761,7 @@ class _Writer(rc.ElementWriter):
                     self.notes.append(f"tunnel {i + 1}: its extra drag is not written (no railML attribute)")
         if route.electrification:
             elec = self.el(elements, "electrificationChanges")
-            sections = [(e.start_m, e.end_m, e.voltage_v) for e in route.electrification]
+            sections = [(e.start_m, e.end_m, (e.voltage_v, e.traction_share)) for e in route.electrification]
             changes = _changes(route.start_m, route.end_m, sections, None)
             if len(changes) > 1 and any(
                 b < c - rc.POSITION_TOLERANCE_M for (_, b, _), (c, _, _) in itertools.pairwise(sections)
@@ -766,8 +769,7 @@ class _Writer(rc.ElementWriter):
                 self.notes.append(
                     "electrification: gaps between sections (the train's nominal voltage) are not written"
                 )
-            for i, (pos, value) in enumerate(changes):
-                voltage = value or 0.0
+            for i, (pos, (voltage, share)) in enumerate(changes):
                 self.el(
                     elec,
                     "electrificationChange",
@@ -775,6 +777,7 @@ class _Writer(rc.ElementWriter):
                     pos=pos - rel,
                     type="overhead" if voltage > 0 else "none",
                     voltage=voltage if voltage > 0 else None,
+                    ts_tractionShare=share if share != 1.0 else None,
                 )
         ocps = self.el(infra, "operationControlPoints")
         for i, st in enumerate(route.stations):

@@ -26,7 +26,9 @@ Functional infrastructure
       ``@deltaGradient`` the mean over the curve is used]; ``horizontalCurve@radius`` [m, 0 =
       straight]; ``overCrossing@constructionType="tunnel"`` (``@type`` also accepted);
       ``electrificationSection`` with ``electrificationSystemRef`` -> ``electrificationSystem@voltage``
-      [V] (or its own ``@voltage``; 0 = not electrified); ``operationalPoint`` (``name@name``).
+      [V] (or its own ``@voltage``; 0 = not electrified) and ``@ts:tractionShare`` (the share of
+      tractive effort an electric train may use, 0 < share <= 1, default 1); ``operationalPoint``
+      (``name@name``).
     * Overlapping sections of one kind that apply to the same direction are errors.
 
 Rolling stock
@@ -446,7 +448,8 @@ class Railml3(Dialect):
                 if holder.get("voltage") is None:
                     p.add(holder, "missing line voltage [V] (0 = not electrified)", attribute="voltage")
                 continue
-            spans(es, voltage, "electrification")
+            share = rc.traction_share(es, p)
+            spans(es, voltage if share == 1.0 else (voltage, share), "electrification")
         return data
 
     def use_containers(self, el: etree._Element) -> None:
@@ -829,7 +832,8 @@ class _Writer(rc.ElementWriter):
                 self.el(systems, "electrificationSystem", id=f"esys{k + 1}", voltage=u)
             sections = self.el(elec, "electrificationSections")
             for k, e in enumerate(route.electrification):
-                es = self.el(sections, "electrificationSection", id=f"es{k + 1}")
+                share = e.traction_share if e.traction_share != 1.0 else None
+                es = self.el(sections, "electrificationSection", id=f"es{k + 1}", ts_tractionShare=share)
                 self.linear(es, f"es{k + 1}", e.start_m - rel, e.end_m - rel, length)
                 self.el(es, "electrificationSystemRef", ref=f"esys{voltages.index(e.voltage_v) + 1}")
         if route.gradients:

@@ -133,6 +133,21 @@ def ext(el: etree._Element, name: str) -> str | None:
     return el.get(EXT + name)
 
 
+def traction_share(el: etree._Element, problems: Problems) -> float:
+    """The electrification's ``ts:tractionShare`` [-] (``ElectrificationSection.traction_share``, the
+    share of its tractive effort an electric train may use there; railML has no element for it), 1
+    when absent; a value outside (0, 1] or not a number is recorded in ``problems`` (and read as 1)."""
+    text = ext(el, "tractionShare")
+    if text is None:
+        return 1.0
+    value = num(text)
+    if value is None or not (math.isfinite(value) and 0.0 < value <= 1.0):
+        problems.add(el, "traction share out of range", attribute="ts:tractionShare", value=text,
+                     allowed="0 < share <= 1")  # fmt: skip
+        return 1.0
+    return float(value)
+
+
 def label(el: etree._Element) -> str:
     """How an element is named in messages: ``<speedChange id='sc3'>``."""
     ident = el.get("id")
@@ -1129,10 +1144,14 @@ def route_mapping(
         "electrification changes",
         problems,
     ):
-        if elec and elec[-1]["voltage_v"] == ev.value:
+        # a value is the voltage [V], or (voltage [V], traction share [-]) where the file gives a share
+        voltage, share = ev.value if isinstance(ev.value, tuple) else (ev.value, 1.0)
+        if elec and elec[-1]["voltage_v"] == voltage and elec[-1].get("traction_share", 1.0) == share:
             continue
         content.origin(f"electrification[{len(elec)}]", ev.element)
-        elec.append({"from_m": _r(ev.position_m), "voltage_v": float(ev.value)})
+        elec.append({"from_m": _r(ev.position_m), "voltage_v": float(voltage)})
+        if share != 1.0:
+            elec[-1]["traction_share"] = float(share)
     if elec and elec[0]["from_m"] > start + POSITION_TOLERANCE_M:
         content.notes.append(
             f"no electrification given before {elec[0]['from_m']:g} m of the route: the first value "

@@ -31,7 +31,8 @@ Track tables
       ``speed limit (km/h)``, ``gradient (‰)``, ``curve radius (m)`` or ``curve central angle
       (deg)`` with ``curve length (m)`` (default: the section's length, from its start),
       ``tunnel length (m)`` (a tunnel from the section's start; touching tunnels are one tunnel),
-      ``limiting gradient`` (yes/no), ``voltage (V)``.
+      ``limiting gradient`` (yes/no), ``voltage (V)``, ``traction share (%)`` (or ‰: the share of
+      tractive effort an electric train may use, 0 < share <= 100 %, default 100 %; needs a voltage).
 
 Signalling tables of a line in operation (``line.spreadsheet`` of an operation file, read with the
 track tables above by :func:`read_spreadsheet_signalling`; positions are route positions, the
@@ -766,6 +767,7 @@ def _route(
             Column("tunnel", ("tunnel length",), "length"),
             Column("limiting", ("limiting gradient",), kind="bool"),
             Column("voltage", ("voltage", "line voltage"), "voltage"),
+            Column("traction_share", ("traction share",), "ratio"),
         ],
         ["from", "speed"],
     )
@@ -839,10 +841,29 @@ def _route(
             else:
                 content.origins[f"tunnels[{len(tunnels)}]"] = where
                 tunnels.append({"from_m": a, "to_m": a + t, "limiting_gradient": limiting})
-        u = val("voltage")
-        if u is not None and (not elec or elec[-1]["voltage_v"] != u or abs(elec[-1]["to_m"] - a) > 1e-9):
+        u, share = val("voltage"), val("traction_share")
+        if share is not None:
+            if u is None:
+                raise sec.error(
+                    "a traction share needs the section's voltage", row=r, col=cols["traction_share"][0]
+                )
+            if not 0.0 < share <= 1.0:
+                col = cols["traction_share"][0]
+                raise sec.error(
+                    "traction share out of range", row=r, col=col, value=sec.rows[r][col],
+                    allowed="0 < share <= 1 (0 % < share <= 100 %)",
+                )  # fmt: skip
+        share = 1.0 if share is None else share
+        if u is not None and (
+            not elec
+            or elec[-1]["voltage_v"] != u
+            or elec[-1].get("traction_share", 1.0) != share
+            or abs(elec[-1]["to_m"] - a) > 1e-9
+        ):
             content.origins[f"electrification[{len(elec)}]"] = where
             elec.append({"from_m": a, "to_m": b, "voltage_v": u})
+            if share != 1.0:
+                elec[-1]["traction_share"] = share
         elif u is not None:
             elec[-1]["to_m"] = b
     start = params.get("start", rows[0][1])
@@ -1153,8 +1174,12 @@ def _rows_route(route: Route) -> dict[str, list[list[Any]]]:
         "tunnel length (m)",
         "limiting gradient",
     ]
+    shares = any(e.traction_share != 1.0 for e in route.electrification)
     if route.electrification:
         header.append("voltage (V)")
+    if shares:
+        # percent: the column's unit must be in its header, and a share is a ratio (‰ or %)
+        header.append("traction share (%)")
     rows = [header]
 
     def at(items: Sequence[Any], a: float) -> Any:
@@ -1178,6 +1203,8 @@ def _rows_route(route: Route) -> dict[str, list[list[Any]]]:
         if route.electrification:
             e = at(route.electrification, a)
             row.append(e.voltage_v if e else "")
+        if shares:
+            row.append(e.traction_share * 100.0 if e else "")
         rows.append(row)
     return {"route": params, "stations": stations, "sections": rows}
 
