@@ -140,14 +140,20 @@ class VoltageLimits:
 
 
 #: EN 50163:2004 + A1:2007 Table 1 (= IEC 60850:2014 Table 1): (Umin2, Umin1, Un, Umax1, Umax2,
-#: Umax3) [V] per system name. Umin2 = Umin1 for DC; Umax3 is the 20 ms long-term overvoltage.
-#: Cross-checked (issue 18) against the traction-system table of IEC 60038 (lowest permanent Umin1,
-#: nominal Un, highest permanent Umax1) as reproduced by S. McFadyen, "Voltage Levels to IEC 60038",
-#: https://myelectrical.com/notes/entryid/203/voltage-levels-to-iec-60038: 600 V 400/600/720,
-#: 750 V 500/750/900, 3 kV 2000/3000/3600, 15 kV 12000/15000/17250, 25 kV 19000/25000/27500 agree;
-#: for 1.5 kV that page prints a highest voltage of 1600 V, taken here as a misprint of 1800 V (every
-#: other system's Umax1 is 1.2 Un, and 1800 V is EN 50163's value); kept at 1800 V. Umin2, Umax2 and
-#: Umax3 were not found in a public source reachable here and are as read from EN 50163 + A1.
+#: Umax3) [V] per system name; DC values are mean values, AC values r.m.s. Umin2 = Umin1 for DC;
+#: Umax3 is the 20 ms long-term overvoltage. Public sources found (issue 18, search of public pages
+#: and repositories; the standards themselves are not public):
+#:
+#: - Umin2, Umin1, Un, Umax1 and Umax2 of all six systems: the table "Supply voltages of railway
+#:   systems" of a public GitHub-hosted blog post (2025-02-25, Jekyll site, category "Rolling
+#:   stock"), which attributes it to EN 50163 and IEC 60850 and cites EN 50163 (2007): every value
+#:   below agrees, including 1.5 kV's Umax1 1800 V and Umax2 1950 V.
+#: - Umin1, Un, Umax1: the traction-system table of IEC 60038 as reproduced by S. McFadyen,
+#:   "Voltage Levels to IEC 60038", https://myelectrical.com/notes/entryid/203/voltage-levels-to-iec-60038,
+#:   agrees for 600 V, 750 V, 3 kV, 15 kV and 25 kV; for 1.5 kV it prints 1600 V as the highest
+#:   voltage, a misprint of 1800 V by the source above (and every other DC system's Umax1 is 1.2 Un).
+#: - Umax3 (A1:2007): no public source found; the values are as read from EN 50163 + A1 and are
+#:   informative only here (a 1 s step does not resolve 20 ms events; only Umax3 >= Umax2 is checked).
 EN50163: dict[str, tuple[float, float, float, float, float, float]] = {
     "dc_600": (400.0, 400.0, 600.0, 720.0, 800.0, 1015.0),
     "dc_750": (500.0, 500.0, 750.0, 900.0, 1000.0, 1270.0),
