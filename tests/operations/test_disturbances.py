@@ -40,8 +40,12 @@ def test_distributions_draw_what_their_parameters_say() -> None:
 
 def test_fixed_disturbances_land_where_they_belong_and_delays_propagate(tmp_path) -> None:
     plain = read_operation(_file(tmp_path, ""))
-    op = read_operation(_file(tmp_path, "disturbances: {seed: 1, dwell: {kind: fixed, value_s: 40}, "
-                                        "running: {kind: fixed, value_s: 5}}"))
+    op = read_operation(
+        _file(
+            tmp_path,
+            "disturbances: {seed: 1, dwell: {kind: fixed, value_s: 40}, running: {kind: fixed, value_s: 5}}",
+        )
+    )
     first = op.services[0]
     base = plain.services[0]
     assert first.entry_delay_s == base.entry_delay_s  # running time is lost on the run, not at the origin
@@ -59,17 +63,19 @@ def test_fixed_disturbances_land_where_they_belong_and_delays_propagate(tmp_path
     assert max(delay[t.id] for t in ups) > 3 * 5.0 + 2 * 40.0
 
 
-def test_running_time_disturbances_are_spread_along_the_run(tmp_path) -> None:
-    """A sampled running-time extension makes the stretch's run slower, not its departure later: the
-    train is late at every point of the stretch by the extension's share of the running time it has
-    run, and arrives exactly the sampled extension later."""
+def test_time_scaled_running_time_disturbances_are_spread_along_the_run(tmp_path) -> None:
+    """Delays only (``disturbed_energy=False``): a sampled running-time extension makes the stretch's
+    run slower, not its departure later: the train is late at every point of the stretch by the
+    extension's share of the running time it has run, and arrives exactly the sampled extension later;
+    the trajectory says it is time-scaled. (Driven as capped runs: test_disturbed_runs.py.)"""
     block = "disturbances: {seed: 3, running: {kind: uniform, low_s: 2, high_s: 30}}"
     op = read_operation(_file(tmp_path, block))
     down = next(s for s in op.services if s.id == "D.1")
     extra = np.array(down.running_extra_s)
     assert extra.shape == (3,) and np.all((extra >= 2) & (extra <= 30)) and len(set(extra)) == 3
-    outcome = next(t for t in run_operation(op, [down]).trains if t.id == "D.1")
+    outcome = next(t for t in run_operation(op, [down], disturbed_energy=False).trains if t.id == "D.1")
     assert outcome.hindrances == [] and down.entry_delay_s == 0.0
+    assert "time-scaled" in outcome.trajectory_note
     plan, real = outcome.planned_trajectory, outcome.trajectory
     np.testing.assert_array_equal(plan.position_m, real.position_m)  # the same path, driven slower
     path = op.line.paths["down"]
@@ -86,7 +92,9 @@ def test_running_time_disturbances_are_spread_along_the_run(tmp_path) -> None:
         share = e * (t_plan - t_plan[0]) / rt
         np.testing.assert_allclose(real.time_s[a : b + 1] - t_plan, lost + share, atol=1e-9)
         # the slower run: speed divided by the time factor at every point
-        np.testing.assert_allclose(real.speed_mps[a : b + 1] * (1 + e / rt), plan.speed_mps[a : b + 1], atol=1e-12)
+        np.testing.assert_allclose(
+            real.speed_mps[a : b + 1] * (1 + e / rt), plan.speed_mps[a : b + 1], atol=1e-12
+        )
         lost += e
     assert outcome.delay_s == pytest.approx(extra.sum(), abs=1e-6)
     arrival = outcome.stops[-1]
@@ -101,9 +109,12 @@ def test_running_time_disturbances_of_the_wrong_length_are_refused(tmp_path) -> 
 
 
 def test_the_same_seed_gives_the_same_days(tmp_path) -> None:
-    block = ("disturbances: {seed: 7, entry: {kind: exponential, mean_s: 60, probability: 0.3}, "
-             "dwell: {kind: lognormal, median_s: 10, sigma: 0.5, probability: 0.5}}")
+    block = (
+        "disturbances: {seed: 7, entry: {kind: exponential, mean_s: 60, probability: 0.3}, "
+        "dwell: {kind: lognormal, median_s: 10, sigma: 0.5, probability: 0.5}}"
+    )
     a, b = read_operation(_file(tmp_path, block)), read_operation(_file(tmp_path, block))
+
     def drawn(op):
         return [(s.entry_delay_s, [x.extra_dwell_s for x in s.stops]) for s in op.services]
 
@@ -119,7 +130,10 @@ def test_the_same_seed_gives_the_same_days(tmp_path) -> None:
         ({"seed": 1, "dwell": {"kind": "gamma", "mean_s": 3}}, "disturbances.dwell.kind"),
         ({"seed": 1, "dwell": {"kind": "exponential"}}, "disturbances.dwell.mean_s"),
         ({"seed": 1, "dwell": {"kind": "uniform", "low_s": 5, "high_s": 1}}, "disturbances.dwell.high_s"),
-        ({"seed": 1, "entry": {"kind": "fixed", "value_s": 1, "probability": 2}}, "disturbances.entry.probability"),
+        (
+            {"seed": 1, "entry": {"kind": "fixed", "value_s": 1, "probability": 2}},
+            "disturbances.entry.probability",
+        ),
         ({"seed": -1}, "disturbances.seed"),
         ({"seed": 1, "wind": {}}, "disturbances.wind"),
     ],

@@ -26,9 +26,36 @@ from trainsim.sim.result import RunResult
 #: Two stops of one run closer than this are merged (the core needs them >= 1 m apart) [m].
 MIN_STOP_SPACING_M = 2.0
 #: Speed caps of the slowed runs of a stretch (running-time disturbances), as fractions of the top
-#: speed of its undisturbed run [-]; 1 is the undisturbed run. Steps of 5 % keep linear
-#: interpolation of the energy in running time within a few 0.1 % (tests/operations/test_slowed_energy.py).
+#: speed of its undisturbed run [-]; 1 is the undisturbed run. They bracket the cap that takes a
+#: disturbed running time (``RunCache.capped``); a run at the lowest is as slow as a stretch is driven.
 SLOWED_CAP_FRACTIONS = tuple(round(1.0 - 0.05 * k, 2) for k in range(17))  # 1.0 .. 0.2
+#: A capped run whose running time is this close to the disturbed one takes it [s].
+CAP_TIME_TOLERANCE_S = 1e-7
+#: Root-find steps on the cap before giving up (Illinois converges in some 5 to 10 on smooth runs).
+CAP_MAX_ITERATIONS = 60
+
+
+@dataclass(frozen=True)
+class CappedRun:
+    """How a stretch is driven to take a longer running time (``RunCache.capped``).
+
+    Attributes:
+        limit: the extra speed cap over the stretch (running positions, [m/s]), or None (the
+            undisturbed run, or no capped run is ``ok``).
+        running_time_s: running time of the run under it [s].
+        hold_s: the time no capped run takes, stood before leaving the stretch's first stop [s].
+        status: ``ok`` (within ``CAP_TIME_TOLERANCE_S`` of the target), ``undisturbed`` (no slower run
+            needed), ``beyond_lowest_cap`` (longer than the run at the lowest cap of
+            ``SLOWED_CAP_FRACTIONS``), ``no_slower_run`` (a lower cap's run is not ``ok`` or not
+            slower), ``capped_run_failed`` (a run inside the bracket is not ``ok``) or
+            ``not_converged``; in the last four the slowest suitable cap is driven and ``hold_s``
+            stood.
+    """
+
+    limit: SpeedLimit | None
+    running_time_s: float
+    hold_s: float
+    status: str
 
 
 def _mirror_spans(items: tuple, length_m: float, **fields) -> tuple:
@@ -114,12 +141,14 @@ class Movement:
         length_m: float,
         final_dwell_s: float = 0.0,
         time_factors: Sequence[float] | None = None,
+        lead_s: float = 0.0,
     ) -> Trajectory:
         """The trajectory when the train leaves stop ``k`` at ``departures_s[k]`` (one per stop but the
         last) [s]; the last stop is held for ``final_dwell_s`` [s]. ``time_factors[k]`` (>= 1) stretches
         the run from stop ``k`` in time (a running-time disturbance: the same path driven slower, speed
         divided by the factor, so that the train is late at every point by the share of the running
-        time it has run)."""
+        time it has run). ``lead_s`` > 0 puts a stand of that long at the first stop before leaving it
+        into the trajectory (a disturbance no run takes, ``RunCache.capped``) [s]."""
         rel, seg, position_m, speed_mps = self._pieces(len(departures_s))
         dep = np.append(np.asarray(departures_s, dtype=float), 0.0)
         if time_factors is None:
@@ -130,6 +159,10 @@ class Movement:
             time_s = rel * f + dep[seg]
             speed_mps = speed_mps / f  # a new array: the shared one stays as it is
         time_s[-1] = time_s[-2] + final_dwell_s
+        if lead_s > 0:
+            time_s = np.insert(time_s, 0, time_s[0] - lead_s)
+            position_m = np.insert(position_m, 0, position_m[0])
+            speed_mps = np.insert(speed_mps, 0, 0.0)
         # position and speed do not depend on the departures: every trajectory shares them (read-only)
         return Trajectory(time_s, position_m, speed_mps, length_m)
 
@@ -277,7 +310,7 @@ class RunCache:
             energies.append(float(run.energy_kwh.net))
         return np.array(caps), np.array(times), np.array(energies)
 
-    def slowed_energy_kwh(
+    def capped(
         self,
         train: Train,
         directed: Route,
@@ -285,17 +318,84 @@ class RunCache:
         b: tuple[str, float],
         limits: Sequence[SpeedLimit],
         running_time_s: float,
-    ) -> tuple[float, float]:
-        """Net energy from the line [kWh] of the stretch from ``a`` to ``b`` run slower so that it takes
-        ``running_time_s`` [s]: linear in running time between two of the capped runs of ``slowed``
-        (each one the core's run, auxiliaries included). Returns it with the time beyond the slowest
-        capped run [s] (0 inside the table), counted as standing at auxiliary power: a longer running
-        time than a run at a fifth of the top speed is a stand somewhere on the stretch."""
-        _caps, times, energies = self.slowed(train, directed, a, b, limits, running_time_s)
-        if running_time_s <= times[-1]:
-            return float(np.interp(running_time_s, times, energies)), 0.0
-        beyond = float(running_time_s - times[-1])
-        return float(energies[-1] + auxiliary_power_w(train) * beyond / KWH), beyond
+    ) -> CappedRun:
+        """The stretch from stop ``a`` to stop ``b`` driven so that it takes ``running_time_s`` [s]:
+        the fastest run under one extra speed cap over the whole stretch, the cap found by a
+        root-find on the running time (Illinois regula falsi, bracketed by two capped runs of
+        ``slowed``) to :data:`CAP_TIME_TOLERANCE_S`. The run itself is ``stretch`` under ``limits``
+        plus ``CappedRun.limit``, so the trajectory, blocking times and energy of a disturbed
+        stretch are one run's.
+
+        Where no capped run takes the time (longer than the run at the lowest cap, or a cap whose run
+        is not ``ok``, or no convergence), the fallback is explicit: the slowest capped run that is
+        not too slow, and the rest of the time as a stand before leaving ``a``
+        (``CappedRun.hold_s``, ``status`` says why)."""
+        limits, _key = self._stretch_key(train, directed, a, b, limits)
+        caps, times, _energies = self.slowed(train, directed, a, b, limits, running_time_s)
+        target = float(running_time_s)
+        if target - times[0] <= CAP_TIME_TOLERANCE_S:
+            return CappedRun(None, float(times[0]), max(target - float(times[0]), 0.0), "undisturbed")
+        if target > times[-1]:
+            status = "beyond_lowest_cap" if len(times) == len(SLOWED_CAP_FRACTIONS) else "no_slower_run"
+            return self._capped_at(train, directed, a, b, limits, float(caps[-1]), target, status)
+        k = int(np.searchsorted(times, target))  # times[k - 1] < target <= times[k]
+        # bracket: fast side (time below target, higher cap) and slow side (time above)
+        c_fast, g_fast = float(caps[k - 1]), float(times[k - 1]) - target
+        c_slow, g_slow = float(caps[k]), float(times[k]) - target
+        if abs(g_slow) <= CAP_TIME_TOLERANCE_S:
+            return self._capped_at(train, directed, a, b, limits, c_slow, target, "ok")
+        side = 0
+        for _ in range(CAP_MAX_ITERATIONS):
+            c = c_fast - g_fast * (c_slow - c_fast) / (g_slow - g_fast)
+            if not c_slow < c < c_fast:
+                c = 0.5 * (c_slow + c_fast)
+            run = run_fastest(
+                train,
+                service_route(directed, [a, b], (*limits, SpeedLimit(a[1], b[1], c))),
+                self.settings,
+                trace=False,
+            )
+            self.computed += 1
+            if run.status != "ok":
+                return self._capped_at(train, directed, a, b, limits, c_fast, target, "capped_run_failed")
+            g = float(run.running_time_s) - target
+            if abs(g) <= CAP_TIME_TOLERANCE_S:
+                return self._capped_at(train, directed, a, b, limits, c, target, "ok")
+            # Illinois: halve the weight of an end point kept twice in a row (superlinear convergence)
+            if g < 0:
+                c_fast, g_fast = c, g
+                g_slow = g_slow * 0.5 if side == -1 else g_slow
+                side = -1
+            else:
+                c_slow, g_slow = c, g
+                g_fast = g_fast * 0.5 if side == 1 else g_fast
+                side = 1
+            if c_fast - c_slow <= 1e-12 * c_fast:
+                break
+        return self._capped_at(train, directed, a, b, limits, c_fast, target, "not_converged")
+
+    def _capped_at(
+        self,
+        train: Train,
+        directed: Route,
+        a: tuple[str, float],
+        b: tuple[str, float],
+        limits: tuple[SpeedLimit, ...],
+        cap_mps: float,
+        target_s: float,
+        status: str,
+    ) -> CappedRun:
+        """The traced run of the stretch under ``cap_mps`` [m/s] and what is left of ``target_s`` [s]
+        as a stand (0 when it is not slower than the target)."""
+        limit = SpeedLimit(a[1], b[1], cap_mps)
+        _s, _v, t, result = self.stretch(train, directed, a, b, (*limits, limit))
+        if result.status != "ok":
+            _s, _v, t, result = self.stretch(train, directed, a, b, limits)
+            run_s = float(t[-1] - t[0])
+            return CappedRun(None, run_s, max(target_s - run_s, 0.0), "capped_run_failed")
+        run_s = float(t[-1] - t[0])
+        hold = 0.0 if status == "ok" else max(target_s - run_s, 0.0)
+        return CappedRun(limit, run_s, hold, status)
 
     def movement(
         self,
@@ -358,6 +458,8 @@ def auxiliary_power_w(train: Train) -> float:
 
 
 __all__ = [
+    "CAP_TIME_TOLERANCE_S",
+    "CappedRun",
     "Movement",
     "RunCache",
     "auxiliary_power_w",

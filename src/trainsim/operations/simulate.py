@@ -105,10 +105,10 @@ class TrainService:
         entry_delay_s: delay at the origin [s] (given or sampled).
         origin_track: platform track at the origin, or None.
         running_extra_s: running-time disturbances [s], one per stretch between two scheduled stops
-            (origin, stops, destination), or empty: the operated run of a stretch is the same path
-            driven slower, its running time longer by this much (spread in proportion to the running
-            time, not lumped at a stop), its energy that of a slower run of that running time
-            (``TrainOutcome.energy_note``); the planned run does not have it.
+            (origin, stops, destination), or empty: the operated train drives the stretch as the
+            fastest run under a speed cap whose running time is this much longer
+            (``RunCache.capped``); its trajectory, blocking times and energy are that run's
+            (``TrainOutcome.disturbed``). The planned run does not have it.
     """
 
     id: str
@@ -165,6 +165,44 @@ class Hindrance:
     route: str
 
 
+@dataclass(frozen=True)
+class DisturbedStretch:
+    """How a stretch with a running-time disturbance was driven.
+
+    Attributes:
+        start, end: its scheduled stops.
+        extra_s: the disturbance [s].
+        running_time_s: the disturbed running time, the undisturbed run's plus ``extra_s`` [s].
+        driven_s: running time of the trajectory's run of the stretch (unhindered) [s].
+        cap_mps: the speed cap of that run [m/s], or None (time-scaled, or no capped run).
+        hold_s: the part of ``running_time_s`` no capped run takes, stood before leaving ``start`` [s].
+        status: ``ok`` (a capped run of the disturbed time), ``time_scaled`` (the fastest run's path
+            with time stretched: ``simulate(disturbed_energy=False)``), or the fallback of
+            ``CappedRun.status``.
+    """
+
+    start: str
+    end: str
+    extra_s: float
+    running_time_s: float
+    driven_s: float
+    cap_mps: float | None
+    hold_s: float
+    status: str
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "from": self.start,
+            "to": self.end,
+            "extra_s": round(self.extra_s, 3),
+            "running_time_s": round(self.running_time_s, 6),
+            "driven_s": round(self.driven_s, 6),
+            "cap_kmh": None if self.cap_mps is None else round(self.cap_mps * 3.6, 3),
+            "hold_s": round(self.hold_s, 3),
+            "status": self.status,
+        }
+
+
 @dataclass
 class TrainOutcome:
     """What happened to one train."""
@@ -183,9 +221,12 @@ class TrainOutcome:
     warnings: list[str] = field(default_factory=list)
     #: the core's runs of the operated movement, one per stretch between two stops (signal stops too)
     runs: tuple = ()
-    #: how the operated energy was found when it is not the sum of ``runs`` (running-time
-    #: disturbances), else empty
+    #: how running-time disturbances were driven and their energy found, else empty
     energy_note: str = ""
+    #: how the operated trajectory was made when it is not ``runs`` joined (time-scaled), else empty
+    trajectory_note: str = ""
+    #: the stretches with running-time disturbances and how each was driven
+    disturbed: tuple[DisturbedStretch, ...] = ()
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -202,6 +243,8 @@ class TrainOutcome:
             ],
             "warnings": self.warnings,
             **({"energy_note": self.energy_note} if self.energy_note else {}),
+            **({"trajectory_note": self.trajectory_note} if self.trajectory_note else {}),
+            **({"disturbed": [d.to_dict() for d in self.disturbed]} if self.disturbed else {}),
         }
 
 
@@ -287,6 +330,7 @@ class _TrainState:
         directed: GeometryRoute,
         cache: RunCache,
         ma_steps: Callable[[float, float, float], tuple[SpeedLimit, ...]] | None = None,
+        disturbed_energy: bool = True,
     ) -> None:
         self.index = index
         self.ma_steps = ma_steps
@@ -324,10 +368,12 @@ class _TrainState:
                 )
             )
         self.stops.append(_Stop(svc.destination, p1, "destination", dest_dwell, None))
-        # running-time disturbances as time factors per scheduled stretch (None: none), from its
-        # unhindered run
+        # running-time disturbances as time factors per scheduled stretch (None: none, or driven as
+        # capped runs), from its unhindered run
         self.stretch_m = np.array([s.position_m for s in self.stops])
         self.factors: np.ndarray | None = None
+        self.holds: dict[float, float] = {}  # stop position -> stand of a disturbance [s]
+        self.disturbed: list[DisturbedStretch] = []
         self.dest_dwell_s = dest_dwell
         self.tracks = {s.name: s.track for s in self.stops if s.track is not None}
         self.override: dict[float, float] = {}  # stop position -> decided departure
@@ -354,11 +400,64 @@ class _TrainState:
         if ma_steps is not None:
             self.limits.extend(self._stop_ceilings())
         self.refresh_movement()
+        self.plan_movement = self.movement
         if any(svc.running_extra_s) and self.movement.status == "ok":
-            rt = self.movement.running_times_s()
-            extra = np.asarray(svc.running_extra_s, dtype=float)
-            self.factors = 1.0 + np.divide(extra, rt, out=np.zeros_like(extra), where=rt > 0)
-            self.refresh_trajectory()
+            if disturbed_energy:
+                self._cap_disturbed()
+            else:
+                self._scale_disturbed()
+
+    def _scale_disturbed(self) -> None:
+        """Running-time disturbances as time factors: the fastest run's path driven with time
+        stretched (``Movement.trajectory``), cheap but not a run of the train (no energy)."""
+        rt = self.movement.running_times_s()
+        extra = np.asarray(self.svc.running_extra_s, dtype=float)
+        self.factors = 1.0 + np.divide(extra, rt, out=np.zeros_like(extra), where=rt > 0)
+        for k, (a, b) in enumerate(pairwise(self.stops)):
+            if extra[k] > 0:
+                t = float(rt[k] * self.factors[k])
+                self.disturbed.append(
+                    DisturbedStretch(a.name, b.name, float(extra[k]), t, t, None, 0.0, "time_scaled")
+                )
+        self.refresh_trajectory()
+
+    def _cap_disturbed(self) -> None:
+        """Each disturbed stretch driven as the fastest run under the speed cap that takes its
+        disturbed running time (``RunCache.capped``): the caps join the train's ceilings, so every
+        later run of the stretch (split at a signal, released) keeps them."""
+        rt = self.movement.running_times_s()
+        caps = []
+        for k, (a, b) in enumerate(pairwise(self.stops)):
+            extra = float(self.svc.running_extra_s[k])
+            if extra <= 0 or rt[k] <= 0 or self.movement.results[k].status != "ok":
+                continue
+            target = float(rt[k] + extra)
+            c = self.cache.capped(
+                self.svc.train,
+                self.directed,
+                (a.name, a.position_m),
+                (b.name, b.position_m),
+                self.limits,
+                target,
+            )
+            if c.limit is not None:
+                caps.append(c.limit)
+            if c.hold_s > 0:
+                self.holds[a.position_m] = self.holds.get(a.position_m, 0.0) + c.hold_s
+            cap = None if c.limit is None else c.limit.limit_mps
+            self.disturbed.append(
+                DisturbedStretch(a.name, b.name, extra, target, c.running_time_s, cap, c.hold_s, c.status)
+            )
+            if c.status != "ok":
+                self.warnings.append(
+                    f"running-time disturbance {a.name} - {b.name}: no capped run takes {target:.1f} s "
+                    f"({c.status}); driven in {c.running_time_s:.1f} s"
+                    + ("" if cap is None else f" at {cap * 3.6:.1f} km/h")
+                    + f", standing {c.hold_s:.1f} s at {a.name} before leaving (auxiliaries only)"
+                )
+        if caps:
+            self.limits.extend(caps)
+            self.refresh_movement()
 
     def factor_at(self, x_m: float) -> float:
         """The time factor of the scheduled stretch at running position ``x_m``."""
@@ -408,23 +507,34 @@ class _TrainState:
         self.refresh_trajectory()
 
     def departures(self, planned: bool = False) -> list[float]:
-        m = self.movement
+        m = self.plan_movement if planned else self.movement
         rt = m.running_times_s()
         if not planned and self.factors is not None:
             rt = rt * self.time_factors()
+        holds = self.holds if not planned else {}
         deps: list[float] = []
         for k, s in enumerate(self.stops[:-1]):
             arrival = s.scheduled_departure_s if k == 0 else deps[-1] + rt[k - 1]
             dep = arrival + s.dwell_s + (0.0 if planned else s.extra_s)
             if s.scheduled_departure_s is not None:
                 dep = max(dep, s.scheduled_departure_s)
+            if holds:
+                # a disturbance no capped run takes: stood before leaving, a wait for the route
+                # (override) may cover it
+                dep += holds.get(s.position_m, 0.0)
             dep = max(dep, self.override.get(s.position_m, -np.inf))
             deps.append(dep)
         return deps
 
+    def origin_hold_s(self) -> float:
+        """The stand at the origin of a disturbance no capped run takes [s]: in the trajectory and
+        its energy, before the departure (the stands at later stops lie between arrival and
+        departure)."""
+        return self.holds.get(self.stops[0].position_m, 0.0) if self.holds else 0.0
+
     def refresh_trajectory(self) -> None:
         self.trajectory = self.movement.trajectory(
-            self.departures(), self.length_m, self.dest_dwell_s, self.time_factors()
+            self.departures(), self.length_m, self.dest_dwell_s, self.time_factors(), self.origin_hold_s()
         )
         # a counter, not id(): a discarded trajectory's id can be reused by the next one
         self.trajectory_version += 1
@@ -1010,9 +1120,10 @@ def simulate(
         headways: compute the minimum headway of consecutive trains of each direction.
         etcs: the trains' ETCS braking data (needed for ``etcs_l2``).
         cache: single-train runs to share with other simulations of the same line and settings.
-        disturbed_energy: compute the operated energy of trains with running-time disturbances (a few
-            slower runs per disturbed stretch); False: their energy is NaN, said in ``energy_note``
-            (for studies of delays only).
+        disturbed_energy: drive every stretch with a running-time disturbance as the capped run of
+            its disturbed running time (some ten more runs per disturbed stretch): trajectory,
+            blocking times and energy are that run's. False (studies of delays only): the fastest
+            run's path time-scaled, said in ``trajectory_note``, with energy NaN (``energy_note``).
         lookahead_s: ``priority`` rule: a train standing at a stop is held while a train of higher
             priority will ask for the same resources within this time [s]; 0: no look-ahead.
     """
@@ -1045,7 +1156,7 @@ def simulate(
             ma = ma_steps.get(id(svc.train))
             if ma is None:
                 ma = ma_steps[id(svc.train)] = ma_indication_steps(svc.train, etcs, line.signalling.overlap_m)
-        st = _TrainState(i, svc, line, directed[svc.direction], cache, ma)
+        st = _TrainState(i, svc, line, directed[svc.direction], cache, ma, disturbed_energy)
         approach[i] = approach_function(line, svc.train, settings, etcs)
         st._brake = braking_distance_table(
             service_braking_deceleration(svc.train, settings.braking_fraction), svc.train.max_speed_mps
@@ -1079,7 +1190,7 @@ def simulate(
     sig = line.signalling
     for st, plan in zip(states, planned, strict=True):
         fn = approach[st.index]
-        outcome = _outcome(st, plan, line, st in stuck, disturbed_energy)
+        outcome = _outcome(st, plan, line, st in stuck)
         outcomes.append(outcome)
         if st not in stuck and st.stalled_m is None and [j for j, _r in st.granted] != st.steps:
             raise RuntimeError(f"train {st.svc.id}: ran without holding every route of its path")
@@ -1127,10 +1238,11 @@ def _planned(st: _TrainState) -> _Plan:
     st.stops[0].scheduled_departure_s -= delay
     deps = st.departures(planned=True)
     st.stops[0].scheduled_departure_s += delay
-    traj = st.movement.trajectory(deps, st.length_m, st.dest_dwell_s)
-    standing = _standing_s(st.movement, deps, st.dest_dwell_s)
-    energy = st.movement.energy_kwh(standing, auxiliary_power_w(st.svc.train))
-    return _Plan(traj, st.movement, deps, energy)
+    m = st.plan_movement
+    traj = m.trajectory(deps, st.length_m, st.dest_dwell_s)
+    standing = _standing_s(m, deps, st.dest_dwell_s)
+    energy = m.energy_kwh(standing, auxiliary_power_w(st.svc.train))
+    return _Plan(traj, m, deps, energy)
 
 
 def _standing_s(
@@ -1145,9 +1257,7 @@ def _standing_s(
     return standing
 
 
-def _outcome(
-    st: _TrainState, plan: _Plan, line: Line, stuck: bool, disturbed_energy: bool = True
-) -> TrainOutcome:
+def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutcome:
     svc = st.svc
     status = "deadlocked" if stuck else ("stalled" if st.movement.status != "ok" else "ok")
     warnings = list(st.warnings)
@@ -1198,51 +1308,32 @@ def _outcome(
         stop_times.append(StopTimes(s.name, s.kind, s_arr, s_dep, arr, dep, d, track))
     if stuck or st.stalled_m is not None:
         delay = np.inf
-    standing = _standing_s(st.movement, deps, st.dest_dwell_s, st.time_factors()) if deps is not None else 0.0
+    standing = 0.0
+    if deps is not None:
+        standing = _standing_s(st.movement, deps, st.dest_dwell_s, st.time_factors()) + st.origin_hold_s()
     energy = st.movement.energy_kwh(standing, auxiliary_power_w(svc.train)) if deps is not None else np.nan
-    note = ""
-    if deps is not None and st.factors is not None and not disturbed_energy:
+    note = traj_note = ""
+    if deps is not None and st.factors is not None:
         energy = np.nan
         note = "operated energy not computed (running-time disturbances; asked for delays only)"
-    elif deps is not None and st.factors is not None:
-        extra_kwh, note, beyond = _slowed_energy(st)
-        energy += extra_kwh
-        warnings.extend(beyond)
+        traj_note = (
+            "time-scaled: on stretches with running-time disturbances the trajectory (and the blocking "
+            "times from it) is the fastest run's path with time stretched, not a run of the train"
+        )
+    elif st.disturbed:
+        n_ok = sum(1 for d in st.disturbed if d.status == "ok")
+        note = (
+            f"{len(st.disturbed)} stretch(es) with running-time disturbances driven as the fastest run "
+            "under a speed cap whose running time is the disturbed one; trajectory, blocking times and "
+            "energy are those runs'"
+        )
+        if n_ok < len(st.disturbed):
+            note += f"; {len(st.disturbed) - n_ok} take longer than any capped run: see warnings"
     return TrainOutcome(
         svc.id, svc.direction, status, stop_times, float(delay), energy, plan.energy_kwh,
         st.hindrances, traj, plan.trajectory, list(st.granted), warnings, st.movement.results, note,
+        traj_note, tuple(st.disturbed),
     )  # fmt: skip
-
-
-def _slowed_energy(st: _TrainState) -> tuple[float, str, list[str]]:
-    """What the running-time disturbances change in the operated energy [kWh]: each disturbed stretch
-    counts the energy of a slower run of the same running time (``RunCache.slowed_energy_kwh``)
-    instead of its fastest run's; with the note saying so and a warning per stretch whose running time
-    goes beyond the slowest capped run (the rest counted standing at auxiliary power)."""
-    m = st.movement
-    rt = m.running_times_s()
-    limits = tuple(st.limits)
-    delta, slowed, beyond = 0.0, 0, []
-    for k, (f, r) in enumerate(zip(st.time_factors(), m.results, strict=True)):
-        if f <= 1.0 or r.status != "ok":
-            continue
-        a, b = st.stops[k], st.stops[k + 1]
-        e, over_s = st.cache.slowed_energy_kwh(
-            st.svc.train, st.directed, (a.name, a.position_m), (b.name, b.position_m), limits, rt[k] * f
-        )
-        delta += e - r.energy_kwh.net
-        slowed += 1
-        if over_s > 0:
-            beyond.append(
-                f"running-time disturbance {a.name} - {b.name}: {rt[k] * f:.0f} s is {over_s:.0f} s longer "
-                "than a run at a fifth of the top speed; that time is counted standing at auxiliary power"
-            )
-    note = (
-        f"operated energy of {slowed} disturbed stretch(es) from slower runs of the disturbed running time "
-        "(the fastest run under a lower speed cap, interpolated in running time between caps 5 % of the "
-        "top speed apart); the trajectory is the fastest run's path driven slower"
-    )
-    return delta, note if slowed else "", beyond
 
 
 def _planned_blocking(
