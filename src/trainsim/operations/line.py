@@ -30,6 +30,7 @@ The model follows Pachl, *Railway Operation and Control* (4th ed., 2018), chapte
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from itertools import pairwise
 from typing import Literal
@@ -173,6 +174,46 @@ class StationLayout:
 
 
 @dataclass(frozen=True)
+class SwitchLayout:
+    """A switch of a station's track layout, in line positions [m].
+
+    Attributes:
+        name: its name (for messages).
+        position_m: line position of the switch (its blade tip, where its two tracks join) [m].
+        clearance_m: line position of its clearance (fouling) point on the side of its two tracks,
+            between the switch and the station's stopping point [m]: a train on one of the two tracks
+            beyond it no longer fouls the other. None: the nearest train detection point on that side.
+    """
+
+    name: str
+    position_m: float
+    clearance_m: float | None = None
+
+
+@dataclass(frozen=True)
+class TrackLayout:
+    """What is given of one track, in line positions [m]: the track of one direction of a double-track
+    line (key ``up`` or ``down`` of ``build_line``'s ``tracks``) or the single track (key ``both``).
+
+    Attributes:
+        detection_points_m: train detection points (axle counters, track-circuit borders) [m]. They cut
+            the open line's blocks into track sections released one by one (sectional release), and a
+            switch is released at the first one at or beyond its clearance point (entry) or its blade
+            tip (exit).
+        switches: the stations' switches; each belongs to the station on whose entry side (between the
+            entry signal and the stopping point) or exit side (beyond the exit signal, before the next
+            signal) it lies.
+        station_signals_m: per station name, the line positions of its entry (home) and exit
+            (starting) signal on this track [m], instead of the station's ``entry_signal_distance_m``
+            and ``exit_signal_offset_m``.
+    """
+
+    detection_points_m: tuple[float, ...] = ()
+    switches: tuple[SwitchLayout, ...] = ()
+    station_signals_m: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
 class Resource:
     """A resource a route claims: a train detection section named ``name`` whose end, in the running
     coordinate of the route's direction, is ``end_m`` [m] (the train releases it once its rear has
@@ -222,6 +263,9 @@ class DirectionPath:
     direction: Direction
     steps: tuple[RouteStep, ...]
     stop_m: dict[str, float]
+    #: per station whose switches are given on both sides: the platform tracks' usable extent, from
+    #: the clearance point of the entry switches to that of the exit switches (running coordinate) [m]
+    platform_m: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     def signal_positions(self) -> np.ndarray:
         """Positions of the main signals in running order [m]."""
@@ -238,6 +282,7 @@ class Line:
     stations: tuple[StationLayout, ...]
     signalling: Signalling
     paths: dict[str, DirectionPath] = field(default_factory=dict)
+    tracks: Mapping[str, TrackLayout] = field(default_factory=dict)
 
     def running_position(self, direction: Direction, position_m: float) -> float:
         """The running coordinate of a line position for a direction [m]."""
@@ -255,6 +300,31 @@ class Line:
         raise InputError(
             "unknown station", field="station", value=name, allowed=", ".join(s.name for s in self.stations)
         )
+
+    def loop_problems(
+        self, direction: Direction, origin: str, destination: str, train_length_m: float, where: str
+    ) -> list[Problem]:
+        """Stations from ``origin`` to ``destination`` (both included) whose platform tracks, between the
+        clearance points of their switches, are shorter than the train [m]: a train standing there
+        (a stop, a meet on single track, an overtaking) would foul a switch. Only stations whose
+        switches are given on both sides are checked."""
+        path = self.paths[direction]
+        lo, hi = path.stop_m.get(origin), path.stop_m.get(destination)
+        if lo is None or hi is None:
+            return []
+        out = []
+        for name, (a, b) in path.platform_m.items():
+            if lo - 1e-9 <= path.stop_m[name] <= hi + 1e-9 and b - a < train_length_m - 1e-9:
+                out.append(
+                    Problem(
+                        f"the passing loop / platform tracks at '{name}' ({direction}) are shorter than the "
+                        "train between the clearance points of their switches",
+                        field=f"{where}.train",
+                        value=train_length_m,
+                        allowed=f"a train of at most {b - a:g} m (clearance point to clearance point)",
+                    )
+                )
+        return out
 
 
 def _station_problems(
@@ -331,6 +401,7 @@ def build_line(
     signalling: Signalling,
     block_length_m: float = 2000.0,
     block_signals_m: dict[str, list[float]] | None = None,
+    tracks: Mapping[str, TrackLayout] | None = None,
 ) -> Line:
     """Build a line and the route steps of both directions.
 
@@ -346,9 +417,14 @@ def build_line(
         block_signals_m: double track: the block signals' line positions per direction (``up``,
             ``down``) instead of the automatic spacing [m]; each must lie on the open line between two
             stations.
+        tracks: what is given of the tracks (``up`` and ``down`` on double track, ``both`` on single
+            track): train detection points, the stations' switches with their clearance points, and a
+            track's own station signals. Where they are not given, the standard layout above.
 
     Raises:
-        InputError: stations off the line, out of order or too close; block signals off the open line.
+        InputError: stations off the line, out of order or too close; block signals off the open line;
+            a switch or detection point off the line or in no station, a clearance point on the wrong
+            side of its switch or beyond the next signal, station signals on the wrong side.
     """
     problems: list[Problem] = []
     if not (np.isfinite(length_m) and length_m > 0):
@@ -393,7 +469,10 @@ def build_line(
             value=step,
             allowed=f">= {length_m / MAX_SECTIONS:g} m on this {length_m:g} m line",
         )
-    line = Line(name, float(length_m), layout, stations, signalling)
+    line = Line(name, float(length_m), layout, stations, signalling, tracks=dict(tracks or {}))
+    problems = _track_problems(line, line.tracks)
+    if problems:
+        raise InputError.from_problems(problems)
     paths = {}
     for direction in ("up", "down"):
         given = None
@@ -402,6 +481,264 @@ def build_line(
         paths[direction] = _direction_path(line, direction, block_length_m, given)
     object.__setattr__(line, "paths", paths)
     return line
+
+
+def _track_key(line: Line, direction: Direction) -> str:
+    return "both" if line.layout == "single_track" else direction
+
+
+def _track_problems(line: Line, tracks: Mapping[str, TrackLayout]) -> list[Problem]:
+    """Checks of ``tracks`` that do not depend on a direction: keys, positions on the line, stations."""
+    problems: list[Problem] = []
+    allowed = ("both",) if line.layout == "single_track" else ("up", "down")
+    names = {s.name for s in line.stations}
+    for key, track in tracks.items():
+        where = f"line.tracks.{key}"
+        if key not in allowed:
+            problems.append(
+                Problem(
+                    f"unknown track for a {line.layout.replace('_', ' ')} line",
+                    field=where,
+                    value=key,
+                    allowed=", ".join(allowed),
+                )
+            )
+            continue
+        for k, x in enumerate(track.detection_points_m):
+            if not (np.isfinite(x) and 0 <= x <= line.length_m):
+                problems.append(
+                    Problem(
+                        "train detection point off the line",
+                        field=f"{where}.detection_points_m[{k}]",
+                        value=x,
+                        allowed=f"0 .. {line.length_m:g} m",
+                    )
+                )
+        seen: set[str] = set()
+        for k, sw in enumerate(track.switches):
+            if sw.name in seen:
+                problems.append(
+                    Problem("switch names must be unique", field=f"{where}.switches[{k}].name", value=sw.name)
+                )
+            seen.add(sw.name)
+            for attr in ("position_m", "clearance_m"):
+                x = getattr(sw, attr)
+                if x is not None and not (np.isfinite(x) and 0 <= x <= line.length_m):
+                    problems.append(
+                        Problem(
+                            f"switch '{sw.name}' off the line",
+                            field=f"{where}.switches[{k}].{attr}",
+                            value=x,
+                            allowed=f"0 .. {line.length_m:g} m",
+                        )
+                    )
+        for name, pair in track.station_signals_m.items():
+            if name not in names:
+                problems.append(
+                    Problem(
+                        "unknown station",
+                        field=f"{where}.station_signals_m.{name}",
+                        value=name,
+                        allowed=", ".join(sorted(names)),
+                    )
+                )
+            elif len(pair) != 2 or not all(np.isfinite(x) and 0 <= x <= line.length_m for x in pair):
+                problems.append(
+                    Problem(
+                        "station signals off the line",
+                        field=f"{where}.station_signals_m.{name}",
+                        value=list(pair),
+                        allowed=f"[entry signal, exit signal], line positions 0 .. {line.length_m:g} m",
+                    )
+                )
+    return problems
+
+
+@dataclass
+class _StationSides:
+    """A station in the running coordinate of one direction [m]: stopping point, signals, where its
+    entry and exit switch zones end (their release points) and the clearance points of its platforms."""
+
+    p: float
+    entry: float
+    exit: float
+    entry_zone_end: float
+    exit_zone_end: float
+    platform_lo: float | None = None
+    platform_hi: float | None = None
+
+
+def _clearance_line_m(
+    sw: SwitchLayout, stop_line_m: float, dets_line: list[float], where: str, problems: list[Problem]
+) -> float | None:
+    """The clearance point of a switch (line position) [m]: given, or the nearest detection point
+    between the switch and the station's stopping point."""
+    side = 1.0 if stop_line_m > sw.position_m else -1.0
+    lo, hi = sorted((sw.position_m, stop_line_m))
+    if sw.clearance_m is not None:
+        if not lo < sw.clearance_m < hi:
+            problems.append(
+                Problem(
+                    f"the clearance point of switch '{sw.name}' must lie between the switch and the station's "
+                    "stopping point (on the side of its two tracks)",
+                    field=f"{where}.clearance_m",
+                    value=sw.clearance_m,
+                    allowed=f"{lo:g} < x < {hi:g} m",
+                )
+            )
+            return None
+        return float(sw.clearance_m)
+    inside = [d for d in dets_line if lo < d < hi]
+    if not inside:
+        problems.append(
+            Problem(
+                f"switch '{sw.name}' needs its clearance point: give clearance_m, or a train detection point "
+                "between the switch and the station's stopping point",
+                field=f"{where}.clearance_m",
+                value=None,
+                allowed=f"a line position {lo:g} < x < {hi:g} m",
+            )
+        )
+        return None
+    return min(inside) if side > 0 else max(inside)
+
+
+def _station_sides(
+    line: Line, direction: Direction, ordered: list[StationLayout], problems: list[Problem]
+) -> tuple[list[_StationSides], list[float]]:
+    """The stations of a direction with their signals and switch zones (running coordinate) [m], and
+    the direction's detection points (running coordinate, sorted)."""
+    key = _track_key(line, direction)
+    track = line.tracks.get(key, TrackLayout())
+    where = f"line.tracks.{key}"
+    rp = line.running_position
+    single = line.layout == "single_track"
+    sides = []
+    for st in ordered:
+        p = rp(direction, st.position_m)
+        entry, exit_ = p - st.entry_signal_distance_m, p + st.exit_signal_offset_m
+        given = track.station_signals_m.get(st.name)
+        if given is not None and len(given) == 2:
+            e, x = rp(direction, float(given[0])), rp(direction, float(given[1]))
+            if not e < p < x:
+                problems.append(
+                    Problem(
+                        f"station '{st.name}': the entry signal must stand before the stopping point and the exit "
+                        f"signal beyond it, in the {direction} direction",
+                        field=f"{where}.station_signals_m.{st.name}",
+                        value=list(given),
+                        allowed=f"entry before, exit after the stopping point {st.position_m:g} m "
+                        f"({'increasing' if direction == 'up' else 'decreasing'} positions)",
+                    )
+                )
+            else:
+                entry, exit_ = e, x
+        sides.append(_StationSides(p, entry, exit_, entry + st.switch_zone_m, exit_ + st.switch_zone_m))
+    dets_line = sorted(float(x) for x in track.detection_points_m)
+    dets = sorted(rp(direction, x) for x in dets_line)
+    entry_sw: list[list[tuple[float, float]]] = [[] for _ in ordered]  # (clearance, release) per station
+    exit_sw: list[list[tuple[float, float]]] = [[] for _ in ordered]
+    for k, sw in enumerate(track.switches):
+        field_sw = f"{where}.switches[{k}]"
+        if not (np.isfinite(sw.position_m) and 0 <= sw.position_m <= line.length_m):
+            continue  # reported by _track_problems
+        x = rp(direction, sw.position_m)
+        # a switch belongs to the nearest station; in each direction it must lie on that station's entry
+        # side (protected by its entry signal) or exit side (before the next main signal)
+        i = int(np.argmin([abs(sd.p - x) for sd in sides]))
+        sd = sides[i]
+        nxt = sides[i + 1].entry if i + 1 < len(sides) else line.length_m
+        home = "entry" if sd.entry < x < sd.p else "exit" if sd.exit < x < nxt else None
+        if home is None:
+            problems.append(
+                Problem(
+                    f"switch '{sw.name}' lies outside its station '{ordered[i].name}' in the {direction} "
+                    "direction: a switch must lie between the entry signal and the stopping point, or beyond "
+                    "the exit signal before the next signal",
+                    field=f"{field_sw}.position_m",
+                    value=sw.position_m,
+                    allowed=f"{_span(line, direction, sd.entry, sd.p)} or {_span(line, direction, sd.exit, nxt)}",
+                )
+            )
+            continue
+        side = home
+        clear_line = _clearance_line_m(sw, ordered[i].position_m, dets_line, field_sw, problems)
+        if clear_line is None:
+            continue
+        c = rp(direction, clear_line)
+        if side == "entry":
+            # released when the rear has cleared the clearance point, or the border of the switch's
+            # detection section beyond it (Pachl 3.3.4: sectional release)
+            release = next((d for d in dets if c - 1e-9 <= d < sides[i].exit), c)
+            if c >= sides[i].exit:
+                problems.append(
+                    Problem(
+                        f"the clearance point of switch '{sw.name}' lies beyond the next signal (the exit signal "
+                        f"of '{ordered[i].name}')",
+                        field=f"{field_sw}.clearance_m",
+                        value=clear_line,
+                        allowed=f"before {line.line_position(direction, sides[i].exit):g} m in the {direction} "
+                        "direction",
+                    )
+                )
+                continue
+            entry_sw[i].append((c, release))
+        else:
+            nxt = sides[i + 1].entry if i + 1 < len(sides) else line.length_m
+            # a train leaving over the switch fouls it until its rear has passed the blade tip, or the
+            # border of the switch's detection section beyond it
+            release = next((d for d in dets if x - 1e-9 <= d < nxt), x)
+            exit_sw[i].append((c, release))
+    for i, sd in enumerate(sides):
+        if entry_sw[i]:
+            sd.entry_zone_end = max(r for _c, r in entry_sw[i])
+            sd.platform_lo = max(c for c, _r in entry_sw[i])
+        if exit_sw[i]:
+            sd.exit_zone_end = max(r for _c, r in exit_sw[i])
+            sd.platform_hi = min(c for c, _r in exit_sw[i])
+    for i, st in enumerate(ordered):
+        # a passing loop / platform track joined to the line at one end only is not connected: a train
+        # could not run through it (intermediate stations; a terminus may be a stub)
+        ends = (bool(entry_sw[i]), bool(exit_sw[i]))
+        if 0 < i < len(ordered) - 1 and st.tracks >= 2 and ends[0] != ends[1]:
+            if single and direction == "down":
+                continue  # the same switches as up, reported once
+            missing = "entry" if not ends[0] else "exit"
+            problems.append(
+                Problem(
+                    f"the platform tracks of '{st.name}' are not connected at their {missing} end in the "
+                    f"{direction} direction: switches are given at one end only",
+                    field=f"{where}.switches",
+                    value=[sw.name for sw in track.switches],
+                    allowed=f"the switches of both ends of '{st.name}', or none (the standard layout)",
+                )
+            )
+    for i, (a, b) in enumerate(pairwise(sides)):
+        if a.exit_zone_end >= b.entry:
+            problems.append(
+                Problem(
+                    f"stations '{ordered[i].name}' and '{ordered[i + 1].name}': the exit switch zone (or the "
+                    f"clearance / detection point behind the exit switch) reaches beyond the next signal in "
+                    f"the {direction} direction",
+                    field=f"{where}.switches" if exit_sw[i] else "stations",
+                    value=line.line_position(direction, a.exit_zone_end),
+                    allowed=f"before the entry signal of '{ordered[i + 1].name}' at "
+                    f"{line.line_position(direction, b.entry):g} m",
+                )
+            )
+    return sides, dets
+
+
+def _span(line: Line, direction: Direction, a: float, b: float) -> str:
+    lo, hi = sorted((float(line.line_position(direction, a)), float(line.line_position(direction, b))))
+    return f"{lo:g} .. {hi:g} m"
+
+
+def _parts(lo: float, hi: float, end: float, cuts: list[float]) -> list[tuple[int, float]]:
+    """The cells of ``lo .. hi`` cut at ``cuts`` (all sorted, running coordinate) that a route over
+    ``lo .. end`` crosses: (cell index, where the route leaves it) [m]."""
+    bounds = [lo, *[d for d in cuts if lo < d < hi], hi]
+    return [(k, min(b, end)) for k, (a, b) in enumerate(pairwise(bounds)) if a < end]
 
 
 def _direction_path(
@@ -414,7 +751,12 @@ def _direction_path(
     overlap = 0.0 if sig.system == "moving_block" else sig.overlap_m
     steps: list[RouteStep] = []
     stop_m: dict[str, float] = {}
+    platform_m: dict[str, tuple[float, float]] = {}
     used_given: set[int] = set()
+    problems: list[Problem] = []
+    sides, dets = _station_sides(line, direction, ordered, problems)
+    if problems:
+        raise InputError.from_problems(problems)
 
     def track_res(st: StationLayout, k: int) -> str:
         return f"{st.name}/track{k}" if single else f"{st.name}/{tag}{k}"
@@ -427,18 +769,22 @@ def _direction_path(
         return f"{st.name}/{tag}-{end}-switch"
 
     for i, st in enumerate(ordered):
-        p = line.running_position(direction, st.position_m)
+        sd = sides[i]
+        p, entry, exit_ = sd.p, sd.entry, sd.exit
         stop_m[st.name] = p
-        entry = p - st.entry_signal_distance_m
-        exit_ = p + st.exit_signal_offset_m
-        zone_end = exit_ + st.switch_zone_m
-        entry_zone_end = entry + st.switch_zone_m
+        zone_end = sd.exit_zone_end
+        entry_zone_end = sd.entry_zone_end
+        if sd.platform_lo is not None and sd.platform_hi is not None:
+            platform_m[st.name] = (sd.platform_lo, sd.platform_hi)
+        # the platform track is held until the rear has left it over the exit switches (at their
+        # clearance point, where given), and at least over the route's overlap
+        track_end = zone_end if sd.platform_hi is None else max(sd.platform_hi, exit_)
         # route into the station: entry signal -> exit signal (+ overlap), one per platform track
         alts = []
         for k in range(1, st.tracks + 1):
             resources = (
                 Resource(zone_res(st, "entry"), entry_zone_end),
-                Resource(track_res(st, k), zone_end),
+                Resource(track_res(st, k), track_end),
             )
             alts.append(
                 Route(
@@ -456,11 +802,17 @@ def _direction_path(
         if i == len(ordered) - 1:
             break
         nxt = ordered[i + 1]
-        next_entry = line.running_position(direction, nxt.position_m) - nxt.entry_signal_distance_m
+        next_entry = sides[i + 1].entry
         # the open line from the exit signal to the next entry signal
         if single:
             section = _section_name(line, st, nxt)
-            resources = (Resource(zone_res(st, "exit"), zone_end), Resource(section, next_entry))
+            # cut at the detection points between the two stopping points, in line positions so that both
+            # directions name the same cells alike (numbered from the line's low end)
+            cells = _parts(p, sides[i + 1].p, next_entry, dets)
+            n_cells = len([d for d in dets if p < d < sides[i + 1].p]) + 1
+            parts = [(k if direction == "up" else n_cells - 1 - k, end) for k, end in cells if end > zone_end]
+            sec = tuple(Resource(section if n_cells == 1 else f"{section}/{k + 1}", end) for k, end in parts)
+            resources = (Resource(zone_res(st, "exit"), zone_end), *sec)
             route = Route(
                 f"{tag}:{st.name} exit -> {nxt.name}", f"{st.name} {tag} exit", exit_, next_entry, overlap, resources, st.name,
                 reserve_next=True,
@@ -475,17 +827,27 @@ def _direction_path(
         else:
             n = max(1, int(np.ceil((next_entry - exit_) / block_length_m - 1e-9)))
             inner = list(exit_ + (next_entry - exit_) * np.arange(1, n) / n)
+            if inner and zone_end >= inner[0] and line.tracks.get(direction, TrackLayout()).switches:
+                raise InputError(
+                    f"the clearance / detection point behind the exit switch of '{st.name}' lies beyond the "
+                    f"next signal (the first automatic block signal, {direction} direction)",
+                    field=f"line.tracks.{direction}.switches",
+                    value=line.line_position(direction, zone_end),
+                    allowed=f"before {line.line_position(direction, inner[0]):g} m, or a longer block_length_m",
+                )
         bounds = [exit_, *inner, next_entry]
         for j, (a, b) in enumerate(pairwise(bounds)):
-            resources = (
-                (
-                    Resource(zone_res(st, "exit"), zone_end),
-                    Resource(f"{tag}:{st.name}-{nxt.name} block {j + 1}", b),
-                )
-                if j == 0
-                else (Resource(f"{tag}:{st.name}-{nxt.name} block {j + 1}", b),)
-            )
             name = f"{tag}:{st.name}-{nxt.name} block {j + 1}"
+            # train detection points inside the block cut it into track sections, each released when
+            # the rear has passed its end (the open line beyond the exit switch zone)
+            start = zone_end if j == 0 else a
+            cuts = [] if sig.system == "moving_block" else [d for d in dets if start < d < b]
+            blocks = (
+                (Resource(name, b),)
+                if not cuts
+                else tuple(Resource(f"{name}/{k + 1}", end) for k, end in enumerate([*cuts, b]))
+            )
+            resources = (Resource(zone_res(st, "exit"), zone_end), *blocks) if j == 0 else blocks
             steps.append(
                 RouteStep(
                     a,
@@ -502,7 +864,7 @@ def _direction_path(
             field=f"line.block_signals_m.{direction}",
             value=off,
         )
-    return DirectionPath(direction, tuple(steps), stop_m)
+    return DirectionPath(direction, tuple(steps), stop_m, platform_m)
 
 
 def _section_name(line: Line, a: StationLayout, b: StationLayout) -> str:
