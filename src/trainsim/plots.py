@@ -9,19 +9,24 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from trainsim.analysis.acceleration import AccelerationAnalysis
 from trainsim.constants import KMH, KN, KW, MW, G
-from trainsim.model.route import Route
-from trainsim.model.train import Train
 from trainsim.physics.line_resistance import gradient_ratio
-from trainsim.sim.result import RunResult
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+    # annotations only: trainsim.analysis.acceleration imports scipy.optimize (0.3-0.5 s, numpy.f2py and
+    # scipy.special with it), which `trainsim run --out` writing its plots does not need
+    from trainsim.analysis.acceleration import AccelerationAnalysis
+    from trainsim.model.route import Route
+    from trainsim.model.train import Train
+    from trainsim.sim.result import RunResult
 
 __all__ = [
     "PLOT_FILES",

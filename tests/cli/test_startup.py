@@ -1,13 +1,14 @@
 """Start-up budget (issue 14): what ``import trainsim``, ``trainsim --help`` and ``trainsim run`` import.
 
 Each command runs in a fresh interpreter (a module once imported by an earlier test would hide the
-import here) through the same entry as ``python -m trainsim``, and reports the top-level packages it
+import here) through the same entry as ``python -m trainsim``, and reports the modules it
 imported. A heavy library imported where it is not needed fails the test with the chain of modules
 that imported it, read from ``python -X importtime``.
 
-Measured on the development machine (benchmarks/bench_startup.py): importing numba costs about
-0.2 s and its first cached function about 0.5 s more, scipy 0.2-0.3 s, pydantic with trainsim's
-models 0.2 s, matplotlib 0.5 s, pandas 0.3 s; `python -c "import numpy"` 0.1 s.
+Why it matters, CPU time of whole processes on the shared 2-core development machine (load 5-7),
+beyond `python -c "import numpy"` (0.27 s there): matplotlib.figure +0.6 s, scipy.optimize +0.5 s,
+pandas +0.4 s, scipy.linalg +0.3 s; numba with its first cached function 7x the numpy process
+(benchmarks/bench_startup.py, "numba floor").
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ HEAVY = (
 )
 
 # Runs ``python -m trainsim ARGS`` (or only ``import trainsim`` without ARGS) and prints the sorted
-# top-level packages in sys.modules as JSON on the last line of stderr, whatever the exit.
+# modules in sys.modules as JSON on the last line of stderr, whatever the exit.
 PROBE = """
 import json, runpy, sys
 args = sys.argv[1:]
@@ -51,12 +52,13 @@ except SystemExit as exc:
     code = exc.code
 else:
     code = 0
-sys.stderr.write("\\n" + json.dumps({"code": code, "modules": sorted({m.split(".")[0] for m in sys.modules})}))
+sys.stderr.write("\\n" + json.dumps({"code": code, "modules": sorted(sys.modules)}))
 """
 
 
 def imported(*args: str) -> tuple[object, set[str]]:
-    """(exit code, top-level packages imported) of ``python -m trainsim *args`` in a fresh process."""
+    """(exit code, modules imported, and their top-level packages) of ``python -m trainsim *args`` in a
+    fresh process."""
     proc = subprocess.run(
         [sys.executable, "-c", PROBE, *args], capture_output=True, text=True, cwd=REPO, timeout=300
     )
@@ -65,7 +67,8 @@ def imported(*args: str) -> tuple[object, set[str]]:
         report = json.loads(last)
     except json.JSONDecodeError:
         pytest.fail(f"the probe printed no module list; stderr:\n{proc.stderr[-3000:]}")
-    return report["code"], set(report["modules"])
+    modules = set(report["modules"])
+    return report["code"], modules | {m.split(".")[0] for m in modules}
 
 
 def importers(module: str, *args: str) -> str:
@@ -146,3 +149,13 @@ def test_run_of_a_trainsim_scenario_loads_no_jsonschema():
     code, modules = imported("run", str(METRO))
     assert code == 0
     assert_not_imported(modules, ("jsonschema",), "run", str(METRO))
+
+
+@pytest.mark.skipif(not METRO.exists(), reason="examples/metro_b not present")
+def test_run_writing_plots_loads_no_scipy_optimize(tmp_path):
+    # the plots module names the acceleration analysis (which needs scipy.optimize) in annotations only
+    code, modules = imported("run", str(METRO), "--out", str(tmp_path))
+    assert code == 0
+    assert (tmp_path / "speed_distance.png").exists()
+    assert "matplotlib" in modules
+    assert_not_imported(modules, ("scipy.optimize", "pandas"), "run", str(METRO), "--out", str(tmp_path))
