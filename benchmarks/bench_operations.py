@@ -15,7 +15,13 @@ and every example of examples/operations: statuses, warnings, stop times, delays
 hindrances, blocking times, headways, conflicts, and a hash of every trajectory array) and
 ``--compare FILE`` exits 1 unless a later run gives the same digest bit for bit.
 
+``--disturbed N`` times a day of ``N`` trains with sampled running-time disturbances (seeded; not
+part of the digest) both ways: driven as capped runs of the disturbed running times (trajectory,
+blocking times and energy one run's; the default) and time-scaled (``disturbed_energy=False``, the
+cheap path for delay studies), with the statuses of the disturbed stretches.
+
 Run: python benchmarks/bench_operations.py [--sizes 125,250,500,1000] [--save|--compare FILE]
+[--disturbed N]
 """
 
 from __future__ import annotations
@@ -87,6 +93,34 @@ def services(n: int, ic, local, names, seed: int = 1) -> list[TrainService]:
     return out
 
 
+#: Running-time disturbances of the ``--disturbed`` day: a third of the stretches, 20 s on average.
+DISTURBED_RUNNING = {"kind": "exponential", "mean_s": 20.0, "probability": 0.3}
+
+
+def disturbed_day(n: int, ic, local, line, geometry, names) -> None:
+    """Time a day of ``n`` trains with sampled running-time disturbances, capped and time-scaled."""
+    from trainsim.operations.disturbances import disturbances_from_dict
+
+    dist = disturbances_from_dict({"seed": 5, "running": DISTURBED_RUNNING})
+    svcs = dist.sample(services(n, ic, local, names), np.random.default_rng(dist.seed))
+    n_dist = sum(1 for s in svcs for x in s.running_extra_s if x > 0)
+    for capped in (True, False):
+        t0, c0 = time.perf_counter(), time.process_time()
+        res = simulate(line, geometry, svcs, SETTINGS, rule="priority", disturbed_energy=capped)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        statuses: dict[str, int] = {}
+        for t in res.trains:
+            for d in getattr(t, "disturbed", ()):
+                statuses[d.status] = statuses.get(d.status, 0) + 1
+        energy = sum(t.energy_kwh for t in res.trains)
+        print(
+            f"{n:5d} trains, {n_dist} disturbed stretches, {'capped runs' if capped else 'time-scaled'}: "
+            f"{wall:6.2f} s (CPU {cpu:.2f} s); status {res.status}, runs computed {res.runs_computed} / "
+            f"reused {res.runs_reused}, stretches {statuses}, total delay "
+            f"{sum(t.delay_s for t in res.trains) / 60:.1f} min, energy {energy:.1f} kWh"
+        )
+
+
 def _array_digest(a) -> tuple:
     a = np.ascontiguousarray(np.asarray(a, dtype=float))
     return a.shape, hashlib.sha256(a.tobytes()).hexdigest()
@@ -119,6 +153,9 @@ def digest(res) -> dict[str, Any]:
                 "id": t.id, "status": t.status, "stops": [repr(s) for s in t.stops], "delay": repr(t.delay_s),
                 "energy": repr(t.energy_kwh), "planned_energy": repr(t.planned_energy_kwh),
                 "energy_note": getattr(t, "energy_note", ""), "hindrances": [repr(h) for h in t.hindrances],
+                # running-time disturbances only (undisturbed digests stay comparable with older ones)
+                **({"trajectory_note": t.trajectory_note} if getattr(t, "trajectory_note", "") else {}),
+                **({"disturbed": [repr(d) for d in t.disturbed]} if getattr(t, "disturbed", ()) else {}),
                 "trajectory": traj(t.trajectory), "planned_trajectory": traj(t.planned_trajectory),
                 "routes": [(j, r.name) for j, r in t.routes], "warnings": list(t.warnings),
             }
@@ -146,6 +183,9 @@ def main() -> None:
     parser.add_argument("--sizes", default="125,250,500,1000")
     parser.add_argument("--save", metavar="FILE", help="write the digest of every outcome")
     parser.add_argument("--compare", metavar="FILE", help="exit 1 unless every outcome is as saved")
+    parser.add_argument(
+        "--disturbed", type=int, default=0, metavar="N", help="time a disturbed day of N trains"
+    )
     args = parser.parse_args()
     digests: dict[str, Any] = {}
     ic, local, line, geometry, names, positions = setup()
@@ -177,6 +217,8 @@ def main() -> None:
             f"total delay {sum(t.delay_s for t in res.trains) / 60:.0f} min, conflicts {len(res.conflicts)}"
         )
         previous = (n, wall)
+    if args.disturbed:
+        disturbed_day(args.disturbed, ic, local, line, geometry, names)
     if args.save or args.compare:
         digests.update(example_digests())
     if args.save:

@@ -1,16 +1,18 @@
 """Sampled disturbances for Monte Carlo studies of a timetable: entry delays, dwell extensions and
 running-time extensions, each a distribution given as data, drawn from a seeded generator.
 
-A running-time extension of a stretch between two scheduled stops is spread along the stretch as a
-slower run is: the stretch's run is driven over the same path with time stretched by the factor
-1 + extension / running time (``TrainService.running_extra_s``), so the train is late at every point
-by the extension's share of the running time it has run (extension x elapsed / running time) and
-arrives exactly the extension later. Its energy is that of a slower run of the same running time:
-the fastest run under a lower speed cap over the stretch (``RunCache.slowed_energy_kwh``,
-interpolated between caps 5 % of the top speed apart; a time beyond a run at a fifth of the top speed
-counts as standing at auxiliary power, with a warning), and the outcome's ``energy_note`` says so. Draws are taken in a fixed order (per train: entry, then per
-stop dwell, then per stretch running time; two draws each), so a seed gives the same disturbances
-whatever the outcome.
+A running-time extension of a stretch between two scheduled stops makes the train drive it slower:
+as the fastest run under the speed cap whose running time is the undisturbed one plus the extension
+(``RunCache.capped``: a root-find on the cap to 1e-7 s), so that the trajectory, the blocking times
+and the energy of the operated train are that one run's and it arrives exactly the extension later.
+Where no capped run takes the time (longer than the run at a fifth of the top speed), the slowest one
+is driven and the rest stood before leaving, with a warning and the stretch's status
+(``TrainOutcome.disturbed``). For delay studies (``simulate(disturbed_energy=False)``, Monte Carlo)
+the cheap alternative is the fastest run's path with time stretched by 1 + extension / running
+time, labelled ``time-scaled`` (``TrainOutcome.trajectory_note``), its energy not computed.
+
+Draws are taken in a fixed order (per train: entry, then per stop dwell, then per stretch running
+time; two draws each), so a seed gives the same disturbances whatever the outcome.
 """
 
 from __future__ import annotations
@@ -75,7 +77,7 @@ class Disturbances:
         """The services with sampled disturbances added: entry delay, extra dwell at every
         intermediate stop (``ScheduledStop.extra_dwell_s``: the planned run does not have it), and
         the running-time extension of every stretch between scheduled stops
-        (``TrainService.running_extra_s``, spread along the stretch by the simulation)."""
+        (``TrainService.running_extra_s``, driven as a slower run by the simulation)."""
         out = []
         for svc in services:
             extra_entry = self.entry.draw(rng) if self.entry else 0.0

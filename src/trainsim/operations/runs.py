@@ -257,16 +257,21 @@ class RunCache:
         if found is not None:
             self.hits += 1
             return found
+        found = self._runs[key] = self._run_stretch(train, directed, a, b, limits)
+        return found
+
+    def _run_stretch(
+        self, train: Train, directed: Route, a: tuple[str, float], b: tuple[str, float], limits: tuple
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, RunResult]:
+        """``stretch`` computed, not looked up nor kept."""
         self._keep.extend((train, directed))  # ids stay valid while the cache lives
         result = run_fastest(train, service_route(directed, [a, b], limits), self.settings)
         tr = result.trace
         s, v, t = tr.position_m, tr.speed_mps, tr.time_s
         if result.status == "ok" and abs(s[-1] - b[1]) > 1e-6:
             s, v, t = np.append(s, b[1]), np.append(v, 0.0), np.append(t, t[-1])
-        found = (s, v, t, result)
-        self._runs[key] = found
         self.computed += 1
-        return found
+        return s, v, t, result
 
     def slowed(
         self,
@@ -321,8 +326,9 @@ class RunCache:
     ) -> CappedRun:
         """The stretch from stop ``a`` to stop ``b`` driven so that it takes ``running_time_s`` [s]:
         the fastest run under one extra speed cap over the whole stretch, the cap found by a
-        root-find on the running time (Illinois regula falsi, bracketed by two capped runs of
-        ``slowed``) to :data:`CAP_TIME_TOLERANCE_S`. The run itself is ``stretch`` under ``limits``
+        root-find on the running time (inverse quadratic interpolation in 1 / cap, safeguarded by
+        Illinois regula falsi on a bracket of two capped runs of ``slowed``) to
+        :data:`CAP_TIME_TOLERANCE_S`. The run itself is ``stretch`` under ``limits``
         plus ``CappedRun.limit``, so the trajectory, blocking times and energy of a disturbed
         stretch are one run's.
 
@@ -344,24 +350,29 @@ class RunCache:
         c_slow, g_slow = float(caps[k]), float(times[k]) - target
         if abs(g_slow) <= CAP_TIME_TOLERANCE_S:
             return self._capped_at(train, directed, a, b, limits, c_slow, target, "ok")
+        # known (time error, 1 / cap): the running time is close to linear in 1 / cap (a stretch run at
+        # the cap: length / cap plus the time to reach it and brake from it)
+        known = [(float(times[j]) - target, 1.0 / float(caps[j])) for j in range(max(k - 2, 0), k + 1)]
         side = 0
         for _ in range(CAP_MAX_ITERATIONS):
-            c = c_fast - g_fast * (c_slow - c_fast) / (g_slow - g_fast)
+            c = _inverse_quadratic(known[-3:])
             if not c_slow < c < c_fast:
-                c = 0.5 * (c_slow + c_fast)
-            run = run_fastest(
-                train,
-                service_route(directed, [a, b], (*limits, SpeedLimit(a[1], b[1], c))),
-                self.settings,
-                trace=False,
-            )
-            self.computed += 1
-            if run.status != "ok":
+                # Illinois regula falsi in 1 / cap on the bracket, else bisection
+                u_fast, u_slow = 1.0 / c_fast, 1.0 / c_slow
+                c = 1.0 / (u_fast - g_fast * (u_slow - u_fast) / (g_slow - g_fast))
+                if not c_slow < c < c_fast:
+                    c = 0.5 * (c_slow + c_fast)
+            # traced (it costs little more): the run that takes the time is the one kept
+            with_cap, key = self._stretch_key(train, directed, a, b, (*limits, SpeedLimit(a[1], b[1], c)))
+            found = self._run_stretch(train, directed, a, b, with_cap)
+            if found[3].status != "ok":
                 return self._capped_at(train, directed, a, b, limits, c_fast, target, "capped_run_failed")
-            g = float(run.running_time_s) - target
+            g = float(found[3].running_time_s) - target
             if abs(g) <= CAP_TIME_TOLERANCE_S:
+                self._runs.setdefault(key, found)
                 return self._capped_at(train, directed, a, b, limits, c, target, "ok")
-            # Illinois: halve the weight of an end point kept twice in a row (superlinear convergence)
+            known.append((g, 1.0 / c))
+            # Illinois: halve the weight of an end point kept twice in a row (no stagnation)
             if g < 0:
                 c_fast, g_fast = c, g
                 g_slow = g_slow * 0.5 if side == -1 else g_slow
@@ -450,6 +461,24 @@ class RunCache:
             np.array(dep),
             tuple(results),
         )
+
+
+def _inverse_quadratic(points: list[tuple[float, float]]) -> float:
+    """The cap [m/s] where the time error is 0 by Lagrange interpolation of 1 / cap over the time error
+    through the (error [s], 1 / cap [s/m]) ``points`` (two: the secant); NaN when two errors coincide
+    (the caller then steps on its bracket)."""
+    g = [p[0] for p in points]
+    u = [p[1] for p in points]
+    total = 0.0
+    for i in range(len(points)):
+        w = u[i]
+        for j in range(len(points)):
+            if j != i:
+                if g[i] == g[j]:
+                    return float("nan")
+                w *= g[j] / (g[j] - g[i])
+        total += w
+    return 1.0 / total if total > 0 else float("nan")
 
 
 def auxiliary_power_w(train: Train) -> float:
