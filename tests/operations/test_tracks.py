@@ -111,9 +111,13 @@ def test_single_track_loop_from_the_switch_positions() -> None:
     assert hi - lo == pytest.approx(5150.0 - 4700.0)
     lo, hi = down.platform_m["B"]
     assert hi - lo == pytest.approx(5150.0 - 4700.0)
-    assert line.loop_problems("up", "A", "C", 450.0, "trains[0]") == []
-    problems = line.loop_problems("up", "A", "C", 451.0, "trains[0]")
-    assert len(problems) == 1 and "'B'" in problems[0].reason and problems[0].field == "trains[0].train"
+    # a train standing at the stopping point (5000) must be clear of both clearance points: up the room is
+    # 5000 - 4700, down 5150 - 5000
+    for d, room, ends in (("up", 300.0, ("A", "C")), ("down", 150.0, ("C", "A"))):
+        assert line.loop_problems(d, *ends, room, "trains[0]") == []
+        problems = line.loop_problems(d, *ends, room + 1.0, "trains[0]")
+        assert len(problems) == 1 and "'B'" in problems[0].reason and problems[0].field == "trains[0].train"
+        assert f"at most {room:g} m" in problems[0].allowed
     assert line.loop_problems("up", "A", "A", 451.0, "trains[0]") == []  # B is not on its way
     # the up entry over W is released at W's clearance point, the down exit over W at the border of its
     # detection section (the detection point at 4600 behind its tip)

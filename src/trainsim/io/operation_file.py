@@ -23,7 +23,14 @@ from trainsim.model import Train
 from trainsim.model.scenario import RunSettings
 from trainsim.operations.disturbances import Disturbances, disturbances_from_dict
 from trainsim.operations.etcs import EtcsNationalValues
-from trainsim.operations.line import Line, Signalling, StationLayout, build_line
+from trainsim.operations.line import (
+    Line,
+    Signalling,
+    StationLayout,
+    SwitchLayout,
+    TrackLayout,
+    build_line,
+)
 from trainsim.operations.separation import EtcsBraking
 from trainsim.operations.simulate import ScheduledStop, TrainService
 
@@ -85,12 +92,34 @@ class _Railml(_Spec):
     line_resistance: _LineResistance | None = None
     #: read the down track too (the route's stations in reverse order through the other track)
     double_track: bool = False
+    #: use the file's switches and train detection points (and, with double_track, the down track's own
+    #: station signals) in the line model
+    tracks: bool = False
+    #: with tracks: from a switch's blade tip to its clearance point, towards its station [m], for the
+    #: switches with no detection point between them and the station's stopping point (railML gives
+    #: no clearance points)
+    clearance_distance_m: float | None = None
 
 
 class _Spreadsheet(_Spec):
     """The line read from a workbook or CSV folder: its track tables and its signalling tables."""
 
     file: str
+
+
+class _Switch(_Spec):
+    name: str
+    position_m: float
+    clearance_m: float | None = None
+
+
+class _Track(_Spec):
+    """What is given of one track (``up``/``down`` on double track, ``both`` on single track)."""
+
+    detection_points_m: list[float] = []
+    switches: list[_Switch] = []
+    station_signals_m: dict[str, tuple[float, float]] = {}
+    block_signals_m: list[float] | None = None
 
 
 class _Line(_Spec):
@@ -102,6 +131,7 @@ class _Line(_Spec):
     signalling: _Signalling
     block_length_m: float = 2000.0
     block_signals_m: dict[Literal["up", "down"], list[float]] | None = None
+    tracks: dict[Literal["up", "down", "both"], _Track] | None = None
 
 
 class _Stop(_Spec):
@@ -441,6 +471,18 @@ def read_operation(path: str | Path) -> Operation:
         read_blocks = signalling_read.block_signals_m()
         if block_signals_m is None and spec.line.layout == "double_track" and any(read_blocks.values()):
             block_signals_m = {d: v for d, v in read_blocks.items() if v}
+    tracks, track_blocks = _tracks(spec, signalling_read, file, problems)
+    if track_blocks:
+        if block_signals_m is not None and spec.line.block_signals_m is not None:
+            problems.append(
+                Problem(
+                    "block signals given twice: in line.block_signals_m and in line.tracks",
+                    file=file,
+                    field="line.tracks",
+                    allowed="one of them",
+                )
+            )
+        block_signals_m = {**(block_signals_m or {}), **track_blocks}
     if not line_stations:
         problems.append(
             Problem(
@@ -504,6 +546,7 @@ def read_operation(path: str | Path) -> Operation:
             "signalling": signalling,
             "block_length_m": spec.line.block_length_m,
             "block_signals_m": block_signals_m,
+            "tracks": tracks,
         }
         line = build_line(**line_args)
         settings = RunSettings(
@@ -512,6 +555,15 @@ def read_operation(path: str | Path) -> Operation:
     except InputError as e:
         raise e.located(file) from None
     services = _services(spec, trains, file, problems)
+    for i, t in enumerate(spec.trains):
+        # a train must fit on the platform tracks / passing loops it may stand on
+        if t.train in trains:
+            problems += [
+                replace(p, file=file)
+                for p in line.loop_problems(
+                    t.direction, t.origin, t.destination, trains[t.train].length_m, f"trains[{i}]"
+                )
+            ]
     if problems:
         raise InputError.from_problems(problems)
     delays = (
@@ -625,6 +677,99 @@ def _spreadsheet_line(sheet: _Spreadsheet, base: Path, file: str, problems: list
     except InputError as e:
         problems.extend(p if p.file else replace(p, file=str(target)) for p in e.problems)
         return None, None
+
+
+def _tracks(
+    spec: _Operation, read, file: str, problems: list[Problem]
+) -> tuple[dict[str, TrackLayout] | None, dict[str, list[float]]]:
+    """The line's tracks from ``line.tracks``, or from a railML file's switches, detection points and
+    down-track station signals with ``line.railml.tracks``; and the block signals given per track."""
+    given = spec.line.tracks
+    railml = spec.line.railml
+    if railml is not None and railml.tracks:
+        if given is not None:
+            problems.append(
+                Problem(
+                    "tracks given twice: in line.tracks and read from the railML file (line.railml.tracks)",
+                    file=file,
+                    field="line.tracks",
+                    allowed="one of them",
+                )
+            )
+            return None, {}
+        d = railml.clearance_distance_m
+        if d is not None and not (np.isfinite(d) and 0 < d < 1000):
+            problems.append(
+                Problem(
+                    "invalid clearance distance",
+                    file=file,
+                    field="line.railml.clearance_distance_m",
+                    value=d,
+                    allowed="0 < x < 1000 m",
+                )
+            )
+            return None, {}
+        return _railml_tracks(spec, read), {}
+    if given is None:
+        return None, {}
+    tracks = {
+        key: TrackLayout(
+            tuple(t.detection_points_m),
+            tuple(SwitchLayout(w.name, w.position_m, w.clearance_m) for w in t.switches),
+            dict(t.station_signals_m),
+        )
+        for key, t in given.items()
+    }
+    blocks = {key: list(t.block_signals_m) for key, t in given.items() if t.block_signals_m is not None}
+    if "both" in blocks:
+        problems.append(
+            Problem(
+                "single track has one block between stations; block signals are for double track",
+                file=file,
+                field="line.tracks.both.block_signals_m",
+                value=blocks["both"],
+            )
+        )
+    return tracks, {k: v for k, v in blocks.items() if k != "both"}
+
+
+def _railml_tracks(spec: _Operation, read) -> dict[str, TrackLayout] | None:
+    """Tracks from what the railML reader found: the switches (their clearance points are the nearest
+    detection points towards the station) and detection points of each path; on a double track read
+    with its down path, the down track's own station signals."""
+    if read is None:
+        return None
+    single = spec.line.layout == "single_track"
+    out: dict[str, TrackLayout] = {}
+    for path in ("up", "down"):
+        if single and path == "down":
+            break
+        signals: dict[str, tuple[float, float]] = {}
+        if path == "down":
+            for entry in read.station_signals("down"):
+                if "entry_signal_distance_m" in entry and "exit_signal_offset_m" in entry:
+                    p = float(entry["position_m"])
+                    signals[str(entry["name"])] = (
+                        p + float(entry["entry_signal_distance_m"]),
+                        p - float(entry["exit_signal_offset_m"]),
+                    )
+        dets = [d.position_m for d in read.detection_points if d.path == path]
+        switches = []
+        for w in read.switches:
+            if w.path != path:
+                continue
+            clearance = None
+            stop = min(
+                (st.position_m for st in read.stations), key=lambda x: abs(x - w.position_m), default=None
+            )
+            distance = spec.line.railml.clearance_distance_m if spec.line.railml is not None else None
+            if stop is not None and distance is not None:
+                lo, hi = sorted((w.position_m, stop))
+                if not any(lo < d < hi for d in dets):
+                    clearance = w.position_m + (distance if stop > w.position_m else -distance)
+            switches.append(SwitchLayout(w.name, w.position_m, clearance))
+        out["both" if single else path] = TrackLayout(tuple(dets), tuple(switches), signals)
+    return out
 
 
 def _stations_with_signals(read, given: list[_Station]) -> list[_Station]:

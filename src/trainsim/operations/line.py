@@ -304,24 +304,29 @@ class Line:
     def loop_problems(
         self, direction: Direction, origin: str, destination: str, train_length_m: float, where: str
     ) -> list[Problem]:
-        """Stations from ``origin`` to ``destination`` (both included) whose platform tracks, between the
-        clearance points of their switches, are shorter than the train [m]: a train standing there
-        (a stop, a meet on single track, an overtaking) would foul a switch. Only stations whose
-        switches are given on both sides are checked."""
+        """Stations from ``origin`` to ``destination`` (both included) where a train of
+        ``train_length_m`` [m] standing at the stopping point would foul a switch: its rear must be
+        beyond the clearance point of the entry switches and its head short of that of the exit
+        switches, so the room is ``min(stop, exit clearance) - entry clearance`` (running coordinate)
+        [m]. A train may stand at any of them (a stop, a meet on single track, being overtaken); only
+        stations whose switches are given on both sides are checked."""
         path = self.paths[direction]
         lo, hi = path.stop_m.get(origin), path.stop_m.get(destination)
         if lo is None or hi is None:
             return []
         out = []
         for name, (a, b) in path.platform_m.items():
-            if lo - 1e-9 <= path.stop_m[name] <= hi + 1e-9 and b - a < train_length_m - 1e-9:
+            p = path.stop_m[name]
+            room = min(p, b) - a
+            if lo - 1e-9 <= p <= hi + 1e-9 and room < train_length_m - 1e-9:
                 out.append(
                     Problem(
-                        f"the passing loop / platform tracks at '{name}' ({direction}) are shorter than the "
-                        "train between the clearance points of their switches",
+                        f"the train does not fit on the platform tracks / passing loop at '{name}' ({direction}): "
+                        f"standing at the stopping point it would foul a switch (loop {b - a:g} m between the "
+                        f"clearance points, {room:g} m from the entry clearance point to the stopping point)",
                         field=f"{where}.train",
                         value=train_length_m,
-                        allowed=f"a train of at most {b - a:g} m (clearance point to clearance point)",
+                        allowed=f"a train of at most {room:g} m, or a longer loop",
                     )
                 )
         return out
