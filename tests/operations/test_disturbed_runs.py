@@ -121,7 +121,9 @@ def test_the_cap_is_found_to_the_tolerance_and_the_table_brackets_it(op) -> None
     assert c.limit.limit_mps == pytest.approx(caps[4], rel=1e-9)
     # a disturbance below the tolerance is no disturbance
     c = cache.capped(svc.train, directed, a, b, (), float(times[0]) + 1e-9)
-    assert c.limit is None and c.status == "undisturbed"
+    assert c.limit is None and c.status == "undisturbed" and c.hold_s == 0.0
+    (out,) = run_operation(op, [replace(svc, running_extra_s=(1e-9, 0.0, 0.0))]).trains
+    assert [d.status for d in out.disturbed] == ["undisturbed"] and not out.warnings
 
 
 def test_no_capped_run_takes_the_time_falls_back_to_a_stand_and_says_so(op) -> None:
@@ -235,3 +237,20 @@ def test_delays_only_label_the_time_scaled_trajectory(op) -> None:
     assert len(quick.trajectory.time_s) != len(full.trajectory.time_s) or not np.array_equal(
         quick.trajectory.speed_mps, full.trajectory.speed_mps
     )
+
+
+def test_undisturbed_trains_and_plans_are_bit_for_bit_unchanged(op) -> None:
+    up, down = (s for s in op.services if s.id in ("U.1", "D.1"))
+    plain = run_operation(op, [up, down])
+    mixed = run_operation(op, [replace(up, running_extra_s=(30.0, 0.0, 10.0)), down])
+    assert mixed.trains[0].disturbed and not mixed.trains[1].disturbed
+    before, after = plain.trains[1], mixed.trains[1]  # the down train, on its own track
+    assert (after.energy_kwh, after.delay_s, after.stops) == (before.energy_kwh, before.delay_s, before.stops)
+    for name in ("time_s", "position_m", "speed_mps"):
+        np.testing.assert_array_equal(getattr(after.trajectory, name), getattr(before.trajectory, name))
+        # the disturbed train's plan is its undisturbed run
+        np.testing.assert_array_equal(
+            getattr(mixed.trains[0].planned_trajectory, name), getattr(plain.trains[0].trajectory, name)
+        )
+    assert [b for b in mixed.blocking if b.train == "D.1"] == [b for b in plain.blocking if b.train == "D.1"]
+    assert mixed.planned_blocking == plain.planned_blocking

@@ -340,7 +340,8 @@ class RunCache:
         caps, times, _energies = self.slowed(train, directed, a, b, limits, running_time_s)
         target = float(running_time_s)
         if target - times[0] <= CAP_TIME_TOLERANCE_S:
-            return CappedRun(None, float(times[0]), max(target - float(times[0]), 0.0), "undisturbed")
+            # within the tolerance: the undisturbed run takes it
+            return CappedRun(None, float(times[0]), 0.0, "undisturbed")
         if target > times[-1]:
             status = "beyond_lowest_cap" if len(times) == len(SLOWED_CAP_FRACTIONS) else "no_slower_run"
             return self._capped_at(train, directed, a, b, limits, float(caps[-1]), target, status)

@@ -176,9 +176,10 @@ class DisturbedStretch:
         driven_s: running time of the trajectory's run of the stretch (unhindered) [s].
         cap_mps: the speed cap of that run [m/s], or None (time-scaled, or no capped run).
         hold_s: the part of ``running_time_s`` no capped run takes, stood before leaving ``start`` [s].
-        status: ``ok`` (a capped run of the disturbed time), ``time_scaled`` (the fastest run's path
-            with time stretched: ``simulate(disturbed_energy=False)``), or the fallback of
-            ``CappedRun.status``.
+        status: ``ok`` (a capped run of the disturbed time), ``undisturbed`` (an extension within
+            ``CAP_TIME_TOLERANCE_S``: the fastest run), ``time_scaled`` (the fastest run's path with
+            time stretched: ``simulate(disturbed_energy=False)``), or the fallback of
+            ``CappedRun.status`` (a warning says so).
     """
 
     start: str
@@ -448,7 +449,7 @@ class _TrainState:
             self.disturbed.append(
                 DisturbedStretch(a.name, b.name, extra, target, c.running_time_s, cap, c.hold_s, c.status)
             )
-            if c.status != "ok":
+            if c.status not in ("ok", "undisturbed"):
                 self.warnings.append(
                     f"running-time disturbance {a.name} - {b.name}: no capped run takes {target:.1f} s "
                     f"({c.status}); driven in {c.running_time_s:.1f} s"
@@ -1321,7 +1322,7 @@ def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutc
             "times from it) is the fastest run's path with time stretched, not a run of the train"
         )
     elif st.disturbed:
-        n_ok = sum(1 for d in st.disturbed if d.status == "ok")
+        n_ok = sum(1 for d in st.disturbed if d.status in ("ok", "undisturbed"))
         note = (
             f"{len(st.disturbed)} stretch(es) with running-time disturbances driven as the fastest run "
             "under a speed cap whose running time is the disturbed one; trajectory, blocking times and "
