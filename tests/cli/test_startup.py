@@ -159,3 +159,34 @@ def test_run_writing_plots_loads_no_scipy_optimize(tmp_path):
     assert (tmp_path / "speed_distance.png").exists()
     assert "matplotlib" in modules
     assert_not_imported(modules, ("scipy.optimize", "pandas"), "run", str(METRO), "--out", str(tmp_path))
+
+
+HEAVY_HAUL = REPO / "examples" / "heavy_haul" / "scenario_head.yaml"
+
+
+@pytest.mark.skipif(not HEAVY_HAUL.exists(), reason="examples/heavy_haul not present")
+def test_multipoint_run_writing_tables_loads_no_pandas(tmp_path):
+    code, modules = imported("run", str(HEAVY_HAUL), "--out", str(tmp_path), "--no-plots")
+    assert code in (0, 3)
+    assert (tmp_path / "coupler_forces.csv").exists() and (tmp_path / "vehicle_speeds.csv").exists()
+    assert_not_imported(
+        modules, ("pandas", "matplotlib"), "run", str(HEAVY_HAUL), "--out", str(tmp_path), "--no-plots"
+    )
+
+
+@pytest.mark.parametrize("number_format", ["%.3f", "%.4f"])
+def test_multipoint_table_bytes_equal_pandas_to_csv(tmp_path, number_format):
+    # the reference: what pandas wrote for these tables before (float_format applies to the index too)
+    pd = pytest.importorskip("pandas")
+    import numpy as np
+
+    from trainsim.cli.multipoint import _write_table
+
+    time_s = np.array([0.0, 1e-7, np.nan, 1.23456789e6, -0.0, np.inf, 0.5])
+    row = [np.nan, -0.0, 1e25, 1e-9, -np.inf, 12345.6785, 0.00005]
+    values = np.array([row[k:] + row[:k] for k in range(len(time_s))])
+    columns = [f"c{k}_kn" for k in range(values.shape[1])]
+    ours = _write_table(tmp_path / "ours.csv", time_s, values, columns, number_format).read_bytes()
+    frame = pd.DataFrame(values, index=pd.Index(time_s, name="time_s"), columns=columns)
+    frame.to_csv(tmp_path / "pandas.csv", float_format=number_format)
+    assert ours == (tmp_path / "pandas.csv").read_bytes()

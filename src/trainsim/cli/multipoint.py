@@ -5,13 +5,17 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from trainsim.cli.context import exit_for_status, require_file, user_errors
 from trainsim.errors import InputError
+
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = ["multipoint", "run_and_report", "write_multipoint_outputs"]
 
@@ -22,7 +26,6 @@ def write_multipoint_outputs(result, out: Path, *, plots: bool = True) -> list[P
     instant), ``vehicle_speeds.csv`` (km/h, one column per vehicle) and, with ``plots``, the coupler
     heat map, the force at the worst couplings and the vehicle speeds as PNG files."""
     import numpy as np
-    import pandas as pd
 
     from trainsim.constants import KMH
     from trainsim.io.export import write_trace_csv
@@ -32,26 +35,38 @@ def write_multipoint_outputs(result, out: Path, *, plots: bool = True) -> list[P
     path = out / "summary.json"
     path.write_text(json.dumps(result.summary(), indent=2, allow_nan=False))
     written.append(path)
-    index = pd.Index(np.round(result.time_s, 6), name="time_s")
-    forces = pd.DataFrame(
-        result.coupler_force_n / 1e3,
-        index=index,
-        columns=[f"c{k}_kn" for k in range(result.coupler_force_n.shape[1])],
+    time_s = np.round(result.time_s, 6)
+    forces = result.coupler_force_n / 1e3
+    written.append(
+        _write_table(
+            out / "coupler_forces.csv", time_s, forces, [f"c{k}_kn" for k in range(forces.shape[1])], "%.3f"
+        )
     )
-    path = out / "coupler_forces.csv"
-    forces.to_csv(path, float_format="%.3f")
-    written.append(path)
-    speeds = pd.DataFrame(
-        result.speed_mps / KMH, index=index, columns=[f"v{i}_kmh" for i in range(result.speed_mps.shape[1])]
+    speeds = result.speed_mps / KMH
+    written.append(
+        _write_table(
+            out / "vehicle_speeds.csv", time_s, speeds, [f"v{i}_kmh" for i in range(speeds.shape[1])], "%.4f"
+        )
     )
-    path = out / "vehicle_speeds.csv"
-    speeds.to_csv(path, float_format="%.4f")
-    written.append(path)
     if plots:
         from trainsim.multipoint.plots import save_multipoint_plots
 
         written += save_multipoint_plots(result, out)
     return written
+
+
+def _write_table(
+    path: Path, time_s: np.ndarray, values: np.ndarray, columns: list[str], number_format: str
+) -> Path:
+    """A CSV table: a ``time_s`` column, then one column per name, every number (the time too) written
+    with ``number_format`` and NaN as an empty field; the same bytes as pandas' ``DataFrame.to_csv``
+    with that ``float_format`` wrote before, without importing pandas (0.4 s CPU per process)."""
+    with path.open("w", encoding="utf-8", newline="") as f:
+        f.write(",".join(["time_s", *columns]) + "\n")
+        for t, row in zip(time_s.tolist(), values.tolist(), strict=True):
+            cells = ["" if math.isnan(v) else number_format % v for v in (t, *row)]
+            f.write(",".join(cells) + "\n")
+    return path
 
 
 def run_and_report(scenario_path: Path, out: Path | None, as_json: bool, no_plots: bool) -> str:
