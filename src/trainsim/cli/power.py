@@ -47,8 +47,15 @@ def _print_summary(summary: dict) -> None:
         typer.echo(f"stray current {stray['mean']:.1f} A mean, {stray['max']:.1f} A at most")
     for w in summary["warnings"]:
         typer.echo(f"warning: {w}", err=True)
+    late = [t for t in summary["trains"] if t.get("status", "ok") != "ok"]
+    for t in late:
+        typer.echo(
+            f"train {t['id']}: {t['status']}, {t['time_lost_s']:.1f} s lost to voltage-limited traction"
+        )
     if summary["status"] != "ok":
-        typer.echo(f"status: {summary['status']}")
+        # every condition, most severe first: one does not hide another
+        others = [s for s in summary.get("statuses", []) if s != summary["status"]]
+        typer.echo(f"status: {summary['status']}" + (f" (also {', '.join(others)})" if others else ""))
 
 
 def power(
@@ -61,7 +68,16 @@ def power(
     ] = False,
     plots: Annotated[bool, typer.Option("--plots/--no-plots", help="Write PNG plots with --out.")] = True,
 ) -> None:
-    """Solve a traction power network with many trains over time (substations, voltages, regeneration)."""
+    """Solve a traction power network with many trains over time (substations, voltages, regeneration).
+
+    Status (table, JSON 'status' and 'statuses', exit code 3 when not ok): not_converged,
+    voltage_out_of_limits (a pantograph voltage left Umin2 .. Umax2), feedback_not_converged,
+    substation_overloaded (above its overload power), traction_limited (the voltage limited traction
+    and it was not fed back into the runs), time_lost (a train ran more than 0.5 s slower because of
+    the voltage). Informational, in the warnings only: power above a substation's rated power but
+    within its overload power, regenerated energy the line could not take (burnt on board or by the
+    friction brakes: the train still brakes as asked). See docs/POWER.md, "Status".
+    """
     with user_errors():
         require_file(file, "power-supply file")
         from trainsim.io.power_file import run_power_file

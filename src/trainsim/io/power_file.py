@@ -21,7 +21,7 @@ from trainsim.power.limits import EN50163, standard_limits
 from trainsim.power.network import Connection, Gap, Network, Storage, Substation, Track, regulation_points
 from trainsim.power.onboard import OnboardStorage
 from trainsim.power.simulation import TrainLoad, simulate
-from trainsim.power.study import FeedbackSettings, TrainService, run_study
+from trainsim.power.study import FeedbackSettings, TrainService, run_study, with_status
 
 __all__ = ["PowerFile", "load_power_file", "run_power_file"]
 
@@ -526,7 +526,7 @@ def run_power_file(
             raise exc.located(str(path)) from None
         feedback = {"enabled": False, "iterations": 1, "consistent": True,
                     "method": "operated trains are solved once: their delays come from the operation"}  # fmt: skip
-        result = dataclasses.replace(result, extra={"operation": info, "feedback": feedback})
+        result = with_status(dataclasses.replace(result, extra={"operation": info, "feedback": feedback}))
     else:
         fb = FeedbackSettings(
         sim.feedback.enabled, sim.feedback.max_iterations, sim.feedback.tolerance, sim.feedback.method,

@@ -14,6 +14,12 @@ at each iteration where it is still limited). The network is solved again, until
 gets at least ``1 - tolerance`` of the traction energy it asks (or ``max_iterations`` is reached).
 The time lost is the running time of the capped run minus the nominal one. One cap for the whole
 run is conservative: the train is also held back where the voltage would have allowed more.
+
+Status (:func:`with_status`, :data:`STATUSES`): a study that ran, but whose trains, substations or
+solution are not what was asked, says so in ``summary()["status"]`` (the most severe condition) and
+``summary()["statuses"]`` (every one), so that ``trainsim power`` exits with 3 (docs/POWER.md,
+"Status"). Regenerated energy burnt on board because the line could not take it is reported
+(``regen_kwh``, a warning) but is no status: the train still brakes as asked.
 """
 
 from __future__ import annotations
@@ -35,7 +41,39 @@ from trainsim.power.stretches import JoinedRun, joined_run, stop_positions
 from trainsim.power.traction_share import SHARE_FLOOR, ShareProfile, route_with_share, step_spans
 from trainsim.sim.result import RunResult
 
-__all__ = ["FeedbackSettings", "TrainService", "run_study"]
+__all__ = [
+    "STATUSES",
+    "TIME_LOST_TOLERANCE_S",
+    "FeedbackSettings",
+    "TrainService",
+    "run_study",
+    "with_status",
+]
+
+#: What a power study's ``status`` can say, the most severe first: anything but ``ok`` means "ran,
+#: but not as asked" (exit code 3). Every condition found is listed in ``statuses``; ``status`` is
+#: the first of them in this order (a solution that did not converge makes every other figure
+#: doubtful, so it leads).
+STATUSES: dict[str, str] = {
+    "not_converged": "the network solution did not converge at some time steps",
+    "voltage_out_of_limits": "a pantograph voltage left Umin2 .. Umax2 (EN 50163)",
+    "feedback_not_converged": "the runs fed back with voltage-limited traction did not become consistent "
+    "with the network within max_iterations",
+    "substation_overloaded": "a substation delivered more than its admissible overload power",
+    "traction_limited": "the line voltage limited traction and the limitation was not fed back into the runs "
+    "(feedback disabled, or operated trains): their running times do not show it",
+    "time_lost": "a train lost running time to voltage-limited traction (more than TIME_LOST_TOLERANCE_S)",
+    "ok": "every train got the traction it asked or ran its timetable, within every limit",
+}
+
+#: A departure whose running time grows by more than this under voltage-limited traction has lost
+#: time [s]. Half a second: timetables are kept to the second, so a smaller loss does not move any
+#: timetabled time when rounded.
+TIME_LOST_TOLERANCE_S = 0.5
+
+#: Relative tolerance of the energy sums below which a shortfall or a curtailment is rounding [-]
+#: (the same as the energy balance's, docs/POWER.md).
+_ENERGY_RTOL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -345,6 +383,68 @@ def run_study(
             ),
         },
     }
+    return with_status(dataclasses.replace(result, extra=extra))
+
+
+def with_status(result: PowerResult) -> PowerResult:
+    """The result with the study's status (see :data:`STATUSES`) in its summary.
+
+    ``status``, ``statuses`` (every condition found, most severe first, empty when ok) and
+    ``warnings`` (the simulation's, then the study's: time lost, traction not fed back, regenerated
+    energy curtailed) go into ``result.extra``, which :meth:`PowerResult.summary` lays over its own
+    figures; each train of ``extra["trains"]`` gets ``status`` (``ok`` or ``time_lost``). The
+    conditions are recomputed from the result, not read from ``PowerResult.problems()``, which
+    names only one, so none is hidden behind a more severe one. Calling it twice gives the same.
+    """
+    lim = result.network.limits
+    _, warnings = result.problems()
+    found: set[str] = set()
+    if not np.all(result.converged):
+        found.add("not_converged")
+    v = result.train_voltage_v
+    # the same bounds as PowerResult.problems()
+    if np.any(np.isfinite(v)) and (np.nanmin(v) < lim.min2_v - 1e-6 or np.nanmax(v) > lim.max2_v + 1e-6):
+        found.add("voltage_out_of_limits")
+    fb = result.extra.get("feedback") or {}
+    if fb.get("enabled") and not fb.get("consistent"):
+        found.add("feedback_not_converged")
+    events = [e for si in range(len(result.network.substations)) for e in result.overload_events(si)]
+    if any(e["beyond_overload"] for e in events):
+        found.add("substation_overloaded")
+    dt = result.dt_s
+    asked = float(np.nansum(result.traction_demand_w)) * dt
+    shortfall = asked - float(np.nansum(result.traction_delivered_w)) * dt
+    if not fb.get("enabled") and shortfall > _ENERGY_RTOL * max(asked, 1.0):
+        found.add("traction_limited")
+        warnings.append(
+            "the limited traction was not fed back into the runs (feedback disabled or operated trains): "
+            "their running times assume full traction"
+        )
+    trains = [dict(t) for t in result.extra.get("trains", [])]
+    for t in trains:
+        t["status"] = "time_lost" if t.get("time_lost_s", 0.0) > TIME_LOST_TOLERANCE_S else "ok"
+    late = [t for t in trains if t["status"] == "time_lost"]
+    if late:
+        found.add("time_lost")
+        worst = max(late, key=lambda t: t["time_lost_s"])
+        total = sum(t["time_lost_s"] for t in late)
+        warnings.append(
+            f"{len(late)} of {len(trains)} departures lost time to voltage-limited traction: {total:.1f} s "
+            f"in all, {worst['time_lost_s']:.1f} s at most ({worst['id']})"
+        )
+    offered = float(np.nansum(result.regen_offered_w)) * dt
+    curtailed = offered - float(np.nansum(result.regen_accepted_w)) * dt
+    if curtailed > _ENERGY_RTOL * max(offered, 1.0):
+        # informational: the train brakes as asked, the resistors or the friction brakes take the rest
+        warnings.append(
+            f"regenerative braking curtailed by the line voltage: {curtailed / KWH:.2f} of "
+            f"{offered / KWH:.2f} kWh offered not taken by the line (stored on board or dissipated)"
+        )
+    statuses = [s for s in STATUSES if s in found]
+    extra = {**result.extra, "status": statuses[0] if statuses else "ok", "statuses": statuses}
+    extra["warnings"] = warnings
+    if trains:
+        extra["trains"] = trains
     return dataclasses.replace(result, extra=extra)
 
 
