@@ -36,6 +36,7 @@ from trainsim.power.limits import (
     traction_availability_slope,
 )
 from trainsim.power.network import Network
+from trainsim.power.rail import _SMALL as _RAIL_SMALL
 from trainsim.power.rail import leaky_rail_pi, segment_leakage_a
 from trainsim.power.regulation import regulation_current_a
 
@@ -223,8 +224,133 @@ class _Sources:
         return x, dxdu
 
 
+@njit(cache=True)
+def _assemble_dc_kernel(
+    n_fixed, track, xt, fp, fp_start, cid, rid, gs, ge, g_start, r_contact, r_rail, g_rail, leak_s, ideal,
+    small,
+):  # fmt: skip
+    """:func:`assemble`'s nodes and branches of a DC network, compiled: per track the fixed points and
+    the trains' (rounded) positions merged in order (np.unique's sorted distinct values and inverse),
+    new contact (and rail) node ids in that order, then the branches in the numpy form's order
+    (contact segments not cut by a gap, contact-to-return leakage at every node, the rails' exact
+    pi-equivalents and their shunts). Returns (a, b, y, train_c, train_r, rail, leaky a, leaky b,
+    leaky length, leaky r, leaky g, next_id) before earthed nodes and renumbering."""
+    n_tracks = len(fp_start) - 1
+    m = len(track)
+    train_c = np.empty(m, np.int64)
+    train_r = np.empty(m, np.int64)
+    # upper bounds of the branch counts
+    total = len(fp) + m
+    cap = 4 * total
+    a = np.empty(cap, np.int64)
+    b = np.empty(cap, np.int64)
+    y = np.empty(cap)
+    rail = np.empty(total, np.int64)
+    la = np.empty(total, np.int64)
+    lb = np.empty(total, np.int64)
+    ll = np.empty(total)
+    lr = np.empty(total)
+    lg = np.empty(total)
+    nb = 0
+    nr = 0
+    nl = 0
+    next_id = n_fixed
+    for ti in range(n_tracks):
+        f0, f1 = fp_start[ti], fp_start[ti + 1]
+        nf = f1 - f0
+        sel = np.flatnonzero(track == ti)
+        vals = np.empty(nf + len(sel))
+        vals[:nf] = fp[f0:f1]
+        for j in range(len(sel)):
+            vals[nf + j] = xt[sel[j]]
+        order = np.argsort(vals, kind="mergesort")
+        inv = np.empty(len(vals), np.int64)
+        uniq = np.empty(len(vals))
+        nu = -1
+        for j in range(len(vals)):
+            vj = vals[order[j]]
+            if nu < 0 or vj != uniq[nu]:
+                nu += 1
+                uniq[nu] = vj
+            inv[order[j]] = nu
+        nu += 1
+        uniq = uniq[:nu]
+        cu = np.empty(nu, np.int64)
+        ru = np.empty(nu, np.int64)
+        is_new = np.ones(nu, np.bool_)
+        for j in range(nf):
+            is_new[inv[j]] = False
+            cu[inv[j]] = cid[f0 + j]
+            ru[inv[j]] = rid[f0 + j]
+        for j in range(nu):
+            if is_new[j]:
+                cu[j] = next_id
+                next_id += 1
+        for j in range(nu):
+            if is_new[j]:
+                if ideal:
+                    ru[j] = -1
+                else:
+                    ru[j] = next_id
+                    next_id += 1
+        if not ideal:
+            for j in range(nu):
+                rail[nr] = ru[j]
+                nr += 1
+        for j in range(len(sel)):
+            train_c[sel[j]] = cu[inv[nf + j]]
+            train_r[sel[j]] = ru[inv[nf + j]]
+        for j in range(nu - 1):
+            x0, x1 = uniq[j], uniq[j + 1]
+            cut = False
+            for q in range(g_start[ti], g_start[ti + 1]):
+                # a section insulator (zero-length gap) cuts the segments that reach it from below
+                hit = (x0 < ge[q] and x1 > gs[q]) if ge[q] > gs[q] else (x0 < gs[q] and x1 >= gs[q])
+                cut = cut or hit
+            if not cut:
+                a[nb], b[nb], y[nb] = cu[j], cu[j + 1], 1.0 / (r_contact[ti] * (x1 - x0))
+                nb += 1
+        for j in range(nu):
+            a[nb], b[nb], y[nb] = cu[j], ru[j], leak_s
+            nb += 1
+        if not ideal:
+            r, g = r_rail[ti], g_rail[ti]
+            alpha = np.sqrt(r * g)
+            longest = 0.0
+            for j in range(nu - 1):
+                longest = max(longest, uniq[j + 1] - uniq[j])
+            linear = alpha * longest < small
+            shunt = np.zeros(nu)
+            for j in range(nu - 1):
+                dx = uniq[j + 1] - uniq[j]
+                if linear:
+                    ys, yh = 1.0 / (r * dx), g * dx / 2
+                else:
+                    ys, yh = alpha / (r * np.sinh(alpha * dx)), alpha / r * np.tanh(alpha * dx / 2)
+                a[nb], b[nb], y[nb] = ru[j], ru[j + 1], ys
+                nb += 1
+                shunt[j] += yh
+                shunt[j + 1] += yh
+                if g > 0:
+                    la[nl], lb[nl], ll[nl], lr[nl], lg[nl] = ru[j], ru[j + 1], dx, r, g
+                    nl += 1
+            if g > 0:
+                for j in range(nu):
+                    a[nb], b[nb], y[nb] = ru[j], -1, shunt[j]
+                    nb += 1
+    return (a[:nb].copy(), b[:nb].copy(), y[:nb].copy(), train_c, train_r, rail[:nr].copy(), la[:nl].copy(),
+            lb[:nl].copy(), ll[:nl].copy(), lr[:nl].copy(), lg[:nl].copy(), next_id)  # fmt: skip
+
+
 def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assembly:
     """Nodes and branches for trains at the given tracks and positions (all on the wire)."""
+    if net.system == "ac":
+        return _assemble_numpy(net, track, position_m)
+    return _assemble_dc(net, track, position_m)
+
+
+def _assemble_numpy(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assembly:
+    """:func:`assemble` in numpy, AC and DC (DC goes through :func:`_assemble_dc`, tested equal)."""
     topo = net.topology
     ac = net.system == "ac"
     ideal = net.ideal_return
@@ -289,6 +415,51 @@ def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assemb
     a = np.concatenate(a_parts)
     b = np.concatenate(b_parts)
     y = np.concatenate(y_parts)
+    rail = np.concatenate(rail_nodes) if rail_nodes else np.empty(0, dtype=np.int64)
+    leaky_parts = tuple(np.concatenate(parts) for parts in zip(*leaky, strict=True)) if leaky else None
+    return _renumbered(topo, a, b, y, train_c, train_r, rail, leaky_parts, next_id)
+
+
+def _dc_track_data(net: Network) -> tuple:
+    """The per-track arrays :func:`_assemble_dc_kernel` reads, built once per network."""
+    topo = net.topology
+    cached = getattr(topo, "_assembly_track_data", None)
+    if cached is not None:
+        return cached
+    fp = topo.fixed_positions
+    out = (
+        np.int64(topo.n_fixed),
+        np.concatenate(fp).astype(float),
+        np.cumsum([0, *(len(f) for f in fp)]).astype(np.int64),
+        np.concatenate(topo.contact_ids).astype(np.int64),
+        np.concatenate(topo.rail_ids).astype(np.int64),
+        np.concatenate([np.asarray(g, dtype=float) for g in topo.gap_starts] or [np.empty(0)]),
+        np.concatenate([np.asarray(g, dtype=float) for g in topo.gap_ends] or [np.empty(0)]),
+        np.cumsum([0, *(len(g) for g in topo.gap_starts)]).astype(np.int64),
+        np.array([t.contact_resistance_ohm_per_m for t in net.tracks], dtype=float),
+        np.array([t.rail_resistance_ohm_per_m for t in net.tracks], dtype=float),
+        np.array([t.rail_to_earth_conductance_s_per_m for t in net.tracks], dtype=float),
+        float(net.contact_leakage_s),
+        bool(net.ideal_return),
+    )
+    topo._assembly_track_data = out
+    return out
+
+
+def _assemble_dc(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assembly:
+    """:func:`assemble` of a DC network through the compiled kernel (the same nodes and branches)."""
+    n_fixed, fp, fp_start, cid, rid, gs, ge, g_start, rc, rr, gr, leak, ideal = _dc_track_data(net)
+    xt = np.round(np.asarray(position_m, dtype=float) / POSITION_RESOLUTION_M) * POSITION_RESOLUTION_M
+    a, b, y, train_c, train_r, rail, la, lb, ll, lr, lg, next_id = _assemble_dc_kernel(
+        n_fixed, np.asarray(track, dtype=np.int64), xt, fp, fp_start, cid, rid, gs, ge, g_start, rc, rr, gr,
+        leak, ideal, _RAIL_SMALL,
+    )  # fmt: skip
+    leaky = (la, lb, ll, lr, lg) if len(la) else None
+    return _renumbered(net.topology, a, b, y, train_c, train_r, rail, leaky, int(next_id))
+
+
+def _renumbered(topo, a, b, y, train_c, train_r, rail, leaky, next_id: int) -> _Assembly:
+    """The assembly with earthed nodes as the reference (-1) and the unknowns numbered 0..n-1."""
     # earthed nodes are the reference
     if topo.earthed:
         earthed = np.fromiter(topo.earthed, dtype=np.int64)
@@ -301,9 +472,8 @@ def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assemb
         used[list(topo.earthed)] = False
     new_index = np.full(next_id + 1, -1, dtype=np.int64)  # last slot maps -1 -> -1
     new_index[:next_id][used] = np.arange(int(used.sum()))
-    rail = np.concatenate(rail_nodes) if rail_nodes else np.empty(0, dtype=np.int64)
-    if leaky:
-        la, lb, ll, lr, lg = (np.concatenate(parts) for parts in zip(*leaky, strict=True))
+    if leaky is not None:
+        la, lb, ll, lr, lg = leaky
         leaky_segments = (new_index[la], new_index[lb], ll, lr, lg)
     else:
         leaky_segments = None
@@ -394,6 +564,172 @@ def _dc_load_residual(
     for i in range(n):
         f[i] = (((lines[i] + subs[i]) - j_src[i]) + inj[i]) - out[i]
     return f, uu, p
+
+
+#: Above this many unknowns the compiled Newton (dense LU) gives way to the sparse one: a dense LU
+#: costs n^3 / 3 multiply-adds, about what SuperLU's ordering and bookkeeping cost at a few hundred
+#: nodes (measured on the 20 km benchmark line: 86 nodes, 0.06 ms dense vs 0.16 ms sparse per LU).
+DENSE_NEWTON_MAX_NODES = 400
+
+
+@njit(cache=True, error_model="numpy")
+def _dc_residual_full(
+    v, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w, regen_w,
+    u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share,
+):  # fmt: skip
+    """The DC residual G V + I_trains(V) + I_diodes(V) - J of :func:`_newton_dc` (without wayside
+    storage or regulation curves), each train's floored voltage uu and power p."""
+    n = len(v)
+    f = np.zeros(n + 1)  # slot n: earth, dropped
+    for k in range(len(a)):
+        va = v[a[k]] if a[k] >= 0 else 0.0
+        vb = v[b[k]] if b[k] >= 0 else 0.0
+        i = y[k] * (va - vb)
+        f[a[k] if a[k] >= 0 else n] += i
+        f[b[k] if b[k] >= 0 else n] -= i
+    for k in range(len(sp_on)):
+        va = v[sp_on[k]] if sp_on[k] >= 0 else 0.0
+        vb = v[sn_on[k]] if sn_on[k] >= 0 else 0.0
+        i = ys_on[k] * (va - vb) - ys_on[k] * e_on[k]
+        f[sp_on[k] if sp_on[k] >= 0 else n] += i
+        f[sn_on[k] if sn_on[k] >= 0 else n] -= i
+    m = len(tc)
+    uu = np.empty(m)
+    p = np.empty(m)
+    ramp = full_v - min1_v
+    regen_ramp = regen_zero_v - regen_full_v
+    for k in range(m):
+        vc = v[tc[k]] if tc[k] >= 0 else 0.0
+        vr = v[tr[k]] if tr[k] >= 0 else 0.0
+        u = vc - vr
+        u = u if u >= u_floor else u_floor
+        sa = min(max((u - min1_v) / ramp, 0.0), 1.0)
+        sr = min(max((regen_zero_v - u) / regen_ramp, 0.0), 1.0)
+        uu[k] = u
+        p[k] = traction_w[k] * sa + auxiliary_w[k] - regen_w[k] * sr
+        i = p[k] / u
+        f[tc[k] if tc[k] >= 0 else n] += i
+        f[tr[k] if tr[k] >= 0 else n] -= i
+    for k in range(len(dp_)):
+        va = v[dp_[k]] if dp_[k] >= 0 else 0.0
+        vb = v[dn_[k]] if dn_[k] >= 0 else 0.0
+        x = de[k] - (va - vb)
+        forward = 0.5 * (x + np.sqrt(x * x + delta * delta))
+        i = (forward + reverse_share * (x - forward)) * dy[k]
+        f[dn_[k] if dn_[k] >= 0 else n] += i
+        f[dp_[k] if dp_[k] >= 0 else n] -= i
+    return f[:n].copy(), uu, p
+
+
+@njit(cache=True)
+def _stamp_dense(jac, a, b, y):
+    """Adds the two-terminal admittances y between nodes a and b (-1 earth) to the dense matrix."""
+    for k in range(len(a)):
+        if a[k] >= 0:
+            jac[a[k], a[k]] += y[k]
+        if b[k] >= 0:
+            jac[b[k], b[k]] += y[k]
+        if a[k] >= 0 and b[k] >= 0:
+            jac[a[k], b[k]] -= y[k]
+            jac[b[k], a[k]] -= y[k]
+
+
+@njit(cache=True, error_model="numpy")
+def _newton_dc_dense(
+    v0, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w, regen_w,
+    u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share, keep_curtailed,
+    max_iterations, tol, ftol, max_step,
+):  # fmt: skip
+    """:func:`_newton_dc` compiled, for networks without wayside storage or regulation curves: the
+    same iteration (step limit, fraction to the boundary of regeneration, backtracking with the
+    occasional full step, the same stopping rules) with the Jacobian dense and solved by LAPACK.
+    Returns (V, iterations, converged, singular)."""
+    n = len(v0)
+    v = v0.copy()
+    args = (a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w,
+            regen_w, u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share)  # fmt: skip
+    f, uu, p = _dc_residual_full(v, *args)
+    norm = np.max(np.abs(f)) if n else 0.0
+    g0 = np.zeros((n, n))
+    _stamp_dense(g0, a, b, y)
+    _stamp_dense(g0, sp_on, sn_on, ys_on)
+    m = len(tc)
+    t_ramp = full_v - min1_v
+    r_ramp = regen_zero_v - regen_full_v
+    di = np.empty(m)
+    gd = np.empty(len(dp_))
+    stalls = 0
+    for it in range(1, max_iterations + 1):
+        if norm < ftol:
+            return v, it - 1, True, False
+        for k in range(m):
+            u = uu[k]
+            sa = 1.0 / t_ramp if (u > min1_v and u < full_v) else 0.0
+            sr = -1.0 / r_ramp if (u > regen_full_v and u < regen_zero_v) else 0.0
+            dpk = traction_w[k] * sa - regen_w[k] * sr
+            di[k] = dpk / u - p[k] / (u * u) if u > u_floor else 0.0
+        for k in range(len(dp_)):
+            va = v[dp_[k]] if dp_[k] >= 0 else 0.0
+            vb = v[dn_[k]] if dn_[k] >= 0 else 0.0
+            x = de[k] - (va - vb)
+            slope = 0.5 * (1.0 + x / np.sqrt(x * x + delta * delta))
+            gd[k] = dy[k] * (slope + reverse_share * (1.0 - slope))
+        jac = g0.copy()
+        _stamp_dense(jac, tc, tr, di)
+        _stamp_dense(jac, dp_, dn_, gd)
+        # a singular Jacobian: the caller falls back on the sparse path and its error
+        if not np.all(np.isfinite(jac)):
+            return v, it, False, True
+        dv = -np.linalg.solve(jac, f)
+        if not np.all(np.isfinite(dv)):
+            return v, it, False, True
+        step = np.max(np.abs(dv))
+        if step > max_step:
+            # (``step`` stays the unlimited one in the stopping tests, as in the sparse path)
+            dv *= max_step / step
+        du = np.empty(m)
+        for k in range(m):
+            dc = dv[tc[k]] if tc[k] >= 0 else 0.0
+            dr = dv[tr[k]] if tr[k] >= 0 else 0.0
+            du[k] = dc - dr
+        room = np.inf
+        for k in range(m):
+            if regen_w[k] > 0 and du[k] > 0 and uu[k] < regen_zero_v:
+                room = min(room, 0.9 * (regen_zero_v - uu[k]) / du[k])
+        if room < 1.0:
+            dv *= room
+            step *= room
+            du *= room
+        if keep_curtailed:
+            room = np.inf
+            for k in range(m):
+                if regen_w[k] > 0 and du[k] < 0 and uu[k] > regen_full_v:
+                    room = min(room, 0.9 * (uu[k] - regen_full_v) / -du[k])
+            if room < 1.0:
+                dv *= room
+                step *= room
+        lam = 1.0
+        l2 = np.sqrt(np.sum(f * f))
+        accepted = False
+        v_try, f_try, uu_try, p_try = v, f, uu, p
+        for _ in range(12):
+            v_try = v + lam * dv
+            f_try, uu_try, p_try = _dc_residual_full(v_try, *args)
+            if np.sqrt(np.sum(f_try * f_try)) <= (1.0 - 1e-4 * lam) * l2 or lam * step < tol:
+                accepted = True
+                break
+            lam *= 0.5
+        if not accepted:
+            stalls += 1
+            if stalls % 3 == 0:
+                lam = 1.0
+                v_try = v + dv
+                f_try, uu_try, p_try = _dc_residual_full(v_try, *args)
+        norm_try = np.max(np.abs(f_try)) if n else 0.0
+        v, f, uu, p, norm = v_try, f_try, uu_try, p_try, norm_try
+        if lam * step < tol and norm < max(ftol, 1e3 * ftol * lam):
+            return v, it, True, False
+    return v, max_iterations, norm < ftol, False
 
 
 def _potential(v: np.ndarray, nodes: np.ndarray) -> np.ndarray:
@@ -796,20 +1132,7 @@ def _newton_dc(
     dio = ~on
     st_c = asm.storage_c if asm.storage_c is not None else np.empty(0, dtype=np.int64)
     st_r = asm.storage_r if asm.storage_r is not None else np.empty(0, dtype=np.int64)
-    pattern = _Pattern(
-        n,
-        [
-            (asm.a, asm.b),
-            (sub_p[on], sub_n[on]),
-            (asm.train_c, asm.train_r),
-            (sub_p[dio], sub_n[dio]),
-            (st_c, st_r),
-        ],
-    )
-    g_data = pattern.values(0, asm.y) + pattern.values(1, ys[on])
     ys_on = ys[on]
-    j_src = _injection(n, sub_p[on], (e * ys)[on], float) - _injection(n, sub_n[on], (e * ys)[on], float)
-    dio = ~on
     delta = DIODE_SMOOTHING_SHARE * un
     dp_, dn_, de, dy = sub_p[dio], sub_n[dio], e[dio], ys[dio]
     d_index = np.flatnonzero(dio)
@@ -826,6 +1149,33 @@ def _newton_dc(
     tc, tr = asm.train_c, asm.train_r
     u_floor = 1e-3 * un
     ftol = CURRENT_TOLERANCE_SHARE * max(float(np.sum(np.abs(e * ys))), 1.0)
+    if len(st_c) == 0 and not asm.sources.curves and 0 < n <= DENSE_NEWTON_MAX_NODES:
+        try:
+            v_out, its, converged, singular = _newton_dc_dense(
+                v, asm.a, asm.b, np.asarray(asm.y, dtype=float), sub_p[on], sub_n[on], ys_on, e[on],
+                dp_, dn_, de, dy, tc, tr, np.asarray(loads.traction_w, dtype=float),
+                np.asarray(loads.auxiliary_w, dtype=float), np.asarray(loads.regen_w, dtype=float),
+                float(u_floor), float(lim.min1_v), float(lim.traction_full_v), float(lim.regen_full_v),
+                float(lim.regen_zero_v), float(delta), float(reverse_share), bool(keep_curtailed),
+                int(max_iterations), float(tol), float(ftol), float(MAX_STEP_SHARE * un),
+            )  # fmt: skip
+        except np.linalg.LinAlgError:
+            singular = True
+        if not singular:
+            return v_out, its, converged
+        # a singular Jacobian: the sparse path below reports it as it always has
+    pattern = _Pattern(
+        n,
+        [
+            (asm.a, asm.b),
+            (sub_p[on], sub_n[on]),
+            (asm.train_c, asm.train_r),
+            (sub_p[dio], sub_n[dio]),
+            (st_c, st_r),
+        ],
+    )
+    g_data = pattern.values(0, asm.y) + pattern.values(1, ys[on])
+    j_src = _injection(n, sub_p[on], (e * ys)[on], float) - _injection(n, sub_n[on], (e * ys)[on], float)
     # the residual is evaluated a few times per Newton iteration: what does not depend on v is
     # formed once (the same operations in the same order as before, so the same figures bit for bit)
     tc_bins, tr_bins = _bins(tc, n), _bins(tr, n)
