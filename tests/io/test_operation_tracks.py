@@ -62,10 +62,10 @@ def _edited(tmp_path: Path, old: str, new: str) -> Path:
     return path
 
 
-def _error(path: Path) -> InputError:
+def _error(path: Path, file: Path | None = None) -> InputError:
     with pytest.raises(InputError) as err:
         read_operation(path)
-    assert all(p.file == str(path) for p in err.value.problems)
+    assert all(p.file == str(file or path) for p in err.value.problems)
     return err.value
 
 
@@ -200,3 +200,36 @@ trains:
     assert up.platform_m["B"] == pytest.approx((2650.0, 3350.0))
     exit_b = next(s for s in up.steps if s.station == "B" and s.kind == "exit").alternatives[0]
     assert exit_b.resources[0].end_m == pytest.approx(4000.0)  # the track-circuit border behind W2
+
+
+SHEETS = ROOT / "examples" / "operations" / "sheets_double_track"
+
+
+def _sheets(tmp_path: Path, switches: str) -> Path:
+    import shutil
+
+    shutil.copytree(SHEETS / "line", tmp_path / "line")
+    (tmp_path / "line" / "switches.csv").write_text(switches)
+    text = (SHEETS / "operation.yaml").read_text()
+    text = text.replace("spreadsheet: {file: line}", "spreadsheet: {file: line, tracks: true}")
+    text = text.replace("../../metro_b/", str(ROOT / "examples" / "metro_b") + "/")
+    path = tmp_path / "op.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_spreadsheet_switches_per_track(tmp_path) -> None:
+    table = "Name,Position (m),Clearance (m),Track\nU1,2700,2750,up\nU2,3300,3250,up\nD1,3300,3250,down\nD2,2700,2750,down\n"
+    op = read_operation(_sheets(tmp_path, table))
+    assert op.line.paths["up"].platform_m["B"] == pytest.approx((2750.0, 3250.0))
+    assert op.line.paths["down"].platform_m["B"] == pytest.approx((6000.0 - 3250.0, 6000.0 - 2750.0))
+    assert set(op.line.tracks) == {"up", "down"}
+    # the down track's own station signals, from the table's down signals (B home down 3350, exit 2970)
+    assert op.line.tracks["down"].station_signals_m["B"] == pytest.approx((3350.0, 2970.0))
+
+
+def test_a_bad_spreadsheet_switch_names_its_cell(tmp_path) -> None:
+    e = _error(
+        _sheets(tmp_path, "Name,Position (m),Track\nU1,2700,sideways\n"), tmp_path / "line" / "switches.csv"
+    )
+    assert "switches" in str(e) and "sideways" in str(e) and "up, down" in str(e)

@@ -105,6 +105,10 @@ class _Spreadsheet(_Spec):
     """The line read from a workbook or CSV folder: its track tables and its signalling tables."""
 
     file: str
+    #: use the tables' switches and detection points (and the down signals as the down track's own
+    #: station signals on a double track) in the line model
+    tracks: bool = False
+    clearance_distance_m: float | None = None
 
 
 class _Switch(_Spec):
@@ -685,12 +689,13 @@ def _tracks(
     """The line's tracks from ``line.tracks``, or from a railML file's switches, detection points and
     down-track station signals with ``line.railml.tracks``; and the block signals given per track."""
     given = spec.line.tracks
-    railml = spec.line.railml
+    railml = spec.line.railml if spec.line.railml is not None else spec.line.spreadsheet
     if railml is not None and railml.tracks:
         if given is not None:
             problems.append(
                 Problem(
-                    "tracks given twice: in line.tracks and read from the railML file (line.railml.tracks)",
+                    "tracks given twice: in line.tracks and read from the railML file or spreadsheet "
+                    "(its tracks: true)",
                     file=file,
                     field="line.tracks",
                     allowed="one of them",
@@ -703,7 +708,7 @@ def _tracks(
                 Problem(
                     "invalid clearance distance",
                     file=file,
-                    field="line.railml.clearance_distance_m",
+                    field=f"line.{'railml' if spec.line.railml is not None else 'spreadsheet'}.clearance_distance_m",
                     value=d,
                     allowed="0 < x < 1000 m",
                 )
@@ -734,18 +739,23 @@ def _tracks(
 
 
 def _railml_tracks(spec: _Operation, read) -> dict[str, TrackLayout] | None:
-    """Tracks from what the railML reader found: the switches (their clearance points are the nearest
+    """Tracks from what the railML or spreadsheet reader found: the switches (their clearance points are the nearest
     detection points towards the station) and detection points of each path; on a double track read
     with its down path, the down track's own station signals."""
     if read is None:
         return None
     single = spec.line.layout == "single_track"
+    source = spec.line.railml if spec.line.railml is not None else spec.line.spreadsheet
+    assert source is not None
+    # the down signals are the down track's own where that track was read as such: a railML double
+    # track read with its down path, or a spreadsheet's signals table (directions given)
+    own_down = spec.line.spreadsheet is not None or getattr(source, "double_track", False)
     out: dict[str, TrackLayout] = {}
     for path in ("up", "down"):
         if single and path == "down":
             break
         signals: dict[str, tuple[float, float]] = {}
-        if path == "down":
+        if path == "down" and own_down:
             for entry in read.station_signals("down"):
                 if "entry_signal_distance_m" in entry and "exit_signal_offset_m" in entry:
                     p = float(entry["position_m"])
@@ -758,12 +768,12 @@ def _railml_tracks(spec: _Operation, read) -> dict[str, TrackLayout] | None:
         for w in read.switches:
             if w.path != path:
                 continue
-            clearance = None
+            clearance = w.clearance_m
             stop = min(
                 (st.position_m for st in read.stations), key=lambda x: abs(x - w.position_m), default=None
             )
-            distance = spec.line.railml.clearance_distance_m if spec.line.railml is not None else None
-            if stop is not None and distance is not None:
+            distance = source.clearance_distance_m
+            if clearance is None and stop is not None and distance is not None:
                 lo, hi = sorted((w.position_m, stop))
                 if not any(lo < d < hi for d in dets):
                     clearance = w.position_m + (distance if stop > w.position_m else -distance)

@@ -114,6 +114,8 @@ class SwitchAt:
     position_m: float
     source: str
     path: Direction = "up"  #: read on the route's path (``up``) or on the down path of a double track
+    #: its clearance point [m] where the source gives it (spreadsheets; railML has none)
+    clearance_m: float | None = None
 
 
 @dataclass(frozen=True)

@@ -44,7 +44,11 @@ coordinate of the ``stations`` table)
     * ``station tracks`` (or ``station_tracks``): ``station`` (a name of the ``stations`` table),
       ``tracks`` (platform tracks, 1 .. 50; a station not listed has 1).
     * ``detection points`` (or ``detection_points``): ``name``, ``position (m)``, ``kind``
-      (``axle_counter``, ``track_circuit_border`` or ``detector``; default ``detector``).
+      (``axle_counter``, ``track_circuit_border`` or ``detector``; default ``detector``), ``track``
+      (``up``, default, or ``down``: the track of the down direction of a double-track line).
+    * ``switches``: ``name``, ``position (m)`` (the blade tip), ``clearance (m)`` (optional: its
+      clearance point, towards its station; default the nearest detection point on that side),
+      ``track`` (``up``, default, or ``down``).
 
 Header names are matched without case, spaces or underscores mattering; units are any trainsim
 knows (km/h or m/s, t or kg, kN or N, ‰ or %...). A column that needs a unit and has none, an
@@ -82,6 +86,7 @@ SIGNAL_SHEETS = {
     "signals": ("signals",),
     "station tracks": ("station tracks", "station_tracks"),
     "detection points": ("detection points", "detection_points"),
+    "switches": ("switches",),
 }
 #: Most platform tracks at one station.
 MAX_STATION_TRACKS = 50
@@ -991,7 +996,13 @@ def read_spreadsheet_signalling(path: str | Path, route: Route | None = None):  
     Raises:
         InputError naming the file, the sheet, the cell, the value and what is allowed.
     """
-    from trainsim.io.railml_signalling import DetectionPoint, LineSignalling, SignalAt, StationTracks
+    from trainsim.io.railml_signalling import (
+        DetectionPoint,
+        LineSignalling,
+        SignalAt,
+        StationTracks,
+        SwitchAt,
+    )
 
     sheets = read_sheets(path)
     if route is None:
@@ -1001,7 +1012,8 @@ def read_spreadsheet_signalling(path: str | Path, route: Route | None = None):  
         raise InputError(
             "no 'signals' table",
             file=str(path),
-            allowed="tables: signals (name, position, direction, kind), station tracks, detection points",
+            allowed="tables: signals (name, position, direction, kind), station tracks, detection points, "
+            "switches",
         )
     start_m, end_m = float(route.start_m), float(route.end_m)
     tracks: dict[str, int] = {}
@@ -1057,15 +1069,41 @@ def read_spreadsheet_signalling(path: str | Path, route: Route | None = None):  
         where = f"{sig.source}, row {r + 2}"
         out.signals.append(SignalAt(name, pos, direction, kind, where))  # type: ignore[arg-type]
     det = found["detection points"]
+    track_col = Column("track", ("track",), kind="text")
     if det is not None:
         kinds = ("axle_counter", "track_circuit_border", "detector")
         for r, name, pos, cols in _placed_rows(
-            det, start_m, end_m, [Column("kind", ("kind", "type"), kind="text")]
+            det, start_m, end_m, [Column("kind", ("kind", "type"), kind="text"), track_col]
         ):
             kind = _choice(det, r, cols["kind"][0], kinds, "detector") if "kind" in cols else "detector"
-            out.detection_points.append(DetectionPoint(name, pos, kind, f"{det.source}, row {r + 2}"))
+            track = _choice(det, r, cols["track"][0], ("up", "down"), "up") if "track" in cols else "up"
+            out.detection_points.append(
+                DetectionPoint(name, pos, kind, f"{det.source}, row {r + 2}", track)  # type: ignore[arg-type]
+            )
+    sw = found["switches"]
+    if sw is not None:
+        clear_col = Column("clearance", ("clearance", "clearance point"), "length")
+        for r, name, pos, cols in _placed_rows(sw, start_m, end_m, [clear_col, track_col]):
+            clearance = (
+                _value(sw, r, cols["clearance"][0], "number", cols["clearance"][1])
+                if "clearance" in cols
+                else None
+            )
+            if clearance is not None and not start_m - 1e-9 <= clearance <= end_m + 1e-9:
+                raise sw.error(
+                    "clearance point off the route",
+                    row=r,
+                    col=cols["clearance"][0],
+                    value=sw.rows[r][cols["clearance"][0]],
+                    allowed=f"{start_m:g} .. {end_m:g} m (the route of the track tables)",
+                )
+            track = _choice(sw, r, cols["track"][0], ("up", "down"), "up") if "track" in cols else "up"
+            out.switches.append(
+                SwitchAt(name, pos, f"{sw.source}, row {r + 2}", track, clearance)  # type: ignore[arg-type]
+            )
     out.signals.sort(key=lambda x: (x.direction != "up", x.position_m))
-    out.detection_points.sort(key=lambda d: d.position_m)
+    out.detection_points.sort(key=lambda d: (d.path != "up", d.position_m))
+    out.switches.sort(key=lambda d: (d.path != "up", d.position_m))
     return out
 
 
