@@ -12,7 +12,7 @@ same run: one fastest run of the train over the 20 km (the single-train simulati
 had), both in CPU time (process_time), which other processes on a shared machine disturb much less
 than the wall time. Prints the load average too.
 
-Run: python benchmarks/bench_power.py [--repeat N] [--reversible]
+Run: python benchmarks/bench_power.py [--repeat N] [--reversible] [--sparse]
 """
 
 from __future__ import annotations
@@ -91,6 +91,11 @@ def main() -> None:
     )
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--reversible", action="store_true", help="inverter substations")
+    parser.add_argument(
+        "--sparse",
+        action="store_true",
+        help="also time the sparse Newton (SuperLU, numpy) the compiled one replaced, in the same run",
+    )
     args = parser.parse_args()
     net, loads, (train, route, settings), trip = line_and_trains(args.reversible)
     baseline = []
@@ -125,6 +130,26 @@ def main() -> None:
         f"substations {s['substations_energy_kwh']:.0f} kWh, losses {s['losses_kwh']:.0f} kWh, "
         f"regen dissipated {s['regen_kwh']['dissipated']:.0f} kWh"
     )
+    if args.sparse:
+        from trainsim.power import solver
+
+        sparse_cpu = []
+        limit = solver.DENSE_NEWTON_MAX_NODES
+        solver.DENSE_NEWTON_MAX_NODES = 0
+        try:
+            for _ in range(args.repeat):
+                c0 = time.process_time()
+                ref = simulate(net, loads, dt_s=1.0, start_s=0.0, end_s=3599.0)
+                sparse_cpu.append(time.process_time() - c0)
+        finally:
+            solver.DENSE_NEWTON_MAX_NODES = limit
+        scale = float(np.max(np.abs(ref.substation_power_w)))
+        diff = float(np.max(np.abs(ref.substation_power_w - res.substation_power_w))) / scale
+        print(
+            f"sparse Newton: CPU time {statistics.median(sparse_cpu):.2f} s "
+            f"(= {statistics.median(sparse_cpu) / base:.0f} x the baseline); compiled / sparse "
+            f"{statistics.median(cpu) / statistics.median(sparse_cpu):.2f}; substation powers agree to {diff:.1e}"
+        )
     print(f"load average: {os.getloadavg()[0]:.2f}")
 
 

@@ -37,7 +37,7 @@ from trainsim.power.limits import (
 )
 from trainsim.power.network import Network
 from trainsim.power.rail import _SMALL as _RAIL_SMALL
-from trainsim.power.rail import leaky_rail_pi, segment_leakage_a
+from trainsim.power.rail import leaky_rail_pi, segment_leakage_total_a
 from trainsim.power.regulation import regulation_current_a
 
 #: Newton / fixed point stop when no node potential moves by more than this share of Un
@@ -1069,7 +1069,7 @@ def solve_step(
     stray = float("nan")
     if len(rail) and asm.leaky_segments is not None:
         la, lb, ll, lr, lg = asm.leaky_segments
-        stray = float(np.sum(segment_leakage_a(ve[la], ve[lb], ll, lr, lg)))
+        stray = float(segment_leakage_total_a(np.real(ve[la]), np.real(ve[lb]), ll, lr, lg))
     p_storage = None
     if n_st:
         u_st = ve[asm.storage_c] - ve[asm.storage_r]
