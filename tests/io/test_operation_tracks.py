@@ -233,3 +233,43 @@ def test_a_bad_spreadsheet_switch_names_its_cell(tmp_path) -> None:
         _sheets(tmp_path, "Name,Position (m),Track\nU1,2700,sideways\n"), tmp_path / "line" / "switches.csv"
     )
     assert "switches" in str(e) and "sideways" in str(e) and "up, down" in str(e)
+
+
+def test_railml_double_track_gives_the_down_track_its_own_switches_and_signals(tmp_path) -> None:
+    path = tmp_path / "op.yaml"
+    path.write_text(
+        f"""schema: trainsim/operation
+version: 1
+name: r
+line:
+  railml:
+    file: {RAILML / "double_track_railml2.xml"}
+    ocps: [A, B, C]
+    line_resistance: {{curve_formula: none, tunnel_formula: none}}
+    double_track: true
+    tracks: true
+    clearance_distance_m: 50
+  layout: double_track
+  signalling: {{system: fixed_block, aspects: 3}}
+trains:
+  - {{id: D1, train: {TRAIN}, direction: down, origin: C, destination: A, departure: "06:00"}}
+"""
+    )
+    op = read_operation(path)
+    down = op.line.tracks["down"]
+    # the down path's switches and axle counters, at their route positions (railml_signalling mapping)
+    assert [w.name for w in down.switches] == ["W D2", "W D1"]
+    assert down.detection_points_m == pytest.approx((400.0, 4250.0))
+    # B's down home signal at 3500 and down exit signal at 2975 (3030 / 2970 would be the up track's)
+    assert down.station_signals_m["B"] == pytest.approx((3500.0, 2975.0))
+    assert op.line.tracks["up"].switches == ()
+    lo, hi = op.line.paths["down"].platform_m["B"]
+    assert (lo, hi) == pytest.approx((6000.0 - 3350.0, 6000.0 - (2615.384615385 + 50.0)))
+
+
+def test_check_shows_the_tracks_and_loops() -> None:
+    from trainsim.io.operation_file import check_operation
+
+    figures = check_operation(EXAMPLE).figures
+    assert figures["tracks"] == "both: 6 switches, 11 detection points"
+    assert figures["loops (up, clearance to clearance)"] == "Q 800 m, R 780 m"

@@ -901,6 +901,15 @@ def check_operation(path: str | Path):  # -> trainsim.io.report.CheckReport
         "departures": f"{min(deps):.0f} .. {max(deps):.0f} s" if deps else "-",
         "dispatching": op.rule + (f", look-ahead {op.lookahead_s:g} s" if op.lookahead_s else ""),
     }
+    if op.line.tracks:
+        figures["tracks"] = "; ".join(
+            f"{key}: {len(t.switches)} switches, {len(t.detection_points_m)} detection points"
+            + (f", own signals at {len(t.station_signals_m)} stations" if t.station_signals_m else "")
+            for key, t in op.line.tracks.items()
+        )
+        loops = [f"{name} {hi - lo:g} m" for name, (lo, hi) in op.line.paths["up"].platform_m.items()]
+        if loops:
+            figures["loops (up, clearance to clearance)"] = ", ".join(loops)
     notes = []
     if op.delays is not None:
         notes.append(
