@@ -172,3 +172,26 @@ def test_bad_tracks_are_clear_errors() -> None:
         )
     )
     assert e.problems[0].field == "line.tracks.down.station_signals_m.B"
+
+
+def test_headway_into_a_loop_on_the_other_track_is_set_by_the_clearance_point() -> None:
+    # a follower routed to B's other platform track shares only the entry switch zone with the leader:
+    # the headway there is (clearance point - approach start + L) / v + setup + reaction + release
+    from trainsim.operations.blocking import minimum_headway
+
+    line = _double(TrackLayout((), (SwitchLayout("B1", 5200.0, 5260.0), SwitchLayout("B2", 5800.0, 5750.0))))
+    path = line.paths["up"]
+    s = np.linspace(0.0, line.length_m, 3001)
+    traj = Trajectory(s / V, s, np.full_like(s, V), L)
+    j_b = next(j for j, st in enumerate(path.steps) if st.station == "B" and st.kind == "entry")
+
+    def times(track: int) -> list:
+        steps = [(j, st.alternatives[track - 1 if j == j_b else 0]) for j, st in enumerate(path.steps)]
+        return [b for b in blocking_times("x", traj, path, steps, [], SIG) if b.resource.startswith("B/")]
+
+    lead, follow = times(1), times(2)
+    assert {b.resource for b in lead} & {b.resource for b in follow} == {"B/U-entry-switch"}
+    h = minimum_headway("a", lead, 0.0, "b", follow, 0.0)
+    approach = path.steps[j_b - 1].start_m - SIG.sighting_distance_m  # 3 aspects: the previous signal
+    expected = (5260.0 - approach + L) / V + SIG.setup_s + SIG.reaction_s + SIG.release_s
+    assert h.min_headway_s == pytest.approx(expected, abs=1e-6) and h.critical_resource == "B/U-entry-switch"
