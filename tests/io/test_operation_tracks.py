@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from itertools import pairwise
 from pathlib import Path
 
 import pytest
@@ -273,3 +274,24 @@ def test_check_shows_the_tracks_and_loops() -> None:
     figures = check_operation(EXAMPLE).figures
     assert figures["tracks"] == "both: 6 switches, 11 detection points"
     assert figures["loops (up, clearance to clearance)"] == "Q 800 m, R 780 m"
+
+
+def test_operated_example_releases_at_the_clearance_points_and_never_shares_a_section() -> None:
+    from trainsim.io.operation_run import run_operation
+
+    result = run_operation(read_operation(EXAMPLE))
+    assert not result.deadlock
+    by = {(b.train, b.resource): b for b in result.blocking}
+    # U1 enters R over R1: released at the axle counter 19610 behind the switch; D1 leaves R over R1:
+    # at the axle counter 19500 beyond its blade tip (19550)
+    assert by[("U1", "R/switchW")].to_m == pytest.approx(19610.0)
+    assert by[("D1", "R/switchW")].to_m == pytest.approx(19500.0)
+    # in operation no two trains ever hold one resource at the same time
+    held: dict[str, list] = {}
+    for b in result.blocking:
+        held.setdefault(b.resource, []).append(b)
+    for resource, times in held.items():
+        times.sort(key=lambda b: b.start_s)
+        for a, b in pairwise(times):
+            if a.train != b.train:
+                assert b.start_s >= a.end_s - 1e-6, (resource, a.train, b.train)
