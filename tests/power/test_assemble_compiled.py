@@ -60,3 +60,21 @@ def test_compiled_assembly_is_the_numpy_one(name):
         if ref.leaky_segments is not None:
             for g, r in zip(got.leaky_segments, ref.leaky_segments, strict=True):
                 assert np.array_equal(g, r)
+
+
+def test_unknowns_along_the_line_make_a_narrow_band():
+    """band_place numbers the unknowns by chainage: on the two-track metro with six trains each
+    branch joins unknowns at most a few places apart (the nodes of both tracks between its ends),
+    while the natural numbering (fixed nodes first) spreads them over the whole matrix."""
+    from trainsim.power.solver import _half_bandwidth, _relabel
+
+    net = metro_network(True)
+    end = net.tracks[0].end_m
+    track = np.array([0, 0, 0, 1, 1, 1])
+    x = np.array([0.1, 0.45, 0.8, 0.2, 0.55, 0.9]) * end
+    asm = _assemble_dc(net, track, x)
+    place = asm.band_place
+    assert sorted(place.tolist()) == list(range(asm.n))
+    placed = _half_bandwidth(((_relabel(asm.a, place), _relabel(asm.b, place)),))
+    natural = _half_bandwidth(((asm.a, asm.b),))
+    assert placed <= 6 < natural

@@ -91,3 +91,24 @@ def test_larger_networks_take_the_sparse_path(monkeypatch):
     monkeypatch.setattr(solver, "DENSE_NEWTON_MAX_NODES", small)
     simulate(net, loads, dt_s=20.0)
     assert len(calls) < before and all(n <= small for n in calls)
+
+
+def test_band_solver_against_lapack():
+    """_band_solve against numpy's LAPACK solve on random banded matrices, some with small or zero
+    diagonals (row exchanges needed), and a singular one reported, not raised."""
+    rng = np.random.default_rng(18)
+    for n, w in ((1, 0), (5, 1), (40, 3), (86, 6), (120, 15)):
+        mat = np.zeros((n, n))
+        for i in range(n):
+            for j in range(max(0, i - w), min(n, i + w + 1)):
+                mat[i, j] = rng.normal()
+        if w:  # zero pivots: Gaussian elimination without row exchanges would fail
+            mat[np.arange(0, n, 3), np.arange(0, n, 3)] = 0.0
+        rhs = rng.normal(size=n)
+        ref = np.linalg.solve(mat, rhs)
+        x, singular = solver._band_solve(mat.copy(), rhs.copy(), w)
+        assert not singular
+        np.testing.assert_allclose(x, ref, rtol=1e-9, atol=1e-9 * np.max(np.abs(ref)))
+    mat = np.diag([1.0, 2.0, 0.0, 3.0])
+    _, singular = solver._band_solve(mat, np.ones(4), 0)
+    assert singular

@@ -189,6 +189,9 @@ class _Assembly:
     storage_limits: tuple | None = None  # (charge max, discharge max, charge above, discharge below, ramp)
     sources: _Sources | None = None  # the substations' source laws (regulation curves)
     leaky_segments: tuple | None = None  # rail segments with leakage: node a, node b, length, r, g
+    #: each unknown's place when the unknowns are taken along the line (by chainage): the nodal
+    #: matrix is then a narrow band (DC; None: natural order)
+    band_place: np.ndarray | None = None
 
 
 class _Sources:
@@ -234,7 +237,8 @@ def _assemble_dc_kernel(
     new contact (and rail) node ids in that order, then the branches in the numpy form's order
     (contact segments not cut by a gap, contact-to-return leakage at every node, the rails' exact
     pi-equivalents and their shunts). Returns (a, b, y, train_c, train_r, rail, leaky a, leaky b,
-    leaky length, leaky r, leaky g, next_id) before earthed nodes and renumbering."""
+    leaky length, leaky r, leaky g, next_id, each node's chainage) before earthed nodes and
+    renumbering."""
     n_tracks = len(fp_start) - 1
     m = len(track)
     train_c = np.empty(m, np.int64)
@@ -255,6 +259,7 @@ def _assemble_dc_kernel(
     nr = 0
     nl = 0
     next_id = n_fixed
+    node_pos = np.full(n_fixed + 2 * m, np.nan)
     for ti in range(n_tracks):
         f0, f1 = fp_start[ti], fp_start[ti + 1]
         nf = f1 - f0
@@ -300,6 +305,10 @@ def _assemble_dc_kernel(
         for j in range(len(sel)):
             train_c[sel[j]] = cu[inv[nf + j]]
             train_r[sel[j]] = ru[inv[nf + j]]
+        for j in range(nu):
+            node_pos[cu[j]] = uniq[j]
+            if ru[j] >= 0:
+                node_pos[ru[j]] = uniq[j]
         for j in range(nu - 1):
             x0, x1 = uniq[j], uniq[j + 1]
             cut = False
@@ -339,7 +348,7 @@ def _assemble_dc_kernel(
                     a[nb], b[nb], y[nb] = ru[j], -1, shunt[j]
                     nb += 1
     return (a[:nb].copy(), b[:nb].copy(), y[:nb].copy(), train_c, train_r, rail[:nr].copy(), la[:nl].copy(),
-            lb[:nl].copy(), ll[:nl].copy(), lr[:nl].copy(), lg[:nl].copy(), next_id)  # fmt: skip
+            lb[:nl].copy(), ll[:nl].copy(), lr[:nl].copy(), lg[:nl].copy(), next_id, node_pos[:next_id].copy())  # fmt: skip
 
 
 def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assembly:
@@ -450,15 +459,15 @@ def _assemble_dc(net: Network, track: np.ndarray, position_m: np.ndarray) -> _As
     """:func:`assemble` of a DC network through the compiled kernel (the same nodes and branches)."""
     n_fixed, fp, fp_start, cid, rid, gs, ge, g_start, rc, rr, gr, leak, ideal = _dc_track_data(net)
     xt = np.round(np.asarray(position_m, dtype=float) / POSITION_RESOLUTION_M) * POSITION_RESOLUTION_M
-    a, b, y, train_c, train_r, rail, la, lb, ll, lr, lg, next_id = _assemble_dc_kernel(
+    a, b, y, train_c, train_r, rail, la, lb, ll, lr, lg, next_id, node_pos = _assemble_dc_kernel(
         n_fixed, np.asarray(track, dtype=np.int64), xt, fp, fp_start, cid, rid, gs, ge, g_start, rc, rr, gr,
         leak, ideal, _RAIL_SMALL,
     )  # fmt: skip
     leaky = (la, lb, ll, lr, lg) if len(la) else None
-    return _renumbered(net.topology, a, b, y, train_c, train_r, rail, leaky, int(next_id))
+    return _renumbered(net.topology, a, b, y, train_c, train_r, rail, leaky, int(next_id), node_pos)
 
 
-def _renumbered(topo, a, b, y, train_c, train_r, rail, leaky, next_id: int) -> _Assembly:
+def _renumbered(topo, a, b, y, train_c, train_r, rail, leaky, next_id: int, node_pos=None) -> _Assembly:
     """The assembly with earthed nodes as the reference (-1) and the unknowns numbered 0..n-1."""
     # earthed nodes are the reference
     if topo.earthed:
@@ -477,7 +486,13 @@ def _renumbered(topo, a, b, y, train_c, train_r, rail, leaky, next_id: int) -> _
         leaky_segments = (new_index[la], new_index[lb], ll, lr, lg)
     else:
         leaky_segments = None
+    band_place = None
+    if node_pos is not None:
+        order = np.argsort(node_pos[used], kind="stable")
+        band_place = np.empty(len(order), dtype=np.int64)
+        band_place[order] = np.arange(len(order))
     return _Assembly(
+        band_place=band_place,
         leaky_segments=leaky_segments,
         n=int(used.sum()),
         a=new_index[a],
@@ -566,9 +581,10 @@ def _dc_load_residual(
     return f, uu, p
 
 
-#: Above this many unknowns the compiled Newton (dense LU) gives way to the sparse one: a dense LU
-#: costs n^3 / 3 multiply-adds, about what SuperLU's ordering and bookkeeping cost at a few hundred
-#: nodes (measured on the 20 km benchmark line: 86 nodes, 0.06 ms dense vs 0.16 ms sparse per LU).
+#: Above this many unknowns the compiled Newton gives way to the sparse one: it keeps the band of its
+#: Jacobian in full n x n storage (copied every iteration), cheap next to SuperLU's per-call ordering
+#: and bookkeeping at a metro line's hundred nodes (the 20 km benchmark line: 86 nodes, half-bandwidth
+#: about 6) and still at a few hundred.
 DENSE_NEWTON_MAX_NODES = 400
 
 
@@ -634,18 +650,103 @@ def _stamp_dense(jac, a, b, y):
             jac[b[k], a[k]] -= y[k]
 
 
+@njit(cache=True)
+def _relabel(nodes, place):
+    """``place[nodes]`` with earth (-1) kept."""
+    out = np.empty(len(nodes), np.int64)
+    for k in range(len(nodes)):
+        out[k] = place[nodes[k]] if nodes[k] >= 0 else -1
+    return out
+
+
+@njit(cache=True)
+def _half_bandwidth(pairs):
+    """Largest |a - b| over the two-terminal elements (both ends nodes) of the (a, b) pairs."""
+    w = 0
+    for a, b in pairs:
+        for k in range(len(a)):
+            if a[k] >= 0 and b[k] >= 0:
+                w = max(w, abs(a[k] - b[k]))
+    return w
+
+
+@njit(cache=True)
+def _band_solve(mat, rhs, w):
+    """Solution of mat x = rhs for a matrix whose entries vanish more than w off the diagonal:
+    Gaussian elimination with partial pivoting (LAPACK gbsv's algorithm, on full storage: a row
+    swap widens the upper band to 2 w), O(n w^2). Overwrites mat and rhs; returns (x, singular)."""
+    n = len(rhs)
+    for k in range(n):
+        last = min(n - 1, k + w)
+        p = k
+        for i in range(k + 1, last + 1):
+            if abs(mat[i, k]) > abs(mat[p, k]):
+                p = i
+        if mat[p, k] == 0.0 or not np.isfinite(mat[p, k]):
+            return rhs, True
+        right = min(n - 1, k + 2 * w)
+        if p != k:
+            for j in range(k, right + 1):
+                mat[k, j], mat[p, j] = mat[p, j], mat[k, j]
+            rhs[k], rhs[p] = rhs[p], rhs[k]
+        for i in range(k + 1, last + 1):
+            factor = mat[i, k] / mat[k, k]
+            if factor != 0.0:
+                for j in range(k + 1, right + 1):
+                    mat[i, j] -= factor * mat[k, j]
+                rhs[i] -= factor * rhs[k]
+    x = np.empty(n)
+    for k in range(n - 1, -1, -1):
+        acc = rhs[k]
+        for j in range(k + 1, min(n - 1, k + 2 * w) + 1):
+            acc -= mat[k, j] * x[j]
+        x[k] = acc / mat[k, k]
+    return x, False
+
+
 @njit(cache=True, error_model="numpy")
 def _newton_dc_dense(
-    v0, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w, regen_w,
-    u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share, keep_curtailed,
+    v0, place, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w,
+    regen_w, u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share, keep_curtailed,
     max_iterations, tol, ftol, max_step,
 ):  # fmt: skip
     """:func:`_newton_dc` compiled, for networks without wayside storage or regulation curves: the
     same iteration (step limit, fraction to the boundary of regeneration, backtracking with the
-    occasional full step, the same stopping rules) with the Jacobian dense and solved by LAPACK.
-    Returns (V, iterations, converged, singular)."""
+    occasional full step, the same stopping rules), with the unknowns renumbered by ``place``
+    (along the line) so that the Jacobian is a band, solved by :func:`_band_solve`. The residual
+    sums the same terms in the same order whatever the numbering. Returns (V, iterations,
+    converged, singular)."""
     n = len(v0)
-    v = v0.copy()
+    v = np.empty(n)
+    for i in range(n):
+        v[place[i]] = v0[i]
+    a, b, sp_on, sn_on = (
+        _relabel(a, place),
+        _relabel(b, place),
+        _relabel(sp_on, place),
+        _relabel(sn_on, place),
+    )
+    dp_, dn_, tc, tr = _relabel(dp_, place), _relabel(dn_, place), _relabel(tc, place), _relabel(tr, place)
+    w = _half_bandwidth(((a, b), (sp_on, sn_on), (dp_, dn_), (tc, tr)))
+    v, its, converged, singular = _newton_dc_core(
+        v, w, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w,
+        regen_w, u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share, keep_curtailed,
+        max_iterations, tol, ftol, max_step,
+    )  # fmt: skip
+    out = np.empty(n)
+    for i in range(n):
+        out[i] = v[place[i]]
+    return out, its, converged, singular
+
+
+@njit(cache=True, error_model="numpy")
+def _newton_dc_core(
+    v, w, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w, regen_w,
+    u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share, keep_curtailed,
+    max_iterations, tol, ftol, max_step,
+):  # fmt: skip
+    """The iteration of :func:`_newton_dc_dense` on unknowns whose Jacobian has half-bandwidth w."""
+    n = len(v)
     args = (a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w,
             regen_w, u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share)  # fmt: skip
     f, uu, p = _dc_residual_full(v, *args)
@@ -678,11 +779,10 @@ def _newton_dc_dense(
         _stamp_dense(jac, tc, tr, di)
         _stamp_dense(jac, dp_, dn_, gd)
         # a singular Jacobian: the caller falls back on the sparse path and its error
-        if not np.all(np.isfinite(jac)):
+        x, singular = _band_solve(jac, f.copy(), w)
+        if singular or not np.all(np.isfinite(x)):
             return v, it, False, True
-        dv = -np.linalg.solve(jac, f)
-        if not np.all(np.isfinite(dv)):
-            return v, it, False, True
+        dv = -x
         step = np.max(np.abs(dv))
         if step > max_step:
             # (``step`` stays the unlimited one in the stopping tests, as in the sparse path)
@@ -1150,17 +1250,15 @@ def _newton_dc(
     u_floor = 1e-3 * un
     ftol = CURRENT_TOLERANCE_SHARE * max(float(np.sum(np.abs(e * ys))), 1.0)
     if len(st_c) == 0 and not asm.sources.curves and 0 < n <= DENSE_NEWTON_MAX_NODES:
-        try:
-            v_out, its, converged, singular = _newton_dc_dense(
-                v, asm.a, asm.b, np.asarray(asm.y, dtype=float), sub_p[on], sub_n[on], ys_on, e[on],
-                dp_, dn_, de, dy, tc, tr, np.asarray(loads.traction_w, dtype=float),
-                np.asarray(loads.auxiliary_w, dtype=float), np.asarray(loads.regen_w, dtype=float),
-                float(u_floor), float(lim.min1_v), float(lim.traction_full_v), float(lim.regen_full_v),
-                float(lim.regen_zero_v), float(delta), float(reverse_share), bool(keep_curtailed),
-                int(max_iterations), float(tol), float(ftol), float(MAX_STEP_SHARE * un),
-            )  # fmt: skip
-        except np.linalg.LinAlgError:
-            singular = True
+        place = asm.band_place if asm.band_place is not None else np.arange(n)
+        v_out, its, converged, singular = _newton_dc_dense(
+            v, place, asm.a, asm.b, np.asarray(asm.y, dtype=float), sub_p[on], sub_n[on], ys_on, e[on],
+            dp_, dn_, de, dy, tc, tr, np.asarray(loads.traction_w, dtype=float),
+            np.asarray(loads.auxiliary_w, dtype=float), np.asarray(loads.regen_w, dtype=float),
+            float(u_floor), float(lim.min1_v), float(lim.traction_full_v), float(lim.regen_full_v),
+            float(lim.regen_zero_v), float(delta), float(reverse_share), bool(keep_curtailed),
+            int(max_iterations), float(tol), float(ftol), float(MAX_STEP_SHARE * un),
+        )  # fmt: skip
         if not singular:
             return v_out, its, converged
         # a singular Jacobian: the sparse path below reports it as it always has
