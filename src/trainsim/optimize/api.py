@@ -71,6 +71,9 @@ class OptimizationResult:
     #: how the run passes every timing point of the timetable: position_m, time_s (from its
     #: section's departure), speed_mps, the window, met (bool)
     timing_points: tuple[dict[str, Any], ...] = field(default=())
+    #: what the driving constraints did that does not change the status: arcs a speed limit or the
+    #: stop keeps shorter than the minimum regime time, the energy the regime rules cost
+    notes: tuple[str, ...] = field(default=())
 
     @property
     def energy_saved_kwh(self) -> float:
@@ -94,6 +97,8 @@ class OptimizationResult:
         out["price_of_time_w"] = [float(x) if np.isfinite(x) else None for x in self.price_of_time_w]
         if self.timing_points:
             out["timing_points"] = [dict(p) for p in self.timing_points]
+        if self.notes:
+            out["notes"] = list(self.notes)
         fastest_net = self.fastest.energy_kwh.net
         out["fastest"] = {
             "running_time_s": self.fastest.running_time_s,
@@ -268,7 +273,14 @@ def optimize(
         )
     if strategy == "reference":
         return _run_reference(train, route, timetable, settings, fastest, constraints)
-    return STRATEGIES[strategy](train, route, timetable, settings, fastest)
+    if strategy == "optimal" and constraints is not None and constraints.regime_rules:
+        return _run_optimal(train, route, timetable, settings, fastest, constraints)
+    result = STRATEGIES[strategy](train, route, timetable, settings, fastest)
+    if constraints is not None and constraints.regime_rules:
+        # said, never silently dropped: only the optimal strategy and the reference apply them
+        note = f"the {strategy} strategy does not apply the minimum regime time or the lowest coasting speed"
+        result = dataclasses.replace(result, warnings=(*result.warnings, note))
+    return result
 
 
 def _result(
@@ -374,7 +386,7 @@ def _solvers(train: Train, route: Route, settings: RunSettings) -> list[SectionS
     return [SectionSolver(train, route, a, b, settings) for a, b in pairwise(stops)]
 
 
-def _run_optimal(train, route, timetable, settings, fastest) -> OptimizationResult:
+def _run_optimal(train, route, timetable, settings, fastest, constraints=None) -> OptimizationResult:
     solvers = _solvers(train, route, settings)
     plans, warnings = _optimal_plans(solvers, timetable)
     fastest_s = [sv.fastest_time_s for sv in solvers]
@@ -394,9 +406,20 @@ def _run_optimal(train, route, timetable, settings, fastest) -> OptimizationResu
             outcome = enforce_windows(sv, T, timetable.timing_points, plans[k], settings)
             plans[k] = outcome.plan
             warnings += outcome.notes
-    return _result(
+    notes: list[str] = []
+    if constraints is not None and constraints.regime_rules:
+        from trainsim.optimize.regime_rules import apply_regime_rules
+
+        for k, (sv, T) in enumerate(zip(solvers, targets, strict=True)):
+            ruled = apply_regime_rules(sv, T, plans[k], constraints)
+            plans[k] = ruled.plan
+            notes += [f"section {k + 1}: {n}" for n in ruled.notes]
+            if not ruled.time_met:
+                warnings += [f"section {k + 1}: {n}" for n in ruled.notes if "scheduled" in n]
+    result = _result(
         "optimal", train, route, settings, fastest, plans, targets, warnings, timetable.timing_points, solvers
     )
+    return dataclasses.replace(result, notes=tuple(notes)) if notes else result
 
 
 def _run_lesov(train, route, timetable, settings, fastest) -> OptimizationResult:

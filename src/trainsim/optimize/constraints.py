@@ -10,6 +10,15 @@
   have no jerk limit.
 * ``speed_margin_mps``: holding below every speed limit by a margin (drivers and ATO keep some
   km/h below the overspeed warning): every limit is lowered by the margin.
+* ``min_regime_time_s``: every regime arc (traction, holding, coasting, braking) lasts at least this
+  long, except where a speed limit, the stop or a gradient (holding impossible) forces a shorter
+  one; the optimal strategy meets it by merging short arcs into their neighbours
+  (``regime_rules``), the reference reports the arcs that are shorter (not an NLP constraint).
+* ``coast_min_speed_mps``: the train coasts only above this speed; below it, it holds the speed
+  (powering where the gradient needs it), as ATO's coast-remotor does. The optimal strategy
+  replaces coasting below the speed by holding it (``regime_rules``); the reference keeps every
+  speed at or above min(this speed, the fastest run's speed) (the train falls below it only on
+  the braking curves to the stop and to lower limits).
 """
 
 from __future__ import annotations
@@ -23,6 +32,11 @@ from trainsim.errors import InputError
 from trainsim.model.route import Route
 from trainsim.model.train import Train
 
+#: Largest minimum regime time accepted [s]: an hour, beyond any section's running time.
+MAX_REGIME_TIME_S = 3600.0
+#: Largest lowest coasting speed accepted [m/s] (500 km/h, above every train's design speed).
+MAX_COAST_MIN_SPEED_MPS = 500.0 / 3.6
+
 
 @dataclass(frozen=True)
 class DrivingConstraints:
@@ -33,23 +47,41 @@ class DrivingConstraints:
         max_deceleration_mps2: largest deceleration, positive [m/s^2].
         max_jerk_mps3: largest change of acceleration per second [m/s^3] (reference only).
         speed_margin_mps: how far below every speed limit the train stays [m/s].
+        min_regime_time_s: shortest duration of a regime arc [s] (0: any).
+        coast_min_speed_mps: lowest speed at which the train coasts [m/s] (0: any).
     """
 
     max_acceleration_mps2: float | None = None
     max_deceleration_mps2: float | None = None
     max_jerk_mps3: float | None = None
     speed_margin_mps: float = 0.0
+    min_regime_time_s: float = 0.0
+    coast_min_speed_mps: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("max_acceleration_mps2", "max_deceleration_mps2", "max_jerk_mps3"):
             x = getattr(self, name)
             if x is not None and not (isinstance(x, int | float) and np.isfinite(x) and x > 0.0):
                 raise InputError("must be a finite number > 0", field=name, value=x, allowed="> 0 or none")
-        m = self.speed_margin_mps
-        if not (isinstance(m, int | float) and np.isfinite(m) and m >= 0.0):
-            raise InputError(
-                "must be a finite number >= 0", field="speed_margin_mps", value=m, allowed=">= 0"
-            )
+        for name, allowed in (
+            ("speed_margin_mps", ">= 0"),
+            ("min_regime_time_s", f">= 0 and <= {MAX_REGIME_TIME_S:g} s"),
+            ("coast_min_speed_mps", f">= 0 and <= {MAX_COAST_MIN_SPEED_MPS:g} m/s"),
+        ):
+            m = getattr(self, name)
+            top = {"min_regime_time_s": MAX_REGIME_TIME_S, "coast_min_speed_mps": MAX_COAST_MIN_SPEED_MPS}
+            if not (
+                isinstance(m, int | float)
+                and not isinstance(m, bool)
+                and np.isfinite(m)
+                and 0.0 <= m <= top.get(name, np.inf)
+            ):
+                raise InputError(f"must be a finite number {allowed}", field=name, value=m, allowed=allowed)
+
+    @property
+    def regime_rules(self) -> bool:
+        """Whether a minimum regime time or a lowest coasting speed is asked for."""
+        return self.min_regime_time_s > 0.0 or self.coast_min_speed_mps > 0.0
 
 
 def constrained_train(train: Train, dc: DrivingConstraints) -> Train:
