@@ -163,3 +163,25 @@ def test_strategies_without_the_rules_say_so(metro):
     res = optimize(train, route, tt, "lesov", constraints=DrivingConstraints(coast_min_speed_mps=60 * KMH))
     assert any("does not apply" in w for w in res.warnings)
     assert np.isfinite(res.run.energy_kwh.net)
+
+
+def test_reference_coasts_only_above_the_speed(metro):
+    pytest.importorskip("casadi")
+    from trainsim.optimize.reference import solve_reference
+
+    train, route, _, tt = metro
+    s0, s1 = route.stops[0].position_m, route.stops[1].position_m
+    T = tt.sections[0].running_time_s
+    v_c = 67 * KMH
+    free = solve_reference(train, route, s0, s1, T, intervals=300)
+    ref = solve_reference(
+        train, route, s0, s1, T, intervals=300, constraints=DrivingConstraints(coast_min_speed_mps=v_c)
+    )
+    assert free.status == "ok" and ref.status == "ok", (free.status, ref.status)
+    assert free.v.max() > v_c and np.any((free.v < v_c - 0.05) & (free.s > s0 + 400) & (free.s < s1 - 300))
+    # from the end of the departure's acceleration to the start of the final braking, never below v_c
+    first = int(np.argmax(ref.v >= v_c - 1e-6))
+    last = len(ref.v) - 1 - int(np.argmax(ref.v[::-1] >= v_c - 1e-6))
+    assert ref.v[first : last + 1].min() >= v_c - 1e-6
+    assert ref.energy_j >= free.energy_j * (1.0 - 1e-6)
+    assert ref.running_time_s <= T + 1e-3

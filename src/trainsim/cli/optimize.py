@@ -68,12 +68,21 @@ def optimize(
     speed_margin: Annotated[
         float, typer.Option("--speed-margin", help="Stay this far below every speed limit [km/h].")
     ] = 0.0,
+    min_regime_time: Annotated[
+        float,
+        typer.Option(
+            "--min-regime-time", help="Shortest regime arc [s] (optimal; limits and stops excepted)."
+        ),
+    ] = 0.0,
+    coast_min_speed: Annotated[
+        float, typer.Option("--coast-min-speed", help="Coast only above this speed, hold it below [km/h].")
+    ] = 0.0,
 ) -> None:
     """Drive a scenario to a timetable with least energy: switching points, savings, deviations.
 
     The schedule is one of --supplement, --timetable, --allowance (repeatable) or the scenario's
-    'driving' block. Constraints (--max-acceleration, --max-deceleration, --max-jerk, --speed-margin)
-    apply to every strategy (docs/OPTIMIZATION.md, "Driving constraints").
+    'driving' block. Constraints (--max-acceleration, --max-deceleration, --max-jerk, --speed-margin,
+    --min-regime-time, --coast-min-speed) apply to every strategy (docs/OPTIMIZATION.md, "Driving constraints").
 
     Exit code 3 when the result's status is not ok (e.g. an infeasible schedule or a missed timing
     window: the best feasible run is printed and the summary says by how much it is missed).
@@ -105,7 +114,9 @@ def optimize(
                 )
             if strategy == "optimal" and scn.strategy != "fastest":
                 strategy = scn.strategy
-        constraints = _constraints(max_acceleration, max_deceleration, max_jerk, speed_margin)
+        constraints = _constraints(
+            max_acceleration, max_deceleration, max_jerk, speed_margin, min_regime_time, coast_min_speed
+        )
         route_used = scn.route
         if allowance:
             from trainsim.optimize.allowances import allowance_timetable, parse_allowance
@@ -190,10 +201,22 @@ def optimize(
 
 
 def _constraints(
-    max_acceleration: float | None, max_deceleration: float | None, max_jerk: float | None, margin_kmh: float
+    max_acceleration: float | None,
+    max_deceleration: float | None,
+    max_jerk: float | None,
+    margin_kmh: float,
+    min_regime_time_s: float = 0.0,
+    coast_min_kmh: float = 0.0,
 ):
-    """The driving constraints the options ask for (None when none), the margin converted to m/s."""
-    if max_acceleration is None and max_deceleration is None and max_jerk is None and not margin_kmh:
+    """The driving constraints the options ask for (None when none), the speeds converted to m/s."""
+    if (
+        max_acceleration is None
+        and max_deceleration is None
+        and max_jerk is None
+        and not margin_kmh
+        and not min_regime_time_s
+        and not coast_min_kmh
+    ):
         return None
     from trainsim.constants import KMH
     from trainsim.optimize.constraints import DrivingConstraints
@@ -210,9 +233,17 @@ def _constraints(
         raise InputError(
             "must be a finite number >= 0", field="--speed-margin", value=margin_kmh, allowed=">= 0 km/h"
         )
+    for name, x, unit in (
+        ("--min-regime-time", min_regime_time_s, "s"),
+        ("--coast-min-speed", coast_min_kmh, "km/h"),
+    ):
+        if not 0.0 <= x < float("inf"):
+            raise InputError("must be a finite number >= 0", field=name, value=x, allowed=f">= 0 {unit}")
     return DrivingConstraints(
         max_acceleration_mps2=max_acceleration,
         max_deceleration_mps2=max_deceleration,
         max_jerk_mps3=max_jerk,
         speed_margin_mps=margin_kmh * KMH,
+        min_regime_time_s=min_regime_time_s,
+        coast_min_speed_mps=coast_min_kmh * KMH,
     )

@@ -481,7 +481,7 @@ def _run_reference(train, route, timetable, settings, fastest, constraints=None)
                 ref.s, ref.v, t, regime, float(t[-1]), np.nan, np.nan, np.nan, sv.fastest_time_s, True
             )
         )
-    return _result(
+    result = _result(
         "reference",
         train,
         route,
@@ -493,6 +493,11 @@ def _run_reference(train, route, timetable, settings, fastest, constraints=None)
         timetable.timing_points,
         solvers,
     )
+    if constraints is not None and constraints.min_regime_time_s > 0.0:
+        # the reference's forces are free per interval: a minimum regime time is no NLP constraint
+        note = "the reference does not impose the minimum regime time (it bounds the lowest coasting speed)"
+        result = dataclasses.replace(result, notes=(note,))
+    return result
 
 
 def _fastest_result(train, route, timetable, settings, fastest) -> OptimizationResult:

@@ -33,6 +33,13 @@ saves some of the c1 v resistance, but less than the time it costs is worth) and
 force curves that are not concave in 1/v. The relaxation is convex
 (linear objective and equalities, convex functions bounded above), so IPOPT's optimum is its global
 optimum: a bound that holds even where IPOPT stops the transcription in a local optimum.
+
+**Regime rules** (``DrivingConstraints``, issue 16). Coasting only above v_c is the floor
+v_k >= min(v_c, v_fastest(s_k)) at every inner node: an approximation of "below v_c the train
+holds or powers" that lets it fall below v_c only on the fastest run's braking curves (into the stop
+and lower limits) and, at departure, only while it accelerates at full effort (where the optimum
+powers anyway). The minimum regime time is combinatorial (the sign pattern of the forces) and is
+not imposed on the transcription.
 """
 
 from __future__ import annotations
@@ -58,6 +65,10 @@ FORCE_SCALE = 1.0e5
 REFINEMENT_TOLERANCE = 1.0e-4
 #: Default limit on the wall time of one call [s] (issue 16: the reference within 30 s).
 TIME_LIMIT_S = 30.0
+#: The lowest coasting speed's floor stays this fraction below the fastest run's speed [-]: the
+#: transcription's trapezoidal motion at full effort is not the integrator's (at 1e-3 IPOPT found
+#: the metro's floor infeasible near the stops).
+COAST_FLOOR_MARGIN = 0.03
 #: Speeds below this are taken as 0 when the solution is read back [m/s]: IPOPT stops within its
 #: tolerance of a bound, e.g. at -8.8e-27 for v >= 0.
 SPEED_BOUND_TOLERANCE_MPS = 1.0e-6
@@ -352,6 +363,19 @@ def _fastest_guess(
     return v * min(1.0, fastest.running_time_s / running_time_s)
 
 
+def _coast_floor(train: Train, route: Route, s0: float, s1: float, s: np.ndarray, v_c: float) -> np.ndarray:
+    """min(v_c, the fastest run's speed) at the nodes [m/s] (the lowest coasting speed as a floor)."""
+    import dataclasses
+
+    from trainsim.model.route import Station
+    from trainsim.sim.fastest import run_fastest
+
+    section = dataclasses.replace(route, stations=(Station("from", s0), Station("to", s1)))
+    tr = run_fastest(train, section).trace
+    # below the fastest run by a margin: the transcription's trapezoidal motion is not the integrator's
+    return np.minimum(v_c, (1.0 - COAST_FLOOR_MARGIN) * np.interp(s, tr.position_m, tr.speed_mps))
+
+
 def solve_reference(
     train: Train,
     route: Route,
@@ -383,7 +407,9 @@ def solve_reference(
             positions inside the section, enforced at a grid node placed on each.
         grid: node positions to use instead of building one [m].
         constraints: comfort limits on the kinematic acceleration (v_{k+1}^2 - v_k^2) / (2 h) of
-            every interval and on the jerk (its change between intervals per second); apply
+            every interval and on the jerk (its change between intervals per second), the lowest
+            coasting speed as a speed floor (``_coast_floor``; the minimum regime time is not an NLP
+            constraint: ``optimize`` says so in a note); apply
             ``constrained_train``/``constrained_route`` for the force caps and the speed margin.
     """
     ca = _casadi()
@@ -415,6 +441,11 @@ def solve_reference(
             opti.subject_to(acc <= constraints.max_acceleration_mps2)
         if constraints.max_deceleration_mps2 is not None:
             opti.subject_to(acc >= -constraints.max_deceleration_mps2)
+        if constraints.coast_min_speed_mps > 0.0:
+            # coasting only above v_c as a speed floor (module doc): min(v_c, the fastest run's speed),
+            # so the train falls below v_c only on the braking curves into the stop and lower limits
+            floor = _coast_floor(train, route, s0, s1, s, constraints.coast_min_speed_mps)
+            opti.subject_to(v[1:-1] >= floor[1:-1])
         if constraints.max_jerk_mps3 is not None and n > 1:
             # change of acceleration between neighbouring intervals over the time between their middles
             dt_mid = 0.5 * (dt[:-1] + dt[1:])
@@ -447,6 +478,8 @@ def solve_reference(
         guess = np.interp(s, np.asarray(warm_start[0], float), np.asarray(warm_start[1], float))
     else:
         guess = _fastest_guess(train, route, s0, s1, s, running_time_s)
+    if constraints is not None and constraints.coast_min_speed_mps > 0.0:
+        guess = np.maximum(guess, _coast_floor(train, route, s0, s1, s, constraints.coast_min_speed_mps))
     guess = np.clip(guess, 0.0, prob.node_lim)
     guess[0] = guess[-1] = 0.0
     # an interior start: no interval at standstill at both ends
