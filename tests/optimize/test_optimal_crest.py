@@ -104,3 +104,44 @@ def test_regenerative_curve_kept_within_the_service_curve():
     # a regenerative curve below the service curve everywhere is kept as it is
     low = METRO.traction.scaled(0.1)
     assert _within_service(low, service) is low
+
+
+def test_regenerative_holding_arc_is_labelled_and_counted_as_regeneration():
+    """The arc held at W on the hump's descent is reported as holding ("cruising"), driven by the
+    electric brake alone, and its energy is regenerated: eta_r x (m g i - R(W)) per metre, the force
+    that holds W on a -20 per mille grade, computed here from the train's data."""
+    from trainsim.constants import STANDARD_GRAVITY
+    from trainsim.optimize.api import _result
+    from trainsim.sim.fastest import run_fastest
+
+    solver = hump_solver()
+    train, route, settings = solver.train, solver.route, trainsim.RunSettings()
+    plan = solver.solve(solver.fastest_time_s * 1.20)
+    W = regenerative_holding_speed(train, plan.price_of_time_w, solver.eta_r)
+    held = (plan.regime[:-1] == kernel.CRUISE) & (plan.s[:-1] > 2000.0) & (np.abs(plan.v[:-1] - W) < 1e-6 * W)
+    idx = np.flatnonzero(held)
+    assert len(idx) >= 2
+    a, b = float(plan.s[idx[0]]), float(plan.s[idx[-1] + 1])
+    assert b - a > 50.0
+    result = _result(
+        "optimal", train, route, settings, run_fastest(train, route, settings), [plan], [plan.running_time_s],
+        solvers=[solver],
+    )  # fmt: skip
+    assert result.summary()["status"] == "ok" and not result.warnings
+    trace = result.run.trace
+    on = (trace.position_m >= a) & (trace.position_m < b)
+    assert on.sum() >= 2
+    assert set(np.asarray(trace.regime_names)[on]) == {"cruising"}
+    assert np.all(trace.traction_force_n[on] == 0.0)
+    assert np.all(trace.friction_braking_force_n[on] == 0.0)
+    holding_force = train.mass_kg * STANDARD_GRAVITY * 0.020 - train.resistance_law(W)
+    np.testing.assert_allclose(trace.regenerative_braking_force_n[on], holding_force, rtol=1e-6)
+
+    # the energy over the arc: regenerated, none drawn for traction
+    def over_arc(cumulative: np.ndarray) -> float:
+        return float(np.interp(b, trace.position_m, cumulative) - np.interp(a, trace.position_m, cumulative))
+
+    eta_r = train.electrical.regenerative_efficiency * train.electrical.receptivity
+    assert over_arc(trace.traction_work_j) == pytest.approx(0.0, abs=1e-6)
+    assert over_arc(trace.regenerated_energy_j) == pytest.approx(eta_r * holding_force * (b - a), rel=1e-6)
+    assert over_arc(trace.electrical_energy_j) == pytest.approx(-eta_r * holding_force * (b - a), rel=1e-6)

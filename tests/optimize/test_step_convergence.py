@@ -3,7 +3,12 @@ as the train drives them (no stretch whose recorded motion is not its regime's).
 
 Before the switching points were located exactly, halving the step moved the net energy by up to
 3.7e-5 (metro) and 1.2e-5 (freight), traction energy by 1.3e-4, and every stop ended with a
-braking stretch of up to 0.08 m that full braking does not take (``off_regime_stretches``)."""
+braking stretch of up to 0.08 m that full braking does not take (``off_regime_stretches``).
+Before the departure points ahead of descents were located as roots of their switching condition
+(``SectionSolver._departure_root``) and their costs integrated exactly to the point
+(``SectionSolver._energy_to``), they moved by up to 1.3 m with the step (freight, 31276.57 /
+31276.92 / 31275.63 m at 20 / 10 / 5 m), and braking energy by 2.7e-5 (freight) and 1.7e-5 (heavy
+haul) on halving the step; now 31276.22017 m at every step (at a fixed holding speed)."""
 
 from __future__ import annotations
 
@@ -36,9 +41,12 @@ def _pair(name: str):
     ]
 
 
-def _check(name: str, split_limit: float = LIMIT) -> None:
-    """Running time and net energy within LIMIT; traction, braking and the sections' times (how
-    the line's supplement and the energy are split) within ``split_limit``."""
+def _check(name: str, loose: dict[str, float] | None = None) -> None:
+    """Running time, net, traction and braking energy and the sections' times (how the line's
+    supplement and the energy are split) within LIMIT on halving the step, but for the figures
+    named in ``loose`` (figure -> its limit)."""
+    loose = loose or {}
+    split_limit = loose.get("sections", LIMIT)
     a, b = _pair(name)
 
     def change(x: float, y: float) -> float:
@@ -46,9 +54,12 @@ def _check(name: str, split_limit: float = LIMIT) -> None:
 
     assert change(a.run.running_time_s, b.run.running_time_s) < LIMIT
     assert change(a.run.energy_kwh.net, b.run.energy_kwh.net) < LIMIT
-    for field in ("traction", "braking"):
+    for field in ("traction", "braking", "regenerated"):
         x, y = getattr(a.run.energy_kwh, field), getattr(b.run.energy_kwh, field)
-        assert change(x, y) < split_limit, (field, x, y)
+        if y == 0.0:
+            assert x == 0.0, (field, x)
+            continue
+        assert change(x, y) < loose.get(field, LIMIT), (field, x, y)
     for sa, sb in zip(a.run.sections, b.run.sections, strict=True):
         assert change(sa.running_time_s, sb.running_time_s) < split_limit
     for r in (a, b):
@@ -66,13 +77,20 @@ def test_optimal_figures_do_not_move_with_the_step(name: str) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "name", ["freight_000/scenario.yaml", "heavy_haul/scenario_head.yaml", "heavy_haul/scenario_dp.yaml"]
-)
+@pytest.mark.parametrize("name", ["heavy_haul/scenario_head.yaml", "heavy_haul/scenario_dp.yaml"])
 def test_optimal_figures_do_not_move_with_the_step_long_lines(name: str) -> None:
-    # not yet: the line supplement's split between the two sections moves by 1e-5 (0.02 s of 1600 s)
-    # and traction against braking by up to 3e-5 with the step; the totals hold to 5e-8
-    _check(name, split_limit=5e-5)
+    # (20 -> 10 m: traction 5.4e-8, braking 1.4e-7, sections' times 1e-8; before: 5e-6, 1.7e-5, 1e-5)
+    _check(name)
+
+
+@pytest.mark.slow
+def test_optimal_figures_do_not_move_with_the_step_freight() -> None:
+    # not yet to 1e-6 for braking and regenerated energy: 1.1e-6 and 3.6e-6 (20 -> 10 m; 2.4e-7 and
+    # 6.3e-7 at 10 -> 5 m; braking 2.7e-5 before). At a
+    # fixed holding speed every departure point is the same at every step, but the final phase still
+    # ends 1.1 ms later at 10 m than at 20 (where its coast meets the braking curve to the stop), and
+    # the line's common holding speed, which meets the total time, moves by 1e-6 with it
+    _check("freight_000/scenario.yaml", loose={"braking": 2e-6, "regenerated": 5e-6})
 
 
 def test_a_stretch_labelled_with_a_regime_it_does_not_drive_is_warned_about() -> None:

@@ -69,6 +69,17 @@ WARM_START_LOG_SPEED = 0.005
 #: Departure points ahead of descents and lower limits are located to this [m] (at 0.5 m the
 #: running time moved with the step by 1e-5 through them).
 DEPARTURE_TOLERANCE_M = 1e-2
+#: Departure points ahead of descents are then refined to the root of their switching condition
+#: to this [m] (``_departure_root``; issue 13: step-independent to about 1e-6 m) ...
+DEPARTURE_ROOT_TOLERANCE_M = 1e-9
+#: ... bracketed from the cost's minimum by half-widths from this [m] ...
+DEPARTURE_ROOT_START_M = 2.0
+#: ... up to this [m] (the minimum is within a metre or so of the root) ...
+DEPARTURE_ROOT_WINDOW_M = 64.0
+#: ... and kept where its cost exceeds the minimum's by no more than this fraction of the run's
+#: cost (the minimum's own discretisation error, which the root does not share: 53 J of 3e9 J on
+#: the freight example's second section, where the minimum moved 1.3 m with the step) [-].
+DEPARTURE_ROOT_COST_SLACK = 1e-7
 
 
 def price_of_time_w(train: Train, holding_speed_mps: float) -> float:
@@ -464,7 +475,7 @@ class SectionSolver:
                 out[0], out[1], out[3], tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.P,
                 self.curves, self.inv_eta_t, self.eta_r, e, self.tk, self.bk, self.rk,
             )  # fmt: skip
-            total = np.interp(p, seg[0], cum) + float(e[-1]) + mu * float(out[2][-1])
+            total = self._energy_to(seg, cum, p) + float(e[-1]) + mu * float(out[2][-1])
             return total - base, (out if keep else None)
 
         # coasting from the descent's start is what phase A does without a crest coast
@@ -499,6 +510,27 @@ class SectionSolver:
             self.curves, self.inv_eta_t, self.eta_r, cum, self.tk, self.bk, self.rk,
         )  # fmt: skip
         return float(cum[-1]) + mu * float(points[2][-1])
+
+    def _energy_to(self, points, cum: np.ndarray, s_m: float) -> float:
+        """Electrical energy [J] of the run ``points`` from its start to ``s_m`` [m], ``cum`` its
+        cumulative energy at its points (``pk.path_energy``): the last stretch integrated in its
+        regime up to s_m as the whole run is. (Interpolated linearly between the points, the costs
+        of the departures had kinks at the run's points, which lie on the grid: the heavy-haul
+        example's departure ahead of its last descent sat on such a kink and moved by 0.9 m with
+        the step.)"""
+        tr = self.track
+        _, _, v, _, j = self._state_at(points, s_m)
+        s0 = float(points[0][j])
+        if s_m <= s0:
+            return float(np.interp(s_m, points[0], cum))
+        out = np.empty(2)
+        mode = points[3][j]
+        pk.path_energy(
+            np.array([s0, s_m]), np.array([float(points[1][j]), v]), np.array([mode, mode], dtype=np.int8),
+            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.P, self.curves, self.inv_eta_t,
+            self.eta_r, out, self.tk, self.bk, self.rk,
+        )  # fmt: skip
+        return float(cum[j]) + float(out[1])
 
     def _interval_of(self, s_m: float) -> int:
         """The grid interval that holds position ``s_m`` [m] (the last one at the section's end)."""
@@ -548,7 +580,6 @@ class SectionSolver:
             )  # fmt: skip
 
             def cost(p: float, keep: bool = False, points=points, cum=cum, q=q, b=b, i_last=i_last, mu=mu):
-                s = points[0]
                 i, u, vp, tp, _ = self._state_at(points, p)
                 n, status, i_r, u_r, v_r, t_r, e_coast = pk.coast_to_curve(
                     tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, tr.traction_scale, i, u, vp, tp, i_last,
@@ -559,7 +590,11 @@ class SectionSolver:
                 if status != 0 or n >= self.n_max - 8 or not q - 1e-6 <= r <= b + 1e-6:
                     return np.inf, None  # came to rest, or met another limit's braking curve first
                 _, _, _, t_a, _ = self._state_at(points, r)
-                dj = e_coast - (np.interp(r, s, cum) - np.interp(p, s, cum)) + mu * (t_r - t_a)
+                dj = (
+                    e_coast
+                    - (self._energy_to(points, cum, r) - self._energy_to(points, cum, p))
+                    + mu * (t_r - t_a)
+                )
                 if not keep:
                     return dj, None
                 return dj, (tuple(arr[:n].copy() for arr in out), (r, v_r, t_r), t_r - t_a)
@@ -821,26 +856,33 @@ class SectionSolver:
             self.inv_eta_t, self.eta_r, cum, self.tk, self.bk, self.rk,
         )  # fmt: skip
         out = [np.empty(self.n_max) for _ in range(3)] + [np.empty(self.n_max, dtype=np.int8)]
+        # the switching condition of each departure tried, and where its rejoin point q lies against
+        # the point where the run without it holds again (``_departure_root``)
+        residuals: dict[float, float] = {}
+        corners: dict[float, float] = {}
 
         def cost(p: float, keep: bool = False):
             i, u, vp, tp, _ = self._state_at(seg, p)
-            n, status, _, iq, uq, tq, e_path = pk.coast_excursion(
+            n, status, residual, iq, uq, tq, e_path = pk.coast_excursion(
                 tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, W, tr.traction_scale, i, u, vp, tp, self.i1,
                 self.P, self.curves, self.bk, V, v_rejoin, mu, self.inv_eta_t, self.eta_r, ADJOINT_STEP_M,
                 *out, self.Cr, self.US,
             )  # fmt: skip
             if status != 0 or n >= self.n_max - 8:
                 return np.inf, None
+            residuals[p] = residual
             q = tr.x[iq] + uq
             # compare where both runs hold again: the run without the excursion may still be
             # coasting down from above V at q; the excursion then holds V up to where it is back
-            q_both = max(q, self._back_at(seg, q, v_rejoin))
+            back = self._back_at(seg, q, v_rejoin)
+            corners[p] = back - q
+            q_both = max(q, back)
             if q_both > horizon and self.short_excursions:
                 return np.inf, None
             _, _, _, t_a, _ = self._state_at(seg, q_both)
             e_hold, t_hold = self._holding_cost(q, q_both, v_rejoin)
             dj = (
-                e_path + e_hold - (np.interp(q_both, seg[0], cum) - np.interp(p, seg[0], cum))
+                e_path + e_hold - (self._energy_to(seg, cum, q_both) - self._energy_to(seg, cum, p))
                 + mu * (tq + t_hold - t_a)
             )  # fmt: skip
             if not keep:
@@ -858,6 +900,10 @@ class SectionSolver:
         # no warm start here: on hilly lines the best departure ahead of a descent jumps between
         # distant local optima as V moves, and a window around the last one would miss them
         p, dj = self._minimise(cost, lo, a) if a - lo > 1.0 else (a, cost(a)[0])
+        if np.isfinite(dj) and lo < p < a:
+            # (the cost's scale: the energy of the run without the excursion and mu x its time)
+            scale = abs(float(cum[-1])) + mu * float(seg[2][-1])
+            p, dj = self._departure_root(cost, (residuals, corners), p, dj, lo, a, scale)
         self._decisions[key] = (a, lo, a)
         if not np.isfinite(dj) or dj >= 0.0:
             return None
@@ -866,6 +912,66 @@ class SectionSolver:
             return None
         self._decisions[key] = (p, lo, a)
         return p, found[0], found[1]
+
+    @staticmethod
+    def _departure_root(
+        cost,
+        conditions: tuple[dict[float, float], ...],
+        p: float,
+        dj: float,
+        lo: float,
+        hi: float,
+        scale: float,
+    ) -> tuple[float, float]:
+        """(p, cost) of the departure point refined from the cost's minimum ``p`` to the root of
+        the first of ``conditions`` that changes sign near p, rising through zero, located by brentq
+        to DEPARTURE_ROOT_TOLERANCE_M in a bracket grown from p within [lo, hi]. Each condition is
+        filled by ``cost`` (position [m] -> value): the switching condition (``pk.coast_excursion``'s
+        residual, zero where d(cost)/dp = 0), then the corner where the excursion's rejoin point
+        passes the point where the run without it holds again (the cost has a kink there, and its
+        minimum may be that kink: the heavy-haul example's second section).
+
+        The cost is flat at a smooth minimum, so its golden-section minimum moved by up to 1 m with
+        the step (its discretisation error tilts it); the conditions cross zero with a finite slope
+        and their roots do not move. Golden section's point is kept (the fallback) where no
+        condition has a sign change near it, or where the root costs more than it by over
+        DEPARTURE_ROOT_COST_SLACK x ``scale`` [J] (the magnitude of the whole run's cost): the
+        condition then belongs to another arc structure than the minimum's."""
+        for values in conditions:
+            found = SectionSolver._root_of(cost, values, p, lo, hi)
+            if found is None:
+                continue
+            value = cost(found)[0]
+            if np.isfinite(value) and value <= dj + DEPARTURE_ROOT_COST_SLACK * scale:
+                return found, value
+        return p, dj
+
+    @staticmethod
+    def _root_of(cost, values: dict[float, float], p: float, lo: float, hi: float) -> float | None:
+        """The root [m] near p of a condition that ``cost`` records in ``values``, rising through
+        zero; None without a sign change within DEPARTURE_ROOT_WINDOW_M of p."""
+
+        def residual(x: float) -> float:
+            if x not in values:
+                cost(x)
+            return values.get(x, np.nan)
+
+        if not np.isfinite(residual(p)):
+            return None
+        width = DEPARTURE_ROOT_START_M
+        while width <= DEPARTURE_ROOT_WINDOW_M:
+            a, z = max(p - width, lo), min(p + width, hi)
+            r_a, r_z = residual(a), residual(z)
+            if not (np.isfinite(r_a) and np.isfinite(r_z)):
+                return None
+            if r_a < 0.0 < r_z:
+                return float(
+                    brentq(residual, a, z, xtol=DEPARTURE_ROOT_TOLERANCE_M, rtol=4 * np.finfo(float).eps)
+                )
+            if r_a * r_z <= 0.0:
+                return None  # falling through zero (a maximum of the cost), or zero on a stretch
+            width *= 2.0
+        return None
 
     def _fastest_points(self):
         tr = self.track

@@ -626,6 +626,23 @@ def _capped_coast_step(E, v, u, h, cap, line, P, curves, bk):
 
 
 @njit(cache=True)
+def held_adjoint(v, u, line, P, curves, inv_eta_t, eta_r):
+    """The adjoint phi at which coasting and holding speed v [m/s] at offset u have the same
+    Hamiltonian (the switching condition between them): with net resistance R at v, holding costs
+    R / eta_t per metre where R > 0 (traction) and -eta_r min(-R, F_regen) where R < 0 (braking,
+    the electric brake returning what it can), coasting phi R; hence phi = 1/eta_t, or
+    eta_r min(-R, F_regen) / (-R) (Albrecht et al. 2016, Part 2: the value of the adjoint on an arc
+    held by partial traction or by braking)."""
+    res = resistance_force(v, u, line, P)
+    if res >= 0.0:
+        return inv_eta_t
+    if eta_r <= 0.0:
+        return 0.0
+    regen = effort(v, curves[8], curves[9], curves[10], curves[11])
+    return eta_r * min(-res, regen) / (-res)
+
+
+@njit(cache=True)
 def coast_excursion(
     x, a0, a1, b0, b1, vlim, W, tscale, i, u, v0, t, i_end, P, curves, bk, V, v_rejoin, mu, inv_eta_t, eta_r,
     h_max, out_s, out_v, out_t, out_m, Cr, US,
@@ -640,9 +657,20 @@ def coast_excursion(
     has fallen to eta_r (the singular regenerative arc; above eta_r the optimal control coasts).
     The coast must stay below the service braking curves (``Cr``, ``US``, as ``ceiling_at``) to
     lower limits and the stop: an excursion that would cross one fails (status 2), it is not taken.
-    Returns (n, status, phi(q) - 1/eta_t, i_q, u_q, t_q, energy_j): status 0 rejoined, 1 came to
+    Returns (n, status, residual, i_q, u_q, t_q, energy_j): status 0 rejoined, 1 came to
     rest or reached the end without rejoining, 2 crossed a braking curve; energy_j is the electrical energy of the path
-    (regenerated while holding with braking, so <= 0)."""
+    (regenerated while holding with braking, so <= 0).
+
+    ``residual`` is the departure's switching condition, zero where the departure point is optimal
+    (d(energy + mu x time)/dp = 0; Howlett, Pudney & Vu 2009, "Local energy minimization in optimal
+    train control", Automatica 45; Albrecht et al. 2016, Part 2, speed limits on steep descents):
+    leaving traction or holding means phi = 1/eta_t at p, and the adjoint integrated from there
+    along the coast must arrive where the coast first reaches a speed held with braking (the limit,
+    or W) at phi_r = eta_r min(-R, F_regen) / (-R), the marginal value of kinetic energy there
+    (entering that arc dr earlier regenerates eta_r min(-R, F_regen) dr, and dr = M v dv / (-R)
+    for a coast with net resistance R < 0): residual = phi(r) - phi_r. Without such an arc the
+    coast rejoins the arc it rejoins (V, or the lower limit it left) with the value that arc
+    needs (``held_adjoint``): residual = phi(q) - phi_q. NaN where the adjoint was not followed."""
     phi = inv_eta_t
     E = 0.5 * v0 * v0
     EV = 0.5 * V * V
@@ -651,6 +679,7 @@ def coast_excursion(
     below = False
     above = False
     energy = 0.0
+    entry = np.nan  # the residual where the coast first enters an arc held with braking
     n = 0
     for ii in range(i, i_end):
         w = x[ii + 1] - x[ii]
@@ -679,7 +708,11 @@ def coast_excursion(
                         hq = h
                 _, dtq = rk4_energy_time(E, uu, hq, COAST, line, P, curves)
                 n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
-                return n, 0, 0.0, ii, uu + hq, t + dtq, energy
+                if np.isnan(entry) and v > PHI_MIN_SPEED:
+                    Emq = step_energy(E, uu, 0.5 * hq, COAST, line, P, curves, bk)
+                    phiq = phi_step(phi, E, ER, uu, hq, b0[ii], b1[ii], P, mu, Emq)
+                    entry = phiq - held_adjoint(v_rejoin, uu + hq, line, P, curves, inv_eta_t, eta_r)
+                return n, 0, entry, ii, uu + hq, t + dtq, energy
             if on_limit and E1 < ER * (1.0 - 1e-9):
                 below = True
             if not on_limit and above and E1 < EV <= E:
@@ -688,12 +721,21 @@ def coast_excursion(
                 if not np.isfinite(hq) or hq > h:
                     hq = h
                 _, dtq = rk4_energy_time(E, uu, hq, COAST, line, P, curves)
-                phiq = phi_step(phi, E, EV, uu, hq, b0[ii], b1[ii], P, mu)
+                Emq = step_energy(E, uu, 0.5 * hq, COAST, line, P, curves, bk)
+                phiq = phi_step(phi, E, EV, uu, hq, b0[ii], b1[ii], P, mu, Emq)
                 n = _emit(out_s, out_v, out_t, out_m, n, x[ii] + uu, v, t, mode)
-                return n, 0, phiq - inv_eta_t, ii, uu + hq, t + dtq, energy
+                if np.isnan(entry):
+                    entry = phiq - held_adjoint(V, uu + hq, line, P, curves, inv_eta_t, eta_r)
+                return n, 0, entry, ii, uu + hq, t + dtq, energy
             if mode == CRUISE:
+                if np.isnan(entry):
+                    entry = phi - held_adjoint(v, uu, line, P, curves, inv_eta_t, eta_r)
                 energy -= eta_r * _cruise_regen_work(v, uu, h, line, P, curves)
-            phi = phi_step(phi, E, E1, uu, h, b0[ii], b1[ii], P, mu) if v > PHI_MIN_SPEED else phi
+            if v > PHI_MIN_SPEED:
+                # the midpoint's energy integrated (a linear one was O(h^2) and moved the departure
+                # points that the adjoint locates, ``residual``, by millimetres with the step)
+                Em = step_energy(E, uu, 0.5 * h, COAST, line, P, curves, bk) if mode == COAST else E
+                phi = phi_step(phi, E, E1, uu, h, b0[ii], b1[ii], P, mu, Em)
             if mode == CRUISE and cap == W:
                 phi = eta_r  # on the singular regenerative arc the adjoint stays at eta_r
             if E1 > EV * (1.0 + 1e-12):
