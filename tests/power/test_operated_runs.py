@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from trainsim.io import power_file
 from trainsim.io.operation_file import read_operation
 from trainsim.io.operation_run import run_operation
 from trainsim.io.power_file import operated_train_loads
@@ -23,12 +22,6 @@ from trainsim.sim.fastest import run_fastest
 
 ROOT = Path(__file__).resolve().parents[2]
 OPERATION = ROOT / "examples" / "operations" / "metro_fixed_block.yaml"
-
-pytestmark = pytest.mark.xfail(
-    not hasattr(power_file, "_runs_span"),
-    reason="needs /tmp/patches/h18perf.patch (io/power_file.py: the operation's own runs)",
-    strict=True,
-)
 
 
 @pytest.fixture(scope="module")

@@ -32,16 +32,15 @@ def operated():
 
 def test_operated_loads_follow_the_operation(operated):
     """Every train is on the network from its departure to the end of its last dwell; its
-    movements are the core's runs between standstills placed at the operated times (mismatch 0
-    for every unhindered train; the held train approached its signal under the operation's
-    approach ceiling, so its mismatch is reported, not zero); a down train runs towards
+    movements are the operation's own runs between standstills placed at the operated times
+    (mismatch 0 for every train, the held one too: it approached its signal under the operation's
+    approach ceiling, and that run is the one on the network); a down train runs towards
     decreasing chainage."""
     loads, info = operated
     assert len(loads) == len(info["trains"]) == 14  # 6 up, 8 down
     for load, t in zip(loads, info["trains"], strict=True):
         assert t["on_network"] and t["movements"] >= 3  # S1-S2, S2-S3, S3-S4 at least
-        if t["id"] != "after":
-            assert t["movement_time_mismatch_s"] < 1e-6
+        assert t["movement_time_mismatch_s"] < 1e-6
         assert np.all(np.diff(load.time_s) >= 0)
         assert np.all(load.traction_power_w >= 0) and np.all(load.regen_power_w >= 0)
         going_up = load.track == "up"
@@ -62,7 +61,7 @@ def test_a_train_held_at_a_signal_asks_more_traction_energy(operated):
     after, plain = by_id["after"], by_id["U.1"]
     assert after[0]["movements"] == 4 and plain[0]["movements"] == 3
     assert after[0]["delay_s"] > 0
-    assert 0 < after[0]["movement_time_mismatch_s"] < 30
+    assert after[0]["movement_time_mismatch_s"] < 1e-6
     assert asked_j(after[1]) > 1.05 * asked_j(plain[1])
 
 
@@ -70,7 +69,8 @@ def test_a_train_held_at_a_signal_asks_more_traction_energy(operated):
 def test_power_file_with_an_operation_runs_with_its_balance(tmp_path):
     path = _file(tmp_path, simulation={"step_s": 1})
     summary, status = run_power_file(path)
-    assert status == "ok", summary["warnings"]
+    # SS-S1 goes beyond its overload power: ran, but not as asked (docs/POWER.md, "Status")
+    assert status == "substation_overloaded" and summary["statuses"] == ["substation_overloaded"], summary
     assert summary["energy_balance_error"] < 1e-6
     assert summary["operation"]["file"] == OPERATION
     assert len(summary["trains"]) == 14

@@ -20,7 +20,8 @@ BALANCE_TOLERANCE = 1e-6  # docs/POWER.md: a balance worse than this is a warnin
 def _power(path: Path, out: Path) -> tuple[dict, str]:
     """The summary.json and the printed report of ``trainsim power <path> --out <out>``."""
     result = CliRunner().invoke(app, ["power", str(path), "--out", str(out), "--no-plots"])
-    assert result.exit_code == 0, result.output
+    # the trains lose time to the voltage: ran, but not as asked (docs/POWER.md, "Status")
+    assert result.exit_code == 3, result.output
     return json.loads((out / "summary.json").read_text()), result.output
 
 
@@ -47,7 +48,7 @@ def _time_lost_s(summary: dict) -> tuple[float, float]:
 
 def test_per_step_limits_traction_and_says_so(per_step):
     summary, printed = per_step
-    assert summary["status"] == "ok", summary["status"]
+    assert "time_lost" in summary["statuses"] and summary["status"] == summary["statuses"][0]
     feedback = summary["feedback"]
     assert feedback["enabled"] and feedback["consistent"]
     assert feedback["iterations"] > 1, "the line must limit traction, else the example shows nothing"
@@ -71,7 +72,7 @@ def test_per_step_limits_traction_and_says_so(per_step):
 def test_per_step_loses_less_time_than_per_stretch(per_step, tmp_path):
     step_summary, _ = per_step
     per_stretch, _ = _power(_with_method(tmp_path, "per_stretch"), tmp_path / "out")
-    assert per_stretch["status"] == "ok" and per_stretch["feedback"]["consistent"]
+    assert "time_lost" in per_stretch["statuses"] and per_stretch["feedback"]["consistent"]
     assert per_stretch["energy_balance_error"] < BALANCE_TOLERANCE
     step_total, step_worst = _time_lost_s(step_summary)
     stretch_total, stretch_worst = _time_lost_s(per_stretch)

@@ -424,6 +424,26 @@ def _moving_pieces(time_s: np.ndarray, position_m: np.ndarray) -> list[tuple[int
     return pieces
 
 
+#: A run of the operation spans a movement when its ends are within this of the movement's [m].
+RUN_SPAN_TOLERANCE_M = 1e-6
+
+
+def _runs_span(outcome: Any, pieces: list[tuple[int, int]], position_m: np.ndarray) -> bool:
+    """Whether the operated trajectory is the outcome's runs joined, one run per movement with the
+    same ends (not time-scaled: ``trajectory_note`` empty)."""
+    runs = getattr(outcome, "runs", ())
+    if getattr(outcome, "trajectory_note", "") or len(runs) != len(pieces):
+        return False
+    for run, (i0, i1) in zip(runs, pieces, strict=True):
+        x = run.trace.position_m
+        if (
+            abs(x[0] - position_m[i0]) > RUN_SPAN_TOLERANCE_M
+            or abs(x[-1] - position_m[i1]) > RUN_SPAN_TOLERANCE_M
+        ):
+            return False
+    return True
+
+
 def operated_train_loads(
     operation_file: str | Path, tracks: dict[str, str], origin_m: float = 0.0
 ) -> tuple[list[TrainLoad], dict[str, Any]]:
@@ -431,14 +451,18 @@ def operated_train_loads(
     waits at signals and the delays of ``trainsim operate``).
 
     Each movement of an operated train between two standstills (stops and signal stops) is the
-    core's fastest run between them (``trainsim.operations.runs.service_route``, the run the
-    operation itself joins); its traction power F v / eta_t and regenerated power F_r v eta_r
-    are placed at the operated times of the same positions. ``tracks`` maps each direction (``up``,
-    ``down``) to a network track; the line's position x is at chainage ``origin_m + x``.
+    core's run the operation itself joined for it (``TrainOutcome.runs``: under the operation's
+    extra ceilings where it had some, e.g. the approach to a restrictive signal or ETCS
+    supervision); where the operated trajectory is not those runs joined (time-scaled, or runs
+    that do not span the movements), the core's fastest run between the same standstills
+    (``trainsim.operations.runs.service_route``). Its traction power F v / eta_t and regenerated
+    power F_r v eta_r are placed at the operated times of the same positions. ``tracks`` maps each
+    direction (``up``, ``down``) to a network track; the line's position x is at chainage
+    ``origin_m + x``.
 
     Returns the loads and an ``operation`` block for the summary: file, status, per train its
-    delay and the largest difference between an operated movement's duration and its run's
-    (0 unless the operation ran it under extra ceilings, e.g. ETCS supervision) [s].
+    delay and the largest difference between an operated movement's duration and its run's [s]
+    (round-off where the operation's runs are used; otherwise what the operation changed).
     """
     from trainsim.io.operation_file import read_operation
     from trainsim.io.operation_run import run_operation
@@ -467,8 +491,17 @@ def operated_train_loads(
         t_parts, x_parts, pt_parts, pr_parts = [], [], [], []
         mismatch = 0.0
         t, s = traj.time_s, traj.position_m
-        for i0, i1 in _moving_pieces(t, s):
-            run = run_fastest(svc.train, service_route(directed, [("a", s[i0]), ("b", s[i1])]), op.settings)
+        pieces = _moving_pieces(t, s)
+        # the operation's own runs, when they are the movements: a rerun would drop the extra ceilings
+        # it ran some of them under (a fastest rerun of a signal approach is seconds shorter)
+        own = list(outcome.runs) if _runs_span(outcome, pieces, s) else None
+        for k, (i0, i1) in enumerate(pieces):
+            if own is not None:
+                run = own[k]
+            else:
+                run = run_fastest(
+                    svc.train, service_route(directed, [("a", s[i0]), ("b", s[i1])]), op.settings
+                )
             tr = run.trace
             mismatch = max(mismatch, abs((t[i1] - t[i0]) - (tr.time_s[-1] - tr.time_s[0])))
             t_parts.append(np.interp(tr.position_m, s[i0 : i1 + 1], t[i0 : i1 + 1]))
