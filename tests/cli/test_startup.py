@@ -140,11 +140,6 @@ def test_run_with_out_and_no_plots_loads_no_matplotlib(tmp_path):
 
 
 @pytest.mark.skipif(not METRO.exists(), reason="examples/metro_b not present")
-@pytest.mark.xfail(
-    strict=True,
-    reason="io/railtoolkit.py imports jsonschema at module level (44 ms of a run that reads no railtoolkit "
-    "file); fixed by /tmp/patches/h14start.patch, remove this mark when it is applied",
-)
 def test_run_of_a_trainsim_scenario_loads_no_jsonschema():
     code, modules = imported("run", str(METRO))
     assert code == 0

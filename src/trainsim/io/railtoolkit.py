@@ -60,9 +60,7 @@ from functools import cache
 from importlib import resources
 from pathlib import Path
 from statistics import fmean
-from typing import Any, Literal
-
-import jsonschema
+from typing import TYPE_CHECKING, Any, Literal
 
 from trainsim.constants import KMH, TONNE, TRAINRUNS_GRAVITY
 from trainsim.errors import InputError, Problem
@@ -81,6 +79,9 @@ from trainsim.model import (
     bounds,
 )
 from trainsim.physics import resistance as res
+
+if TYPE_CHECKING:
+    import jsonschema
 
 __all__ = [
     "MASS_MODELS",
@@ -208,6 +209,9 @@ def _schema(name: str) -> dict[str, Any]:
 @cache
 def _validator(name: str) -> jsonschema.Draft202012Validator:
     """The JSON Schema validator of a schema file (built once)."""
+    # imported here: jsonschema costs about 45 ms of every start-up, and only railtoolkit files need it
+    import jsonschema
+
     return jsonschema.Draft202012Validator(_schema(name))
 
 
@@ -798,6 +802,8 @@ def load_railtoolkit_settings(path: str | Path) -> RailtoolkitSettings:
     settings = data["settings"]
     if not isinstance(settings, dict):
         raise InputError("'settings' must be a mapping", file=file, field="settings", value=settings)
+    import jsonschema
+
     errors = list(jsonschema.Draft202012Validator(_SETTINGS_SCHEMA).iter_errors(settings))
     if errors:
         where, reason, value, allowed = _describe_schema_error(errors[0])
