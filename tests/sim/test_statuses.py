@@ -161,6 +161,64 @@ def test_a_train_without_brakes_and_a_creeping_limit_get_plausibility_warnings()
     assert any("implausibly slow run" in w for w in r.warnings)
 
 
+def test_an_implausible_efficiency_gets_a_plausibility_warning():
+    """Traction efficiency 0.001 gave a net energy of 80,773 kWh and 4.9 MA on the metro example with
+    status ok and no warning (issue 13)."""
+    from dataclasses import replace
+
+    from trainsim.model import Electrical
+
+    base = make_train()
+    r = trainsim.run_fastest(
+        replace(base, electrical=Electrical(line_voltage_v=1500.0)), make_route(length_m=3000.0)
+    )
+    assert not any("efficiency" in w for w in r.warnings)
+    weak = replace(base, electrical=Electrical(line_voltage_v=1500.0, traction_efficiency=0.001))
+    r = trainsim.run_fastest(weak, make_route(length_m=3000.0))
+    assert any(w.startswith("implausible traction efficiency: 0.001") for w in r.warnings)
+    # 0.5 is the threshold; a regenerative efficiency of 0 (no regeneration) is plausible
+    edge = Electrical(line_voltage_v=1500.0, traction_efficiency=0.5, regenerative_efficiency=0.0)
+    r = trainsim.run_fastest(replace(base, electrical=edge), make_route(length_m=3000.0))
+    assert not any("efficiency" in w for w in r.warnings), r.warnings
+    low_pf = Electrical(line_voltage_v=1500.0, power_factor=0.3)
+    r = trainsim.run_fastest(replace(base, electrical=low_pf), make_route(length_m=3000.0))
+    assert any(w.startswith("implausible power factor: 0.3 (usual: 0.6 to 1)") for w in r.warnings)
+
+
+def test_an_overflowing_efficiency_is_a_status_not_a_null_figure_with_ok():
+    """Traction efficiency 1e-308 gave an infinite net energy (null in JSON), numpy's overflow warning
+    on stderr and status ok (issue 13). Readers refuse it; through the API the run says not_finite,
+    names the figure and emits no numpy warning. A power factor of 1e-308 overflows the current alone."""
+    import warnings as pywarnings
+    from dataclasses import replace
+
+    from trainsim.model import Electrical
+
+    base, route = make_train(), make_route(length_m=3000.0)
+    for kwargs, figure in (
+        ({"traction_efficiency": 1e-308}, "the net energy"),
+        ({"power_factor": 1e-308}, "the peak current"),
+    ):
+        train = replace(base, electrical=Electrical(line_voltage_v=1500.0, **kwargs))
+        for trace in (True, False):
+            with pywarnings.catch_warnings():
+                pywarnings.simplefilter("error")  # numpy's RuntimeWarning must not be the only sign
+                r = trainsim.run_fastest(train, route, trace=trace)
+            assert r.status == "not_finite" and r.status in STATUSES
+            assert any(figure in w and "not finite" in w for w in r.warnings), r.warnings
+            assert r.summary()["status"] == "not_finite"
+    # the same train with a plausible efficiency is ok: the check is not a blanket refusal
+    r = trainsim.run_fastest(replace(base, electrical=Electrical(line_voltage_v=1500.0)), route)
+    assert r.status == "ok" and np.isfinite(r.energy_kwh.net) and np.isfinite(r.peak_current_a)
+
+
+def test_a_train_without_electrics_has_no_current_and_is_still_ok():
+    """No electrical data: the peak current is NaN by design ("none"), not an overflow."""
+    r = trainsim.run_fastest(make_train(), make_route(length_m=3000.0))
+    assert make_train().electrical is None and np.isnan(r.peak_current_a)
+    assert r.status == "ok", r.warnings
+
+
 def test_an_absurd_dwell_is_refused_with_the_allowed_range():
     with pytest.raises(trainsim.InputError) as err:
         make_route(stations=[("A", 0.0, 0.0), ("B", 5000.0, 1e308), ("C", 10000.0, 0.0)])

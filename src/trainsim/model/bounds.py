@@ -5,8 +5,17 @@ Readers check every number they read against this table, so that an absurd magni
 of giving a run that says ``ok``, an overflow deep in numpy, or gigabytes of memory. The ranges are
 wide on purpose: they bound what any railway vehicle or line can be (the heaviest trains run at about
 100,000 t, the fastest at about 600 km/h, the steepest adhesion lines at about 100 per mille), not what
-is usual. Where a quantity has a tighter rule (a mass > 0, an efficiency in (0, 1]) the reader's own
-check says so; this table catches the magnitudes.
+is usual. Where a quantity has a tighter rule (a mass > 0) the reader's own check says so; this table
+catches the magnitudes.
+
+Efficiencies and shares are told apart. A conversion efficiency (line -> wheel of a traction chain,
+nominal power -> wheel, a storage's charge or discharge) and a power factor are at least 0.1: real
+traction chains convert about 0.6-0.95 of the power (transformer, converters, motors, gears), power
+factors of traction units are about 0.6-1, and the line energy and current scale with their inverse,
+so 0.001 (a percentage written as a fraction twice) gave 80,000 kWh and 4.9 MA with status ``ok``,
+and 1e-308 overflowed to an infinite energy. Shares (``traction_share``, ``braking_fraction``,
+``service_fraction``) may legitimately be small and keep (0, 1]. Efficiencies between 0.1 and 0.5 are
+read with a plausibility warning of the run (``trainsim.sim.result.plausibility_warnings``).
 
 Every bound is in SI (the unit in :attr:`Bound.si_unit`); :func:`check` takes the value in the unit
 it was written in, with the factor that turns it into SI, and names the range in that unit.
@@ -20,7 +29,7 @@ from dataclasses import dataclass
 from trainsim.constants import GRAVITY_RANGE_MPS2
 from trainsim.errors import InputError
 
-__all__ = ["BOUNDS", "Bound", "bound_for", "check", "check_count"]
+__all__ = ["BOUNDS", "EFFICIENCY_NOTE", "MIN_EFFICIENCY", "Bound", "bound_for", "check", "check_count"]
 
 
 @dataclass(frozen=True)
@@ -31,8 +40,10 @@ class Bound:
         quantity: what is bounded (``mass``, ``speed``...).
         si_unit: the SI unit of ``low`` and ``high``.
         low, high: the range; a value outside it is refused.
-        low_open: whether ``low`` itself is refused (efficiencies: 0 is not an efficiency).
+        low_open: whether ``low`` itself is refused (shares: 0 is not a share).
         why: where the range comes from, for readers of the table.
+        note: the reason for the range, shown with it in messages where the range is not obvious
+            (an efficiency below 0.1 is refused: the user needs to know why).
     """
 
     quantity: str
@@ -41,6 +52,7 @@ class Bound:
     high: float
     low_open: bool = False
     why: str = ""
+    note: str = ""
 
     def contains(self, value_si: float) -> bool:
         """Whether a finite value [SI] is inside the range."""
@@ -55,8 +67,21 @@ class Bound:
         low, high = self.low / factor, self.high / factor
         left = ">" if self.low_open else ">="
         suffix = f" {unit}" if unit else ""
-        return f"{left} {low:g}{suffix} and <= {high:g}{suffix}"
+        text = f"{left} {low:g}{suffix} and <= {high:g}{suffix}"
+        return f"{text} ({self.note})" if self.note else text
 
+
+#: Lowest conversion efficiency or power factor read [-]: real traction chains convert about 0.6-0.95
+#: of the power and power factors of traction units are about 0.6-1; below 0.1 the value is a unit
+#: mistake (a percentage divided twice), and the line energy and current, which scale with its
+#: inverse, would be absurd (0.001: 80,000 kWh on a 4.6 km metro line) or overflow (1e-308).
+MIN_EFFICIENCY = 0.1
+
+#: Why efficiencies are bounded below, in the messages that refuse one.
+EFFICIENCY_NOTE = (
+    "real traction chains convert about 0.6 to 0.95 of the power and power factors of traction units "
+    "are about 0.6 to 1; the line energy and current scale with the inverse of an efficiency"
+)
 
 #: The table: quantity -> plausible range [SI]. Dimensions of :mod:`trainsim.io.units` map onto it.
 BOUNDS: dict[str, Bound] = {
@@ -75,7 +100,15 @@ BOUNDS: dict[str, Bound] = {
         Bound("energy", "J", -1e13, 1e13, why="about 2,800 MWh"),
         Bound("ratio", "", -1.0, 1.0, why="gradients and specific resistances: 1000 per mille"),
         Bound("angle", "rad", -2 * math.pi, 2 * math.pi, why="one full turn"),
-        Bound("efficiency", "", 0.0, 1.0, low_open=True, why="a share of power: (0, 1]"),
+        Bound(
+            "efficiency",
+            "",
+            MIN_EFFICIENCY,
+            1.0,
+            why="a conversion efficiency or power factor: [0.1, 1]",
+            note=EFFICIENCY_NOTE,
+        ),
+        Bound("share", "", 0.0, 1.0, low_open=True, why="a share of a force or power: (0, 1]"),
         Bound("fraction", "", 0.0, 1.0, why="a share: [0, 1]"),
         Bound("count", "", 0.0, 100_000.0, why="vehicles, motors or axles of one train"),
         Bound("gravity", "m/s^2", *GRAVITY_RANGE_MPS2, why="g anywhere on the Earth's surface"),
@@ -96,9 +129,10 @@ _BY_NAME: dict[str, str] = {
     "regenerative_efficiency": "fraction",
     "power_factor": "efficiency",
     "fraction": "fraction",
-    "braking_fraction": "efficiency",
-    "traction_share": "efficiency",
-    "service_fraction": "efficiency",
+    # shares may be small (a train drawing a tenth of its effort on a weak line): (0, 1]
+    "braking_fraction": "share",
+    "traction_share": "share",
+    "service_fraction": "share",
 }
 
 

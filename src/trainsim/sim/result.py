@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -27,6 +28,8 @@ STATUSES: dict[str, str] = {
     "before that place",
     "did_not_reach_stop": "the run does not end at standstill at its last stop",
     "in progress": "a driving session that has not reached its destination yet",
+    "not_finite": "an energy or current figure is not finite (an input of absurd magnitude, such as "
+    "an efficiency of 1e-308, overflowed); the warning names the figure, which is not usable",
     "error": "an internal consistency check failed (a bug: please report it with the input)",
 }
 
@@ -284,6 +287,13 @@ def _check_stops(
 PLAUSIBLE_MIN_LIMIT_KMH = 5.0  # a speed limit [km/h] (shunting speeds are 5-25 km/h)
 PLAUSIBLE_MIN_AVERAGE_KMH = 5.0  # a section's average running speed [km/h]
 PLAUSIBLE_MIN_BRAKING_MPS2 = 0.1  # service deceleration on the level [m/s^2] (freight: 0.2-0.4, metro: ~1)
+PLAUSIBLE_MIN_EFFICIENCY = 0.5  # line <-> wheel efficiency, power factor [-] (usual ranges below)
+#: Usual ranges of the electrical ratios, named in their plausibility warnings.
+_USUAL_EFFICIENCY = {
+    "traction_efficiency": ("0.6 to 0.95", "the line energy and current scale with its inverse"),
+    "regenerative_efficiency": ("0.6 to 0.95", "the regenerated energy scales with it"),
+    "power_factor": ("0.6 to 1", "the line current scales with its inverse"),
+}
 
 
 def plausibility_warnings(
@@ -291,7 +301,7 @@ def plausibility_warnings(
 ) -> list[str]:
     """Sentences about inputs that are possible but implausible: a speed limit below 5 km/h, a
     section averaging below 5 km/h, service brakes that decelerate the train by less than
-    0.1 m/s^2 on the level (none at all, or a unit mistake)."""
+    0.1 m/s^2 on the level (none at all, or a unit mistake), an efficiency or power factor below 0.5."""
     out = []
     low = [lim for lim in route.speed_limits if lim.limit_mps / KMH < PLAUSIBLE_MIN_LIMIT_KMH]
     if low:
@@ -318,6 +328,19 @@ def plausibility_warnings(
             f"implausible brakes: the service brakes decelerate the train by only {decel:.3g} m/s^2 on the "
             f"level at their weakest (usual: 0.3 to 1.2 m/s^2); check the braking data and its units"
         )
+    el = train.electrical
+    if el is not None:
+        # readers refuse efficiencies below 0.1 (model.bounds.MIN_EFFICIENCY); between that and 0.5 a
+        # value is possible (an old diesel-electric chain) but far more often a unit mistake, and the
+        # line energy and current scale with its inverse. A regenerative efficiency of 0 means no
+        # regeneration, which is plausible.
+        for name, (usual, effect) in _USUAL_EFFICIENCY.items():
+            eta = getattr(el, name)
+            if 0 < eta < PLAUSIBLE_MIN_EFFICIENCY:
+                out.append(
+                    f"implausible {name.replace('_', ' ')}: {eta:.3g} (usual: {usual}); {effect}; "
+                    "check the electrical data and its units"
+                )
     return out
 
 
@@ -643,17 +666,21 @@ def build_result(
     eta_t = elec.traction_efficiency if elec else 1.0
     eta_r = elec.regenerative_efficiency * elec.receptivity if elec else 0.0
     aux_w = elec.auxiliary_power_w if elec else 0.0
-    e_traction_line = w_traction / eta_t
-    e_regen_line = w_regen * eta_r
-    e_aux = aux_w * dt
-    e_net = e_traction_line + e_aux - e_regen_line
-    e_paper = w_traction * (elec.traction_efficiency if elec else 1.0)
+    # an absurd input (an efficiency of 1e-308 given through the API; readers refuse it) overflows
+    # here: numpy's warning would be the only sign, so it is silenced and _not_finite says it instead
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        e_traction_line = w_traction / eta_t
+        e_regen_line = w_regen * eta_r
+        e_aux = aux_w * dt
+        e_net = e_traction_line + e_aux - e_regen_line
+        e_paper = w_traction * (elec.traction_efficiency if elec else 1.0)
 
     if with_trace or elec:
-        trace, peak_current, peak_paper = _trace_and_peaks(
-            train, settings, route, profile, ceiling, availability, voltage, s, v, t, regime, level, s_right,
-            w_traction, w_braking, e_regen_line, e_net, eta_t, eta_r, aux_w, with_trace,
-        )  # fmt: skip
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # see _not_finite
+            trace, peak_current, peak_paper = _trace_and_peaks(
+                train, settings, route, profile, ceiling, availability, voltage, s, v, t, regime, level,
+                s_right, w_traction, w_braking, e_regen_line, e_net, eta_t, eta_r, aux_w, with_trace,
+            )  # fmt: skip
     else:
         # a summary without trace of a train without electrics: no point arrays needed at all
         trace, peak_current, peak_paper = None, np.full(n, np.nan), np.full(n, np.nan)
@@ -738,6 +765,26 @@ def build_result(
         "relative_error": (supplied - spent) / max(abs(supplied), 1.0),
         "off_regime_stretches": float(off_regime.sum()),
     }
+    totals = EnergyFigures(
+        traction=float(w_traction.sum() / KWH),
+        braking=float(w_braking.sum() / KWH),
+        regenerated=float(e_regen_line.sum() / KWH),
+        auxiliary=float(e_aux.sum() / KWH),
+        net=float(e_net.sum() / KWH),
+        paper=float(e_paper.sum() / KWH),
+    )
+    peak = float(np.nanmax(peak_current)) if elec and n else float("nan")
+    peak_paper_a = float(np.nanmax(peak_paper)) if elec and n else float("nan")
+    bad = _not_finite(totals, peak, peak_paper_a, electric=elec is not None and n > 0)
+    if bad:
+        # JSON writes a non-finite figure as null: with status ok it would pass as "no figure"
+        warnings.append(
+            f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite (overflow): an input of absurd "
+            "magnitude (an efficiency, power factor, force or voltage); check the train's electrical and "
+            "effort data"
+        )
+        if status == "ok":
+            status = "not_finite"
     if off_regime.any():
         # stretches whose recorded motion is not their regime's maximum effort (a holding arc labelled
         # braking, a head trace of a multi-point run): their energy is that of the recorded motion
@@ -758,15 +805,19 @@ def build_result(
         max_speed_kmh=float(v.max() / KMH) if n else 0.0,
         average_speed_kmh=distance / total_time / KMH if total_time > 0 else 0.0,
         average_running_speed_kmh=distance / running_time / KMH if running_time > 0 else 0.0,
-        peak_current_a=float(np.nanmax(peak_current)) if elec and n else float("nan"),
-        peak_paper_current_a=float(np.nanmax(peak_paper)) if elec and n else float("nan"),
-        energy_kwh=EnergyFigures(
-            traction=float(w_traction.sum() / KWH),
-            braking=float(w_braking.sum() / KWH),
-            regenerated=float(e_regen_line.sum() / KWH),
-            auxiliary=float(e_aux.sum() / KWH),
-            net=float(e_net.sum() / KWH),
-            paper=float(e_paper.sum() / KWH),
-        ),
+        peak_current_a=peak,
+        peak_paper_current_a=peak_paper_a,
+        energy_kwh=totals,
         energy_balance=balance,
     )
+
+
+def _not_finite(totals: EnergyFigures, peak_a: float, peak_paper_a: float, *, electric: bool) -> list[str]:
+    """Names of the run's figures that are not finite: every energy, and the peak currents of an
+    electric train (a train without electrics has no current: NaN there is "none", not an overflow)."""
+    bad = [f"the {name} energy" for name, value in asdict(totals).items() if not math.isfinite(value)]
+    if electric:
+        for name, value in (("peak current", peak_a), ("paper peak current", peak_paper_a)):
+            if not math.isfinite(value):
+                bad.append(f"the {name}")
+    return bad
