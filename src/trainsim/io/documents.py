@@ -226,16 +226,94 @@ def _yaml_fail(reason: str, file: str, mark: Any, value: Any = None, allowed: st
     raise InputError(f"invalid YAML: {reason}", file=file, line=line, value=value, allowed=allowed)
 
 
+#: One line ``- {key: value, ...}`` of a block sequence whose keys are names and whose values are
+#: short plain scalars (numbers, words): the shape of the long lists of a route (gradients, speed
+#: limits, curves). Values hold none of ``,:{}[]#'"&*!|>%@``, so the line is exactly one flow mapping.
+_FLOW_PAIR = r"[A-Za-z_][A-Za-z0-9_]*: +[-+.]?[A-Za-z0-9_][A-Za-z0-9_.+-]*"
+_FLOW_LINE = re.compile(rf"^( *)- \{{ *({_FLOW_PAIR}(?: *, *{_FLOW_PAIR})*) *\}} *$", re.MULTILINE)
+_FLOW_KEY_VALUE = re.compile(r"([A-Za-z_][A-Za-z0-9_]*): +([^ ,]+)")
+#: Fewest such lines for which they are read by the shortcut (below, the plain event loop is as fast).
+_FLOW_LINES_MIN = 200
+
+
+class _FallbackError(Exception):
+    """The shortcut for flow-mapping lines does not apply: read the original text event by event."""
+
+
 def read_yaml_text(text: str, file: str = "<yaml>", limits: DocumentLimits | None = None) -> Any:
     """The content of one YAML document, read once by libyaml's event parser within ``limits``.
 
     Values resolve as with ``yaml.safe_load`` (YAML 1.1 scalars, merge keys ``<<``); duplicate keys,
     non-scalar keys, unknown tags, several documents, too deep nesting and alias bombs are refused
     with an InputError naming the line.
+
+    Long lists of one-line flow mappings (``- {from_m: 0, gradient_permille: 3}``, 200,000 of them in
+    a long route) cost libyaml six Python event objects per line, about 1.5 s of the 2 s budget of
+    issue 13. Such lines are given to libyaml as ``- ~`` (the same lines and columns before them,
+    the same structure) and the mapping is built from the line's text with the same scalar
+    resolution; the result is only used if every such line came back as that ``~`` at its own line
+    and column (so not inside a block scalar, a quoted text or a flow collection), with no error.
+    Otherwise the original text is read event by event, which gives the exact error of the file.
     """
     limits = limits or LIMITS
     if len(text) > limits.max_bytes:
         raise InputError("document too large", file=file, allowed=f"at most {limits.max_bytes} characters")
+    shortened, flow = _flow_lines(text)
+    if flow:
+        try:
+            return _read_events(shortened, file, limits, flow)
+        except (_FallbackError, InputError):
+            pass  # the original text says what is wrong, at its own line
+    return _read_events(text, file, limits, None)
+
+
+def _flow_lines(text: str) -> tuple[str, dict[int, tuple[int, str]]]:
+    """(text with each one-line flow mapping of a block sequence replaced by ``~``, {line (0-based):
+    (column of the ``~``, the mapping's inner text)}); the text unchanged and {} if there are few."""
+    if "- {" not in text:
+        return text, {}
+    flow: dict[int, tuple[int, str]] = {}
+    pieces: list[str] = []
+    last = 0
+    line = 0
+    for m in _FLOW_LINE.finditer(text):
+        start = m.start()
+        line += text.count("\n", last, start)
+        indent = m.group(1)
+        pieces.append(text[last:start])
+        pieces.append(f"{indent}- ~")
+        flow[line] = (len(indent) + 2, m.group(2))
+        last = m.end()
+    if len(flow) < _FLOW_LINES_MIN:
+        return text, {}
+    pieces.append(text[last:])
+    return "".join(pieces), flow
+
+
+def _flow_mapping(inner: str) -> dict[Any, Any]:
+    """The mapping of a flow line's inner text (``key: value, ...``), resolved as libyaml's events are."""
+    out: dict[Any, Any] = {}
+    cache_get = _PLAIN_CACHE.get
+    pairs = _FLOW_KEY_VALUE.findall(inner)
+    for key_text, value_text in pairs:
+        key = cache_get(key_text, _MISSING)
+        if key is _MISSING:
+            key = _plain_scalar(key_text)
+        value = cache_get(value_text, _MISSING)
+        if value is _MISSING:
+            value = _plain_scalar(value_text)
+        out[key] = value
+    if len(out) != len(pairs) or any(k.__class__ not in _IMMUTABLE for k in out):
+        raise _FallbackError  # the event loop names the duplicate key and its line
+    return out
+
+
+def _read_events(
+    text: str, file: str, limits: DocumentLimits, flow: dict[int, tuple[int, str]] | None
+) -> Any:
+    """The document of ``text`` read event by event; ``flow``: the lines of :func:`_flow_lines`."""
+    substituted = 0
+    extra = 0  # values of a mapping read from a flow line, beyond its own node
     anchors: dict[str, tuple[Any, int]] = {}
     stack: list[_Frame] = []
     root: Any = None
@@ -255,6 +333,17 @@ def read_yaml_text(text: str, file: str = "<yaml>", limits: DocumentLimits | Non
                         value = cache_get(event.value, _MISSING)
                         if value is _MISSING:
                             value = _plain_scalar(event.value)
+                        if flow and value is None and event.value == "~":
+                            where = flow.get(event.start_mark.line)
+                            if where is not None:
+                                if where[0] != event.start_mark.column or event.anchor is not None:
+                                    raise _FallbackError
+                                if len(stack) >= limits.max_depth:
+                                    raise _FallbackError
+                                value = _flow_mapping(where[1])
+                                substituted += 1
+                                # the mapping and its keys and values, as the event loop counts them
+                                extra = 2 * len(value)
                     else:
                         value = event.value
                 elif tag in _SCALAR_TAGS:
@@ -263,7 +352,8 @@ def read_yaml_text(text: str, file: str = "<yaml>", limits: DocumentLimits | Non
                     _yaml_fail(
                         "tags are not allowed here", file, event.start_mark, tag, "!!str, !!int, !!float"
                     )
-                nodes = 1
+                nodes = 1 + extra
+                extra = 0
                 if event.anchor is not None:
                     anchors[event.anchor] = (value, 1)
             elif cls is yaml.AliasEvent:
@@ -315,6 +405,8 @@ def read_yaml_text(text: str, file: str = "<yaml>", limits: DocumentLimits | Non
                 anchors.clear()
                 continue
             elif cls is yaml.StreamEndEvent:
+                if flow is not None and substituted != len(flow):
+                    raise _FallbackError  # a replaced line was not a sequence entry: read the original
                 break
             else:  # stream start, document end
                 continue
