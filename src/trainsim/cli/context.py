@@ -129,6 +129,25 @@ def require_file(path: Path, what: str) -> None:
         raise InputError(f"{what} is not a file", file=str(path))
 
 
+def require_input(path: Path, what: str) -> None:
+    """An InputError unless ``path`` is a file, or a folder the spreadsheet reader reads (CSV tables).
+
+    Train, route and scenario inputs go through the loader, which reads a folder of CSV tables with the
+    same reader as ``trainsim check`` (``trainsim.io.interchange.detect_interchange``): refusing the
+    folder here made ``check`` accept what ``run`` and ``optimize`` refused (issue 13). Any other
+    folder is refused with the message ``check`` gives for it."""
+    if not path.exists():
+        raise InputError(f"{what} not found", file=str(path))
+    if path.is_dir():
+        from trainsim.io.interchange import detect_interchange
+
+        if detect_interchange(path) != "spreadsheet":
+            raise InputError("this is a directory, not a file", file=str(path))
+        return
+    if not path.is_file():
+        raise InputError(f"{what} is not a file", file=str(path))
+
+
 def console() -> Console:
     """A rich console; 160 columns when the output is not a terminal (the section tables are wide)."""
     from rich.console import Console
@@ -167,12 +186,12 @@ def load_scenario(
                 "--mass-model applies to a route given with --route; "
                 "a scenario file says itself how its route is read"
             )
-        require_file(scenario, "scenario file")
+        require_input(scenario, "scenario file")
         return loader.load_scenario(scenario)
     if train is None or route is None:
         raise InputError("give a scenario file, or both --train and --route")
-    require_file(train, "train file")
-    require_file(route, "route file")
+    require_input(train, "train file")
+    require_input(route, "route file")
     if mass_model is None:
         return loader.scenario_from_files(train, route)
     from trainsim.model.scenario import Scenario

@@ -21,7 +21,11 @@ from trainsim.errors import InputError
 
 def optimize(
     scenario: Annotated[
-        Path | None, typer.Argument(help="Scenario file; or give --train and --route.")
+        Path | None,
+        typer.Argument(
+            help="Scenario: trainsim YAML, railML, a workbook or a folder of CSV tables; or give --train "
+            "and --route."
+        ),
     ] = None,
     train: Annotated[Path | None, typer.Option("--train", "-t", help="Train file (format detected).")] = None,
     route: Annotated[Path | None, typer.Option("--route", "-r", help="Route file (format detected).")] = None,

@@ -26,7 +26,9 @@ def run(
     scenario: Annotated[
         Path | None,
         typer.Argument(
-            help="Scenario file (trainsim YAML); or give --train and --route.", show_default=False
+            help="Scenario: trainsim YAML, railML, a workbook or a folder of CSV tables; or give --train and "
+            "--route.",
+            show_default=False,
         ),
     ] = None,
     train: Annotated[Path | None, typer.Option("--train", "-t", help="Train file (format detected).")] = None,
