@@ -353,13 +353,13 @@ def check_file(path: str | Path) -> CheckReport:
     if detected.format.startswith("railtoolkit/"):
         fmt += f" {detected.version}"
     if detected.format == "trainsim/train":
-        spec = tsy.read_train_spec(path)
+        spec = tsy.train_spec_from_dict(data, file, path=path)  # the file read once, above
         train = spec.to_train(file)
         return CheckReport(
             file, "train", fmt, train.name, _train_figures(train), spec.notes(), spec.warnings()
         )
     if detected.format == "trainsim/route":
-        spec_r = tsy.read_route_spec(path)
+        spec_r = tsy.route_spec_from_dict(data, file, path=path)  # the file read once, above
         route = spec_r.to_route(file)
         return CheckReport(file, "route", fmt, route.name, _route_figures(route), spec_r.notes())
     if detected.format == "trainsim/scenario":

@@ -8,7 +8,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
-from pydantic import Field, model_validator
+import numpy as np
+from pydantic import Field, WrapSerializer, model_validator
 
 from trainsim.constants import KMH, STANDARD_GRAVITY
 from trainsim.io.spec import (
@@ -16,10 +17,14 @@ from trainsim.io.spec import (
     NonNegative,
     Positive,
     Spec,
+    SpecTable,
     _check_increasing,
     _located,
     _validate,
+    column,
     fail,
+    table_as_list,
+    table_or_models,
 )
 from trainsim.model import (
     Curve,
@@ -75,17 +80,37 @@ class _Section(Spec):
         return self
 
 
+def _extent_ok(columns: dict[str, np.ndarray]) -> bool:
+    """:meth:`_Section._check_extent` on whole columns of a section list without ``length_m``."""
+    to, start = columns["to_m"], columns["from_m"]
+    given = ~np.isnan(to)
+    return bool((to[given] > start[given]).all())
+
+
 class SpeedLimitSpec(_Section):
     limit_kmh: Annotated[float, Field(gt=0, lt=720)]
+
+    _table_ok = staticmethod(_extent_ok)
 
 
 class GradientSpec(_Section):
     gradient_permille: Annotated[float, Field(gt=-200, lt=200)]
 
+    _table_ok = staticmethod(_extent_ok)
+
 
 class ElevationPointSpec(Spec):
     position_m: float
     elevation_m: float
+
+    @staticmethod
+    def _table_ok(columns: dict[str, np.ndarray]) -> bool:
+        return True  # no rule across fields
+
+
+# Long lists (200,000 gradient entries) are read as columns when every entry is plainly valid: see
+# spec.spec_table; otherwise one model per entry says which entry is wrong and why.
+_Table = WrapSerializer(table_as_list)
 
 
 class CurveSpec(_Section):
@@ -161,9 +186,11 @@ class RouteSpec(Spec):
     length_m: Positive | None = None
     end_m: float | None = None
     stations: list[StationSpec] = Field(min_length=2)
-    speed_limits: list[SpeedLimitSpec] = Field(min_length=1)
-    gradients: list[GradientSpec] | None = None
-    elevation: list[ElevationPointSpec] | None = None
+    speed_limits: Annotated[list[SpeedLimitSpec], table_or_models(SpeedLimitSpec), _Table] = Field(
+        min_length=1
+    )
+    gradients: Annotated[list[GradientSpec] | None, table_or_models(GradientSpec), _Table] = None
+    elevation: Annotated[list[ElevationPointSpec] | None, table_or_models(ElevationPointSpec), _Table] = None
     curves: list[CurveSpec] = Field(default_factory=list)
     tunnels: list[TunnelSpec] = Field(default_factory=list)
     electrification: list[ElectrificationSpec] = Field(default_factory=list)
@@ -192,7 +219,7 @@ class RouteSpec(Spec):
         if self.elevation is not None:
             if len(self.elevation) < 2:
                 fail("an elevation profile needs at least 2 points", field="elevation")
-            _check_increasing([p.position_m for p in self.elevation], "elevation", what="positions")
+            _check_increasing(column(self.elevation, "position_m"), "elevation", what="positions")
         return self
 
     def end(self) -> float:
@@ -218,43 +245,52 @@ class RouteSpec(Spec):
         _check_increasing([s.position_m for s in self.stations], "stations", what="station positions")
 
     def _check_changes(self, name: str, items: Sequence[_Section], end: float, *, cover: bool) -> None:
-        """Lists of changes: each entry runs to its own ``to_m`` or to the next entry's start."""
-        for i, item in enumerate(items):
-            if not self.start_m <= item.from_m < end:
-                fail(
-                    "section starts outside the route",
-                    field=f"{name}[{i}].from_m",
-                    value=item.from_m,
-                    allowed=f"{self.start_m:g} <= from_m < {end:g} m",
-                )
-        _check_increasing([x.from_m for x in items], name, what="'from_m' positions")
-        if cover and items and items[0].from_m != self.start_m:
+        """Lists of changes: each entry runs to its own ``to_m`` or to the next entry's start.
+
+        Checked on whole columns (a list may hold 200,000 entries); each rule reports its first
+        offending entry, as a loop over the entries would."""
+        if not len(items):
+            return
+        starts, stops = column(items, "from_m"), column(items, "to_m")
+        outside = np.flatnonzero(~((self.start_m <= starts) & (starts < end)))
+        if outside.size:
+            i = int(outside[0])
+            fail(
+                "section starts outside the route",
+                field=f"{name}[{i}].from_m",
+                value=float(starts[i]),
+                allowed=f"{self.start_m:g} <= from_m < {end:g} m",
+            )
+        _check_increasing(starts, name, what="'from_m' positions")
+        if cover and starts[0] != self.start_m:
             fail(
                 f"{name} must start at the route start",
                 field=f"{name}[0].from_m",
-                value=items[0].from_m,
+                value=float(starts[0]),
                 allowed=f"{self.start_m:g}",
             )
-        for i, item in enumerate(items):
-            nxt = items[i + 1].from_m if i + 1 < len(items) else end
-            if item.to_m is None:
-                continue
-            if item.to_m > nxt + 1e-9:
+        nxt = np.append(starts[1:], end)
+        given = ~np.isnan(stops)
+        over = given & (stops > nxt + 1e-9)
+        gap = given & (stops < nxt - 1e-9) if cover else np.zeros_like(given)
+        bad = np.flatnonzero(over | gap)
+        if bad.size:
+            i = int(bad[0])
+            if over[i]:
                 fail(
                     "section runs into the next one"
                     if i + 1 < len(items)
                     else "section runs past the route end",
                     field=f"{name}[{i}].to_m",
-                    value=item.to_m,
-                    allowed=f"<= {nxt:g}",
+                    value=float(stops[i]),
+                    allowed=f"<= {nxt[i]:g}",
                 )
-            if cover and item.to_m < nxt - 1e-9:
-                fail(
-                    f"gap in {name}: every position needs a value (leave 'to_m' out to run to the next one)",
-                    field=f"{name}[{i}].to_m",
-                    value=item.to_m,
-                    allowed=f"{nxt:g}",
-                )
+            fail(
+                f"gap in {name}: every position needs a value (leave 'to_m' out to run to the next one)",
+                field=f"{name}[{i}].to_m",
+                value=float(stops[i]),
+                allowed=f"{nxt[i]:g}",
+            )
 
     def _check_spans(self, name: str, items: Sequence[_Section], end: float) -> None:
         for i, item in enumerate(items):
@@ -278,6 +314,10 @@ class RouteSpec(Spec):
 
     @staticmethod
     def _ends(items: Sequence[_Section], end: float) -> list[tuple[float, float]]:
+        if isinstance(items, SpecTable):  # whole columns: a list may hold 200,000 entries
+            starts, stops = items.column("from_m"), items.column("to_m")
+            ends = np.where(np.isnan(stops), np.append(starts[1:], end), stops)
+            return list(zip(starts.tolist(), ends.tolist(), strict=True))
         return [
             (x.from_m, x.to_m if x.to_m is not None else (items[i + 1].from_m if i + 1 < len(items) else end))
             for i, x in enumerate(items)
@@ -298,21 +338,30 @@ class RouteSpec(Spec):
         """The :class:`~trainsim.model.Route` in SI units."""
         end = self.end()
         limits = [
-            SpeedLimit(a, b, x.limit_kmh * KMH)
-            for (a, b), x in zip(self._ends(self.speed_limits, end), self.speed_limits, strict=True)
+            SpeedLimit(a, b, v * KMH)
+            for (a, b), v in zip(
+                self._ends(self.speed_limits, end),
+                column(self.speed_limits, "limit_kmh").tolist(),
+                strict=True,
+            )
         ]
         gradients: list[GradientSection] = []
         if self.gradients:
             gradients = [
-                GradientSection(a, b, x.gradient_permille)
-                for (a, b), x in zip(self._ends(self.gradients, end), self.gradients, strict=True)
-                if x.gradient_permille != 0
+                GradientSection(a, b, g)
+                for (a, b), g in zip(
+                    self._ends(self.gradients, end),
+                    column(self.gradients, "gradient_permille").tolist(),
+                    strict=True,
+                )
+                if g != 0
             ]
         elif self.elevation:
-            pts = self.elevation
-            for p, q in itertools.pairwise(pts):
-                a, b = max(p.position_m, self.start_m), min(q.position_m, end)
-                grade = (q.elevation_m - p.elevation_m) / (q.position_m - p.position_m) * 1000.0
+            positions = column(self.elevation, "position_m").tolist()
+            heights = column(self.elevation, "elevation_m").tolist()
+            for (p, hp), (q, hq) in itertools.pairwise(zip(positions, heights, strict=True)):
+                a, b = max(p, self.start_m), min(q, end)
+                grade = (hq - hp) / (q - p) * 1000.0
                 if b > a and grade != 0:
                     gradients.append(GradientSection(a, b, grade))
         with _located(file, "curves"):
