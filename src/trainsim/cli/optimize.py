@@ -85,8 +85,10 @@ def optimize(
     """Drive a scenario to a timetable with least energy: switching points, savings, deviations.
 
     The schedule is one of --supplement, --timetable, --allowance (repeatable) or the scenario's
-    'driving' block. Constraints (--max-acceleration, --max-deceleration, --max-jerk, --speed-margin,
-    --min-regime-time, --coast-min-speed) apply to every strategy (docs/OPTIMIZATION.md, "Driving constraints").
+    'driving' block. Constraints (--max-acceleration, --max-deceleration, --max-jerk, --speed-margin)
+    apply to every strategy; the driving rules --min-regime-time and --coast-min-speed to the optimal
+    and reference strategies only, and asking another strategy for them is an error (exit 2)
+    (docs/OPTIMIZATION.md, "Driving constraints").
 
     Exit code 3 when the result's status is not ok (e.g. an infeasible schedule or a missed timing
     window: the best feasible run is printed and the summary says by how much it is missed).
@@ -118,6 +120,7 @@ def optimize(
                 )
             if strategy == "optimal" and scn.strategy != "fastest":
                 strategy = scn.strategy
+        _check_driving_rules(strategy, min_regime_time, coast_min_speed)
         constraints = _constraints(
             max_acceleration, max_deceleration, max_jerk, speed_margin, min_regime_time, coast_min_speed
         )
@@ -202,6 +205,30 @@ def optimize(
     for p in written:
         out_console.print(f"wrote {p}", markup=False, highlight=False)
     exit_for_status(str(summary["status"]))
+
+
+#: The strategies that keep each driving rule, and how. lesov and fastest drive by their own rule (a
+#: coasting speed, full effort): asked for these rules they used to run without them and add a warning
+#: that turned the status into "infeasible schedule" (exit 3), blaming a timetable that can be met.
+_DRIVING_RULES = {
+    "--min-regime-time": (("optimal", "reference"), "the reference reports the arcs shorter than it"),
+    "--coast-min-speed": (("optimal", "reference"), ""),
+}
+
+
+def _check_driving_rules(strategy: str, min_regime_time_s: float, coast_min_kmh: float) -> None:
+    """An InputError when a driving rule is asked of a strategy that does not apply it."""
+    for option, value in (("--min-regime-time", min_regime_time_s), ("--coast-min-speed", coast_min_kmh)):
+        strategies, how = _DRIVING_RULES[option]
+        if value and strategy not in strategies:
+            raise InputError(
+                f"{option} applies to the {' and '.join(strategies)} strategies"
+                + (f" ({how})" if how else "")
+                + f"; strategy {strategy} does not apply it",
+                field="--strategy",
+                value=strategy,
+                allowed=f"{', '.join(strategies)} with {option}, or leave {option} out",
+            )
 
 
 def _constraints(
