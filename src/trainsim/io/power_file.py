@@ -466,18 +466,28 @@ def operated_train_loads(
     """
     from trainsim.io.operation_file import read_operation
     from trainsim.io.operation_run import run_operation
-    from trainsim.operations.runs import direction_route, service_route
-    from trainsim.sim.fastest import run_fastest
 
     op = read_operation(operation_file)
     result = run_operation(op)
-    services = {svc.id: svc for svc in op.services}
+    return _operated_loads(op, op.services, result, str(operation_file), tracks, origin_m)
+
+
+def _operated_loads(
+    op: Any, services: list, result: Any, file: str, tracks: dict[str, str], origin_m: float
+) -> tuple[list[TrainLoad], dict[str, Any]]:
+    """The loads and ``operation`` block of an operation's ``result`` (see
+    :func:`operated_train_loads`); ``services`` are the ones it ran (a fastest rerun is made with
+    the same traction power cap as the operation's runs)."""
+    from trainsim.operations.runs import direction_route, service_route
+    from trainsim.sim.fastest import run_fastest
+
+    by_id = {svc.id: svc for svc in services}
     loads, trains = [], []
     for outcome in result.trains:
-        svc = services[outcome.id]
+        svc = by_id[outcome.id]
         el = svc.train.electrical
         if el is None:
-            raise InputError("the train has no electrical data", file=str(operation_file),
+            raise InputError("the train has no electrical data", file=file,
                              field=f"trains[{outcome.id}].train", value=svc.train.name,
                              allowed="a train with an electrical block")  # fmt: skip
         if outcome.direction not in tracks:
@@ -488,6 +498,11 @@ def operated_train_loads(
             trains.append({"id": outcome.id, "status": outcome.status, "on_network": False})
             continue
         directed = direction_route(op.geometry, op.line.length_m, outcome.direction)
+        train = svc.train
+        if np.isfinite(svc.traction_power_cap_w):
+            train = dataclasses.replace(
+                train, traction=train.traction.capped(power_cap_w=svc.traction_power_cap_w)
+            )
         t_parts, x_parts, pt_parts, pr_parts = [], [], [], []
         mismatch = 0.0
         t, s = traj.time_s, traj.position_m
@@ -499,9 +514,7 @@ def operated_train_loads(
             if own is not None:
                 run = own[k]
             else:
-                run = run_fastest(
-                    svc.train, service_route(directed, [("a", s[i0]), ("b", s[i1])]), op.settings
-                )
+                run = run_fastest(train, service_route(directed, [("a", s[i0]), ("b", s[i1])]), op.settings)
             tr = run.trace
             mismatch = max(mismatch, abs((t[i1] - t[i0]) - (tr.time_s[-1] - tr.time_s[0])))
             t_parts.append(np.interp(tr.position_m, s[i0 : i1 + 1], t[i0 : i1 + 1]))
@@ -521,8 +534,123 @@ def operated_train_loads(
         trains.append({"id": outcome.id, "status": outcome.status, "on_network": True,
                        "delay_s": _finite(outcome.delay_s), "movements": len(t_parts),
                        "movement_time_mismatch_s": mismatch})  # fmt: skip
-    info = {"file": str(operation_file), "status": result.status, "trains": trains}
+    info = {"file": file, "status": result.status, "trains": trains}
     return loads, info
+
+
+def _arrival_s(outcome: Any) -> float:
+    """When an operated train arrived at its destination [s] (NaN: it did not)."""
+    last = outcome.stops[-1] if outcome.stops else None
+    if last is None or last.arrival_s is None or not np.isfinite(last.arrival_s):
+        return float("nan")
+    return float(last.arrival_s)
+
+
+def _run_operated(path: Path, spec: PowerFile, network: Network) -> Any:
+    """The power study of the operation file's trains, with voltage-limited traction fed back into
+    the operation when ``simulation.feedback.enabled``.
+
+    Feedback: each operated train whose traction the line limits (it gets less than 1 - tolerance of
+    the traction energy it asks) gets one cap on its traction power at the wheel for its whole run:
+    the least electrical power the line delivered to it at a limited step, times its traction
+    efficiency, lowered again at each iteration where it is still limited (the timetable study's
+    ``constant`` method). The operation is simulated again with those caps (only its operated runs:
+    the plan stays the uncapped one, so the slowed train shows as late), so that a slower train
+    holds the trains behind it through the signalling (knock-on between services), and the network
+    is solved again, until no train is limited or ``max_iterations`` is reached. A train's
+    ``time_lost_s`` is its arrival at its destination minus its arrival in the operation without
+    feedback: its own slower running and the waits behind slowed trains.
+    """
+    from trainsim.io.operation_file import read_operation
+    from trainsim.io.operation_run import run_operation
+    from trainsim.operations.runs import RunCache
+
+    sim = spec.simulation
+    link = spec.operation
+    where = path.parent / link.file
+    tracks = dict(link.tracks)
+    origin_m = link.origin_km * 1000
+    op = read_operation(where)
+    fb = sim.feedback
+    caps = {svc.id: np.inf for svc in op.services}
+    cache: RunCache | None = None
+    iterations = 0
+    nominal: dict[str, float] = {}
+    while True:
+        iterations += 1
+        if iterations == 1:
+            # without caps exactly as without feedback (no shared cache), so that disabling it changes nothing
+            services = list(op.services)
+            operated = run_operation(op)
+            nominal = {o.id: _arrival_s(o) for o in operated.trains}
+        else:
+            cache = cache or RunCache(op.settings)
+            services = [
+                dataclasses.replace(svc, traction_power_cap_w=caps[svc.id])
+                if np.isfinite(caps[svc.id])
+                else svc
+                for svc in op.services
+            ]
+            operated = run_operation(op, services, cache)
+        loads, info = _operated_loads(op, services, operated, str(where), tracks, origin_m)
+        if not loads:
+            raise InputError("no operated train reached the network", file=str(path), field="operation.file",
+                             value=link.file)  # fmt: skip
+        try:
+            result = simulate(network, loads, dt_s=sim.step_s, start_s=sim.start_s, end_s=sim.end_s)
+        except InputError as exc:
+            raise exc.located(str(path)) from None
+        if not fb.enabled:
+            break
+        asked = np.nansum(result.traction_demand_w, axis=0)
+        got = np.nansum(result.traction_delivered_w, axis=0)
+        ratio = np.where(asked > 0, got / np.where(asked > 0, asked, 1.0), 1.0)
+        mismatch = 1.0 - ratio
+        limited = ratio < 1.0 - fb.tolerance
+        consistent = not limited.any()
+        if consistent or iterations >= fb.max_iterations:
+            break
+        short = result.traction_delivered_w < result.traction_demand_w * (1.0 - fb.tolerance)
+        efficiency = {svc.id: svc.train.electrical.traction_efficiency for svc in op.services}
+        for i in np.flatnonzero(limited):
+            tid = result.train_ids[i]
+            delivered = result.traction_delivered_w[short[:, i], i]
+            if delivered.size:
+                # lowered only: a cap raised again could make the iteration cycle
+                caps[tid] = min(caps[tid], float(np.min(delivered)) * efficiency[tid])
+    if not fb.enabled:
+        feedback = {"enabled": False, "iterations": 1, "consistent": True,
+                    "method": "operated trains are solved once: their delays come from the operation"}  # fmt: skip
+        return with_status(dataclasses.replace(result, extra={"operation": info, "feedback": feedback}))
+    arrivals = {o.id: _arrival_s(o) for o in operated.trains}
+    trains = []
+    for tid in result.train_ids:
+        lost = arrivals.get(tid, np.nan) - nominal.get(tid, np.nan)
+        trains.append({
+            "id": tid,
+            "arrival_s": _finite(arrivals.get(tid, np.nan)),
+            "nominal_arrival_s": _finite(nominal.get(tid, np.nan)),
+            # a train that no longer arrives under its cap lost all: no finite figure, said by its status
+            "time_lost_s": float(lost) if np.isfinite(lost) else None,
+            "traction_power_cap_kw": float(caps[tid]) / 1e3 if np.isfinite(caps[tid]) else None,
+            "traction_power_caps_kw": None,
+        })  # fmt: skip
+    feedback = {
+        "enabled": True,
+        "iterations": iterations,
+        "consistent": bool(consistent),
+        "mismatch": float(np.max(mismatch, initial=0.0)),
+        # between services the operation's signalling and dispatching pass the delays on (not the
+        # timetable study's knock_on between departures of one service, which does not apply)
+        "knock_on": True,
+        "buffer_s": None,
+        "method": "constant cap on the traction power at the wheel per operated train for its whole run: least "
+        "power delivered at a limited step; the operation re-simulated with the caps (per-stretch and "
+        "per-step feedback are not done for operated trains)",
+    }
+    return with_status(
+        dataclasses.replace(result, extra={"operation": info, "feedback": feedback, "trains": trains})
+    )
 
 
 def _finite(x: float) -> float | None:
@@ -534,9 +662,9 @@ def run_power_file(
 ) -> tuple[dict[str, Any], str]:
     """Run a power-supply file: (summary, status). With ``out_dir``: ``summary.json``, the time
     series as CSV (``trains.csv``, ``substations.csv``, ``network.csv``) and, with ``plots``, PNG
-    plots (see :mod:`trainsim.power.plots`). With ``operation:`` the operated trains are solved
-    once (their delays come from the operation; voltage-limited traction is reported, not fed
-    back into the operation)."""
+    plots (see :mod:`trainsim.power.plots`). With ``operation:`` the operated trains, with
+    voltage-limited traction fed back into the operation unless ``simulation.feedback.enabled`` is
+    false (then solved once, as before: their delays come from the operation alone)."""
     spec, network, services = load_power_file(path)
     sim = spec.simulation
     if spec.operation is not None:
@@ -549,17 +677,7 @@ def run_power_file(
         if unknown:
             raise InputError("unknown track", file=str(path), field="operation.tracks", value=unknown[0],
                              allowed=", ".join(t.id for t in network.tracks))  # fmt: skip
-        loads, info = operated_train_loads(where, dict(link.tracks), link.origin_km * 1000)
-        if not loads:
-            raise InputError("no operated train reached the network", file=str(path), field="operation.file",
-                             value=link.file)  # fmt: skip
-        try:
-            result = simulate(network, loads, dt_s=sim.step_s, start_s=sim.start_s, end_s=sim.end_s)
-        except InputError as exc:
-            raise exc.located(str(path)) from None
-        feedback = {"enabled": False, "iterations": 1, "consistent": True,
-                    "method": "operated trains are solved once: their delays come from the operation"}  # fmt: skip
-        result = with_status(dataclasses.replace(result, extra={"operation": info, "feedback": feedback}))
+        result = _run_operated(Path(path), spec, network)
     else:
         fb = FeedbackSettings(
         sim.feedback.enabled, sim.feedback.max_iterations, sim.feedback.tolerance, sim.feedback.method,

@@ -15,6 +15,7 @@ from itertools import pairwise
 import numpy as np
 
 from trainsim.constants import KWH
+from trainsim.errors import InputError
 from trainsim.model import Route, SpeedLimit, Station, Train
 from trainsim.model.scenario import RunSettings
 from trainsim.model.spans import route_between
@@ -209,6 +210,7 @@ class RunCache:
         self._routes: dict[tuple, Route] = {}
         self._movements: dict[tuple, Movement] = {}
         self._limit_keys: dict[int, tuple[SpeedLimit, tuple[float, float, float]]] = {}
+        self._capped_trains: dict[tuple[int, float], tuple[Train, Train]] = {}
         self.computed = 0
         self.hits = 0
 
@@ -408,6 +410,23 @@ class RunCache:
         run_s = float(t[-1] - t[0])
         hold = 0.0 if status == "ok" else max(target_s - run_s, 0.0)
         return CappedRun(limit, run_s, hold, status)
+
+    def power_capped(self, train: Train, power_cap_w: float) -> Train:
+        """``train`` with its traction power at the wheel capped at ``power_cap_w`` [W]
+        (``EffortCurve.capped``); ``train`` itself when the cap is infinite. One object per train and
+        cap, kept alive here: the runs are cached by the train's ``id``, which a collected train
+        could hand on to another one."""
+        if not np.isfinite(power_cap_w):
+            return train
+        if not power_cap_w > 0:
+            raise InputError("invalid traction power cap", field="traction_power_cap_w", value=power_cap_w,
+                             allowed="> 0 W, or infinite for none")  # fmt: skip
+        key = (id(train), float(power_cap_w))
+        found = self._capped_trains.get(key)
+        if found is None or found[0] is not train:
+            capped = replace(train, traction=train.traction.capped(power_cap_w=float(power_cap_w)))
+            found = self._capped_trains[key] = (train, capped)
+        return found[1]
 
     def movement(
         self,

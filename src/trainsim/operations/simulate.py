@@ -109,6 +109,9 @@ class TrainService:
             fastest run under a speed cap whose running time is this much longer
             (``RunCache.capped``); its trajectory, blocking times and energy are that run's
             (``TrainOutcome.disturbed``). The planned run does not have it.
+        traction_power_cap_w: cap on the traction power at the wheel of the operated runs [W]
+            (``EffortCurve.capped``; infinite: none). The planned run does not have it, so that a
+            train slowed by it (a weak supply, fed back by the power study) shows as late.
     """
 
     id: str
@@ -122,6 +125,7 @@ class TrainService:
     entry_delay_s: float = 0.0
     origin_track: int | None = None
     running_extra_s: tuple[float, ...] = ()
+    traction_power_cap_w: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -341,6 +345,8 @@ class _TrainState:
         self.cache = cache
         self.path = line.paths[svc.direction]
         self.length_m = svc.train.length_m
+        # the train the operated runs are made with (svc.train itself without a traction power cap)
+        self.train = cache.power_capped(svc.train, svc.traction_power_cap_w)
         path = self.path
         p0 = path.stop_m[svc.origin]
         p1 = path.stop_m[svc.destination]
@@ -401,7 +407,14 @@ class _TrainState:
         if ma_steps is not None:
             self.limits.extend(self._stop_ceilings())
         self.refresh_movement()
-        self.plan_movement = self.movement
+        # the plan is the uncapped train's: a traction power cap is a disturbance of the operation
+        self.plan_movement = (
+            self.movement
+            if self.train is svc.train
+            else cache.movement(
+                svc.train, directed, [(s.name, s.position_m) for s in self.stops], tuple(self.limits)
+            )
+        )
         if any(svc.running_extra_s) and self.movement.status == "ok":
             if disturbed_energy:
                 self._cap_disturbed()
@@ -434,7 +447,7 @@ class _TrainState:
                 continue
             target = float(rt[k] + extra)
             c = self.cache.capped(
-                self.svc.train,
+                self.train,
                 self.directed,
                 (a.name, a.position_m),
                 (b.name, b.position_m),
@@ -494,7 +507,7 @@ class _TrainState:
     # -- runs and trajectories
     def candidate(self, stops: list[_Stop], limits: Sequence[SpeedLimit]) -> Movement:
         return self.cache.movement(
-            self.svc.train, self.directed, [(s.name, s.position_m) for s in stops], tuple(limits)
+            self.train, self.directed, [(s.name, s.position_m) for s in stops], tuple(limits)
         )
 
     def refresh_movement(self) -> None:

@@ -422,16 +422,26 @@ def with_status(result: PowerResult) -> PowerResult:
         )
     trains = [dict(t) for t in result.extra.get("trains", [])]
     for t in trains:
-        t["status"] = "time_lost" if t.get("time_lost_s", 0.0) > TIME_LOST_TOLERANCE_S else "ok"
+        lost = t.get("time_lost_s", 0.0)
+        # None: an operated train that no longer reached its destination under its traction cap
+        t["status"] = "time_lost" if lost is None or lost > TIME_LOST_TOLERANCE_S else "ok"
     late = [t for t in trains if t["status"] == "time_lost"]
     if late:
         found.add("time_lost")
-        worst = max(late, key=lambda t: t["time_lost_s"])
-        total = sum(t["time_lost_s"] for t in late)
-        warnings.append(
-            f"{len(late)} of {len(trains)} departures lost time to voltage-limited traction: {total:.1f} s "
-            f"in all, {worst['time_lost_s']:.1f} s at most ({worst['id']})"
-        )
+        known = [t for t in late if t["time_lost_s"] is not None]
+        if known:
+            worst = max(known, key=lambda t: t["time_lost_s"])
+            total = sum(t["time_lost_s"] for t in known)
+            warnings.append(
+                f"{len(known)} of {len(trains)} departures lost time to voltage-limited traction: {total:.1f} s "
+                f"in all, {worst['time_lost_s']:.1f} s at most ({worst['id']})"
+            )
+        unfinished = [t["id"] for t in late if t["time_lost_s"] is None]
+        if unfinished:
+            warnings.append(
+                f"{len(unfinished)} operated train(s) did not reach their destination under the traction cap "
+                "the line allowed: " + ", ".join(unfinished)
+            )
     offered = float(np.nansum(result.regen_offered_w)) * dt
     curtailed = offered - float(np.nansum(result.regen_accepted_w)) * dt
     if curtailed > _ENERGY_RTOL * max(offered, 1.0):
