@@ -100,8 +100,22 @@ ROWS = "".join(f"  - {{a: {i}, b: -{i}.5, c: yes, d: 012, e: 1e3, f: .inf, g: x_
         "rows:\n" + ROWS + "x: [\n",
         "x: [\n" + ROWS + "]\n",
         "rows:\n" + ROWS + "rows: 2\n",
+        # CRLF line breaks; lines of different lengths and indentations; a comment between runs
+        ("rows:\n" + ROWS).replace("\n", "\r\n"),
+        "rows:\n" + ROWS + "  - {a: 1}\n  # c\n" + ROWS + "deep:\n  - x\n" + ROWS.replace("  - ", "    - "),
     ],
-    ids=["list", "list then more", "block scalar", "quoted", "duplicate", "broken", "flow", "duplicate top"],
+    ids=[
+        "list",
+        "list then more",
+        "block scalar",
+        "quoted",
+        "duplicate",
+        "broken",
+        "flow",
+        "duplicate top",
+        "crlf",
+        "mixed runs",
+    ],
 )
 def test_flow_lines_read_as_every_event_reads_them(text: str) -> None:
     fast, plain = _both_ways(text)
@@ -178,3 +192,11 @@ def test_a_long_list_dumps_as_it_was_read(tmp_path: Path) -> None:
     assert again == route_spec
     assert route_spec.gradients[-1].gradient_permille == (1199 % 7) - 3
     assert route_spec.gradients[5].model_fields_set == {"from_m", "gradient_permille"}
+
+
+def test_the_shortcut_applies_to_a_plain_long_list_only() -> None:
+    """A run of flow lines is one '~' for libyaml; CRLF files and short lists take every event."""
+    shortened, flow = documents._flow_lines("rows:\n" + ROWS, documents.LIMITS)
+    assert list(flow) == [1] and len(flow[1][1]) == 300 and shortened.count("~") == 1
+    assert documents._flow_lines(("rows:\n" + ROWS).replace("\n", "\r\n"), documents.LIMITS)[1] == {}
+    assert documents._flow_lines("rows:\n" + ROWS[: ROWS.index("\n") + 1], documents.LIMITS)[1] == {}

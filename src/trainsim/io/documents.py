@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import gc
+import itertools
 import json
 import re
 from collections.abc import Callable, Sequence
@@ -230,8 +231,10 @@ def _yaml_fail(reason: str, file: str, mark: Any, value: Any = None, allowed: st
 #: short plain scalars (numbers, words): the shape of the long lists of a route (gradients, speed
 #: limits, curves). Values hold none of ``,:{}[]#'"&*!|>%@``, so the line is exactly one flow mapping.
 _FLOW_PAIR = r"[A-Za-z_][A-Za-z0-9_]*: +[-+.]?[A-Za-z0-9_][A-Za-z0-9_.+-]*"
-_FLOW_LINE = re.compile(rf"^( *)- \{{ *({_FLOW_PAIR}(?: *, *{_FLOW_PAIR})*) *\}} *$", re.MULTILINE)
-_FLOW_KEY_VALUE = re.compile(r"([A-Za-z_][A-Za-z0-9_]*): +([^ ,]+)")
+_FLOW_LINE = re.compile(rf"( *)- \{{ *({_FLOW_PAIR}(?: *, *{_FLOW_PAIR})*) *\}} *")
+#: Line breaks of YAML other than "\n" (libyaml counts lines at each).
+_OTHER_BREAKS = ("\r", "\x85", "\u2028", "\u2029")
+_FLOW_KEY_VALUE = re.compile(r"([A-Za-z_][A-Za-z0-9_]*): +([^ ,\n]+)")
 #: Fewest such lines for which they are read by the shortcut (below, the plain event loop is as fast).
 _FLOW_LINES_MIN = 200
 
@@ -258,7 +261,7 @@ def read_yaml_text(text: str, file: str = "<yaml>", limits: DocumentLimits | Non
     limits = limits or LIMITS
     if len(text) > limits.max_bytes:
         raise InputError("document too large", file=file, allowed=f"at most {limits.max_bytes} characters")
-    shortened, flow = _flow_lines(text)
+    shortened, flow = _flow_lines(text, limits)
     if flow:
         try:
             return _read_events(shortened, file, limits, flow)
@@ -267,53 +270,79 @@ def read_yaml_text(text: str, file: str = "<yaml>", limits: DocumentLimits | Non
     return _read_events(text, file, limits, None)
 
 
-def _flow_lines(text: str) -> tuple[str, dict[int, tuple[int, str]]]:
-    """(text with each one-line flow mapping of a block sequence replaced by ``~``, {line (0-based):
-    (column of the ``~``, the mapping's inner text)}); the text unchanged and {} if there are few."""
-    if "- {" not in text:
+def _flow_lines(text: str, limits: DocumentLimits) -> tuple[str, dict[int, tuple[int, list[Any], int]]]:
+    """(text with each run of one-line flow mappings of a block sequence (same indentation, one line
+    after the other) replaced by ``- ~`` on its first line and blank lines, {first line (0-based):
+    (column of the ``~``, the run's mappings, their values as the event loop counts them)}); the
+    text unchanged and {} if there are few such lines, or too many values (the event loop says so)."""
+    if "- {" not in text or any(c in text for c in _OTHER_BREAKS):
+        return text, {}  # line numbers as libyaml counts them are those of "\n" only
+    lines = text.split("\n")
+    matches = list(map(_FLOW_LINE.fullmatch, lines))
+    runs: list[tuple[int, int, list[str]]] = []
+    prev, prev_indent = -2, None
+    for i in [i for i, m in enumerate(matches) if m is not None]:
+        indent, inner = matches[i].group(1, 2)  # type: ignore[union-attr]
+        if i == prev + 1 and indent == prev_indent:
+            runs[-1][2].append(inner)
+            lines[i] = ""  # left blank: the next entry of the same block sequence
+        else:
+            runs.append((i, len(indent) + 2, [inner]))
+            lines[i] = f"{indent}- ~"
+        prev, prev_indent = i, indent
+    inners = [inner for run in runs for inner in run[2]]
+    if len(inners) < _FLOW_LINES_MIN:
         return text, {}
-    flow: dict[int, tuple[int, str]] = {}
-    pieces: list[str] = []
-    last = 0
-    line = 0
-    for m in _FLOW_LINE.finditer(text):
-        start = m.start()
-        line += text.count("\n", last, start)
-        indent = m.group(1)
-        pieces.append(text[last:start])
-        pieces.append(f"{indent}- ~")
-        flow[line] = (len(indent) + 2, m.group(2))
-        last = m.end()
-    if len(flow) < _FLOW_LINES_MIN:
+    counts = [inner.count(",") + 1 for inner in inners]
+    if len(inners) + 2 * sum(counts) > limits.max_nodes:
         return text, {}
-    pieces.append(text[last:])
-    return "".join(pieces), flow
+    pairs = _FLOW_KEY_VALUE.findall("\n".join(inners))
+    if len(pairs) != sum(counts):
+        return text, {}  # not expected from _FLOW_LINE; the event loop reads what the file says
+    key_texts, value_texts = zip(*pairs, strict=True)
+    resolved_keys = {k: _plain_scalar(k) for k in set(key_texts)}
+    keys = list(map(resolved_keys.__getitem__, key_texts))
+    values = _resolve_plain(value_texts)
+    n = counts[0]
+    if all(c == n for c in counts):  # every line with the same number of keys: built in C
+        key_rows = zip(*[iter(keys)] * n, strict=True)
+        rows = list(map(dict, map(zip, key_rows, zip(*[iter(values)] * n, strict=True))))
+        if any(len(row) != n for row in rows):
+            return text, {}  # a duplicate key: the event loop names it and its line
+    else:
+        rows, at = [], 0
+        for c in counts:
+            rows.append(dict(zip(keys[at : at + c], values[at : at + c], strict=True)))
+            at += c
+            if len(rows[-1]) != c:
+                return text, {}
+    flow: dict[int, tuple[int, list[Any], int]] = {}
+    at = 0
+    for first, column, run_inners in runs:
+        size = len(run_inners)
+        flow[first] = (column, rows[at : at + size], size + 2 * sum(counts[at : at + size]))
+        at += size
+    return "\n".join(lines), flow
 
 
-def _flow_mapping(inner: str) -> dict[Any, Any]:
-    """The mapping of a flow line's inner text (``key: value, ...``), resolved as libyaml's events are."""
-    out: dict[Any, Any] = {}
-    cache_get = _PLAIN_CACHE.get
-    pairs = _FLOW_KEY_VALUE.findall(inner)
-    for key_text, value_text in pairs:
-        key = cache_get(key_text, _MISSING)
-        if key is _MISSING:
-            key = _plain_scalar(key_text)
-        value = cache_get(value_text, _MISSING)
-        if value is _MISSING:
-            value = _plain_scalar(value_text)
-        out[key] = value
-    if len(out) != len(pairs) or any(k.__class__ not in _IMMUTABLE for k in out):
-        raise _FallbackError  # the event loop names the duplicate key and its line
+def _resolve_plain(texts: Sequence[str]) -> list[Any]:
+    """:func:`_plain_scalar` of many texts (decimal integers, the usual positions, in one pass)."""
+    out = list(map(_PLAIN_CACHE.get, texts, itertools.repeat(_MISSING)))
+    missing = [i for i, v in enumerate(out) if v is _MISSING]
+    fullmatch = _DECIMAL_INT.fullmatch
+    for i in missing:
+        t = texts[i]
+        out[i] = int(t) if fullmatch(t) else _plain_scalar(t)
     return out
 
 
 def _read_events(
-    text: str, file: str, limits: DocumentLimits, flow: dict[int, tuple[int, str]] | None
+    text: str, file: str, limits: DocumentLimits, flow: dict[int, tuple[int, list[Any], int]] | None
 ) -> Any:
     """The document of ``text`` read event by event; ``flow``: the lines of :func:`_flow_lines`."""
     substituted = 0
-    extra = 0  # values of a mapping read from a flow line, beyond its own node
+    extra = 0  # values of a run of flow lines, beyond the node of its '~'
+    run = False  # the value is a run of flow lines' mappings, to extend the sequence with
     anchors: dict[str, tuple[Any, int]] = {}
     stack: list[_Frame] = []
     root: Any = None
@@ -336,14 +365,20 @@ def _read_events(
                         if flow and value is None and event.value == "~":
                             where = flow.get(event.start_mark.line)
                             if where is not None:
-                                if where[0] != event.start_mark.column or event.anchor is not None:
+                                # the run's first entry must come back where it was, as an entry
+                                # of a block sequence within the depth limit
+                                if (
+                                    where[0] != event.start_mark.column
+                                    or event.anchor is not None
+                                    or not stack
+                                    or stack[-1].container.__class__ is not list
+                                    or len(stack) >= limits.max_depth
+                                ):
                                     raise _FallbackError
-                                if len(stack) >= limits.max_depth:
-                                    raise _FallbackError
-                                value = _flow_mapping(where[1])
+                                value = where[1]
+                                run = True
                                 substituted += 1
-                                # the mapping and its keys and values, as the event loop counts them
-                                extra = 2 * len(value)
+                                extra = where[2] - 1
                     else:
                         value = event.value
                 elif tag in _SCALAR_TAGS:
@@ -420,7 +455,11 @@ def _read_events(
             parent.nodes += nodes
             container = parent.container
             if container.__class__ is list:
-                container.append(value)
+                if run:
+                    container.extend(value)
+                    run = False
+                else:
+                    container.append(value)
             elif not parent.has_key:
                 if value.__class__ not in _IMMUTABLE and not isinstance(value, _MergeKey):
                     _yaml_fail("a key must be text or a number", file, event.start_mark, allowed="plain keys")
