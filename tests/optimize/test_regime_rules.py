@@ -158,11 +158,20 @@ def test_a_minimum_the_schedule_does_not_allow_is_said(metro, tmin):
         )
 
 
-def test_strategies_without_the_rules_say_so(metro):
+@pytest.mark.parametrize("strategy", ["lesov", "fastest"])
+def test_strategies_without_the_rules_refuse_them(metro, strategy):
+    """Run without the rules, their warning made the status "infeasible schedule" (issue 13)."""
     train, route, _, tt = metro
-    res = optimize(train, route, tt, "lesov", constraints=DrivingConstraints(coast_min_speed_mps=60 * KMH))
-    assert any("does not apply" in w for w in res.warnings)
-    assert np.isfinite(res.run.energy_kwh.net)
+    for rules in (
+        DrivingConstraints(coast_min_speed_mps=60 * KMH),
+        DrivingConstraints(min_regime_time_s=5.0),
+    ):
+        with pytest.raises(InputError) as err:
+            optimize(train, route, tt, strategy, constraints=rules)
+        assert f"strategy {strategy} does not apply them" in str(err.value)
+    # the other constraints still apply to every strategy
+    res = optimize(train, route, tt, strategy, constraints=DrivingConstraints(speed_margin_mps=1.0))
+    assert res.summary()["status"] == "ok" and np.isfinite(res.run.energy_kwh.net)
 
 
 def test_reference_coasts_only_above_the_speed(metro):

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from trainsim.cli.context import exit_for_status, require_file, user_errors
+from trainsim.cli.context import exit_for_status, require_input, user_errors
 from trainsim.errors import InputError
 
 if TYPE_CHECKING:
@@ -124,6 +124,15 @@ def multipoint(
 ) -> None:
     """Run a scenario with the multi-point model (the same as `trainsim run` on such a scenario)."""
     with user_errors():
-        require_file(scenario, "scenario file")
+        require_input(scenario, "scenario file")
+        if scenario.is_dir():
+            # trainsim check reads a CSV folder as a train and a route (issue 13): say why it is no
+            # multi-point scenario, as for a trainsim scenario without 'model: multi_point'
+            raise InputError(
+                "a folder of CSV tables is a train and a route, not a multi-point scenario; write a scenario "
+                "file with 'model: multi_point' that names them",
+                file=str(scenario),
+                field="model",
+            )
         status = run_and_report(scenario, out, as_json, not plots)
     exit_for_status(status)

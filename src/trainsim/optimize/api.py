@@ -266,6 +266,24 @@ def optimize(
         train, route = constrained_train(train, constraints), constrained_route(route, constraints)
     if strategy not in STRATEGIES:
         raise InputError("unknown strategy", field="strategy", value=strategy, allowed=", ".join(STRATEGIES))
+    if constraints is not None and constraints.regime_rules and strategy not in REGIME_RULE_STRATEGIES:
+        # lesov and fastest drive by their own rule: run without the rules, their warning turned the
+        # status into "infeasible schedule" for a timetable that can be met (issue 16)
+        asked = [
+            name
+            for name, value in (
+                ("min_regime_time_s", constraints.min_regime_time_s),
+                ("coast_min_speed_mps", constraints.coast_min_speed_mps),
+            )
+            if value > 0.0
+        ]
+        raise InputError(
+            f"{' and '.join(asked)} apply to the {' and '.join(REGIME_RULE_STRATEGIES)} strategies; "
+            f"strategy {strategy} does not apply them",
+            field=f"constraints.{asked[0]}",
+            value=strategy,
+            allowed=f"strategy {' or '.join(REGIME_RULE_STRATEGIES)}, or no driving rules",
+        )
     fastest = run_fastest(train, route, settings)
     if fastest.status != "ok":
         raise InputError(
@@ -275,12 +293,7 @@ def optimize(
         return _run_reference(train, route, timetable, settings, fastest, constraints)
     if strategy == "optimal" and constraints is not None and constraints.regime_rules:
         return _run_optimal(train, route, timetable, settings, fastest, constraints)
-    result = STRATEGIES[strategy](train, route, timetable, settings, fastest)
-    if constraints is not None and constraints.regime_rules:
-        # said, never silently dropped: only the optimal strategy and the reference apply them
-        note = f"the {strategy} strategy does not apply the minimum regime time or the lowest coasting speed"
-        result = dataclasses.replace(result, warnings=(*result.warnings, note))
-    return result
+    return STRATEGIES[strategy](train, route, timetable, settings, fastest)
 
 
 def _result(
@@ -509,6 +522,10 @@ def _fastest_result(train, route, timetable, settings, fastest) -> OptimizationR
         "fastest", train, route, settings, fastest, plans, targets, [], timetable.timing_points, solvers
     )
 
+
+#: The strategies that keep the driving rules min_regime_time_s and coast_min_speed_mps (the reference
+#: bounds the coasting speed and reports arcs shorter than the minimum regime time).
+REGIME_RULE_STRATEGIES = ("optimal", "reference")
 
 STRATEGIES: dict[str, Callable[..., OptimizationResult]] = {
     "fastest": _fastest_result,
