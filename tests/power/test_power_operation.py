@@ -74,7 +74,9 @@ def test_power_file_with_an_operation_runs_with_its_balance(tmp_path):
     assert summary["energy_balance_error"] < 1e-6
     assert summary["operation"]["file"] == OPERATION
     assert len(summary["trains"]) == 14
-    assert summary["feedback"]["enabled"] is False
+    # feedback on (the default): the reversible network limits no train, so one iteration and no cap
+    assert summary["feedback"]["enabled"] is True and summary["feedback"]["iterations"] == 1
+    assert all(t["traction_power_cap_kw"] is None and t["time_lost_s"] == 0.0 for t in summary["trains"])
     assert all(t["traction_demand_kwh"] > 0 for t in summary["trains"])
 
 
