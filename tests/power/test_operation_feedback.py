@@ -101,7 +101,8 @@ def test_without_feedback_the_weak_network_is_traction_limited(weak):
         "enabled": False,
         "iterations": 1,
         "consistent": True,
-        "method": "operated trains are solved once: their delays come from the operation",
+        "method": "none",
+        "note": "operated trains are solved once: their delays come from the operation",
     }
     assert off["energy_balance_error"] < 1e-6
 
@@ -110,7 +111,7 @@ def test_without_feedback_the_weak_network_is_traction_limited(weak):
 def test_feedback_converges_and_reports_time_lost_instead(weak):
     on, _ = weak
     fb = on["feedback"]
-    assert fb["enabled"] and fb["consistent"]
+    assert fb["enabled"] and fb["consistent"] and fb["method"] == "per_train"
     assert 1 < fb["iterations"] <= 10
     assert fb["mismatch"] <= 1e-3
     assert "traction_limited" not in on["statuses"] and "feedback_not_converged" not in on["statuses"]

@@ -620,7 +620,8 @@ def _run_operated(path: Path, spec: PowerFile, network: Network) -> Any:
                 caps[tid] = min(caps[tid], float(np.min(delivered)) * efficiency[tid])
     if not fb.enabled:
         feedback = {"enabled": False, "iterations": 1, "consistent": True,
-                    "method": "operated trains are solved once: their delays come from the operation"}  # fmt: skip
+                    "method": "none",
+                    "note": "operated trains are solved once: their delays come from the operation"}  # fmt: skip
         return with_status(dataclasses.replace(result, extra={"operation": info, "feedback": feedback}))
     arrivals = {o.id: _arrival_s(o) for o in operated.trains}
     trains = []
@@ -644,7 +645,9 @@ def _run_operated(path: Path, spec: PowerFile, network: Network) -> Any:
         # timetable study's knock_on between departures of one service, which does not apply)
         "knock_on": True,
         "buffer_s": None,
-        "method": "constant cap on the traction power at the wheel per operated train for its whole run: least "
+        # a method name like the timetable study's (constant, per_stretch, per_step); what it means in note
+        "method": "per_train",
+        "note": "constant cap on the traction power at the wheel per operated train for its whole run: least "
         "power delivered at a limited step; the operation re-simulated with the caps (per-stretch and "
         "per-step feedback are not done for operated trains)",
     }
