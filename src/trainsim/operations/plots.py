@@ -85,18 +85,31 @@ def train_graph(line: Line, result: OperationResult, path: Path, max_trains: int
 
 def delay_plot(line: Line, result: OperationResult, path: Path) -> Path:
     """Delay of each train at each station (departure, arrival at the destination) [s]."""
+    from matplotlib.lines import Line2D
+
     plt, fig, ax = _figure(10, 5)
     order = {s.name: i for i, s in enumerate(line.stations)}
-    for t in result.trains[:200]:
+    shown = result.trains[:200]
+    named = 0
+    for t in shown:
         xs = [order[s.station] for s in t.stops if s.delay_s is not None]
         ys = [s.delay_s for s in t.stops if s.delay_s is not None]
         if xs:
-            ax.plot(xs, ys, "o-", ms=3, lw=0.8, label=t.id if len(result.trains) <= 12 else None)
+            # the first 12 trains by name in the legend, the others summed up in one entry
+            ax.plot(xs, ys, "o-", ms=3, lw=0.8, label=t.id if named < 12 else None)
+            named += 1
+    ax.axhline(0.0, color="0.6", lw=0.6)
     ax.set_xticks(range(len(line.stations)), [s.name for s in line.stations])
+    ax.set_xlabel("station (in line order)")
     ax.set_ylabel("delay [s]")
-    ax.set_title("delay per station")
-    if len(result.trains) <= 12:
-        ax.legend(fontsize=7)
+    ax.set_title("delay per station (departure; arrival at the destination)")
+    handles, labels = ax.get_legend_handles_labels()
+    if named > 12:
+        handles.append(Line2D([], [], color="0.5", marker="o", ms=3, lw=0.8))
+        labels.append(f"... {named - 12} more trains")
+    if not handles:
+        handles, labels = [Line2D([], [], color="0.5", lw=0.8)], ["no train delays known"]
+    ax.legend(handles, labels, fontsize=7, title="train", title_fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
