@@ -8,7 +8,7 @@ import numpy as np
 
 from trainsim.power.simulation import PowerResult
 
-__all__ = ["save_plots", "write_outputs"]
+__all__ = ["moving_rms_a", "save_plots", "substation_current_figure", "write_outputs"]
 
 
 def write_outputs(result: PowerResult, out: Path, *, plots: bool = True) -> list[Path]:
@@ -80,7 +80,9 @@ def write_outputs(result: PowerResult, out: Path, *, plots: bool = True) -> list
 def save_plots(result: PowerResult, out: Path) -> list[Path]:
     """PNG plots: pantograph voltage over time and over position (with the EN 50163 limits),
     substation power over time, energy per substation and the fate of regenerated energy, rail
-    potential extremes over time (DC with rail-to-earth conductance)."""
+    potential extremes over time (DC with rail-to-earth conductance), train current over time,
+    substation current with its moving RMS over 1 min / 15 min / 1 h and the overload events,
+    network losses over time, stray current over time (where defined) and time lost per train."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -169,4 +171,120 @@ def save_plots(result: PowerResult, out: Path) -> list[Path]:
         ax.set(xlabel="time [s]", ylabel="rail-to-earth potential [V]", title="Rail potential extremes")
         ax.legend(fontsize=8)
         save(fig, "rail_potential.png")
+
+    fig, ax = plt.subplots(figsize=(10, 4.5))
+    for k, tid in enumerate(result.train_ids):
+        ax.plot(result.time_s, result.train_current_a[:, k], lw=0.7, label=tid)
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set(xlabel="time [s]", ylabel="train current [A] (negative: regenerating)", title="Train current")
+    if len(result.train_ids) <= 24:
+        ax.legend(fontsize=7, ncol=6)
+    save(fig, "train_current.png")
+
+    save(substation_current_figure(result, plt), "substation_current.png")
+
+    fig, ax = plt.subplots(figsize=(10, 4))
+    ax.plot(result.time_s, result.line_loss_w / 1e3, lw=0.7, label="line")
+    ax.plot(result.time_s, result.substation_loss_w / 1e3, lw=0.7, label="substations")
+    ax.plot(result.time_s, (result.line_loss_w + result.substation_loss_w) / 1e3, lw=0.7, label="total")
+    ax.set(
+        xlabel="time [s]",
+        ylabel="losses [kW]",
+        title=f"Network losses ({s['losses_kwh']:.1f} kWh in total)",
+    )
+    ax.legend(fontsize=8)
+    save(fig, "losses.png")
+
+    stray = result.stray_current_a
+    if stray is not None and np.any(np.isfinite(stray)):
+        fig, ax = plt.subplots(figsize=(10, 4))
+        ax.plot(result.time_s, stray, lw=0.7, label="stray current")
+        ax.axhline(float(np.nanmean(stray)), color="0.5", lw=0.8, ls="--", label="mean")
+        ax.set(
+            xlabel="time [s]",
+            ylabel="stray current [A]",
+            title=f"Stray current ({s['stray_current_a']['charge_ah']:.2f} Ah leaked)",
+        )
+        ax.legend(fontsize=8)
+        save(fig, "stray_current.png")
+
+    lost = [(t["id"], t.get("time_lost_s")) for t in s["trains"]]
+    if any(v is not None for _, v in lost):
+        from trainsim.power.study import TIME_LOST_TOLERANCE_S
+
+        fig, ax = plt.subplots(figsize=(10, 4))
+        ids = [tid for tid, _ in lost]
+        ax.bar(ids, [np.nan if v is None else v for _, v in lost], label="time lost")
+        ax.axhline(0, color="k", lw=0.5)
+        ax.axhline(TIME_LOST_TOLERANCE_S, color="tab:red", lw=0.8, ls="--", label="tolerance")
+        ax.set(xlabel="train", ylabel="time lost [s]", title="Running time lost to limited traction")
+        ax.tick_params(axis="x", labelrotation=90 if len(ids) > 12 else 0, labelsize=7)
+        ax.legend(fontsize=8)
+        save(fig, "time_lost.png")
     return written
+
+
+def moving_rms_a(result: PowerResult, window_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Moving RMS current of every substation over ``window_s`` [A], [step, substation], with the
+    time at the end of each window [s]; empty when the run is shorter than the window. Its maximum
+    is ``PowerResult.rms_current_a(window_s)``."""
+    n = round(window_s / result.dt_s)
+    i2 = result.substation_current_a**2
+    if n < 1 or n > len(result.time_s):
+        return np.empty(0), np.empty((0, i2.shape[1]))
+    c = np.vstack([np.zeros((1, i2.shape[1])), np.cumsum(i2, axis=0)])
+    return result.time_s[n - 1 :], np.sqrt((c[n:] - c[:-n]) / n)
+
+
+def substation_current_figure(result: PowerResult, plt):
+    """Substation current over time with the overload events shaded (top) and its moving RMS over
+    the windows of ``RMS_WINDOWS_S`` (bottom); each RMS line has the gid ``rms_<window>s_<id>``."""
+    from trainsim.power.simulation import RMS_WINDOWS_S
+
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    shaded = False
+    for si, sub in enumerate(result.network.substations):
+        color = colors[si % len(colors)]
+        a1.plot(result.time_s, result.substation_current_a[:, si], lw=0.7, color=color, label=sub.id)
+        for ev in result.overload_events(si):
+            a1.axvspan(
+                ev["start_s"],
+                ev["start_s"] + ev["duration_s"],
+                color="tab:red",
+                alpha=0.5 if ev["beyond_overload"] else 0.2,
+                lw=0,
+                label=None if shaded else "overload (above rated power)",
+            )
+            shaded = True
+        for window, ls in zip(RMS_WINDOWS_S, ("-", "--", ":"), strict=False):
+            t, rms = moving_rms_a(result, window)
+            if len(t):
+                a2.plot(
+                    t,
+                    rms[:, si],
+                    lw=0.9,
+                    ls=ls,
+                    color=color,
+                    gid=f"rms_{int(window)}s_{sub.id}",
+                    label=f"{sub.id} {_window_label(window)}",
+                )
+    a1.axhline(0, color="k", lw=0.5)
+    a1.set(ylabel="current [A]", title="Substation current (red: overload events)")
+    a1.legend(fontsize=7, ncol=5)
+    a2.set(
+        xlabel="time [s] (end of the window)",
+        ylabel="moving RMS current [A]",
+        title="Moving RMS substation current (solid 1 min, dashed 15 min, dotted 1 h)",
+    )
+    if a2.lines:
+        a2.legend(fontsize=6, ncol=6)
+    return fig
+
+
+def _window_label(window_s: float) -> str:
+    if window_s >= 3600 and window_s % 3600 == 0:
+        return f"{int(window_s // 3600)} h"
+    if window_s >= 60 and window_s % 60 == 0:
+        return f"{int(window_s // 60)} min"
+    return f"{window_s:g} s"
