@@ -48,3 +48,15 @@ def test_delay_plot_has_a_legend_and_axis_units(tmp_path, monkeypatch) -> None:
     assert legend is not None and [t.get_text() for t in legend.get_texts()]
     assert "[s]" in ax.get_ylabel() and ax.get_xlabel()
     assert (tmp_path / "delays.png").stat().st_size > 0
+
+
+def test_every_deadlocked_train_names_its_holder() -> None:
+    _line, res = _deadlocked()
+    assert res.status == "deadlock"
+    stuck = [t.id for t in res.trains if t.status == "deadlocked"]
+    assert len(res.deadlock) == len(stuck) == 5
+    ids = {"up1", "up2", "up3", "down1", "down2"}
+    for entry in res.deadlock:
+        assert "(held by " in entry, entry
+        holder = entry.split("(held by ", 1)[1].split(")", 1)[0]
+        assert holder in ids and not entry.startswith(f"train {holder} ")

@@ -1188,14 +1188,19 @@ def simulate(
             waits = ""
             if st.pending_step() is not None:
                 _j, step = st.pending_step()
+                # every route the train asks for together (a single-track section is requested with
+                # the loop track behind it): the holder may be on the second one
                 blockers = sorted(
                     {
                         f"{res.name} (held by {states[dispatcher.holder[res.name]].svc.id})"
-                        for r in step.alternatives
+                        for choice in dispatcher._choices(st)
+                        for _k, r in choice
                         for res in r.resources
                         if res.name in dispatcher.holder and dispatcher.holder[res.name] != st.index
                     }
                 )
+                if not blockers:
+                    blockers = ["no resource held by another train"]
                 waits = f" waits for route '{step.alternatives[0].name}': " + ", ".join(blockers)
             deadlock.append(f"train {st.svc.id}{waits}")
     outcomes = []
