@@ -35,6 +35,7 @@ from trainsim.sim.kernel import (
     P_WEIGHT,
     REGEN,
     TRACTION,
+    acceleration,
     distance_to_speed,
     effort,
     resistance_force,
@@ -84,6 +85,48 @@ def phi_step(phi, E0, E1, u, h, b0, b1, P, mu, Em=-1.0):
     k3 = phi_slope(phi + 0.5 * h * k2, Em, u + 0.5 * h, b0, b1, P, mu)
     k4 = phi_slope(phi + h * k3, E1, u + h, b0, b1, P, mu)
     return phi + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+#: Longest RK4 step of the adjoint as a share of the motion's length scale 2E / |a| = v^2 / |a| [-]
+#: (``PHI_MAX_SUBSTEPS`` sub-steps per step at most). The adjoint's slope carries mu / v^3, whose
+#: relative rate of change along the track is 3 |a| / v^2: braking to the stop below 4 m/s it changes
+#: by a factor of 3 to 4 over a 20 m step, and one RK4 step put the adjoint's zero (where the final
+#: braking meets the service braking curve) millimetres off, moving with the step (freight: the final
+#: phase ended 1.1 ms later at 10 m than at 20 m, and the line's holding speed moved by 1e-6 with it,
+#: issue 13).
+#: At cruising speeds (20 m/s, 0.05 m/s^2: a scale of 8 km) one step is one sub-step, as before.
+PHI_LENGTH_SCALE_FRACTION = 0.02
+PHI_MAX_SUBSTEPS = 256
+
+
+@njit(cache=True)
+def phi_advance(phi, E0, E1, u, h, mode, line, P, curves, kinks, mu, Em):
+    """phi after a step h [m] from offset u along ``mode`` (E0 -> E1, ``Em`` at the midpoint; kinks
+    ``kinks``; line = (a0, a1, b0, b1)): ``phi_step``, divided into sub-steps where the speed
+    changes fast against the step (``PHI_LENGTH_SCALE_FRACTION``), E at the sub-steps' ends and
+    midpoints integrated in the regime (``step_energy``)."""
+    b0, b1 = line[2], line[3]
+    n = 1
+    if mode != CRUISE and h > 0.0:
+        # the length scale at the slower end of the step (the adjoint's slope is steepest there)
+        Elow, ulow = (E0, u) if E0 <= E1 else (E1, u + h)
+        a = abs(acceleration(mode, Elow, ulow, line, P, curves))
+        if Elow > 0.0 and a > 0.0:
+            n = int(np.ceil(h * a / (PHI_LENGTH_SCALE_FRACTION * 2.0 * Elow)))
+            n = min(max(n, 1), PHI_MAX_SUBSTEPS)
+    if n == 1:
+        return phi_step(phi, E0, E1, u, h, b0, b1, P, mu, Em)
+    d = h / n
+    E = E0
+    for k in range(n):
+        uk = u + k * d
+        Ek_mid = step_energy(E, uk, 0.5 * d, mode, line, P, curves, kinks)
+        Ek1 = E1 if k == n - 1 else step_energy(E, uk, d, mode, line, P, curves, kinks)
+        if Ek1 <= 0.0 or Ek_mid <= 0.0:
+            break  # (the step ends at rest: the adjoint is not followed into standstill)
+        phi = phi_step(phi, E, Ek1, uk, d, b0, b1, P, mu, Ek_mid)
+        E = Ek1
+    return phi
 
 
 @njit(cache=True)
@@ -239,9 +282,10 @@ def final_phase_modes(
                     E1 = 0.5 * v1 * v1
             cut = False
             phi1 = phi
-            if v > PHI_MIN_SPEED:
+            if v > PHI_MIN_SPEED and force_mode < 0:
+                # (a fixed regime does not follow the adjoint: its sub-steps would cost for nothing)
                 Em = E if mode == CRUISE else step_energy(E, u, 0.5 * h, mode, line, P, curves, kinks)
-                phi1 = phi_step(phi, E, E1, u, h, b0[i], b1[i], P, mu, Em)
+                phi1 = phi_advance(phi, E, E1, u, h, mode, line, P, curves, kinks, mu, Em)
             if v1 >= v_hold and phi1 > inv_eta_t * (1.0 - 1e-9):
                 phi1 = inv_eta_t * (1.0 - 1e-9)
             new_mode = mode_of(phi1, inv_eta_t, eta_r, has_regen)
@@ -268,7 +312,7 @@ def final_phase_modes(
                     Emt = (
                         E if mode == CRUISE else step_energy(E, u, 0.5 * h_try, mode, line, P, curves, kinks)
                     )
-                    g = phi_step(phi, E, Et, u, h_try, b0[i], b1[i], P, mu, Emt) - thr
+                    g = phi_advance(phi, E, Et, u, h_try, mode, line, P, curves, kinks, mu, Emt) - thr
                     if (g > 0.0) == (phi > thr):
                         lo_h = h_try
                     else:
