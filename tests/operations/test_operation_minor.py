@@ -60,3 +60,18 @@ def test_every_deadlocked_train_names_its_holder() -> None:
         assert "(held by " in entry, entry
         holder = entry.split("(held by ", 1)[1].split(")", 1)[0]
         assert holder in ids and not entry.startswith(f"train {holder} ")
+
+
+def test_the_disturbed_metro_example_runs_a_monte_carlo_study() -> None:
+    import json
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-m", "trainsim", "operate", "examples/operations/metro_disturbed.yaml"]
+    done = subprocess.run([*cmd, "--samples", "3", "--json"], capture_output=True, text=True, timeout=600)
+    assert done.returncode in (0, 3), done.stderr
+    mc = json.loads(done.stdout)["monte_carlo"]
+    assert mc["samples"] == 3 and sum(mc["statuses"].values()) == 3
+    assert set(mc["total_delay_s"]) >= {"mean", "p50", "p95", "max"}
+    assert mc["total_delay_s"]["max"] > 0  # the disturbances do delay the trains
+    assert len(mc["trains"]) == 14 and all("mean" in t["delay_s"] for t in mc["trains"])
