@@ -117,3 +117,32 @@ def test_runtimes(tmp_path, name, extra):
     result = runner.invoke(app, ["runtimes", str(DATA / name), str(out), *extra])
     assert result.exit_code == 0, result.output
     assert "calculated" in out.read_text()
+
+
+@pytest.mark.parametrize(
+    ("name", "old", "new", "element"),
+    [
+        (
+            "testline_railml2.xml",
+            '<ocpTT ocpRef="ocpB" sequence="2"',
+            '<ocpTT ocpRef="ocpB" sequence="1,5"',
+            "<ocpTT> @sequence",
+        ),
+        (
+            "testline_railml3.xml",
+            '<baseItineraryPoint id="bp1" locationRef="opA">',
+            '<baseItineraryPoint id="bp1" locationRef="opA" sequence="1,5">',
+            "<baseItineraryPoint id='bp1'> @sequence",
+        ),
+    ],
+)
+def test_check_names_a_sequence_that_is_not_a_whole_number(tmp_path, name, old, new, element):
+    # issue 13: "1,5" was sorted as 0 and the route then failed with "no way from ... to ...", which
+    # names the wrong thing
+    text = railml(name, **{old: new})
+    bad = tmp_path / "bad.xml"
+    bad.write_text(text)
+    result = runner.invoke(app, ["check", str(bad)])
+    assert result.exit_code == 2, result.output
+    assert element in result.output and "'1,5'" in result.output, result.output
+    assert f"line {line_of(text, new)}" in result.output

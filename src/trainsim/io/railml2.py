@@ -120,7 +120,6 @@ def detect(root: etree._Element) -> str | None:
     return version if version.startswith("2") else None
 
 
-
 # ====================================================================== reading
 class Railml2(Dialect):
     """What railML 2 names and places its own way (the rest of the reading:
@@ -228,7 +227,9 @@ class Railml2(Dialect):
             container = child(part, "ocpsTT")
             self.r.usage.use(container)
             items = children(container, "ocpTT")
-            items.sort(key=lambda o: rc.sort_number(o.get("sequence")))
+            # a sequence that is not a whole number is a problem named with its element (it was sorted
+            # as 0, and the route then failed later with a message about the wrong thing)
+            items.sort(key=lambda o: rc.attr_int(o, "sequence", self.r.problems))
             for o in items:
                 # a train part starting where the previous one ended: the junction once
                 if ocps and o.get("ocpRef") == ocps[-1].get("ocpRef"):
@@ -261,7 +262,9 @@ class Railml2(Dialect):
             t = chosen[0]
             self.r.usage.use(t)
             arr = rc.parse_clock(t.get("arrival"), rc.attr_int(t, "arrivalDay", self.r.problems, high=366))
-            dep = rc.parse_clock(t.get("departure"), rc.attr_int(t, "departureDay", self.r.problems, high=366))
+            dep = rc.parse_clock(
+                t.get("departure"), rc.attr_int(t, "departureDay", self.r.problems, high=366)
+            )
             for attr, value in (("arrival", arr), ("departure", dep)):
                 if t.get(attr) is not None and value is None:
                     self.r.problems.add(t, "not a time hh:mm:ss", attribute=attr, value=t.get(attr))
@@ -356,7 +359,6 @@ class Railml2(Dialect):
                     self.r.within(cs, pos, begin, end)
                     locations.setdefault(ref, []).append((tid, pos))
         return net, locations, origins
-
 
     def line_data(self, topology: Topology) -> dict[str, Any]:
         data = self._line_data(topology.net)
@@ -494,7 +496,9 @@ class Railml2(Dialect):
                 limiting = (rc.ext(el, "limitingGradient") or "false").lower() == "true"
                 spans["tunnel"].append(Span(tid, a, b, limiting, el))
             for el in children(child(elements, "mileageChanges"), "mileageChange"):
-                self.r.usage.skip(el, "positions are read from pos (distance along the track), not the mileage")
+                self.r.usage.skip(
+                    el, "positions are read from pos (distance along the track), not the mileage"
+                )
         return {"speed": speed, **spans}
 
     def _same_position(self, changes: Sequence[tuple[float, Any, etree._Element]], what: str) -> None:
@@ -507,7 +511,6 @@ class Railml2(Dialect):
                     attribute="pos",
                     value=p1,
                 )
-
 
     # ------------------------------------------------------------------ rolling stock
     def vehicle_equipment(self, v: etree._Element, src: rc.VehicleSource) -> None:
@@ -625,8 +628,6 @@ class Railml2(Dialect):
             out["regenerative_efficiency"] = regen
         rc.extension_numbers(prop, out, (("power_factor", "powerFactor"), ("receptivity", "receptivity")))
         form.electrical = out
-
-
 
 
 class _Tracks(Topology):

@@ -473,14 +473,13 @@ class Railml3(Dialect):
         for c in base.iterancestors():
             self.r.usage.use(c)
         bips = children(base, "baseItineraryPoint")
-        bips.sort(key=lambda b: rc.sort_number(b.get("sequence")))
+        # a sequence that is not a whole number is a problem named with its element, not sorted as 0
+        bips.sort(key=lambda b: rc.attr_int(b, "sequence", self.r.problems))
         for k, bip in enumerate(bips):
             self.r.usage.use(bip)
             ref = bip.get("locationRef")
             if ref not in points:
-                p.add(
-                    bip, "locationRef to an unknown operationalPoint", attribute="locationRef", value=ref
-                )
+                p.add(bip, "locationRef to an unknown operationalPoint", attribute="locationRef", value=ref)
                 continue
             arr, dep = self._times(bip)
             dwell = rc.parse_duration(rc.ext(bip, "dwell"))
@@ -630,9 +629,7 @@ class Railml3(Dialect):
         vt = _table_below(child(v, "brakes"), "decelerationTable")
         if vt is not None:
             self.r.usage.use(child(v, "brakes"), deep=True)
-            src.deceleration = rc.read_value_table(
-                vt, p, y_dimensions=("acceleration",), usage=self.r.usage
-            )
+            src.deceleration = rc.read_value_table(vt, p, y_dimensions=("acceleration",), usage=self.r.usage)
 
     def formation_data(self, formation: etree._Element, form: rc.FormationSource) -> None:
         p = self.r.problems
@@ -691,8 +688,6 @@ class Railml3(Dialect):
         form.electrical = out
 
 
-
-
 class NetElements(Topology):
     """railML 3 netElements; operational points placed by their ``spotLocation``."""
 
@@ -736,7 +731,6 @@ def _table_below(el: etree._Element | None, container: str) -> etree._Element | 
         if vt is not None:
             return vt
     return None
-
 
 
 def read_railml3(
