@@ -216,7 +216,7 @@ def test_large_yaml_reads_within_memory(tmp_path: Path) -> None:
 
 
 def test_long_route_loads_in_less_cpu_than_pyyaml_alone(tmp_path: Path) -> None:
-    # benchmarks/bench_load.py at a tenth of its size: the whole load (bounded reading, validation,
+    # benchmarks/bench_yaml_load.py at a twentieth of its size: the whole load (bounded reading, validation,
     # the Route) costs less CPU than PyYAML's C loader alone on the same text (measured: a third)
     import trainsim
 
