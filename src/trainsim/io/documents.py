@@ -487,8 +487,18 @@ def _read_events(
                 parent.has_key = False
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
+        line = mark.line + 1 if mark else None
+        if "maximum nesting depth" in str(exc.problem):
+            # libyaml 0.2.6+ (PyYAML 6.0.4's wheels) stops deep flow nesting itself, before the events
+            # reach our own depth check: the same message and range either way
+            raise InputError(
+                "invalid YAML: nested too deep",
+                file=file,
+                line=line,
+                allowed=f"at most {limits.max_depth} levels of nesting",
+            ) from exc
         reason = " ".join(str(x) for x in (exc.context, exc.problem) if x)
-        raise InputError(f"invalid YAML: {reason}", file=file, line=mark.line + 1 if mark else None) from exc
+        raise InputError(f"invalid YAML: {reason}", file=file, line=line) from exc
     except yaml.YAMLError as exc:
         raise InputError(f"invalid YAML: {exc}", file=file) from exc
     except InputError:
