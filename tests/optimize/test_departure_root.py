@@ -6,30 +6,13 @@ last descent at 31276.57 / 31276.92 / 31275.63 m at steps of 20 / 10 / 5 m."""
 
 from __future__ import annotations
 
-import dataclasses
-import warnings
-from pathlib import Path
-
 import numpy as np
 import pytest
+from optimize_freight_case import FREIGHT_V, freight_section_2
 
-import trainsim
 from trainsim.optimize import pmp_kernel as pk
-from trainsim.optimize.api import _solvers
 from trainsim.optimize.optimal import SectionSolver
 from trainsim.sim import kernel
-
-ROOT = Path(__file__).resolve().parents[2]
-#: A holding speed near the one that meets the freight example's 10 % line supplement [m/s].
-FREIGHT_V = 21.79205
-
-
-def _freight_section_2(step_m: float) -> SectionSolver:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        scenario = trainsim.load_scenario(ROOT / "examples" / "freight_000" / "scenario.yaml")
-    settings = dataclasses.replace(scenario.settings, max_step_m=step_m)
-    return _solvers(scenario.train, scenario.route, settings)[1]
 
 
 def _descent_departure(solver: SectionSolver) -> tuple[float, list]:
@@ -56,8 +39,8 @@ def _descent_departure(solver: SectionSolver) -> tuple[float, list]:
 
 
 def test_departure_ahead_of_a_descent_does_not_move_with_the_step():
-    coarse, _ = _descent_departure(_freight_section_2(20.0))
-    fine, tried = _descent_departure(_freight_section_2(10.0))
+    coarse, _ = _descent_departure(freight_section_2(20.0))
+    fine, tried = _descent_departure(freight_section_2(10.0))
     assert 31000.0 < coarse < 31500.0
     assert abs(coarse - fine) < 1e-6
     # it is the switching condition's root, not the cost's golden-section minimum
@@ -69,7 +52,7 @@ def test_departure_ahead_of_a_descent_does_not_move_with_the_step():
 def test_root_of_the_switching_condition_is_the_minimum_of_the_cost():
     """The adjoint's condition and a direct minimisation of energy + mu x time (independent of the
     adjoint: golden section to 1e-5 m on the cost alone) find the same departure point."""
-    solver = _freight_section_2(20.0)
+    solver = freight_section_2(20.0)
     p_root, tried = _descent_departure(solver)
     cost, (residuals, _), _ = tried[-1]
     p_min, _ = SectionSolver._golden(cost, p_root - 20.0, p_root + 20.0, tol_m=1e-5)

@@ -9,30 +9,13 @@ moved with it, and the final phase ended 1.1 ms later at 10 m than at 20 m."""
 
 from __future__ import annotations
 
-import dataclasses
-import warnings
-from pathlib import Path
-
 import numpy as np
 import pytest
+from optimize_freight_case import FREIGHT_V, freight_section_2
 
-import trainsim
 from trainsim.optimize import pmp_kernel as pk
-from trainsim.optimize.api import _solvers
 from trainsim.optimize.optimal import SectionSolver, price_of_time_w
 from trainsim.sim import kernel
-
-ROOT = Path(__file__).resolve().parents[2]
-#: A holding speed near the one that meets the freight example's 10 % line supplement [m/s].
-FREIGHT_V = 21.79205
-
-
-def _freight_section_2(step_m: float) -> SectionSolver:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        scenario = trainsim.load_scenario(ROOT / "examples" / "freight_000" / "scenario.yaml")
-    settings = dataclasses.replace(scenario.settings, max_step_m=step_m)
-    return _solvers(scenario.train, scenario.route, settings)[1]
 
 
 def _regen_stretch(solver: SectionSolver, v0: float = 4.0):
@@ -68,7 +51,7 @@ def _reference_phi(
 
 
 def test_the_adjoint_over_a_slow_braking_step_matches_a_fine_integration() -> None:
-    solver = _freight_section_2(20.0)
+    solver = freight_section_2(20.0)
     E0, E1, Em, u, h, line, mu, _ = _regen_stretch(solver)
     assert h > 15.0 and E1 < 0.7 * E0  # a long step that brakes the train hard: the case at stake
     phi0 = solver.eta_r
@@ -87,7 +70,7 @@ def test_the_adjoint_over_a_slow_braking_step_matches_a_fine_integration() -> No
 def test_at_cruising_speeds_the_adjoint_takes_one_step_as_before() -> None:
     """Sub-steps only where the speed changes fast: holding speeds and coasting keep one RK4 step
     (what the departure roots and the adjoint's thresholds were located with)."""
-    solver = _freight_section_2(20.0)
+    solver = freight_section_2(20.0)
     tr = solver.track
     i = len(tr.a0) // 2
     line = (tr.a0[i], tr.a1[i], tr.b0[i], tr.b1[i])
@@ -106,7 +89,7 @@ def test_at_cruising_speeds_the_adjoint_takes_one_step_as_before() -> None:
 def _final_phase(step_m: float) -> tuple[float, float]:
     """(duration [s] of the final phase from the coasting point to the stop, speed [m/s] where it
     meets the service braking curve) of freight section 2 at the fixed holding speed FREIGHT_V."""
-    solver = _freight_section_2(step_m)
+    solver = freight_section_2(step_m)
     plan = solver.plan(FREIGHT_V)
     s, v, t, m = plan.s, plan.v, plan.t, plan.regime
     start = int(np.searchsorted(s, plan.coast_start_m - 1e-9))
