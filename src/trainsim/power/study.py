@@ -33,7 +33,10 @@ import numpy as np
 
 from trainsim.constants import KWH
 from trainsim.errors import InputError
+from trainsim.model.route import ElectrificationSection, Route
 from trainsim.model.scenario import Scenario
+from trainsim.model.spans import electrification_cover, split_spans
+from trainsim.model.train import Train
 from trainsim.power.network import Network
 from trainsim.power.onboard import OnboardStorage
 from trainsim.power.simulation import PowerResult, TrainLoad, simulate, train_load_from_run
@@ -46,6 +49,7 @@ __all__ = [
     "TIME_LOST_TOLERANCE_S",
     "FeedbackSettings",
     "TrainService",
+    "route_with_neutral_sections",
     "run_study",
     "with_status",
 ]
@@ -70,6 +74,10 @@ STATUSES: dict[str, str] = {
 #: time [s]. Half a second: timetables are kept to the second, so a smaller loss does not move any
 #: timetabled time when rounded.
 TIME_LOST_TOLERANCE_S = 0.5
+
+#: A route's own section without traction and a network's neutral section agree when their ends differ
+#: by at most this [m]: the network's node resolution (trainsim.power.solver.POSITION_RESOLUTION_M).
+NEUTRAL_SECTION_TOLERANCE_M = 0.1
 
 #: Relative tolerance of the energy sums below which a shortfall or a curtailment is rounding [-]
 #: (the same as the energy balance's, docs/POWER.md).
@@ -198,6 +206,105 @@ def _load(service: TrainService, run: RunResult, name: str, departure_s: float) 
     )
 
 
+def _uncovered_m(lo_m: float, hi_m: float, spans: list[tuple[float, float]]) -> float:
+    """Length of ``[lo_m, hi_m]`` that none of ``spans`` covers [m]."""
+    length, pos = 0.0, lo_m
+    for a, b in sorted(spans):
+        if b <= pos:
+            continue
+        if a >= hi_m:
+            break
+        length += max(0.0, a - pos)
+        pos = max(pos, b)
+    return length + max(0.0, hi_m - pos)
+
+
+def route_with_neutral_sections(
+    route: Route, train: Train, network: Network, track: str, origin_m: float, direction: int
+) -> tuple[Route, list[dict[str, Any]]]:
+    """``route`` with the network's neutral sections on ``track`` as sections without traction.
+
+    The network cuts the contact line at a gap of some length (a neutral or dead section): a train
+    there gets no supply, so its run must coast through it, as it does through a section of its
+    route with ``voltage_v`` 0. The route is placed on the network with its start at chainage
+    ``origin_m`` [m], running towards increasing (``direction`` 1) or decreasing (-1) chainage.
+    Each neutral section that overlaps the route is laid over it as an
+    :class:`~trainsim.model.route.ElectrificationSection` of voltage 0 (the rest of the route's
+    electrification kept, parts it leaves uncovered at the train's nominal line voltage, as the core
+    assumes); the route's own sections without traction stay: the train coasts through the union.
+    Section insulators (gaps of length 0) cut the line but no train's supply: they change nothing.
+
+    Returns the route (``route`` itself when every neutral section is already in it) and one record
+    per section without traction for the study's ``neutral_sections`` block: ``gap`` (the network
+    gap's id, None for a section of the route alone), ``track``, ``start_km`` and ``end_km``
+    (chainage), ``in_network``, ``in_route`` (the route's own sections cover it, within
+    :data:`NEUTRAL_SECTION_TOLERANCE_M`) and ``route_has_own`` (the route has sections without
+    traction of its own). Where the route has some, a record with ``in_network`` and ``in_route`` not
+    both true is a disagreement between the route and the network (:func:`with_status` warns of it);
+    a route electrified throughout simply takes the network's.
+    """
+    tol = NEUTRAL_SECTION_TOLERANCE_M
+
+    def to_route(x0: float, x1: float) -> tuple[float, float]:
+        s0, s1 = (route.start_m + direction * (x - origin_m) for x in (x0, x1))
+        return max(min(s0, s1), route.start_m), min(max(s0, s1), route.end_m)
+
+    def to_chainage(s: float) -> float:
+        return origin_m + direction * (s - route.start_m)
+
+    gaps = []
+    for g in network.gaps:
+        if g.track != track or g.end_m <= g.start_m:
+            continue
+        lo, hi = to_route(g.start_m, g.end_m)
+        if hi > lo:
+            gaps.append((g, lo, hi))
+    dead = [(e.start_m, e.end_m) for e in route.electrification if e.voltage_v == 0]
+    records: list[dict[str, Any]] = []
+    for g, lo, hi in gaps:
+        a, b = sorted((to_chainage(lo), to_chainage(hi)))
+        in_route = _uncovered_m(lo, hi, dead) <= tol
+        records.append({"gap": g.id, "track": track, "start_km": a / 1000, "end_km": b / 1000,
+                        "in_network": True, "in_route": in_route})  # fmt: skip
+    spans = [(lo, hi) for _, lo, hi in gaps]
+    for lo, hi in dead:
+        lo, hi = max(lo, route.start_m), min(hi, route.end_m)
+        if hi > lo and _uncovered_m(lo, hi, spans) > tol:
+            a, b = sorted((to_chainage(lo), to_chainage(hi)))
+            records.append({"gap": None, "track": track, "start_km": a / 1000, "end_km": b / 1000,
+                            "in_network": False, "in_route": True})  # fmt: skip
+    for r in records:
+        r["route_has_own"] = bool(dead)
+    if all(r["in_route"] for r in records):
+        return route, records
+    nominal = train.electrical.line_voltage_v if train.electrical else 0.0
+    pieces = split_spans(electrification_cover(route, nominal), np.array([x for sp in spans for x in sp]))
+    sections: list[ElectrificationSection] = []
+    for e in pieces:
+        mid = 0.5 * (e.start_m + e.end_m)
+        inside = any(lo <= mid < hi for lo, hi in spans)
+        sections.append(dataclasses.replace(e, voltage_v=0.0, traction_share=1.0) if inside else e)
+    return dataclasses.replace(route, electrification=tuple(sections)), records
+
+
+def _with_neutral_sections(
+    network: Network, services: list[TrainService]
+) -> tuple[list[TrainService], list[dict[str, Any]]]:
+    """Every service with the network's neutral sections laid over its route
+    (:func:`route_with_neutral_sections`), and the records of the sections, each with its ``train``."""
+    out, records = [], []
+    for s in services:
+        sc = s.scenario
+        route, found = route_with_neutral_sections(
+            sc.route, sc.train, network, s.track, s.origin_m, s.direction
+        )
+        records.extend({"train": s.id, **r} for r in found)
+        out.append(
+            s if route is sc.route else dataclasses.replace(s, scenario=dataclasses.replace(sc, route=route))
+        )
+    return out, records
+
+
 def run_study(
     network: Network,
     services: list[TrainService],
@@ -215,6 +322,8 @@ def run_study(
     feedback = feedback or FeedbackSettings()
     if not services:
         raise InputError("no trains", field="trains", allowed="one or more trains")
+    # before any run: a train must coast through the network's neutral sections, where it gets no supply
+    services, neutral = _with_neutral_sections(network, services)
     runs: dict[tuple, RunResult | JoinedRun] = {}
     per_stretch = [feedback.method == "per_stretch" and s.scenario.strategy == "fastest" for s in services]
     stops = [stop_positions(s.scenario.route) for s in services]
@@ -365,6 +474,7 @@ def run_study(
         )
     extra = {
         "trains": trains,
+        "neutral_sections": neutral,
         "feedback": {
             "enabled": feedback.enabled,
             "iterations": iterations,
@@ -450,6 +560,20 @@ def with_status(result: PowerResult) -> PowerResult:
             f"regenerative braking curtailed by the line voltage: {curtailed / KWH:.2f} of "
             f"{offered / KWH:.2f} kWh offered not taken by the line (stored on board or dissipated)"
         )
+    for r in result.extra.get("neutral_sections", []):
+        if not r["route_has_own"]:
+            continue  # a route electrified throughout takes the network's neutral sections as they are
+        where = f"{r['start_km']:g} .. {r['end_km']:g} km of track {r['track']}"
+        if not r["in_route"]:
+            warnings.append(
+                f"train {r['train']}: the network's neutral section {r['gap']} ({where}) is not a section without "
+                "traction of its route: applied to its run, which coasts through it"
+            )
+        elif not r["in_network"]:
+            warnings.append(
+                f"train {r['train']}: its route has no traction at {where}, where the network's contact line is "
+                "live: the run coasts there as its route says"
+            )
     statuses = [s for s in STATUSES if s in found]
     extra = {**result.extra, "status": statuses[0] if statuses else "ok", "statuses": statuses}
     extra["warnings"] = warnings
