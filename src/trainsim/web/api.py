@@ -831,11 +831,40 @@ async def multipoint_example(name: str, request: Request) -> Response:
     return _raw(body_json)
 
 
+@router.get("/operations", tags=["runs"], summary="Shipped operation examples (name, description)")
+def list_operations() -> list[dict[str, str]]:
+    from trainsim.web.jobs import OPERATION_EXAMPLES
+
+    return [{"name": k, "description": v[1]} for k, v in OPERATION_EXAMPLES.items()]
+
+
+@router.post(
+    "/operations/upload",
+    tags=["runs"],
+    responses={**_ERRORS, 413: {"description": "file too large"}},
+    summary="Run one's own operation: train graph, conflicts, delays per station, headways",
+)
+async def operation_upload(
+    request: Request,
+    file: Annotated[
+        UploadFile,
+        File(
+            description="an operation YAML (`schema: trainsim/operation`), or a zip holding it with the "
+            "train, route, railML or spreadsheet files it names (folders kept; every path inside the zip)"
+        ),
+    ],
+) -> Response:
+    limits = settings_of(request)
+    content, name = await _read_upload(file, limits)
+    session = session_of(request)
+    return _raw(await work(request, session, "operation_upload", content, name, limits))
+
+
 @router.post(
     "/operations/{name}",
     tags=["runs"],
     responses={**_ERRORS, 404: {"description": "no such operation example"}},
-    summary="Run a shipped operation: the train graph with blocking-time stairs",
+    summary="Run a shipped operation: train graph, conflicts, delays per station, headways",
 )
 async def operation_example(name: str, request: Request) -> Response:
     from trainsim.web.jobs import OPERATION_EXAMPLES

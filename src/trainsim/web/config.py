@@ -30,6 +30,9 @@ class WebSettings:
         max_string_chars: longest text value [characters].
         max_number_magnitude: largest absolute value of any number in a document.
         max_vehicles: vehicles in a train (formation counts summed).
+        max_operation_trains: trains of an uploaded operation file (``repeat`` counts summed); bounds
+            the run's time and the train graph's size.
+        max_upload_files: files in an uploaded zip (an operation's or a scenario's folder).
         workers: worker processes that validate, read uploads and run (0: in the server process,
             without time or memory limits; for tests and debugging only).
         job_time_limit_s: wall-clock limit of one request's work in a worker [s]; past it the
@@ -67,6 +70,8 @@ class WebSettings:
     max_string_chars: int = 10_000
     max_number_magnitude: float = 1e9
     max_vehicles: int = 1000
+    max_operation_trains: int = 200
+    max_upload_files: int = 64
     workers: int = 2
     job_time_limit_s: float = 30.0
     job_memory_limit_bytes: int = 1024 * 1024 * 1024

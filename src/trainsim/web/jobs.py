@@ -12,6 +12,7 @@ known to be valid and serializable (nothing invalid is ever stored).
 from __future__ import annotations
 
 import json
+import re
 import tempfile
 import zipfile
 from pathlib import Path, PurePosixPath
@@ -367,31 +368,102 @@ def _multipoint_body(result: Any, name: str, scenario: str, max_columns: int) ->
 _MULTIPOINT_FILES = (".yaml", ".yml", ".json", ".csv")
 
 
-def _unzip_scenario(archive: Path, folder: Path, limits: WebSettings, name: str) -> None:
-    """Extract a zipped scenario folder (flat names, YAML/JSON/CSV only, bounded in count and size)."""
+def _zip_member(filename: str, name: str) -> PurePosixPath:
+    """A zip entry's path inside the upload, refused (InputError) when absolute or leaving the
+    zip's folder: an upload's files never land outside its own temporary folder."""
+    path = filename.replace("\\", "/")
+    if path.startswith("/") or re.match(r"^[A-Za-z]:", path):
+        raise InputError(
+            "an absolute path in the zip",
+            file=name,
+            field=filename[:200],
+            allowed="paths relative to the zip",
+        )
+    parts = PurePosixPath(path).parts
+    if ".." in parts:
+        raise InputError(
+            "a path in the zip leaves its folder ('..')",
+            file=name,
+            field=filename[:200],
+            allowed="paths inside the zip",
+        )
+    if len(path) > 240 or len(parts) > 8 or any(c < " " for c in path):
+        raise InputError(
+            "an unusual path in the zip",
+            file=name,
+            field=filename[:200],
+            allowed="at most 8 folders deep, 240 characters, no control characters",
+        )
+    return PurePosixPath(*(p for p in parts if p != "."))
+
+
+def _unzip_scenario(
+    archive: Path,
+    folder: Path,
+    limits: WebSettings,
+    name: str,
+    suffixes: tuple[str, ...] = (".yaml", ".yml", ".json", ".csv"),
+    keep_folders: bool = False,
+) -> None:
+    """Extract a zipped scenario folder: files with ``suffixes`` only, bounded in count and size.
+    ``keep_folders``: keep the zip's folders (each path checked by :func:`_zip_member`), for files
+    that name each other by relative paths; else flat names (a multi-point scenario folder)."""
     try:
         zf = zipfile.ZipFile(archive)
     except (zipfile.BadZipFile, OSError) as exc:
         raise InputError("not a readable zip file", file=name, allowed="a zip of a scenario folder") from exc
+    most = limits.max_upload_files if keep_folders else 16
     with zf:
         entries = [
             i
             for i in zf.infolist()
-            if not i.is_dir() and PurePosixPath(i.filename).suffix.lower() in _MULTIPOINT_FILES
+            if not i.is_dir() and PurePosixPath(i.filename).suffix.lower() in suffixes
         ]
-        if len(entries) > 16:
-            raise InputError("too many files in the zip", file=name, value=len(entries), allowed="at most 16")
+        if len(entries) > most:
+            raise InputError(
+                "too many files in the zip", file=name, value=len(entries), allowed=f"at most {most}"
+            )
         if sum(i.file_size for i in entries) > 4 * limits.max_body_bytes:
             raise InputError(
-                "the zip's files are too large", file=name, allowed=f"at most {4 * limits.max_body_bytes} bytes"
+                "the zip's files are too large",
+                file=name,
+                allowed=f"at most {4 * limits.max_body_bytes} bytes",
             )
+        written: set[PurePosixPath] = set()
         for info in entries:
-            base = _safe_name(PurePosixPath(info.filename).name)
-            with zf.open(info) as src:
-                data = src.read(info.file_size + 1)
+            if keep_folders:
+                if (info.external_attr >> 16) & 0o170000 == 0o120000:
+                    raise InputError(
+                        "a symbolic link in the zip",
+                        file=name,
+                        field=info.filename[:200],
+                        allowed="plain files",
+                    )
+                inner = _zip_member(info.filename, name)
+                if inner in written:
+                    raise InputError("a file twice in the zip", file=name, field=info.filename[:200])
+                written.add(inner)
+                target = folder / inner
+                if not target.resolve().is_relative_to(folder.resolve()):
+                    raise InputError(
+                        "a path in the zip leaves its folder", file=name, field=info.filename[:200]
+                    )
+                target.parent.mkdir(parents=True, exist_ok=True)
+            else:
+                target = folder / _safe_name(PurePosixPath(info.filename).name)
+            try:
+                with zf.open(info) as src:
+                    data = src.read(info.file_size + 1)
+            except (zipfile.BadZipFile, OSError, NotImplementedError, RuntimeError, EOFError) as exc:
+                raise InputError(
+                    f"a file in the zip cannot be read ({type(exc).__name__})",
+                    file=name,
+                    field=info.filename[:200],
+                    allowed="stored or deflated files, not encrypted",
+                ) from exc
             if len(data) > info.file_size:
-                raise InputError("a file in the zip is larger than it says", file=name, field=base)
-            (folder / base).write_bytes(data)
+                raise InputError("a file in the zip is larger than it says", file=name, field=target.name)
+            target.write_bytes(data)
 
 
 def _scenario_file(folder: Path, name: str) -> Path:
@@ -408,8 +480,9 @@ def _scenario_file(folder: Path, name: str) -> Path:
     return candidates[0]
 
 
-def _in_upload(exc: InputError, folder: Path, name: str) -> InputError:
-    """The error with the temporary folder replaced by the uploaded file's name (``x.zip/train.yaml``)."""
+def _in_upload(exc: InputError, folder: Path, name: str, single: str = "scenario.yaml") -> InputError:
+    """The error with the temporary folder replaced by the uploaded file's name (``x.zip/train.yaml``);
+    ``single`` is the name a plain (not zipped) upload was written under."""
     from trainsim.errors import Problem
     from trainsim.web.errors import problems_of
 
@@ -419,8 +492,10 @@ def _in_upload(exc: InputError, folder: Path, name: str) -> InputError:
         file = p.file or name
         if file.startswith(prefix):
             inner = file[len(prefix) :].lstrip("/")
-            file = name if inner in ("", "scenario.yaml") and not name.endswith(".zip") else f"{name}/{inner}"
-        problems.append(Problem(p.reason, file=file, line=p.line, field=p.field, value=p.value, allowed=p.allowed))
+            file = name if inner in ("", single) and not name.endswith(".zip") else f"{name}/{inner}"
+        problems.append(
+            Problem(p.reason, file=file, line=p.line, field=p.field, value=p.value, allowed=p.allowed)
+        )
     return InputError.from_problems(problems)
 
 
@@ -479,55 +554,168 @@ def multipoint_upload(content: bytes, name: str, limits: WebSettings, max_column
             raise _in_upload(exc, folder, name) from exc
 
 
-#: operation files shipped with the web application (example_files/operations)
-OPERATION_EXAMPLES: dict[str, str] = {"metro_fixed_block": "metro_fixed_block.yaml"}
+#: operation files shipped with the web application (example_files/operations, copies of the repository's
+#: examples/operations; the trains those name from tests/data/trainruns are in example_files/trainruns)
+OPERATION_EXAMPLES: dict[str, tuple[str, str]] = {
+    "metro_fixed_block": ("metro_fixed_block.yaml", "metro line B, 14 trains, 3-aspect fixed block"),
+    "metro_cbtc": ("metro_cbtc.yaml", "metro line B, 12 trains, CBTC moving block"),
+    "metro_disturbed": ("metro_disturbed.yaml", "metro line B, 14 trains, seeded disturbances (one day)"),
+    "single_track": ("single_track.yaml", "single-track branch, 5 trains crossing at loops (conflicts)"),
+    "single_track_tracks": ("single_track_tracks.yaml", "single-track branch with its tracks drawn in"),
+    "main_line_mixed": ("main_line_mixed.yaml", "double-track main line, 7 mixed trains overtaking"),
+    "sheets_double_track": (
+        "sheets_double_track/operation.yaml",
+        "double-track line from spreadsheet tables, 5 trains",
+    ),
+}
+
+#: files an operation upload may hold: the operation, trains, routes, railML and spreadsheet lines
+_OPERATION_FILES = (".yaml", ".yml", ".json", ".csv", ".xml", ".railml", ".xlsx", ".xlsm")
 
 
-def operation_example(name: str, max_points: int = 400) -> bytes:
-    """A shipped operation run as ``trainsim operate`` runs it: the train graph (every train's line
-    position over time, at most ``max_points`` per train) with the operated blocking times (one
-    rectangle per resource and train: from_m..to_m over start_s..end_s), the stations, conflicts
-    and the status, as the answer body."""
-    import numpy as np
+def _operation_run(
+    path: Path, name: str, max_points: int, root: tuple[Path, str], limits: WebSettings | None = None
+) -> bytes:
+    """Read an operation file with the command line's reader and run it as ``trainsim operate`` does:
+    the train graph, delays and headways (:func:`trainsim.web.operation_payload.operation_body`). The
+    readers' warnings (defaults they assumed) are the answer's warnings too, with the folder
+    ``root[0]`` shown as ``root[1]``; ``limits``: also bound the line's length (an upload)."""
+    import warnings
 
     from trainsim.io.operation_file import read_operation
     from trainsim.io.operation_run import run_operation
+    from trainsim.web.operation_payload import operation_body
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        op = read_operation(path)
+    if limits is not None and op.line.length_m > limits.max_route_length_m:
+        raise InputError(
+            "line too long for the web application",
+            file=str(path),
+            field="line",
+            value=op.line.length_m,
+            allowed=f"at most {limits.max_route_length_m:g} m",
+        )
+    body = operation_body(name, op.name, op.line, run_operation(op), max_points)
+    read = [str(w.message).replace(str(root[0]), root[1]) for w in caught]
+    body["warnings"] = [*dict.fromkeys(read), *body["warnings"]]
+    return _dumps(body, "operation run")
+
+
+def operation_example(name: str, max_points: int = 400) -> bytes:
+    """A shipped operation run as ``trainsim operate`` runs it, as the answer body."""
     from trainsim.web.examples import EXAMPLES_DIR
 
     if name not in OPERATION_EXAMPLES:
         raise InputError(
             "no such operation example", field="name", value=name, allowed=", ".join(OPERATION_EXAMPLES)
         )
-    op = read_operation(EXAMPLES_DIR / "operations" / OPERATION_EXAMPLES[name])
-    result = run_operation(op)
-    trains = []
-    for t in result.trains:
-        tr = t.trajectory if t.trajectory is not None else t.planned_trajectory
-        keep = np.unique(np.linspace(0, len(tr.time_s) - 1, min(max_points, len(tr.time_s))).round().astype(int))
-        position = np.asarray(op.line.line_position(t.direction, tr.position_m[keep]), dtype=float)
-        trains.append(
-            {
-                "id": t.id,
-                "direction": str(t.direction),
-                "status": t.status,
-                "delay_s": t.delay_s,
-                "time_s": np.round(tr.time_s[keep], 1).tolist(),
-                "position_m": np.round(position, 1).tolist(),
-            }
+    path = EXAMPLES_DIR / "operations" / OPERATION_EXAMPLES[name][0]
+    return _operation_run(path, name, max_points, (EXAMPLES_DIR, "examples"))
+
+
+def _operation_file(folder: Path, name: str, limits: WebSettings) -> tuple[Path, Any]:
+    """The one ``trainsim/operation`` document of an upload (every YAML/JSON file bounded by the
+    guard first), with its data."""
+    found = []
+    for document in sorted(folder.rglob("*")):
+        if document.is_file() and document.suffix.lower() in (".yaml", ".yml", ".json"):
+            data = tsy.read_yaml(document)
+            guard.check_document(data, limits, file=str(document))
+            if isinstance(data, dict) and data.get("schema") == "trainsim/operation":
+                found.append((document, data))
+    if len(found) != 1:
+        raise InputError(
+            "the upload must hold exactly one operation file",
+            file=name,
+            field="schema",
+            value=[str(p.relative_to(folder)) for p, _ in found],
+            allowed="one YAML file with 'schema: trainsim/operation', with the train and route files it names",
         )
-    body = {
-        "name": name,
-        "title": op.name,
-        "status": result.status,
-        "warnings": list(result.warnings),
-        "signalling": op.line.signalling.system,
-        "line_length_m": op.line.length_m,
-        "stations": [{"name": s.name, "position_m": s.position_m} for s in op.line.stations],
-        "trains": trains,
-        "blocking": [
-            {"train": b.train, "start_s": b.start_s, "end_s": b.end_s, "from_m": b.from_m, "to_m": b.to_m}
-            for b in result.blocking
-        ],
-        "conflicts": len(result.conflicts),
-    }
-    return _dumps(body, "operation run")
+    return found[0]
+
+
+def _check_operation_upload(path: Path, data: dict[str, Any], folder: Path, limits: WebSettings) -> None:
+    """Bounds of an uploaded operation before it is read: every file it names lies inside the
+    upload, and it has at most ``max_operation_trains`` trains (``repeat`` counts summed)."""
+    from trainsim.errors import Problem
+    from trainsim.io.operation_file import _line_of
+
+    text = path.read_text(encoding="utf-8", errors="replace")
+    line = data.get("line") if isinstance(data.get("line"), dict) else {}
+    trains = data.get("trains") if isinstance(data.get("trains"), list) else []
+    named: list[tuple[str, list[Any], Any]] = [("line.route", ["line", "route"], line.get("route"))]
+    for key in ("railml", "spreadsheet"):
+        if isinstance(line.get(key), dict):
+            named.append((f"line.{key}.file", ["line", key, "file"], line[key].get("file")))
+    named += [
+        (f"trains[{i}].train", ["trains", i, "train"], t.get("train"))
+        for i, t in enumerate(trains)
+        if isinstance(t, dict)
+    ]
+    problems = []
+    inside = folder.resolve()
+    for field, loc, ref in named:
+        if isinstance(ref, str) and not (path.parent / ref).resolve().is_relative_to(inside):
+            problems.append(
+                Problem(
+                    "a file named outside the upload",
+                    file=str(path),
+                    line=_line_of(text, loc),
+                    field=field,
+                    value=ref[:200],
+                    allowed="a path relative to the operation file, to a file inside the upload "
+                    "(upload a zip holding the operation file and the train and route files it names)",
+                )
+            )
+    if problems:
+        raise InputError.from_problems(problems)
+    count = 0
+    for t in trains:
+        repeat = t.get("repeat") if isinstance(t, dict) else None
+        times = repeat.get("count") if isinstance(repeat, dict) else 1
+        count += times if isinstance(times, int) and times > 0 else 1
+    if count > limits.max_operation_trains:
+        raise InputError(
+            "too many trains for the web application",
+            file=str(path),
+            field="trains",
+            value=count,
+            allowed=f"at most {limits.max_operation_trains} trains (repeat counts summed); "
+            "run larger days with trainsim operate",
+        )
+
+
+def operation_upload(content: bytes, name: str, limits: WebSettings, max_points: int = 400) -> bytes:
+    """An uploaded operation (``schema: trainsim/operation``), read as ``trainsim operate`` reads it and
+    run: a YAML file, or a zip holding it with the files it names (folders kept, so that relative
+    paths such as ``../metro_b/train.yaml`` work inside the zip). The answer body is that of
+    :func:`operation_example`; messages name the file inside the upload (``x.zip/op.yaml``)."""
+    with tempfile.TemporaryDirectory(prefix="trainsim-web-") as tmp:
+        folder = Path(tmp)
+        single = "operation.yaml"
+        try:
+            safe = _safe_name(name)
+            if safe.lower().endswith(".zip"):
+                archive = folder / "upload.zip"
+                archive.write_bytes(content)
+                folder = folder / "files"
+                folder.mkdir()
+                _unzip_scenario(archive, folder, limits, name, _OPERATION_FILES, keep_folders=True)
+            else:
+                if PurePosixPath(safe).suffix.lower() not in (".yaml", ".yml", ".json"):
+                    raise InputError(
+                        "not an operation file",
+                        file=name,
+                        value=PurePosixPath(safe).suffix or "(no ending)",
+                        allowed="an operation .yaml, or a .zip holding it with the train and route files it names",
+                    )
+                folder = folder / "files"
+                folder.mkdir()
+                (folder / single).write_bytes(content)
+            path, data = _operation_file(folder, name, limits)
+            _check_operation_upload(path, data, folder, limits)
+            return _operation_run(path, "upload", max_points, (folder, name), limits)
+        except InputError as exc:
+            raise _in_upload(exc, folder, name, single) from exc
