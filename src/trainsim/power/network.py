@@ -239,15 +239,21 @@ class Network:
         return self.topology.supplied(track, position_m)
 
 
-def _nonneg(problems: list[Problem], field_name: str, value: float, strict: bool = False) -> None:
+def _nonneg(
+    problems: list[Problem], field_name: str, value: float, strict: bool = False, why: str = ""
+) -> None:
+    """A problem unless ``value`` is finite and > 0 (``strict``) or >= 0; the message states that
+    range, with ``why`` where the range depends on the system (a value refused is never inside the
+    range the message gives)."""
     ok = np.isfinite(value) and (value > 0 if strict else value >= 0)
     if not ok:
+        bound = "> 0" if strict else ">= 0"
         problems.append(
             Problem(
-                "must be a finite number " + ("> 0" if strict else ">= 0"),
+                f"must be a finite number {bound}",
                 field=field_name,
                 value=value,
-                allowed="> 0" if strict else ">= 0",
+                allowed=f"{bound} ({why})" if why else bound,
             )
         )
 
@@ -272,21 +278,24 @@ def validate_network(net: Network) -> list[Problem]:
             p.append(
                 Problem(
                     "track must end after it starts",
-                    field=f"{f}.end_m",
-                    value=t.end_m,
-                    allowed=f"> start_m = {t.start_m}",
+                    field=f"{f}.end_km",
+                    value=t.end_m / 1000,
+                    allowed=f"> start_km = {t.start_m / 1000:g}",
                 )
             )
+        dc = net.system == "dc"
         _nonneg(
             p,
             f"{f}.contact_resistance_ohm_per_km",
             t.contact_resistance_ohm_per_m * 1000,
-            strict=net.system == "dc",
+            strict=dc,
+            why="DC: a contact line has a resistance" if dc else "AC: with resistance or reactance > 0",
         )
         _nonneg(
             p,
             f"{f}.rail_resistance_ohm_per_km",
             t.rail_resistance_ohm_per_m * 1000,
+            why="0 on every track: an ideal return" if dc else "AC: not used",
         )
         _nonneg(p, f"{f}.rail_to_earth_conductance_s_per_km", t.rail_to_earth_conductance_s_per_m * 1000)
         _nonneg(p, f"{f}.contact_reactance_ohm_per_km", t.contact_reactance_ohm_per_m * 1000)
@@ -318,6 +327,8 @@ def validate_network(net: Network) -> list[Problem]:
                 p.append(
                     Problem("unknown track", field=f"{f}.tracks[{k}]", value=tid, allowed=", ".join(ids))
                 )
+            elif not by_id[tid].end_m > by_id[tid].start_m:
+                continue  # the track's own extent is reported already
             elif not by_id[tid].start_m <= position <= by_id[tid].end_m:
                 t = by_id[tid]
                 p.append(
@@ -338,7 +349,15 @@ def validate_network(net: Network) -> list[Problem]:
             p.append(Problem("a substation must feed at least one track", field=f"{f}.tracks", value=[]))
         check_on_tracks(f, s.tracks, s.position_m)
         _nonneg(p, f"{f}.no_load_voltage_v", s.no_load_voltage_v, strict=True)
-        _nonneg(p, f"{f}.internal_resistance_ohm", s.internal_resistance_ohm, strict=net.system == "dc")
+        _nonneg(
+            p,
+            f"{f}.internal_resistance_ohm",
+            s.internal_resistance_ohm,
+            strict=net.system == "dc",
+            why="DC: a source has an internal resistance"
+            if net.system == "dc"
+            else "AC: with resistance or reactance > 0",
+        )
         _nonneg(p, f"{f}.internal_reactance_ohm", s.internal_reactance_ohm)
         if net.system == "ac" and s.internal_resistance_ohm == 0 and s.internal_reactance_ohm == 0:
             p.append(
@@ -398,6 +417,17 @@ def validate_network(net: Network) -> list[Problem]:
                     allowed=f">= start_km = {g.start_m / 1000}",
                 )
             )
+        elif g.track in by_id:
+            t = by_id[g.track]
+            if t.end_m > t.start_m and not t.start_m <= g.start_m <= g.end_m <= t.end_m:
+                p.append(
+                    Problem(
+                        f"gap {g.id} lies off its track {t.id}",
+                        field=f"{f}.start_km",
+                        value=g.start_m / 1000,
+                        allowed=f"start_km .. end_km within {t.start_m / 1000:g} .. {t.end_m / 1000:g} km",
+                    )
+                )
         for s in net.substations:
             if g.track in s.tracks and g.start_m <= s.position_m <= g.end_m:
                 p.append(
@@ -497,7 +527,9 @@ def _regulation_problems(f: str, s: Substation, system: str) -> list[Problem]:
         e, r = regulation_points(list(map(tuple, pts)))
     except InputError as exc:
         return [dataclasses.replace(q, field=field_name) for q in exc.problems]
-    if not (np.isclose(e, s.no_load_voltage_v, rtol=1e-12) and np.isclose(r, s.internal_resistance_ohm, rtol=1e-9)):
+    if not (
+        np.isclose(e, s.no_load_voltage_v, rtol=1e-12) and np.isclose(r, s.internal_resistance_ohm, rtol=1e-9)
+    ):
         return [
             Problem(
                 "regulation curve disagrees with the substation's no-load voltage / internal resistance",
@@ -693,6 +725,11 @@ class Topology:
                 self.earthed = {
                     self.substation_nodes[si][1] for si in _first_substation_per_rail_group(net, index)
                 }
+        #: (start_m, end_m) of every track, as arrays (each step's loads are checked against them)
+        self.extents_m = (
+            np.array([t.start_m for t in net.tracks], dtype=float),
+            np.array([t.end_m for t in net.tracks], dtype=float),
+        )
         # gaps per track as arrays
         self.gap_starts = []
         self.gap_ends = []

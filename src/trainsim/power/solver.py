@@ -29,6 +29,7 @@ import scipy.sparse as sp
 from numba import njit
 from scipy.sparse.linalg import splu
 
+from trainsim.errors import InputError
 from trainsim.power.limits import (
     regen_acceptance,
     regen_acceptance_slope,
@@ -86,6 +87,7 @@ class StepLoads:
         tan_phi: reactive / active power of each train (AC; 0 for DC) [-].
         storage_charge_max_w, storage_discharge_max_w: what each wayside storage of the network can
             take and give during this step (its power and its state of charge) [W]; None: nothing.
+        train_ids: names of the trains, for error messages (None: named by their place).
     """
 
     track: np.ndarray
@@ -96,6 +98,7 @@ class StepLoads:
     tan_phi: np.ndarray
     storage_charge_max_w: np.ndarray | None = None
     storage_discharge_max_w: np.ndarray | None = None
+    train_ids: tuple[str, ...] | None = None
 
 
 @dataclass
@@ -1023,6 +1026,7 @@ def solve_step(
     nodes, and each train's contact and rail potentials in the order of ``loads``); without it, or
     if Newton fails from it, the flat start and the fallbacks below are used.
     """
+    _check_loads(net, loads)
     asm = assemble(net, loads.track, loads.position_m)
     topo = net.topology
     lim = net.limits
@@ -1197,6 +1201,70 @@ def solve_step(
         rail_potential_v=rail,
         stray_current_a=stray,
     )
+
+
+#: A train may stand this far beyond its track's end and still be at the end [m] (round-off of
+#: chainage arithmetic; far below the node resolution POSITION_RESOLUTION_M).
+TRACK_END_TOLERANCE_M = 1e-6
+
+
+def _check_loads(net: Network, loads: StepLoads) -> None:
+    """An InputError naming the train (its place in ``loads``), its value and what is allowed, for a
+    train whose track is unknown, whose position is not finite or off its track's extent, or that
+    stands inside a neutral section (no supply: leave it out of the step's loads), or whose powers
+    are not finite and >= 0. Positions off the track used to be extrapolated silently."""
+    track = np.asarray(loads.track)
+    x = np.asarray(loads.position_m, dtype=float)
+    n = len(track)
+
+    def name_of(k: int) -> str:
+        ids = loads.train_ids
+        return f"train {ids[k]}" if ids is not None and k < len(ids) else f"train {k} of the step"
+
+    arrays = {"position_m": x, "traction_w": loads.traction_w, "regen_w": loads.regen_w,
+              "auxiliary_w": loads.auxiliary_w, "tan_phi": loads.tan_phi}  # fmt: skip
+    for name, a in arrays.items():
+        if np.shape(a) != (n,):
+            raise InputError("the step's load arrays must have one entry per train", field=f"loads.{name}",
+                             value=f"shape {np.shape(a)}", allowed=f"shape ({n},), as loads.track")  # fmt: skip
+    n_tracks = len(net.tracks)
+    bad = np.flatnonzero((track < 0) | (track >= n_tracks) | (track != np.round(track)))
+    if len(bad):
+        k = int(bad[0])
+        raise InputError(f"{name_of(k)} is on an unknown track", field=f"loads.track[{k}]",
+                         value=track[k].item(), allowed=f"a track index 0 .. {n_tracks - 1}")  # fmt: skip
+    track = track.astype(np.int64)
+    extents = net.topology.extents_m
+    start, end = extents[0][track], extents[1][track]
+    off = ~(np.isfinite(x) & (x >= start - TRACK_END_TOLERANCE_M) & (x <= end + TRACK_END_TOLERANCE_M))
+    if off.any():
+        k = int(np.flatnonzero(off)[0])
+        t = net.tracks[track[k]]
+        raise InputError(
+            f"{name_of(k)} is off its track {t.id}",
+            field=f"loads.position_m[{k}]",
+            value=float(x[k]),
+            allowed=f"track {t.id}'s extent {t.start_m:.3f} .. {t.end_m:.3f} m",
+        )
+    for g in net.gaps:
+        if g.end_m <= g.start_m:
+            continue  # a section insulator: a train on it is on one side or the other
+        inside = np.flatnonzero((track == net.track_index(g.track)) & (x > g.start_m) & (x < g.end_m))
+        if len(inside):
+            k = int(inside[0])
+            raise InputError(
+                f"{name_of(k)} stands inside neutral section {g.id} of track {g.track}: it has no supply there",
+                field=f"loads.position_m[{k}]",
+                value=float(x[k]),
+                allowed=f"outside {g.start_m:.3f} .. {g.end_m:.3f} m (leave the train out of the step's loads)",
+            )
+    for name in ("traction_w", "regen_w", "auxiliary_w"):
+        a = np.asarray(arrays[name], dtype=float)
+        wrong = ~(np.isfinite(a) & (a >= 0))
+        if wrong.any():
+            k = int(np.flatnonzero(wrong)[0])
+            raise InputError(f"{name_of(k)} has an invalid power", field=f"loads.{name}[{k}]",
+                             value=float(a[k]), allowed="a finite power >= 0 W")  # fmt: skip
 
 
 def _base_matrix(asm: _Assembly, sub_p, sub_n, ys, on, dtype):
