@@ -9,14 +9,17 @@ railML 2 (``infrastructure/tracks/track``)
     * ``ocsElements/signals/signal@pos,@dir,@type,@function,@name``;
     * ``ocsElements/trainDetectionElements/trainDetector@pos`` (an axle counter, or a detector) and
       ``trackCircuitBorder@pos``;
-    * ``trackTopology/connections/switch@pos,@name``;
+    * ``trackTopology/connections/switch@pos,@name``, the speed over its diverging branch from
+      ``switch/connection@maxSpeed`` [km/h];
     * station tracks: the tracks an ocp is placed on (``crossSection@ocpRef``).
 
 railML 3 (``infrastructure/functionalInfrastructure``)
     * ``signalsIS/signalIS`` with ``spotLocation`` (``@applicationDirection`` normal, reverse) and
       ``isTrainMovementSignal@type,@function`` (or the same attributes on ``signalIS``);
     * ``trainDetectionElements/trainDetectionElement@type`` with ``spotLocation``;
-    * ``switchesIS/switchIS`` with ``spotLocation``;
+    * ``switchesIS/switchIS`` with ``spotLocation``, the speed over its diverging branch from the
+      ``leftBranch`` / ``rightBranch`` of ``@branchCourse`` (``@branchingSpeed``, ``@joiningSpeed``
+      [km/h]);
     * station tracks: the netElements an operationalPoint has a ``spotLocation`` on.
 
 The kind of a signal (trainsim's reading of the railML enumerations, :data:`SIGNAL_KINDS`): ``main``
@@ -53,6 +56,7 @@ from typing import Literal
 import numpy as np
 from lxml import etree
 
+from trainsim.constants import KMH
 from trainsim.errors import InputError
 from trainsim.io import railml_common as rc
 from trainsim.io.railml_common import attr_float, child, children, label, local
@@ -116,6 +120,8 @@ class SwitchAt:
     path: Direction = "up"  #: read on the route's path (``up``) or on the down path of a double track
     #: its clearance point [m] where the source gives it (spreadsheets; railML has none)
     clearance_m: float | None = None
+    #: highest speed over its diverging branch [m/s] where the source gives it
+    diverging_speed_mps: float | None = None
 
 
 @dataclass(frozen=True)
@@ -571,7 +577,10 @@ def read_signalling(
         if place is None:
             off_path["switches"] = off_path.get("switches", 0) + 1
             continue
-        out.switches.append(SwitchAt(_name(reader, item.element), place[0], _source(item.element), place[2]))
+        speed = _diverging_speed_mps(item.element, v3, reader.problems)
+        out.switches.append(
+            SwitchAt(_name(reader, item.element), place[0], _source(item.element), place[2], None, speed)
+        )
     reader.problems.raise_if_any()
     out.signals.sort(key=lambda s: (s.direction != "up", s.position_m))
     out.detection_points.sort(key=lambda d: (d.path != "up", d.position_m))
@@ -579,6 +588,32 @@ def read_signalling(
     out.tracks.sort(key=lambda t: (t.path != "up", t.start_m))
     out.notes += [f"{what} not on the route's path, not read: {n}" for what, n in off_path.items()]
     return out
+
+
+def _diverging_speed_mps(el: etree._Element, v3: bool, problems: rc.Problems) -> float | None:
+    """The speed over a switch's diverging branch [m/s] (module docstring), None when not given.
+
+    railML 2: ``connection@maxSpeed`` [km/h] of the switch's connections (the branch leaving the
+    switch's own track, which continues straight); the lowest where there are several. railML 3: the
+    ``leftBranch`` or ``rightBranch`` named by ``@branchCourse`` (without it, the slower of the two),
+    the lower of its ``@branchingSpeed`` (facing) and ``@joiningSpeed`` (trailing) [km/h]: the model
+    holds one diverging speed per switch for both directions.
+    """
+    if not v3:
+        branches = list(children(el, "connection"))
+        names = ("maxSpeed",)
+    else:
+        course = (el.get("branchCourse") or "").strip()
+        wanted = ("leftBranch", "rightBranch") if course not in ("left", "right") else (f"{course}Branch",)
+        branches = [b for name in wanted for b in children(el, name)]
+        names = ("branchingSpeed", "joiningSpeed")
+    speeds = [
+        v
+        for b in branches
+        for name in names
+        if (v := attr_float(b, name, problems, what="speed [km/h]", positive=True)) is not None
+    ]
+    return min(speeds) * KMH if speeds else None
 
 
 def _detector_kind(el: etree._Element) -> str:

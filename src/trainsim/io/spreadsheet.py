@@ -48,7 +48,8 @@ coordinate of the ``stations`` table)
       (``up``, default, or ``down``: the track of the down direction of a double-track line).
     * ``switches``: ``name``, ``position (m)`` (the blade tip), ``clearance (m)`` (optional: its
       clearance point, towards its station; default the nearest detection point on that side),
-      ``track`` (``up``, default, or ``down``).
+      ``track`` (``up``, default, or ``down``), ``diverging speed (km/h)`` (optional: the highest
+      speed over its diverging branch; empty: line speed).
 
 Header names are matched without case, spaces or underscores mattering; units are any trainsim
 knows (km/h or m/s, t or kg, kN or N, ‰ or %...). A column that needs a unit and has none, an
@@ -1083,12 +1084,26 @@ def read_spreadsheet_signalling(path: str | Path, route: Route | None = None):  
     sw = found["switches"]
     if sw is not None:
         clear_col = Column("clearance", ("clearance", "clearance point"), "length")
-        for r, name, pos, cols in _placed_rows(sw, start_m, end_m, [clear_col, track_col]):
+        speed_col = Column("diverging_speed", ("diverging speed", "diverging", "branch speed"), "speed")
+        for r, name, pos, cols in _placed_rows(sw, start_m, end_m, [clear_col, track_col, speed_col]):
             clearance = (
                 _value(sw, r, cols["clearance"][0], "number", cols["clearance"][1])
                 if "clearance" in cols
                 else None
             )
+            speed = (
+                _value(sw, r, cols["diverging_speed"][0], "number", cols["diverging_speed"][1])
+                if "diverging_speed" in cols
+                else None
+            )
+            if speed is not None and not 0 < speed <= 150:
+                raise sw.error(
+                    "invalid diverging speed",
+                    row=r,
+                    col=cols["diverging_speed"][0],
+                    value=sw.rows[r][cols["diverging_speed"][0]],
+                    allowed="0 < v <= 540 km/h, or an empty cell for line speed",
+                )
             if clearance is not None and not start_m - 1e-9 <= clearance <= end_m + 1e-9:
                 raise sw.error(
                     "clearance point off the route",
@@ -1099,7 +1114,7 @@ def read_spreadsheet_signalling(path: str | Path, route: Route | None = None):  
                 )
             track = _choice(sw, r, cols["track"][0], ("up", "down"), "up") if "track" in cols else "up"
             out.switches.append(
-                SwitchAt(name, pos, f"{sw.source}, row {r + 2}", track, clearance)  # type: ignore[arg-type]
+                SwitchAt(name, pos, f"{sw.source}, row {r + 2}", track, clearance, speed)  # type: ignore[arg-type]
             )
     out.signals.sort(key=lambda x: (x.direction != "up", x.position_m))
     out.detection_points.sort(key=lambda d: (d.path != "up", d.position_m))

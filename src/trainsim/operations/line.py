@@ -30,14 +30,16 @@ The model follows Pachl, *Railway Operation and Control* (4th ed., 2018), chapte
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from itertools import pairwise
 from typing import Literal
 
 import numpy as np
 
 from trainsim.errors import InputError, Problem
+from trainsim.model import SpeedLimit
 
 Direction = Literal["up", "down"]
 Separation = Literal["fixed_block", "etcs_l2", "moving_block"]
@@ -183,11 +185,19 @@ class SwitchLayout:
         clearance_m: line position of its clearance (fouling) point on the side of its two tracks,
             between the switch and the station's stopping point [m]: a train on one of the two tracks
             beyond it no longer fouls the other. None: the nearest train detection point on that side.
+        diverging_speed_mps: highest speed over its diverging branch [m/s]; None: line speed. A
+            train routed to a platform track over the diverging branch keeps to it from the blade
+            tip to the clearance point (entry side; from the clearance point to the blade tip on the
+            exit side) until its rear has cleared that span (``Route.speed_limits``).
+        diverging_tracks: the platform tracks of its station (1 .. ``tracks``) reached over its
+            diverging branch; None: every track but track 1, the through track of the standard layout.
     """
 
     name: str
     position_m: float
     clearance_m: float | None = None
+    diverging_speed_mps: float | None = None
+    diverging_tracks: tuple[int, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -231,6 +241,9 @@ class Route:
     ``track`` is the platform track the route leads to (for routes into a station), ``station`` the
     station it enters or leaves; ``reserve_next`` says the route is only given together with the
     next route (a single-track section together with a track at the next station).
+    ``speed_limits`` (routes into a platform track) are the ceilings of the diverging switches the
+    train runs over into and out of that track (running coordinate): a train given the route keeps
+    to them (the core holds a limit until the rear has passed its end).
     """
 
     name: str
@@ -242,6 +255,7 @@ class Route:
     station: str | None = None
     track: int | None = None
     reserve_next: bool = False
+    speed_limits: tuple[SpeedLimit, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -270,6 +284,15 @@ class DirectionPath:
     def signal_positions(self) -> np.ndarray:
         """Positions of the main signals in running order [m]."""
         return np.array([s.start_m for s in self.steps])
+
+    def track_speed_limits(self, station: str, track: int) -> tuple[SpeedLimit, ...]:
+        """The diverging-switch ceilings of platform track ``track`` of ``station`` (running
+        coordinate, ``Route.speed_limits`` of the route into it); empty for an unknown station or
+        track."""
+        for step in self.steps:
+            if step.kind == "entry" and step.station == station:
+                return next((r.speed_limits for r in step.alternatives if r.track == track), ())
+        return ()
 
 
 @dataclass(frozen=True)
@@ -526,6 +549,16 @@ def _track_problems(line: Line, tracks: Mapping[str, TrackLayout]) -> list[Probl
                     Problem("switch names must be unique", field=f"{where}.switches[{k}].name", value=sw.name)
                 )
             seen.add(sw.name)
+            v = sw.diverging_speed_mps
+            if v is not None and not (np.isfinite(v) and 0 < v <= 150):
+                problems.append(
+                    Problem(
+                        f"switch '{sw.name}': invalid diverging speed",
+                        field=f"{where}.switches[{k}].diverging_speed_mps",
+                        value=v,
+                        allowed="0 < v <= 150 m/s (540 km/h), or none for line speed",
+                    )
+                )
             for attr in ("position_m", "clearance_m"):
                 x = getattr(sw, attr)
                 if x is not None and not (np.isfinite(x) and 0 <= x <= line.length_m):
@@ -571,6 +604,8 @@ class _StationSides:
     exit_zone_end: float
     platform_lo: float | None = None
     platform_hi: float | None = None
+    #: the diverging switches: (span start, span end, speed [m/s], platform tracks over the branch)
+    diverging: list[tuple[float, float, float, tuple[int, ...]]] = field(default_factory=list)
 
 
 def _clearance_line_m(
@@ -671,6 +706,26 @@ def _station_sides(
         if clear_line is None:
             continue
         c = rp(direction, clear_line)
+        if sw.diverging_speed_mps is not None:
+            n_tracks = ordered[i].tracks
+            over = sw.diverging_tracks if sw.diverging_tracks is not None else tuple(range(2, n_tracks + 1))
+            bad = [k for k in over if not 1 <= k <= n_tracks]
+            if bad and single and direction == "down":
+                continue  # the same switches as up, reported once
+            if bad:
+                problems.append(
+                    Problem(
+                        f"switch '{sw.name}': diverging tracks that station '{ordered[i].name}' does not have",
+                        field=f"{field_sw}.diverging_tracks",
+                        value=list(over),
+                        allowed=f"track numbers 1 .. {n_tracks}",
+                    )
+                )
+                continue
+            # a train runs over the branch from the blade tip to the clearance point on the way in, the
+            # other way round on the way out
+            lo, hi = (x, c) if side == "entry" else (c, x)
+            sd.diverging.append((lo, hi, float(sw.diverging_speed_mps), tuple(over)))
         if side == "entry":
             # released when the rear has cleared the clearance point, or the border of the switch's
             # detection section beyond it (Pachl 3.3.4: sectional release)
@@ -801,6 +856,9 @@ def _direction_path(
                     resources,
                     st.name,
                     k,
+                    speed_limits=tuple(
+                        SpeedLimit(a, b, v) for a, b, v, over in sorted(sd.diverging) if k in over
+                    ),
                 )
             )
         steps.append(RouteStep(entry, exit_, tuple(alts), st.name, "entry"))
@@ -869,7 +927,45 @@ def _direction_path(
             field=f"line.block_signals_m.{direction}",
             value=off,
         )
+    if dets and overlap > 0 and sig.system != "moving_block":
+        steps = _overlaps_to_detection(steps, overlap, dets)
     return DirectionPath(direction, tuple(steps), stop_m, platform_m)
+
+
+def _overlaps_to_detection(steps: list[RouteStep], overlap_m: float, dets: list[float]) -> list[RouteStep]:
+    """The routes with their overlaps run to a train detection point (``overlap_end_m``), but not
+    beyond the first section of the next route, where the overlap lies: a train that stops in the
+    next route (at a platform, the station's entry switches cleared) has cleared its overlap before it
+    stands. Without the bound, a train standing at a platform short of the first detection point
+    would hold the section behind it until it leaves (interlockings release such an overlap by a
+    timer once the train stands)."""
+    out = []
+    for k, step in enumerate(steps):
+        nxt = steps[k + 1].alternatives if k + 1 < len(steps) else ()
+        bound = min((r.resources[0].end_m for r in nxt if r.resources), default=np.inf)
+        alts = []
+        for r in step.alternatives:
+            end = min(overlap_end_m(r.end_m, overlap_m, dets), max(r.end_m + overlap_m, bound))
+            alts.append(replace(r, overlap_m=end - r.end_m))
+        out.append(replace(step, alternatives=tuple(alts)))
+    return out
+
+
+def overlap_end_m(signal_m: float, overlap_m: float, detection_m: list[float] | tuple[float, ...]) -> float:
+    """Where the overlap of a main signal at ``signal_m`` ends (running coordinate) [m].
+
+    The overlap is a track section beyond the signal, so it ends at a train detection point: the first
+    one at least ``overlap_m`` beyond the signal (``detection_m`` sorted, running coordinate), and it
+    is released with that section, when the train's rear has cleared that point (issue 17; Pachl,
+    *Railway Operation and Control*, 4th ed. 2018, ch. 3: an overlap is a stretch of track beyond
+    the signal kept clear, released with its train detection section). Without a detection point
+    that far (or with no overlap), the overlap ends ``overlap_m`` beyond the signal.
+    """
+    if overlap_m <= 0:
+        return signal_m
+    want = signal_m + overlap_m
+    i = bisect_left(detection_m, want - 1e-9)
+    return float(detection_m[i]) if i < len(detection_m) else want
 
 
 def _section_name(line: Line, a: StationLayout, b: StationLayout) -> str:
