@@ -116,8 +116,14 @@ class StepSolution:
         substation_source_w: active power of each source E (busbar power + internal losses) [W].
         substation_current_a: current of each substation (signed, DC; magnitude x sign(P) AC) [A].
         substation_on: rectifier state.
-        line_loss_w: losses in contact lines, rails and leakages [W].
-        substation_loss_w: losses in the substations' internal resistances [W].
+        line_loss_w: losses in contact lines, rails and leakages [W]: ``contact_loss_w +
+            return_loss_w``.
+        substation_loss_w: losses in the substations' internal resistances [W]: the sources' power
+            less the busbars' (``substation_source_w - substation_power_w`` summed).
+        contact_loss_w: losses in the contact lines and the contact-to-return leakage [W] (AC: the
+            loop impedance, contact line and return together).
+        return_loss_w: losses in the return (DC rails in series and leaking to earth) [W]; 0 with an
+            ideal return and for AC.
         rail_potential_v: rail-to-earth potentials of the rail nodes (DC), or empty.
         guess: this step's potentials, to start the next step from (DC), or None.
         storage_power_w: power taken by each wayside storage at its terminals (negative: given) [W].
@@ -138,6 +144,8 @@ class StepSolution:
     substation_on: np.ndarray
     line_loss_w: float
     substation_loss_w: float
+    contact_loss_w: float
+    return_loss_w: float
     rail_potential_v: np.ndarray
     guess: StepGuess | None = None
     storage_power_w: np.ndarray | None = None
@@ -1165,7 +1173,16 @@ def solve_step(
         i_sub_signed = i_sub.real
         i_train = p_train / np.maximum(umag, 1e-3 * un)
     dv = ve[asm.a] - ve[asm.b]
-    line_loss = float(np.sum(np.abs(dv) ** 2 * np.real(asm.y)))
+    branch_loss = np.abs(dv) ** 2 * np.real(asm.y)
+    # a branch with no contact node at either end is of the return: rails in series, rails to earth
+    # (the earth, the last entry, counts with the return); the contact-to-return leakage is the contact line's
+    return_side = np.zeros(asm.n + 1, dtype=bool)
+    return_side[asm.rail_nodes] = True
+    return_side[-1] = True
+    of_return = return_side[asm.a] & return_side[asm.b]
+    return_loss = float(np.sum(branch_loss[of_return]))
+    contact_loss = float(np.sum(branch_loss[~of_return]))
+    line_loss = contact_loss + return_loss
     sub_loss = float(np.sum(p_src - p_bus))
     rail = (
         np.real(v[asm.rail_nodes]) if (not net.ideal_return and topo.rail_potential_defined) else np.empty(0)
@@ -1198,6 +1215,8 @@ def solve_step(
         substation_on=on,
         line_loss_w=line_loss,
         substation_loss_w=sub_loss,
+        contact_loss_w=contact_loss,
+        return_loss_w=return_loss,
         rail_potential_v=rail,
         stray_current_a=stray,
     )
