@@ -1,7 +1,10 @@
 // The page: four views (train, track, run, live driving) over the JSON API and the drive WebSocket.
 import { del, get, post, put, upload } from "./api.js";
 import { SpecEditor } from "./editor.js";
-import { DrivePlot, plotCouplerHeatmap, plotEnergyTime, plotProfile, plotRuns, plotTrainCurves, plotTrainGraph } from "./plots.js";
+import {
+  clock, DrivePlot, plotCouplerHeatmap, plotEnergyTime, plotOperationDelays, plotOperationHeadways, plotProfile, plotRuns,
+  plotTrainCurves, plotTrainGraph,
+} from "./plots.js";
 
 const $ = (sel) => document.querySelector(sel);
 const h = (tag, attrs = {}, ...children) => {
@@ -602,20 +605,61 @@ function showMultipoint(answer) {
   plotCouplerHeatmap(div, mp);
 }
 
+const operation = { data: null, plot: "graph" };
+const OP_PLOTS = {
+  graph: ["#plot-train-graph", plotTrainGraph],
+  delays: ["#plot-op-delays", plotOperationDelays],
+  headways: ["#plot-op-headways", plotOperationHeadways],
+};
+
 async function runOperation() {
   const name = $("#op-example").value;
   setStatus($("#op-status"), "running the operation…", "");
-  const answer = await busy(post(`/api/operations/${encodeURIComponent(name)}`, {}));
+  showOperation(await busy(post(`/api/operations/${encodeURIComponent(name)}`, {})));
+}
+
+async function uploadOperation(ev) {
+  const file = ev.target.files[0];
+  ev.target.value = "";
+  if (!file) return;
+  setStatus($("#op-status"), `running ${file.name}…`, "");
+  showOperation(await busy(upload("/api/operations/upload", file)));
+}
+
+function showOperation(answer) {
   if (!answer.ok) {
+    // the readers' messages, one per file, line and field (as the command line prints them)
     setStatus($("#op-status"), `✗ ${answer.data.message}`, "bad");
+    $("#op-warnings").replaceChildren(...(answer.data.detail || []).map((d) => h("div", {
+      class: "bad", text: `${d.file ? `${d.file}${d.line ? `:${d.line}` : ""}: ` : ""}${d.field ? `${d.field}: ` : ""}${d.msg}` })));
     return;
   }
   const op = answer.data;
-  setStatus($("#op-status"), `✓ ${op.status}: ${op.trains.length} trains, ${op.conflicts} conflicts`, op.status === "ok" ? "ok" : "bad");
-  $("#op-warnings").replaceChildren(...op.warnings.map((w) => h("div", { text: `⚠ ${w}` })));
-  const div = $("#plot-train-graph");
-  div.hidden = false;
-  plotTrainGraph(div, op);
+  operation.data = op;
+  const n = op.conflicts.length;
+  // a status other than ok (conflicts, deadlock, stalled) is shown as such, never as a success
+  setStatus($("#op-status"), `${op.status === "ok" ? "✓" : "⚠"} ${op.status}: ${op.trains.length} trains, `
+    + `${n} conflict${n === 1 ? "" : "s"}, total delay ${fmt(op.total_delay_s, 0)} s`, op.status === "ok" ? "ok" : "bad");
+  const notes = [...op.warnings];
+  if (op.deadlock.length) notes.unshift(`deadlock: ${op.deadlock.join(", ")}`);
+  for (const t of op.trains) for (const w of t.warnings) notes.push(`${t.id}: ${w}`);
+  $("#op-warnings").replaceChildren(...notes.map((w) => h("div", { text: `⚠ ${w}` })));
+  $("#op-conflicts").replaceChildren(...(n ? [
+    h("tr", {}, ...["conflict", "trains", "block", "resource", "time", "overlap [s]"].map((c) => h("th", { text: c }))),
+    ...op.conflicts.map((c, i) => h("tr", {}, h("td", { text: String(i + 1) }), h("td", { text: `${c.trains[0]} → ${c.trains[1]}` }),
+      h("td", { text: c.block }), h("td", { text: c.resource }), h("td", { text: clock(c.time_s) }),
+      h("td", { class: "num", text: fmt(c.overlap_s, 1) }))),
+  ] : []));
+  $("#op-tabs").hidden = false;
+  showOperationPlot(operation.plot);
+}
+
+function showOperationPlot(which) {
+  operation.plot = which;
+  for (const b of document.querySelectorAll("#op-tabs button")) b.classList.toggle("active", b.dataset.opPlot === which);
+  for (const [key, [sel]] of Object.entries(OP_PLOTS)) $(sel).hidden = key !== which;
+  const [sel, draw] = OP_PLOTS[which];
+  if (operation.data) draw($(sel), operation.data); // drawn when shown: a hidden div has no size
 }
 
 function driveKeys(ev) {
@@ -644,7 +688,10 @@ function setScale(value) {
 // ------------------------------------------------------------ start
 async function main() {
   for (const b of document.querySelectorAll("#tabs button")) b.addEventListener("click", () => switchTab(b.dataset.tab));
-  const [examples, strategies] = await Promise.all([get("/api/examples"), get("/api/strategies")]);
+  const [examples, strategies, operations] = await Promise.all([get("/api/examples"), get("/api/strategies"), get("/api/operations")]);
+  if (operations.ok) {
+    $("#op-example").replaceChildren(...operations.data.map((e) => h("option", { value: e.name, text: `${e.name} — ${e.description}` })));
+  }
   state.examples = examples.data;
   state.strategies = strategies.data;
   $("#example-select").replaceChildren(...state.examples.map((e) => h("option", { value: e.name, text: `${e.name} — ${e.description}` })));
@@ -685,6 +732,8 @@ async function main() {
   $("#mp-run").addEventListener("click", runMultipoint);
   $("#mp-file").addEventListener("change", uploadMultipoint);
   $("#op-run").addEventListener("click", runOperation);
+  $("#op-file").addEventListener("change", uploadOperation);
+  for (const b of document.querySelectorAll("#op-tabs button")) b.addEventListener("click", () => showOperationPlot(b.dataset.opPlot));
   for (const r of document.querySelectorAll("input[name=scale]")) r.addEventListener("change", () => setScale(Number(r.value)));
   document.addEventListener("keydown", driveKeys);
   document.body.dataset.ready = "true";

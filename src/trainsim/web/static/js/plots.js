@@ -222,29 +222,95 @@ export function plotCouplerHeatmap(div, mp) {
     xaxis: { title: { text: "time [s]" } }, yaxis: { title: { text: "coupling (0 = behind the head vehicle)" }, autorange: "reversed" } }, CONFIG);
 }
 
-// train graph of an operation: time across, line position up; each train's blocking times as the
-// "stairs" of rectangles (resource from_m..to_m blocked from start_s to end_s), in the train's colour
+// ---------------------------------------------------------------- a line in operation (issue 17)
+const PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22", "#7f7f7f"];
+export const clock = (s) => {
+  const t = Math.round(s);
+  const pad = (n) => String(n).padStart(2, "0");
+  return `${pad(Math.floor(t / 3600))}:${pad(Math.floor((t % 3600) / 60))}:${pad(t % 60)}`;
+};
+// a date axis reads numbers as ms: times after midnight become clock times that zoom well
+const ms = (times) => times.map((s) => (s === null ? null : s * 1000));
+const trainColours = (op) => new Map(op.trains.map((t, i) => [t.id, PALETTE[i % PALETTE.length]]));
+
+// train graph: time across, line position up; each train's operated run (solid) and its timetable
+// (dashed), its blocking times as the "stairs" of rectangles (resource from_m..to_m blocked from
+// start_s to end_s), and the planned timetable's conflicts as red boxes with a marker to hover
 export function plotTrainGraph(div, op) {
-  const palette = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf"];
-  const colour = new Map(op.trains.map((t, i) => [t.id, palette[i % palette.length]]));
-  const stairs = op.trains.map((t) => {
-    const x = [];
-    const y = [];
-    for (const b of op.blocking.filter((b) => b.train === t.id)) {
-      x.push(b.start_s, b.end_s, b.end_s, b.start_s, b.start_s, null);
-      y.push(b.from_m, b.from_m, b.to_m, b.to_m, b.from_m, null);
-    }
-    return { x, y, mode: "lines", fill: "toself", line: { width: 0.5, color: colour.get(t.id) }, opacity: 0.25,
-      name: `${t.id} blocking`, legendgroup: t.id, showlegend: false, hoverinfo: "skip" };
-  });
-  const paths = op.trains.map((t) => ({ x: t.time_s, y: t.position_m, mode: "lines", name: t.id, legendgroup: t.id,
+  const colour = trainColours(op);
+  const byTrain = new Map(op.trains.map((t) => [t.id, { x: [], y: [] }]));
+  for (const b of op.blocking) {
+    const s = byTrain.get(b.train);
+    if (!s) continue;
+    s.x.push(b.start_s, b.end_s, b.end_s, b.start_s, b.start_s, null);
+    s.y.push(b.from_m, b.from_m, b.to_m, b.to_m, b.from_m, null);
+  }
+  const stairs = op.trains.map((t) => ({ x: ms(byTrain.get(t.id).x), y: byTrain.get(t.id).y, mode: "lines", fill: "toself",
+    line: { width: 0.5, color: colour.get(t.id) }, opacity: 0.25, name: `${t.id} blocking`, legendgroup: t.id,
+    showlegend: false, hoverinfo: "skip" }));
+  const planned = op.trains.map((t) => ({ x: ms(t.planned_time_s), y: t.planned_position_m, mode: "lines",
+    name: `${t.id} planned`, legendgroup: t.id, showlegend: false, line: { color: colour.get(t.id), width: 1, dash: "dash" },
+    hovertemplate: `${t.id} planned: %{x|%H:%M:%S}, %{y:.0f} m<extra></extra>` }));
+  const paths = op.trains.map((t) => ({ x: ms(t.time_s), y: t.position_m, mode: "lines", name: t.id, legendgroup: t.id,
     line: { color: colour.get(t.id), width: 2 },
-    hovertemplate: `${t.id}: %{x:.0f} s, %{y:.0f} m (delay ${t.delay_s.toFixed(0)} s)<extra></extra>` }));
+    hovertemplate: `${t.id}${t.operated ? "" : " (not operated: planned)"}: %{x|%H:%M:%S}, %{y:.0f} m `
+      + `(${t.status}, delay ${t.delay_s === null ? "–" : t.delay_s.toFixed(0)} s)<extra></extra>` }));
+  const traces = [...stairs, ...planned, ...paths];
+  const placed = op.conflicts.filter((c) => c.from_m !== null);
+  if (placed.length) {
+    const box = { x: [], y: [] };
+    for (const c of placed) {
+      const t1 = c.time_s + c.overlap_s;
+      box.x.push(c.time_s, t1, t1, c.time_s, c.time_s, null);
+      box.y.push(c.from_m, c.from_m, c.to_m, c.to_m, c.from_m, null);
+    }
+    traces.push({ x: ms(box.x), y: box.y, mode: "lines", line: { color: "#d62728", width: 2 }, name: "conflict boxes",
+      legendgroup: "conflicts", showlegend: false, hoverinfo: "skip" });
+    traces.push({ x: placed.map((c) => (c.time_s + c.overlap_s / 2) * 1000), y: placed.map((c) => (c.from_m + c.to_m) / 2),
+      mode: "markers", name: `conflicts (${op.conflicts.length})`, legendgroup: "conflicts",
+      marker: { symbol: "x", size: 11, color: "#d62728", line: { width: 1, color: "#fff" } },
+      text: placed.map((c) => `conflict: ${c.trains[0]} → ${c.trains[1]}<br>block ${c.block} (${c.resource})`
+        + `<br>at ${clock(c.time_s)}, overlap ${c.overlap_s.toFixed(1)} s`),
+      hovertemplate: "%{text}<extra></extra>" });
+  }
   const stations = op.stations.map((s) => ({ type: "line", xref: "paper", x0: 0, x1: 1, y0: s.position_m, y1: s.position_m,
     line: { color: "#999", width: 1, dash: "dot" } }));
   const labels = op.stations.map((s) => ({ xref: "paper", x: 1, xanchor: "left", y: s.position_m, text: s.name,
     showarrow: false, font: { size: 11 } }));
-  Plotly.react(div, [...stairs, ...paths], { ...BASE, hovermode: "closest", shapes: stations, annotations: labels,
-    title: { text: `Train graph with blocking times: ${op.title} (${op.signalling}, ${op.conflicts} conflicts)`, font: { size: 14 } },
-    xaxis: { title: { text: "time [s]" } }, yaxis: { title: { text: "position on the line [m]" } } }, CONFIG);
+  const n = op.conflicts.length;
+  Plotly.react(div, traces, { ...BASE, hovermode: "closest", shapes: stations, annotations: labels, height: 560,
+    title: { text: `Train graph with blocking times: ${op.title} (${op.signalling}, ${n} conflict${n === 1 ? "" : "s"})`,
+      font: { size: 14 } },
+    xaxis: { title: { text: "time (solid: operated, dashed: timetable; shaded: blocking times; red ×: conflicts of the timetable)" },
+      type: "date", tickformat: "%H:%M" },
+    yaxis: { title: { text: "position on the line [m]" } } }, CONFIG);
+}
+
+// delay of each train at each station it has a time at (departure; arrival at the destination)
+export function plotOperationDelays(div, op) {
+  const colour = trainColours(op);
+  const names = op.stations.map((s) => s.name);
+  const traces = op.trains.map((t) => {
+    const stops = t.stops.filter((s) => s.delay_s !== null);
+    return { x: stops.map((s) => s.station), y: stops.map((s) => s.delay_s), mode: "lines+markers", name: t.id,
+      line: { color: colour.get(t.id), width: 1.5 }, marker: { size: 6 },
+      text: stops.map((s) => s.kind), hovertemplate: `${t.id} at %{x} (%{text}): %{y:.0f} s<extra></extra>` };
+  });
+  Plotly.react(div, traces, { ...BASE, hovermode: "closest",
+    title: { text: `Delay per station: ${op.title} (total ${op.total_delay_s === null ? "–" : op.total_delay_s.toFixed(0)} s)`,
+      font: { size: 14 } },
+    xaxis: { title: { text: "station (in line order)" }, type: "category", categoryorder: "array", categoryarray: names },
+    yaxis: { title: { text: "delay [s]" }, zeroline: true } }, CONFIG);
+}
+
+// for each pair of consecutive planned trains: the headway each shared resource needs over the line;
+// the highest point of a pair's line is its minimum headway
+export function plotOperationHeadways(div, op) {
+  const traces = op.headways.map((h, i) => ({ x: h.position_m.map((x) => x / 1000), y: h.headway_s, mode: "lines+markers",
+    name: `${h.leader} → ${h.follower}`, line: { color: PALETTE[i % PALETTE.length], width: 1.5 }, marker: { size: 4 },
+    hovertemplate: `${h.leader} → ${h.follower}: needs %{y:.0f} s at %{x:.2f} km<br>minimum ${h.min_headway_s.toFixed(0)} s `
+      + `(block ${h.critical_block}), planned ${h.planned_headway_s.toFixed(0)} s, buffer ${h.buffer_s.toFixed(0)} s<extra></extra>` }));
+  Plotly.react(div, traces, { ...BASE, hovermode: "closest",
+    title: { text: `Headway over the line (consecutive planned trains; the highest point is the minimum headway)`, font: { size: 14 } },
+    xaxis: { title: { text: "line position [km]" } }, yaxis: { title: { text: "headway needed [s]" } } }, CONFIG);
 }
