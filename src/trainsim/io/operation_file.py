@@ -8,6 +8,7 @@ field, the value and what is allowed, all problems of a file at once.
 
 from __future__ import annotations
 
+import copy
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -17,12 +18,13 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
+from trainsim.constants import KMH
 from trainsim.errors import InputError, Problem
 from trainsim.model import Route as GeometryRoute
 from trainsim.model import Train
 from trainsim.model.scenario import RunSettings
 from trainsim.operations.disturbances import Disturbances, disturbances_from_dict
-from trainsim.operations.etcs import EtcsNationalValues
+from trainsim.operations.etcs import EtcsNationalValues, StepFunction
 from trainsim.operations.line import (
     Line,
     Signalling,
@@ -36,6 +38,8 @@ from trainsim.operations.simulate import ScheduledStop, TrainService
 
 SCHEMA = "trainsim/operation"
 VERSIONS = (1,)
+#: Highest release speed an operation file may give [m/s] (the core's bound for V_NVREL).
+ETCS_MAX_RELEASE_SPEED_MPS = 100.0
 #: Most trains one file may expand to (repeat included): bounds memory and run time.
 MAX_TRAINS = 20_000
 _CLOCK = re.compile(r"^(\d{1,2}):([0-5]\d)(?::([0-5]\d(?:\.\d+)?))?$")
@@ -54,12 +58,107 @@ class _Station(_Spec):
     switch_zone_m: float = 100.0
 
 
-class _Etcs(_Spec):
-    a_brake_emergency_mps2: float
-    a_brake_service_mps2: float
-    t_brake_emergency_s: float
-    t_brake_service_s: float
-    t_traction_cut_off_s: float
+class _EtcsStep(_Spec):
+    """A step function of speed (SUBSET-026-3 3.13.2.2.3.1.3): ``values[0]`` up to the first limit,
+    the last value open ended; limits in km/h (as data sheets give them) or m/s, or in m for Kr_int."""
+
+    values: list[float]
+    upper_limits_kmh: list[float] | None = None
+    upper_limits_mps: list[float] | None = None
+    upper_limits_m: list[float] | None = None
+
+
+_EtcsValue = float | _EtcsStep
+
+
+class _EtcsTrain(_Spec):
+    """ETCS braking data of one train type (SUBSET-026-3 3.13.2.2); see docs/ETCS.md for each field."""
+
+    a_brake_emergency_mps2: _EtcsValue | None = None
+    a_brake_service_mps2: _EtcsValue | None = None
+    a_brake_normal_service_mps2: _EtcsValue | None = None
+    a_brake_normal_service_sets_mps2: list[_EtcsValue] | None = None
+    a_sb01_mps2: float | None = None
+    a_sb12_mps2: float | None = None
+    t_brake_emergency_s: float | None = None
+    t_brake_service_s: float | None = None
+    t_brake_emergency_cmt_s: float | None = None
+    t_brake_service_cmt_s: float | None = None
+    t_traction_cut_off_s: float | None = None
+    brake_percentage: float | None = None
+    brake_position: Literal["passenger_p", "freight_p", "freight_g"] | None = None
+    kdry_rst: _EtcsValue | None = None
+    kdry_rst_by_ebcl: dict[int, _EtcsValue] | None = None
+    kwet_rst: _EtcsValue | None = None
+    kn_plus_mps2: _EtcsValue | None = None
+    kn_minus_mps2: _EtcsValue | None = None
+    m_rotating_nom_percent: float | None = None
+    traction_cut_off_implemented: bool | None = None
+    service_brake_command: bool | None = None
+    service_brake_feedback: bool | None = None
+    speed_under_reading_mps: float | None = None
+    speed_under_reading_ratio: float | None = None
+    adhesion_independent_brake: bool | None = None
+
+
+class _EtcsNational(_Spec):
+    """National values (SUBSET-026-3 3.18, A.3.2 defaults when not given)."""
+
+    m_nvebcl: int | None = None
+    m_nvavadh: float | None = None
+    q_nvinhsmicperm: bool | None = None
+    q_nvguiperm: bool | None = None
+    q_nvsbtsmperm: bool | None = None
+    q_nvsbfbperm: bool | None = None
+    v_nvrel_mps: float | None = None
+    kv_int_freight: _EtcsValue | None = None
+    kv_int_passenger_a: _EtcsValue | None = None
+    kv_int_passenger_b: _EtcsValue | None = None
+    a_nvp12_mps2: float | None = None
+    a_nvp23_mps2: float | None = None
+    kr_int: _EtcsValue | None = None
+    kt_int: float | None = None
+    #: null: the national value asks for driver information instead of a limit (3.13.2.3.7.7)
+    a_nvmaxredadh1_mps2: float | None = None
+    a_nvmaxredadh2_mps2: float | None = None
+    a_nvmaxredadh3_mps2: float | None = None
+
+
+class _EtcsFixed(_Spec):
+    """Fixed values (SUBSET-026-3 A.3.1 defaults when not given)."""
+
+    dv_ebi_min_mps: float | None = None
+    dv_ebi_max_mps: float | None = None
+    v_ebi_min_mps: float | None = None
+    v_ebi_max_mps: float | None = None
+    dv_sbi_min_mps: float | None = None
+    dv_sbi_max_mps: float | None = None
+    v_sbi_min_mps: float | None = None
+    v_sbi_max_mps: float | None = None
+    dv_warning_min_mps: float | None = None
+    dv_warning_max_mps: float | None = None
+    v_warning_min_mps: float | None = None
+    v_warning_max_mps: float | None = None
+    t_warning_s: float | None = None
+    t_driver_s: float | None = None
+    m_rotating_max_percent: float | None = None
+    m_rotating_min_percent: float | None = None
+    gravity_mps2: float | None = None
+    a_est2_max_mps2: float | None = None
+    t_indication_min_s: float | None = None
+    t_indication_bs_factor: float | None = None
+
+
+class _Etcs(_EtcsTrain):
+    """``line.signalling.etcs``: the line's train data (for every train without its own entry), the
+    national and fixed values, the release speed and other trains' braking data."""
+
+    national: _EtcsNational = _EtcsNational()
+    fixed: _EtcsFixed = _EtcsFixed()
+    release_speed: Literal["calculated", "national"] | None = None
+    release_speed_mps: float | None = None
+    #: braking data by train id (``trains[i].id``) or train file (``trains[i].train``, as written)
+    trains: dict[str, _EtcsTrain] = {}
 
 
 class _Signalling(_Spec):
@@ -179,7 +278,7 @@ class _Train(_Spec):
     priority: int = 0
     entry_delay_s: float = 0.0
     origin_track: int | None = None
-    strategy: Literal["fastest"] = "fastest"
+    strategy: Literal["fastest", "optimal", "signal_aware"] = "fastest"
     repeat: _Repeat | None = None
 
 
@@ -517,15 +616,9 @@ def read_operation(path: str | Path) -> Operation:
             )
         )
     sg = spec.line.signalling
-    etcs = None
-    if sg.etcs is not None:
-        e = sg.etcs
-        etcs = EtcsBraking(
-            e.a_brake_emergency_mps2, e.a_brake_service_mps2, e.t_brake_emergency_s, e.t_brake_service_s,
-            e.t_traction_cut_off_s, EtcsNationalValues(),
-        )  # fmt: skip
+    etcs, etcs_trains = _etcs_braking(spec, trains, file, problems)
     wants_etcs = sg.system == "etcs_l2" or "etcs_l2" in spec.compare_systems
-    if wants_etcs and etcs is None:
+    if wants_etcs and sg.etcs is None:
         problems.append(
             Problem(
                 "ETCS Level 2 needs the trains' ETCS braking data",
@@ -558,7 +651,7 @@ def read_operation(path: str | Path) -> Operation:
         )
     except InputError as e:
         raise e.located(file) from None
-    services = _services(spec, trains, file, problems)
+    services = _etcs_services(spec, _services(spec, trains, file, problems), etcs_trains)
     for i, t in enumerate(spec.trains):
         # a train must fit on the platform tracks / passing loops it may stand on
         if t.train in trains:
@@ -594,6 +687,226 @@ def read_operation(path: str | Path) -> Operation:
         list(spec.compare_systems), spec.pattern_period_s, spec.dispatching.lookahead_s, line_args, delays,
         given, disturbances, connections,
     )  # fmt: skip
+
+
+#: Fields of an ``etcs`` train block and the ``EtcsTrainData`` field each fills (those not named here
+#: are EtcsBraking's own: the decelerations, the build-up times, T_traction_cut_off, brake_percentage).
+_ETCS_TRAIN_DATA = {
+    "a_brake_normal_service_mps2": "a_brake_normal_service",
+    "a_brake_normal_service_sets_mps2": "a_brake_normal_service_sets",
+    "a_sb01_mps2": "a_sb01_mps2",
+    "a_sb12_mps2": "a_sb12_mps2",
+    "t_brake_emergency_cmt_s": "t_brake_emergency_cmt_s",
+    "t_brake_service_cmt_s": "t_brake_service_cmt_s",
+    "brake_position": "brake_position",
+    "kdry_rst": "kdry_rst",
+    "kdry_rst_by_ebcl": "kdry_rst",
+    "kwet_rst": "kwet_rst",
+    "kn_plus_mps2": "kn_plus",
+    "kn_minus_mps2": "kn_minus",
+    "m_rotating_nom_percent": "m_rotating_nom_percent",
+    "traction_cut_off_implemented": "traction_cut_off_implemented",
+    "service_brake_command": "service_brake_command",
+    "service_brake_feedback": "service_brake_feedback",
+    "speed_under_reading_mps": "speed_under_reading_mps",
+    "speed_under_reading_ratio": "speed_under_reading_ratio",
+    "adhesion_independent_brake": "adhesion_independent_brake",
+}
+#: The core's field names back to the file's (for the messages).
+_ETCS_FILE_FIELD = {
+    "a_brake_emergency": "a_brake_emergency_mps2",
+    "a_brake_service": "a_brake_service_mps2",
+    **{v: k for k, v in _ETCS_TRAIN_DATA.items() if k != "kdry_rst_by_ebcl"},
+}
+
+
+def _etcs_step(
+    value: float | _EtcsStep, where: str, file: str, problems: list[Problem], length: bool = False
+) -> float | StepFunction | None:
+    """A number, or a step function of speed (limits in km/h or m/s) or, ``length``, of the train
+    length (limits in m); None after adding the problem."""
+    if not isinstance(value, _EtcsStep):
+        return float(value)
+    given = {k: getattr(value, k) for k in ("upper_limits_kmh", "upper_limits_mps", "upper_limits_m")}
+    given = {k: v for k, v in given.items() if v is not None}
+    allowed_key = ("upper_limits_m",) if length else ("upper_limits_kmh", "upper_limits_mps")
+    wrong = [k for k in given if k not in allowed_key]
+    if wrong or len(given) > 1 or (not given and len(value.values) != 1):
+        problems.append(
+            Problem(
+                "a step function needs its step limits once, in one unit",
+                file=file,
+                field=f"{where}.{wrong[0] if wrong else next(iter(given), allowed_key[0])}",
+                value=sorted(given),
+                allowed=f"{' or '.join(allowed_key)} ({len(value.values) - 1} limits for "
+                f"{len(value.values)} values; none for one value)",
+            )
+        )
+        return None
+    key, limits = next(iter(given.items()), (allowed_key[0], []))
+    scale = KMH if key == "upper_limits_kmh" else 1.0
+    try:
+        return StepFunction(tuple(value.values), tuple(x * scale for x in limits))
+    except InputError as e:
+        for pr in e.problems:
+            name = key if pr.field == "upper_limits" else (pr.field or "values")
+            problems.append(replace(pr, file=file, field=f"{where}.{name}"))
+        return None
+
+
+def _etcs_block(t: _EtcsTrain, where: str, file: str, problems: list[Problem]) -> EtcsBraking | None:
+    """The braking data of one ``etcs`` block (without national values and release speed)."""
+    before = len(problems)
+    own: dict[str, Any] = {}
+    for name in ("a_brake_emergency_mps2", "a_brake_service_mps2"):
+        v = getattr(t, name)
+        own[name] = None if v is None else _etcs_step(v, f"{where}.{name}", file, problems)
+    extra: list[tuple[str, Any]] = []
+    if t.kdry_rst is not None and t.kdry_rst_by_ebcl is not None:
+        problems.append(
+            Problem("give Kdry_rst once", file=file, field=f"{where}.kdry_rst_by_ebcl",
+                    allowed="kdry_rst (any confidence level) or kdry_rst_by_ebcl (by M_NVEBCL index)")
+        )  # fmt: skip
+    for name, target in _ETCS_TRAIN_DATA.items():
+        v = getattr(t, name)
+        if v is None:
+            continue
+        if isinstance(v, _EtcsStep):
+            v = _etcs_step(v, f"{where}.{name}", file, problems)
+        elif name == "a_brake_normal_service_sets_mps2":
+            v = tuple(_etcs_step(x, f"{where}.{name}[{k}]", file, problems) for k, x in enumerate(v))
+        elif name == "kdry_rst_by_ebcl":
+            v = {k: _etcs_step(x, f"{where}.{name}.{k}", file, problems) for k, x in v.items()}
+        extra.append((target, v))
+    if len(problems) > before:
+        return None
+    return EtcsBraking(
+        own["a_brake_emergency_mps2"], own["a_brake_service_mps2"], t.t_brake_emergency_s, t.t_brake_service_s,
+        t.t_traction_cut_off_s, train_fields=tuple(extra), brake_percentage=t.brake_percentage,
+    )  # fmt: skip
+
+
+def _etcs_national(e: _Etcs, file: str, problems: list[Problem]) -> EtcsNationalValues | None:
+    """The national and fixed values given (the others at their SUBSET-026 defaults)."""
+    before = len(problems)
+    given: dict[str, Any] = {}
+    where: dict[str, str] = {}
+    for part, spec in (("national", e.national), ("fixed", e.fixed)):
+        for name in spec.model_fields_set:
+            v = getattr(spec, name)
+            path = f"line.signalling.etcs.{part}.{name}"
+            where[name] = path
+            if v is None and not name.startswith("a_nvmaxredadh"):
+                problems.append(Problem("a value is needed", file=file, field=path, value=None))
+                continue
+            if isinstance(v, _EtcsStep):
+                v = _etcs_step(v, path, file, problems, length=name == "kr_int")
+            given[name] = v
+    if len(problems) > before:
+        return None
+    try:
+        return EtcsNationalValues(**given)
+    except InputError as err:
+        problems += [
+            replace(pr, file=file, field=where.get(pr.field or "", f"line.signalling.etcs.{pr.field}"))
+            for pr in err.problems
+        ]
+        return None
+
+
+def _etcs_release(e: _Etcs, file: str, problems: list[Problem]) -> float | str:
+    if e.release_speed is not None and e.release_speed_mps is not None:
+        problems.append(
+            Problem("give the release speed once", file=file, field="line.signalling.etcs.release_speed_mps",
+                    value=(e.release_speed, e.release_speed_mps),
+                    allowed="release_speed (calculated, national) or release_speed_mps")
+        )  # fmt: skip
+    if e.release_speed_mps is not None:
+        v = e.release_speed_mps
+        if not (np.isfinite(v) and 0.0 <= v <= ETCS_MAX_RELEASE_SPEED_MPS):
+            problems.append(
+                Problem("release speed out of range", file=file, field="line.signalling.etcs.release_speed_mps",
+                        value=v, allowed=f"0 to {ETCS_MAX_RELEASE_SPEED_MPS:g} m/s")
+            )  # fmt: skip
+        return float(v)
+    return e.release_speed or "calculated"
+
+
+def _etcs_braking(
+    spec: _Operation, trains: dict[str, Train], file: str, problems: list[Problem]
+) -> tuple[EtcsBraking | None, dict[str, Train]]:
+    """``line.signalling.etcs`` read and checked for every train that uses it, and the trains of the
+    train ids that have their own braking data (a copy of their train each, so that the braking data
+    can be found by the train: ``EtcsBraking.per_train``)."""
+    e = spec.line.signalling.etcs
+    if e is None:
+        return None, {}
+    before = len(problems)
+    national = _etcs_national(e, file, problems)
+    release = _etcs_release(e, file, problems)
+    base = "line.signalling.etcs"
+    line_block = _etcs_block(e, base, file, problems)
+    ids = {t.id: t.train for t in spec.trains}
+    files = {t.train for t in spec.trains}
+    blocks: dict[str, tuple[str, EtcsBraking | None, _EtcsTrain]] = {}
+    for key, t in e.trains.items():
+        where = f"{base}.trains.{key}"
+        if key not in ids and key not in files:
+            problems.append(
+                Problem("no train of this id or train file", file=file, field=where, value=key,
+                        allowed="a trains[i].id or a trains[i].train of this file")
+            )  # fmt: skip
+            continue
+        blocks[key] = (where, _etcs_block(t, where, file, problems), t)
+    if len(problems) > before or national is None or line_block is None:
+        return None, {}
+    copies = {key: copy.copy(trains[ids[key]]) for key in blocks if key in ids and ids[key] in trains}
+    per_train = [(copies[k], b) for k, (_w, b, _t) in blocks.items() if k in copies]
+    per_train += [(trains[k], b) for k, (_w, b, _t) in blocks.items() if k not in ids and k in trains]
+    etcs = EtcsBraking(
+        line_block.a_brake_emergency_mps2, line_block.a_brake_service_mps2, line_block.t_brake_emergency_s,
+        line_block.t_brake_service_s, line_block.t_traction_cut_off_s, national, line_block.train_fields,
+        line_block.brake_percentage, release, tuple(per_train),
+    )  # fmt: skip
+    # every train's ETCS data, built once here so that a bad value is named before any run
+    users = [(f"trains[{i}]", t.id, t.train) for i, t in enumerate(spec.trains)]
+    for where_train, tid, tfile in users:
+        train = copies.get(tid) or trains.get(tfile)
+        if train is None:
+            continue
+        where, _b, given = blocks.get(tid, blocks.get(tfile, (base, None, e)))
+        try:
+            etcs.train_data(train).kdry_for(etcs.national.m_nvebcl)
+        except InputError as err:
+            for pr in err.problems:
+                name = _ETCS_FILE_FIELD.get(pr.field or "", pr.field)
+                if name == "kdry_rst" and given.kdry_rst_by_ebcl is not None:
+                    name = "kdry_rst_by_ebcl"
+                field_path = where if name in (None, base) else f"{where}.{name}"
+                problems.append(
+                    replace(pr, file=file, field=field_path,
+                            reason=f"{pr.reason} (ETCS data of {where_train}, train {tfile})")
+                )  # fmt: skip
+    if len(problems) > before:
+        return None, {}
+    return etcs, copies
+
+
+def _etcs_services(
+    spec: _Operation, services: list[TrainService], copies: dict[str, Train]
+) -> list[TrainService]:
+    """The services of the train ids with their own ETCS braking data run with that id's train copy."""
+    if not copies:
+        return services
+    out, k = list(services), 0
+    for t in spec.trains:
+        count = t.repeat.count if t.repeat else 1
+        if t.id in copies:
+            for j in range(k, min(k + count, len(out))):
+                if out[j].id in (t.id, f"{t.id}.{j - k + 1}"):
+                    out[j] = replace(out[j], train=copies[t.id])
+        k += count
+    return out
 
 
 def _connections(spec: _Operation, services: list[TrainService], file: str) -> tuple[Connection, ...]:
@@ -879,6 +1192,7 @@ def _services(
                     t.priority,
                     delay,
                     t.origin_track,
+                    strategy=t.strategy,
                 )
             )
     return out
