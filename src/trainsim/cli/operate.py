@@ -65,6 +65,15 @@ def operate(
         int | None,
         typer.Option("--local-workers", help="Network-day on a local Dask cluster of this many processes."),
     ] = None,
+    compare_strategies: Annotated[
+        str | None,
+        typer.Option(
+            "--compare-strategies",
+            help="Also simulate the timetable with every train driving each of these strategies "
+            "(comma-separated: fastest, optimal, signal_aware) and print total and per-train energy "
+            "and delay per strategy.",
+        ),
+    ] = None,
 ) -> None:
     """Simulate the trains of an operation file together: delays, conflicts, headways, capacity.
 
@@ -79,12 +88,24 @@ def operate(
     each entry of 'line_days' has 'conflicts': the planned conflicts of the line's own timetable, or
     null on a sampled day (sampled days are not checked for conflicts).
 
-    Exit code 3 when the status is not ok: 'conflicts' (the planned timetable has overlapping blocking
+    Each train drives its 'strategy': fastest, optimal (each stretch between stops energy-efficiently
+    in its scheduled running time) or signal_aware (optimal, passing each approach start only when its
+    route is set, from the blocking times of the trains ahead); --compare-strategies runs the
+    timetable once per strategy for all trains.
+
+    Exit code 3 when the status is not ok (of the file's run or of a compared strategy): 'conflicts' (the planned timetable has overlapping blocking
     times), 'deadlock' (trains could not finish; the summary names them) or 'stalled'. Exit code 4 when
     the Dask scheduler cannot be reached, or the scheduler or the workers are lost during the run
     (nothing is written; run the command again).
     """
     if len(files) > 1 or days or scheduler is not None or local_workers is not None:
+        if compare_strategies is not None:
+            with user_errors():
+                raise InputError(
+                    "--compare-strategies compares the strategies on a single operation file",
+                    field="--compare-strategies",
+                    value=compare_strategies,
+                )
         _network_day(files, out, as_json, parquet, samples, seed, days, scheduler, local_workers)
         return
     file = files[0]
@@ -92,8 +113,11 @@ def operate(
         require_file(file, "operation file")
         from trainsim.io.operation_run import run_operation_file
 
+        strategies = None
+        if compare_strategies is not None:
+            strategies = [x.strip() for x in compare_strategies.split(",") if x.strip()]
         summary, status = run_operation_file(
-            file, out, parquet=parquet, plots=plots, samples=samples, seed=seed
+            file, out, parquet=parquet, plots=plots, samples=samples, seed=seed, strategies=strategies
         )
     if as_json:
         typer.echo(json.dumps(summary, indent=2, allow_nan=False))
@@ -175,6 +199,7 @@ def _print(summary: dict, out: Path | None) -> None:
     table = Table(
         "train",
         "dir",
+        "strategy",
         "from",
         "to",
         "departure s",
@@ -187,7 +212,7 @@ def _print(summary: dict, out: Path | None) -> None:
     for t in summary["trains"]:
         first, last = t["stops"][0], t["stops"][-1]
         table.add_row(
-            t["id"], t["direction"], first["station"], last["station"],
+            t["id"], t["direction"], t["strategy"], first["station"], last["station"],
             _num(first["departure_s"]), _num(last["arrival_s"]), _num(t["delay_s"]),
             _num(t["energy_kwh"], 2), _num(t["planned_energy_kwh"], 2), str(len(t["hindrances"])),
         )  # fmt: skip
@@ -212,9 +237,33 @@ def _print(summary: dict, out: Path | None) -> None:
         con.print(
             f"Monte Carlo, {mc['samples']} samples: total delay {mc['total_delay_s']} s; statuses {mc['statuses']}"
         )
+    if "strategies" in summary:
+        _print_strategies(summary["strategies"])
     echo_warnings(summary["warnings"])
     if out is not None:
         con.print(f"written to {out}/")
+
+
+def _print_strategies(compared: dict) -> None:
+    from rich.table import Table
+
+    con = console()
+    totals = Table("strategy", "status", "simulations", "energy kWh", "planned kWh", "total delay s")
+    for name, c in compared.items():
+        totals.add_row(
+            name, c["status"], str(c["iterations"]), _num(c["energy_kwh"]["operated"], 2),
+            _num(c["energy_kwh"]["planned"], 2), _num(c["total_delay_s"]),
+        )  # fmt: skip
+    con.print(totals)
+    names = list(compared)
+    per_train = Table("train", *[f"{n} {what}" for n in names for what in ("kWh", "delay s")])
+    rows = zip(*[compared[n]["trains"] for n in names], strict=True)
+    for row in rows:
+        cells = [x for t in row for x in (_num(t["energy_kwh"], 2), _num(t["delay_s"]))]
+        per_train.add_row(row[0]["id"], *cells)
+    con.print(per_train)
+    for name, c in compared.items():
+        echo_warnings([f"{name}: {w}" for w in c["warnings"]])
 
 
 def _num(x: float | None, digits: int = 1) -> str:

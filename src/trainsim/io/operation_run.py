@@ -7,6 +7,7 @@ the status (``ok`` or the reason it is not).
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +15,7 @@ from trainsim.errors import InputError
 from trainsim.io.operation_file import Operation, read_operation
 from trainsim.operations.blocking import compression
 from trainsim.operations.runs import RunCache
-from trainsim.operations.simulate import OperationResult, TrainService, simulate
+from trainsim.operations.simulate import STRATEGIES, OperationResult, TrainService, simulate
 
 
 def run_operation(
@@ -128,6 +129,46 @@ def compare_systems(op: Operation, systems: list[str]) -> dict[str, Any]:
     return out
 
 
+def compare_strategies(op: Operation, strategies: list[str], cache: RunCache | None = None) -> dict[str, Any]:
+    """The file's timetable simulated once per driving strategy, every train driving it: per strategy
+    the status, the simulations made, total operated and planned energy [kWh] and total delay [s], and
+    per train its energy, planned energy, delay, status and waits at signals and stops."""
+    unknown = [x for x in strategies if x not in STRATEGIES]
+    if unknown or not strategies or len(set(strategies)) != len(strategies):
+        raise InputError(
+            "unknown, repeated or no driving strategy to compare",
+            field="--compare-strategies",
+            value=",".join(strategies),
+            allowed="a comma-separated list of " + ", ".join(STRATEGIES),
+        )
+    cache = cache or RunCache(op.settings)
+    out: dict[str, Any] = {}
+    for strategy in strategies:
+        services = [replace(s, strategy=strategy) for s in op.services]
+        res = run_operation(op, services, cache, conflicts=False, headways=False)
+        summary = res.summary()
+        out[strategy] = {
+            "status": res.status,
+            "iterations": res.iterations,
+            "energy_kwh": summary["energy_kwh"],
+            "total_delay_s": summary["total_delay_s"],
+            "trains": [
+                {
+                    "id": t["id"],
+                    "status": t["status"],
+                    "energy_kwh": t["energy_kwh"],
+                    "planned_energy_kwh": t["planned_energy_kwh"],
+                    "delay_s": t["delay_s"],
+                    "waits": len(t["hindrances"]),
+                    **({"stretches": t["stretches"]} if "stretches" in t else {}),
+                }
+                for t in summary["trains"]
+            ],
+            "warnings": res.warnings,
+        }
+    return out
+
+
 def run_operation_file(
     path: str | Path,
     out_dir: str | Path | None = None,
@@ -135,18 +176,22 @@ def run_operation_file(
     plots: bool = True,
     samples: int = 0,
     seed: int | None = None,
+    strategies: list[str] | None = None,
 ) -> tuple[dict[str, Any], str]:
     """Read, simulate and report an operation file.
 
     Returns the summary (``status``, ``trains`` with per-stop scheduled and simulated times and delay,
     ``energy_kwh``, ``conflicts``, ``headways``, ``capacity`` and ``separation`` when asked for) and the
     status. With ``samples`` > 0 also ``monte_carlo`` (delay statistics over that many sampled days).
+    With ``strategies``, ``strategies``: the timetable driven by every train with each of them
+    (``compare_strategies``); the status is then the first that is not ok of the file's run and those.
     With ``out_dir``: ``summary.json``, ``trains.csv`` (stop times), ``blocking_times.csv``
     (operated and planned), ``traces.csv`` (every train's position and speed over time), Parquet copies
     with ``parquet``, and the plots (``train_graph.png``, ``delays.png``, ``headways.png``).
     """
     op = read_operation(path)
-    result = run_operation(op)
+    cache = RunCache(op.settings)
+    result = run_operation(op, cache=cache)
     summary: dict[str, Any] = {"name": op.name, "file": str(path), "signalling": op.line.signalling.system}
     summary.update(result.summary())
     if op.connections:
@@ -162,9 +207,18 @@ def run_operation_file(
         summary["separation"] = compare_systems(op, op.compare_systems)
     if samples:
         summary["monte_carlo"] = monte_carlo(op, samples, seed)
+    status = result.status
+    if strategies:
+        try:
+            summary["strategies"] = compare_strategies(op, strategies, cache)
+        except InputError as e:
+            raise e.located(op.file) from None
+        if status == "ok":
+            # a comparison run that is not ok is not hidden behind the file's own
+            status = next((v["status"] for v in summary["strategies"].values() if v["status"] != "ok"), "ok")
     if out_dir is not None:
         write_outputs(op, result, summary, Path(out_dir), parquet, plots)
-    return summary, result.status
+    return summary, status
 
 
 def tables(op: Operation, result: OperationResult):  # -> dict[str, pandas.DataFrame]

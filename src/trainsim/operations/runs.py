@@ -19,6 +19,7 @@ from trainsim.errors import InputError
 from trainsim.model import Route, SpeedLimit, Station, Train
 from trainsim.model.scenario import RunSettings
 from trainsim.model.spans import route_between
+from trainsim.model.timetable import SectionSchedule, Timetable, TimingPoint
 from trainsim.operations.blocking import Trajectory
 from trainsim.operations.ceiling import with_limits
 from trainsim.sim.fastest import run_fastest
@@ -34,6 +35,32 @@ SLOWED_CAP_FRACTIONS = tuple(round(1.0 - 0.05 * k, 2) for k in range(17))  # 1.0
 CAP_TIME_TOLERANCE_S = 1e-7
 #: Root-find steps on the cap before giving up (Illinois converges in some 5 to 10 on smooth runs).
 CAP_MAX_ITERATIONS = 60
+#: Running-time reserve of a signal-aware stretch over the shortest running time that meets its timing
+#: points, when the schedule is shorter than that: at the shortest time the run would have to stand at
+#: its origin, which the optimisation (time as integral of ds / v) cannot do.
+AWARE_RESERVE = 0.05
+#: An energy-efficient stretch whose scheduled running time is within this of the fastest run's is
+#: driven fastest (no time to save energy with) [s].
+ECO_MIN_SUPPLEMENT_S = 1e-3
+
+
+@dataclass(frozen=True)
+class EcoPlan:
+    """How one stretch between two stops is to be driven energy-efficiently.
+
+    Attributes:
+        running_time_s: the running time to take [s].
+        timing_points: earliest passing times from the stretch's departure (running positions) [m, s].
+    """
+
+    running_time_s: float
+    timing_points: tuple[TimingPoint, ...] = ()
+
+    def key(self) -> tuple:
+        return (
+            round(self.running_time_s, 6),
+            tuple((round(p.position_m, 6), round(p.earliest_s or 0.0, 6)) for p in self.timing_points),
+        )
 
 
 @dataclass(frozen=True)
@@ -262,6 +289,40 @@ class RunCache:
         found = self._runs[key] = self._run_stretch(train, directed, a, b, limits)
         return found
 
+    def eco_stretch(
+        self,
+        train: Train,
+        directed: Route,
+        a: tuple[str, float],
+        b: tuple[str, float],
+        limits: Sequence[SpeedLimit],
+        plan: EcoPlan,
+    ):
+        """The energy-efficient run from stop ``a`` to stop ``b`` under the extra ceilings ``limits`` in
+        ``plan.running_time_s`` passing ``plan.timing_points`` no earlier than their times
+        (``trainsim.optimize.api.optimize``, strategy ``optimal``): (position, speed, time, result,
+        optimisation). The caller makes sure the running time is longer than the fastest run's."""
+        from trainsim.optimize.api import optimize
+
+        limits, key = self._stretch_key(train, directed, a, b, limits)
+        key = ("eco", *key, plan.key())
+        found = self._runs.get(key)
+        if found is not None:
+            self.hits += 1
+            return found
+        self._keep.extend((train, directed))
+        timetable = Timetable(
+            sections=(SectionSchedule(running_time_s=plan.running_time_s),), timing_points=plan.timing_points
+        )
+        opt = optimize(train, service_route(directed, [a, b], limits), timetable, "optimal", self.settings)
+        tr = opt.run.trace
+        s, v, t = tr.position_m, tr.speed_mps, tr.time_s
+        if abs(s[-1] - b[1]) > 1e-6:
+            s, v, t = np.append(s, b[1]), np.append(v, 0.0), np.append(t, t[-1])
+        self.computed += 1
+        found = self._runs[key] = (s, v, t, opt.run, opt)
+        return found
+
     def _run_stretch(
         self, train: Train, directed: Route, a: tuple[str, float], b: tuple[str, float], limits: tuple
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, RunResult]:
@@ -434,30 +495,41 @@ class RunCache:
         directed: Route,
         stops: list[tuple[str, float]],
         limits: Sequence[SpeedLimit] = (),
+        eco: dict[int, EcoPlan] | None = None,
     ) -> Movement:
         """The fastest run of ``train`` on ``directed`` through ``stops`` (names and running positions)
         under the extra ceilings ``limits`` (running positions); one object per train, route, stop
-        positions and limits (identical trains, or a train trying the same stops again, share it)."""
+        positions and limits (identical trains, or a train trying the same stops again, share it).
+        ``eco[k]``: stretch ``k`` (from ``stops[k]``) driven energy-efficiently (``eco_stretch``)."""
+        eco = eco or {}
         key = (
             id(train), id(directed), tuple(round(p, 6) for _n, p in stops),
-            self._limits_key(limits),
+            self._limits_key(limits), tuple(sorted((k, p.key()) for k, p in eco.items())),
         )  # fmt: skip
         found = self._movements.get(key)
         if found is not None:
             self.hits += len(stops) - 1
             return found
-        found = self._movements[key] = self._movement(train, directed, stops, limits)
+        found = self._movements[key] = self._movement(train, directed, stops, limits, eco)
         return found
 
     def _movement(
-        self, train: Train, directed: Route, stops: list[tuple[str, float]], limits: Sequence[SpeedLimit]
+        self,
+        train: Train,
+        directed: Route,
+        stops: list[tuple[str, float]],
+        limits: Sequence[SpeedLimit],
+        eco: dict[int, EcoPlan],
     ) -> Movement:
         ss, vs, ts, results = [], [], [], []
         arr, dep = [0], [0]
         n = 0
         t0 = 0.0
-        for a, b in pairwise(stops):
-            s, v, t, result = self.stretch(train, directed, a, b, limits)
+        for k, (a, b) in enumerate(pairwise(stops)):
+            if k in eco:
+                s, v, t, result, _opt = self.eco_stretch(train, directed, a, b, limits, eco[k])
+            else:
+                s, v, t, result = self.stretch(train, directed, a, b, limits)
             ss.append(s)
             vs.append(v)
             ts.append(t - t[0] + t0)
@@ -501,17 +573,39 @@ def _inverse_quadratic(points: list[tuple[float, float]]) -> float:
     return 1.0 / total if total > 0 else float("nan")
 
 
+def min_running_time_s(position_m: np.ndarray, time_s: np.ndarray, points: Sequence[TimingPoint]) -> float:
+    """The shortest running time of a stretch that passes every point no earlier than its
+    ``earliest_s`` [s], from the stretch's fastest run (``position_m``, ``time_s`` from its start)
+    [m, s]: ``T_f + max(0, max_k(e_k - t_f(x_k)))``.
+
+    The fastest run's speed is the highest any run can have at each position, so a run passing
+    ``x_k`` no earlier than ``e_k`` needs at least ``e_k + T_f - t_f(x_k)``; the fastest run started
+    ``max_k(e_k - t_f(x_k))`` later (standing at the origin meanwhile) meets every point and takes
+    exactly the largest of these bounds."""
+    total = float(time_s[-1] - time_s[0])
+    wait = 0.0
+    for p in points:
+        if p.earliest_s is not None:
+            t_f = float(np.interp(p.position_m, position_m, time_s) - time_s[0])
+            wait = max(wait, float(p.earliest_s) - t_f)
+    return total + wait
+
+
 def auxiliary_power_w(train: Train) -> float:
     """The train's auxiliary power, 0 without electrical data [W]."""
     return float(train.electrical.auxiliary_power_w) if train.electrical is not None else 0.0
 
 
 __all__ = [
+    "AWARE_RESERVE",
     "CAP_TIME_TOLERANCE_S",
+    "ECO_MIN_SUPPLEMENT_S",
     "CappedRun",
+    "EcoPlan",
     "Movement",
     "RunCache",
     "auxiliary_power_w",
     "direction_route",
+    "min_running_time_s",
     "service_route",
 ]

@@ -30,14 +30,15 @@ from trainsim.model.scenario import RunSettings
 from trainsim.model.timetable import SectionSchedule, Timetable, TimingPoint
 from trainsim.operations.blocking import approach_start_m
 from trainsim.operations.line import Line
-from trainsim.operations.runs import RunCache, auxiliary_power_w, service_route
+from trainsim.operations.runs import (
+    AWARE_RESERVE,
+    RunCache,
+    auxiliary_power_w,
+    min_running_time_s,
+    service_route,
+)
 from trainsim.operations.simulate import OperationResult, TrainService, approach_function, simulate
 from trainsim.optimize.api import OptimizationResult, optimize
-
-#: Running-time reserve of the aware follower over the shortest running time that meets its timing
-#: points, when the signal-blind follower's time is shorter than that: at the shortest time the run
-#: would have to stand at its origin, which the optimisation (time as integral of ds / v) cannot do.
-AWARE_RESERVE = 0.05
 
 
 @dataclass(frozen=True)
@@ -77,24 +78,6 @@ class SignalAwareComparison:
     def delay_change_s(self) -> float:
         """Arrival of the signal-aware run minus that of the signal-blind one [s] (<= 0: not later)."""
         return self.aware_arrival_s - self.blind_arrival_s
-
-
-def min_running_time_s(position_m: np.ndarray, time_s: np.ndarray, points: Sequence[TimingPoint]) -> float:
-    """The shortest running time of a stretch that passes every point no earlier than its
-    ``earliest_s`` [s], from the stretch's fastest run (``position_m``, ``time_s`` from its start)
-    [m, s]: ``T_f + max(0, max_k(e_k - t_f(x_k)))``.
-
-    The fastest run's speed is the highest any run can have at each position, so a run passing
-    ``x_k`` no earlier than ``e_k`` needs at least ``e_k + T_f - t_f(x_k)``; the fastest run started
-    ``max_k(e_k - t_f(x_k))`` later (standing at the origin meanwhile) meets every point and takes
-    exactly the largest of these bounds."""
-    total = float(time_s[-1] - time_s[0])
-    wait = 0.0
-    for p in points:
-        if p.earliest_s is not None:
-            t_f = float(np.interp(p.position_m, position_m, time_s) - time_s[0])
-            wait = max(wait, float(p.earliest_s) - t_f)
-    return total + wait
 
 
 def _interior_min(speed: np.ndarray) -> float:
@@ -185,4 +168,4 @@ def signal_aware_follower(
     )
 
 
-__all__ = ["SignalAwareComparison", "min_running_time_s", "signal_aware_follower"]
+__all__ = ["AWARE_RESERVE", "SignalAwareComparison", "min_running_time_s", "signal_aware_follower"]

@@ -43,6 +43,7 @@ from trainsim.errors import InputError
 from trainsim.model import Route as GeometryRoute
 from trainsim.model import SpeedLimit, Train
 from trainsim.model.scenario import RunSettings
+from trainsim.model.timetable import TimingPoint
 from trainsim.operations.blocking import (
     BlockingTime,
     Headway,
@@ -55,10 +56,31 @@ from trainsim.operations.blocking import (
 )
 from trainsim.operations.ceiling import MIN_CEILING_MPS, driver_braking_steps, release_steps
 from trainsim.operations.line import Direction, Line, Route, RouteStep
-from trainsim.operations.runs import Movement, RunCache, auxiliary_power_w
+from trainsim.operations.runs import (
+    AWARE_RESERVE,
+    ECO_MIN_SUPPLEMENT_S,
+    EcoPlan,
+    Movement,
+    RunCache,
+    auxiliary_power_w,
+    min_running_time_s,
+)
 from trainsim.operations.separation import EtcsBraking, etcs_approach_distance, ma_indication_steps
+from trainsim.optimize.api import SCHEDULE_TOLERANCE_S
 
 Rule = Literal["fcfs", "priority"]
+#: How a train drives between its stops (``TrainService.strategy``).
+STRATEGIES = ("fastest", "optimal", "signal_aware")
+#: A train leaving a stop later than scheduled by more than this drives the next stretch fastest [s].
+LATE_TOLERANCE_S = 1.0
+#: A signal-aware train passes an approach start this long after its route can be set at the earliest
+#: (the optimisation meets a timing window within 0.5 s) [s].
+AWARE_MARGIN_S = 1.0
+#: The most simulations of a timetable with signal-aware trains (each takes its timing points from
+#: the blocking times of the one before).
+MAX_AWARE_ITERATIONS = 6
+#: Timing points of two simulations this close are the same (the iteration has converged) [s].
+AWARE_CONVERGED_S = 1e-3
 #: Times closer than this are the same instant (a follower at exactly the minimum headway) [s].
 TIME_TOLERANCE_S = 1e-6
 #: Grid of the release points of trains that pick up speed again [m].
@@ -112,6 +134,11 @@ class TrainService:
         traction_power_cap_w: cap on the traction power at the wheel of the operated runs [W]
             (``EffortCurve.capped``; infinite: none). The planned run does not have it, so that a
             train slowed by it (a weak supply, fed back by the power study) shows as late.
+        strategy: ``fastest``; ``optimal`` (each stretch between scheduled stops driven by
+            ``trainsim.optimize``'s optimal strategy in its scheduled running time, fastest when the
+            train leaves late or a signal stops it); ``signal_aware`` (``optimal`` with timing points
+            from the blocking times of the trains ahead: it passes each approach start only when its
+            route is set). The last two need a scheduled arrival at every stop and the destination.
     """
 
     id: str
@@ -126,6 +153,7 @@ class TrainService:
     origin_track: int | None = None
     running_extra_s: tuple[float, ...] = ()
     traction_power_cap_w: float = math.inf
+    strategy: str = "fastest"
 
 
 @dataclass(frozen=True)
@@ -208,6 +236,57 @@ class DisturbedStretch:
         }
 
 
+@dataclass(frozen=True)
+class DrivenStretch:
+    """How an ``optimal`` or ``signal_aware`` train drove a stretch between two scheduled stops.
+
+    Attributes:
+        start, end: its scheduled stops.
+        driven: ``optimal``, ``signal_aware`` (optimal with timing points) or ``fastest``.
+        reason: why ``fastest`` (``late`` by ``late_s``, ``signal`` stop or slowdown, ``no_supplement``:
+            the schedule leaves no time over the fastest run), else empty.
+        scheduled_s: scheduled running time (arrival minus departure) [s].
+        running_time_s: the running time of the run driven, stands at signals excluded [s].
+        timing_points: the timing points of a signal-aware stretch (running position, earliest time
+            from the stretch's departure) [m, s].
+        late_s: how late the train left ``start`` [s].
+        asked_s: the running time the optimisation was asked for: the scheduled one, or for a
+            signal-aware stretch whose timing points the schedule cannot meet the shortest running
+            time that meets them plus ``AWARE_RESERVE`` (the train arrives later); None when driven
+            fastest [s].
+    """
+
+    start: str
+    end: str
+    driven: str
+    reason: str
+    scheduled_s: float
+    running_time_s: float
+    timing_points: tuple[TimingPoint, ...] = ()
+    late_s: float = 0.0
+    asked_s: float | None = None
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "from": self.start,
+            "to": self.end,
+            "driven": self.driven,
+            "reason": self.reason or None,
+            "scheduled_s": round(self.scheduled_s, 3),
+            "running_time_s": round(self.running_time_s, 3),
+            "late_s": round(self.late_s, 3),
+            "asked_s": None if self.asked_s is None else round(self.asked_s, 6),
+            "timing_points": [
+                {
+                    "position_m": round(p.position_m, 3),
+                    "earliest_s": round(float(p.earliest_s), 3),
+                    "name": p.name,
+                }
+                for p in self.timing_points
+            ],
+        }
+
+
 @dataclass
 class TrainOutcome:
     """What happened to one train."""
@@ -232,11 +311,16 @@ class TrainOutcome:
     trajectory_note: str = ""
     #: the stretches with running-time disturbances and how each was driven
     disturbed: tuple[DisturbedStretch, ...] = ()
+    #: the driving strategy (``TrainService.strategy``)
+    strategy: str = "fastest"
+    #: how each stretch between scheduled stops was driven (``optimal``, ``signal_aware``), else empty
+    stretches: tuple[DrivenStretch, ...] = ()
 
     def to_dict(self) -> dict[str, object]:
         return {
             "id": self.id,
             "direction": self.direction,
+            "strategy": self.strategy,
             "status": self.status,
             "delay_s": round(self.delay_s, 3) if np.isfinite(self.delay_s) else None,
             "energy_kwh": round(self.energy_kwh, 4) if np.isfinite(self.energy_kwh) else None,
@@ -250,6 +334,7 @@ class TrainOutcome:
             **({"energy_note": self.energy_note} if self.energy_note else {}),
             **({"trajectory_note": self.trajectory_note} if self.trajectory_note else {}),
             **({"disturbed": [d.to_dict() for d in self.disturbed]} if self.disturbed else {}),
+            **({"stretches": [d.to_dict() for d in self.stretches]} if self.stretches else {}),
         }
 
 
@@ -293,6 +378,8 @@ class OperationResult:
     runs_computed: int
     runs_reused: int
     deadlock: list[str] = field(default_factory=list)
+    #: simulations made (> 1: signal-aware trains took their timing points from the one before)
+    iterations: int = 1
 
     def summary(self) -> dict[str, object]:
         """JSON-ready summary."""
@@ -304,6 +391,7 @@ class OperationResult:
             "conflicts": [c.to_dict() for c in self.conflicts],
             "headways": [h.to_dict() for h in self.headways],
             "runs": {"computed": self.runs_computed, "reused": self.runs_reused},
+            "iterations": self.iterations,
             "total_delay_s": round(sum(t.delay_s for t in self.trains if np.isfinite(t.delay_s)), 3),
             "energy_kwh": {
                 "operated": round(sum(t.energy_kwh for t in self.trains if np.isfinite(t.energy_kwh)), 4),
@@ -326,6 +414,21 @@ class _Stop:
     extra_s: float = 0.0  # a sampled disturbance the planned run does not have [s]
 
 
+def _stretch_schedule(svc: TrainService, stops: list[_Stop]) -> dict[float, tuple[float, float, float]]:
+    """Each stretch between two scheduled stops by the position of its first: (position of its last,
+    scheduled departure, scheduled arrival) [m, s]. A stop's scheduled departure is the given one, else
+    its scheduled arrival plus its dwell (``_check_services`` makes sure the arrivals are given)."""
+    sched = {s.station: s for s in svc.stops}
+    out = {}
+    dep = svc.departure_s
+    for a, b in pairwise(stops):
+        arr = sched[b.name].arrival_s
+        out[a.position_m] = (b.position_m, float(dep), float(arr))
+        s = sched[b.name]
+        dep = s.departure_s if s.departure_s is not None else arr + s.dwell_s
+    return out
+
+
 class _TrainState:
     def __init__(
         self,
@@ -336,6 +439,7 @@ class _TrainState:
         cache: RunCache,
         ma_steps: Callable[[float, float, float], tuple[SpeedLimit, ...]] | None = None,
         disturbed_energy: bool = True,
+        aware_points: tuple[tuple[float, float, str], ...] = (),
     ) -> None:
         self.index = index
         self.ma_steps = ma_steps
@@ -375,6 +479,19 @@ class _TrainState:
                 )
             )
         self.stops.append(_Stop(svc.destination, p1, "destination", dest_dwell, None))
+        self.strategy = svc.strategy
+        # energy-efficient driving: station stop position -> (next station stop position, scheduled
+        # departure, scheduled arrival there) [m, s]
+        self.schedule: dict[float, tuple[float, float, float]] = {}
+        if self.strategy != "fastest":
+            self.schedule = _stretch_schedule(svc, self.stops)
+        # signal-aware timing points: (running position, earliest passing time, name) [m, s]
+        self.aware_points = aware_points
+        # station stop positions whose stretch a signal stopped or slowed the train on (driven fastest)
+        self.signal_affected: set[float] = set()
+        # station stop position -> (driven, reason, scheduled running time, timing points, late, running
+        # time asked of the optimisation) of the stretch from it, as last decided for the operated run
+        self.driven: dict[float, tuple] = {}
         # running-time disturbances as time factors per scheduled stretch (None: none, or driven as
         # capped runs), from its unhindered run
         self.stretch_m = np.array([s.position_m for s in self.stops])
@@ -408,13 +525,15 @@ class _TrainState:
             self.limits.extend(self._stop_ceilings())
         self.refresh_movement()
         # the plan is the uncapped train's: a traction power cap is a disturbance of the operation
-        self.plan_movement = (
-            self.movement
-            if self.train is svc.train
-            else cache.movement(
+        if self.strategy != "fastest":
+            # on time, without the timing points of the trains it meets in operation
+            self.plan_movement = self.candidate(self.stops, self.limits, svc.train, planned=True)
+        elif self.train is svc.train:
+            self.plan_movement = self.movement
+        else:
+            self.plan_movement = cache.movement(
                 svc.train, directed, [(s.name, s.position_m) for s in self.stops], tuple(self.limits)
             )
-        )
         if any(svc.running_extra_s) and self.movement.status == "ok":
             if disturbed_energy:
                 self._cap_disturbed()
@@ -505,10 +624,84 @@ class _TrainState:
         return out
 
     # -- runs and trajectories
-    def candidate(self, stops: list[_Stop], limits: Sequence[SpeedLimit]) -> Movement:
-        return self.cache.movement(
-            self.train, self.directed, [(s.name, s.position_m) for s in stops], tuple(limits)
-        )
+    def candidate(
+        self,
+        stops: list[_Stop],
+        limits: Sequence[SpeedLimit],
+        train: Train | None = None,
+        planned: bool = False,
+    ) -> Movement:
+        """The train's run through ``stops`` under ``limits``: fastest, or with the stretches between
+        scheduled stops driven energy-efficiently (``_eco_plans``). A stretch's plan depends on when
+        the train leaves its first stop, which depends on the stretches before: the plans are found
+        stretch by stretch in at most one pass per stop (each pass fixes the next stretch)."""
+        train = train or self.train
+        named = [(s.name, s.position_m) for s in stops]
+        if self.strategy == "fastest":
+            return self.cache.movement(train, self.directed, named, tuple(limits))
+        plans: dict[int, EcoPlan] = {}
+        for _ in range(len(stops) + 1):
+            m = self.cache.movement(train, self.directed, named, tuple(limits), plans)
+            if m.status != "ok":
+                return m
+            deps = self._departures(stops, m, planned)
+            new, driven = self._eco_plans(stops, limits, deps, train, planned)
+            if new == plans:
+                break
+            plans = new
+        if not planned and stops is self.stops:
+            self.driven = driven
+        return m
+
+    def _eco_plans(
+        self,
+        stops: list[_Stop],
+        limits: Sequence[SpeedLimit],
+        deps: list[float],
+        train: Train,
+        planned: bool,
+    ) -> tuple[dict[int, EcoPlan], dict[float, tuple]]:
+        """How each stretch between two scheduled stops is driven when the train leaves them at
+        ``deps``: energy-efficiently from its departure to its scheduled arrival (with the timing
+        points that fall on it, from its departure), unless the train leaves late, a signal stopped or slowed it there
+        (the braking curve is a fastest run's), or the schedule leaves no time over the fastest run."""
+        plans: dict[int, EcoPlan] = {}
+        driven: dict[float, tuple] = {}
+        for k, (a, b) in enumerate(pairwise(stops)):
+            sched = self.schedule.get(a.position_m)
+            if sched is None:
+                continue
+            if a.position_m in self.signal_affected and not planned:
+                driven[a.position_m] = ("fastest", "signal", sched[2] - sched[1], (), 0.0, None)
+                continue
+            if b.kind == "signal" or abs(sched[0] - b.position_m) > 1e-6:
+                continue
+            target = sched[2] - sched[1]
+            late = 0.0 if planned else deps[k] - sched[1]
+            if late > LATE_TOLERANCE_S:
+                driven[a.position_m] = ("fastest", "late", target, (), float(late), None)
+                continue
+            fs, _fv, ft, fr = self.cache.stretch(
+                train, self.directed, (a.name, a.position_m), (b.name, b.position_m), limits
+            )
+            points: tuple[TimingPoint, ...] = ()
+            if not planned and self.aware_points:
+                points = tuple(
+                    TimingPoint(x, earliest_s=e - deps[k], name=n)
+                    for x, e, n in self.aware_points
+                    if a.position_m + 1.0 < x < b.position_m - 1.0 and e - deps[k] > 0
+                )
+            # a train that left early (no scheduled departure given) uses the time it gained
+            run_s = target if planned else sched[2] - deps[k]
+            if points:
+                run_s = max(run_s, min_running_time_s(fs, ft, points) * (1 + AWARE_RESERVE))
+            if fr.status != "ok" or run_s <= float(ft[-1] - ft[0]) + ECO_MIN_SUPPLEMENT_S:
+                driven[a.position_m] = ("fastest", "no_supplement", target, (), float(late), None)
+                continue
+            plans[k] = EcoPlan(float(run_s), points)
+            kind = "signal_aware" if points else "optimal"
+            driven[a.position_m] = (kind, "", target, points, float(late), float(run_s))
+        return plans, driven
 
     def refresh_movement(self) -> None:
         self.movement = self.candidate(self.stops, self.limits)
@@ -521,13 +714,15 @@ class _TrainState:
         self.refresh_trajectory()
 
     def departures(self, planned: bool = False) -> list[float]:
-        m = self.plan_movement if planned else self.movement
+        return self._departures(self.stops, self.plan_movement if planned else self.movement, planned)
+
+    def _departures(self, stops: list[_Stop], m: Movement, planned: bool) -> list[float]:
         rt = m.running_times_s()
-        if not planned and self.factors is not None:
+        if not planned and self.factors is not None and stops is self.stops:
             rt = rt * self.time_factors()
         holds = self.holds if not planned else {}
         deps: list[float] = []
-        for k, s in enumerate(self.stops[:-1]):
+        for k, s in enumerate(stops[:-1]):
             arrival = s.scheduled_departure_s if k == 0 else deps[-1] + rt[k - 1]
             dep = arrival + s.dwell_s + (0.0 if planned else s.extra_s)
             if s.scheduled_departure_s is not None:
@@ -547,6 +742,10 @@ class _TrainState:
         return self.holds.get(self.stops[0].position_m, 0.0) if self.holds else 0.0
 
     def refresh_trajectory(self) -> None:
+        if self.strategy != "fastest" and self.movement is not None and self.movement.status == "ok":
+            # a stand that moves a departure (a wait for a route) may make the train late there: the
+            # stretches after it are decided again (the same runs, from the cache, when nothing changed)
+            self.movement = self.candidate(self.stops, self.limits)
         self.trajectory = self.movement.trajectory(
             self.departures(), self.length_m, self.dest_dwell_s, self.time_factors(), self.origin_hold_s()
         )
@@ -900,6 +1099,9 @@ class _Dispatcher:
                 name = f"signal {step.alternatives[0].signal}"
                 k = int(np.searchsorted(pos, q))
                 st.stops.insert(k, _Stop(name, q, "signal", 0.0, None))
+                # an energy-efficient stretch a signal stops the train on is driven as the fastest
+                # strategy does (braking curve to the signal, fastest runs on), from its departure
+                st.signal_affected.add(max(s.position_m for s in st.stops[:k] if s.kind != "signal"))
                 v = st.trajectory.speed_at(a)
                 brake = self.approach_brake(st)
                 if brake is not None and brake(v) > q - a + 1e-6:
@@ -1075,6 +1277,29 @@ def _check_services(line: Line, services: Sequence[TrainService]) -> None:
                         allowed=">= 0 s",
                     )
                 )
+        if svc.strategy not in STRATEGIES:
+            problems.append(
+                Problem(
+                    "unknown driving strategy",
+                    field=f"{where}.strategy",
+                    value=svc.strategy,
+                    allowed=", ".join(STRATEGIES),
+                )
+            )
+        elif svc.strategy != "fastest":
+            at = {s.station: i for i, s in enumerate(svc.stops)}
+            for name in [s.station for s in svc.stops if s.station != svc.destination] + [svc.destination]:
+                i = at.get(name)
+                if i is None or svc.stops[i].arrival_s is None:
+                    problems.append(
+                        Problem(
+                            f"strategy {svc.strategy} drives each stretch in its scheduled running time: "
+                            f"give the scheduled arrival at {name}",
+                            field=f"{where}.stops[{'new' if i is None else i}].arrival",
+                            value=None,
+                            allowed="a time (a stop entry for the destination gives its arrival)",
+                        )
+                    )
         n_stretches = 1 + sum(1 for s in svc.stops if s.station != svc.destination)
         extra = svc.running_extra_s
         if extra and not (len(extra) == n_stretches and all(np.isfinite(x) and x >= 0 for x in extra)):
@@ -1140,8 +1365,109 @@ def simulate(
             run's path time-scaled, said in ``trajectory_note``, with energy NaN (``energy_note``).
         lookahead_s: ``priority`` rule: a train standing at a stop is held while a train of higher
             priority will ask for the same resources within this time [s]; 0: no look-ahead.
+
+    Signal-aware trains (``TrainService.strategy``) take their timing points from the operated
+    blocking times of the trains ahead: the timetable is simulated with them driving ``optimal``, then
+    again with the timing points from the simulation before, until the points settle (at most
+    ``MAX_AWARE_ITERATIONS`` simulations; ``OperationResult.iterations`` says how many, a warning if
+    they did not settle). Trains ahead whose own run changes (signal-aware themselves) are simulated
+    again each time, so a chain of followers settles one train per simulation.
     """
     settings = settings or RunSettings()
+    if cache is None or cache.settings != settings:
+        cache = RunCache(settings)
+    args = (line, geometry, services, settings, rule, conflicts, headways, etcs, lookahead_s, cache)
+    result = _simulate_once(*args, disturbed_energy, {})
+    aware = [i for i, svc in enumerate(services) if svc.strategy == "signal_aware"]
+    if not aware:
+        return result
+    points = _aware_points(line, services, result, aware, settings, etcs)
+    for n in range(2, MAX_AWARE_ITERATIONS + 1):
+        result = _simulate_once(*args, disturbed_energy, points)
+        result.iterations = n
+        new = _aware_points(line, services, result, aware, settings, etcs)
+        if _same_points(new, points):
+            return result
+        points = new
+    result.warnings.append(
+        f"the timing points of the signal-aware trains did not settle in {MAX_AWARE_ITERATIONS} simulations "
+        "(each from the blocking times of the one before): the last simulation is shown"
+    )
+    return result
+
+
+def _aware_points(
+    line: Line,
+    services: Sequence[TrainService],
+    result: OperationResult,
+    aware: list[int],
+    settings: RunSettings,
+    etcs: EtcsBraking | None,
+) -> dict[int, tuple[tuple[float, float, str], ...]]:
+    """Timing points of each signal-aware train from the operated blocking times of ``result``: at
+    the approach start of each of its routes, no earlier than the latest release of the route's
+    resources by the trains that used them before it, plus the setup and sighting/reaction times and
+    ``AWARE_MARGIN_S`` (the route is then set when the train asks for it: it sees no restrictive
+    aspect). A route the train asks for while standing at a stop inside its approach gets none: the
+    train waits at the stop. (running position, earliest time, name) [m, s]."""
+    sig = line.signalling
+    out: dict[int, tuple[tuple[float, float, str], ...]] = {}
+    by_resource: dict[str, list[BlockingTime]] = {}
+    for b in result.blocking:
+        by_resource.setdefault(b.resource, []).append(b)
+    for i in aware:
+        svc, o = services[i], result.trains[i]
+        if o.status != "ok" or o.trajectory is None:
+            continue
+        path = line.paths[svc.direction]
+        fn = approach_function(line, svc.train, settings, etcs)
+        stops_m = [path.stop_m[s.station] for s in o.stops]
+        points = []
+        for j, route in o.routes:
+            x = path.steps[j].start_m
+            a = approach_start_m(path, j, sig, o.trajectory, fn)
+            if a <= stops_m[0] + 1.0 or any(a - 1e-6 <= p < x for p in stops_m):
+                continue
+            ends = []
+            for res in route.resources:
+                items = by_resource.get(res.name, [])
+                mine = [b.end_s for b in items if b.train == svc.id]
+                if mine:
+                    ends += [b.end_s for b in items if b.train != svc.id and b.end_s <= max(mine)]
+            if ends:
+                earliest = max(ends) + sig.setup_s + sig.reaction_s + AWARE_MARGIN_S
+                points.append((float(a), float(earliest), f"approach to {route.name}"))
+        out[i] = tuple(points)
+    return out
+
+
+def _same_points(a: dict, b: dict) -> bool:
+    if a.keys() != b.keys():
+        return False
+    for k in a:
+        if len(a[k]) != len(b[k]):
+            return False
+        for p, q in zip(a[k], b[k], strict=True):
+            if abs(p[0] - q[0]) > 1e-6 or abs(p[1] - q[1]) > AWARE_CONVERGED_S:
+                return False
+    return True
+
+
+def _simulate_once(
+    line: Line,
+    geometry: GeometryRoute,
+    services: Sequence[TrainService],
+    settings: RunSettings,
+    rule: Rule,
+    conflicts: bool,
+    headways: bool,
+    etcs: EtcsBraking | None,
+    lookahead_s: float,
+    cache: RunCache,
+    disturbed_energy: bool,
+    aware_points: dict[int, tuple[tuple[float, float, str], ...]],
+) -> OperationResult:
+    """One simulation of ``services`` (``simulate``), signal-aware trains with ``aware_points``."""
     if not (np.isfinite(lookahead_s) and 0 <= lookahead_s <= 7200):
         raise InputError(
             "invalid look-ahead", field="dispatching.lookahead_s", value=lookahead_s, allowed="0 .. 7200 s"
@@ -1158,8 +1484,6 @@ def simulate(
             allowed=f"0 .. {line.length_m:g} m",
         )
     _check_services(line, services)
-    if cache is None or cache.settings != settings:
-        cache = RunCache(settings)
     directed = {d: cache.directed(geometry, line.length_m, d) for d in ("up", "down")}
     approach: dict[int, Callable | None] = {}
     states = []
@@ -1170,7 +1494,9 @@ def simulate(
             ma = ma_steps.get(id(svc.train))
             if ma is None:
                 ma = ma_steps[id(svc.train)] = ma_indication_steps(svc.train, etcs, line.signalling.overlap_m)
-        st = _TrainState(i, svc, line, directed[svc.direction], cache, ma, disturbed_energy)
+        st = _TrainState(
+            i, svc, line, directed[svc.direction], cache, ma, disturbed_energy, aware_points.get(i, ())
+        )
         approach[i] = approach_function(line, svc.train, settings, etcs)
         st._brake = braking_distance_table(
             service_braking_deceleration(svc.train, settings.braking_fraction), svc.train.max_speed_mps
@@ -1318,7 +1644,9 @@ def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutc
             d = None if dep is None else dep - s_dep
         if d is not None:
             delay = d
-        if sc is not None and sc.arrival_s is not None and p_arr is not None and sc.arrival_s < p_arr - 1e-6:
+        # an energy-efficient plan meets its schedule within the optimisation's tolerance
+        tight = 1e-6 if svc.strategy == "fastest" else SCHEDULE_TOLERANCE_S
+        if sc is not None and sc.arrival_s is not None and p_arr is not None and sc.arrival_s < p_arr - tight:
             warnings.append(
                 f"scheduled arrival at {s.name} ({sc.arrival_s:.0f} s) is earlier than the train can make it "
                 f"on time ({p_arr:.0f} s): the timetable is too tight there"
@@ -1351,8 +1679,28 @@ def _outcome(st: _TrainState, plan: _Plan, line: Line, stuck: bool) -> TrainOutc
     return TrainOutcome(
         svc.id, svc.direction, status, stop_times, float(delay), energy, plan.energy_kwh,
         st.hindrances, traj, plan.trajectory, list(st.granted), warnings, st.movement.results, note,
-        traj_note, tuple(st.disturbed),
+        traj_note, tuple(st.disturbed), svc.strategy, _driven_stretches(st),
     )  # fmt: skip
+
+
+def _driven_stretches(st: _TrainState) -> tuple[DrivenStretch, ...]:
+    """How each stretch between scheduled stops of an energy-efficient train was driven, with the
+    running time of its runs (split at signal stops: their sum)."""
+    if st.strategy == "fastest" or st.movement.status != "ok":
+        return ()
+    rt = st.movement.running_times_s()
+    pos = [s.position_m for s in st.stops]
+    names = {s.position_m: s.name for s in st.stops}
+    out = []
+    for a_m, (b_m, _dep, _arr) in st.schedule.items():
+        found = st.driven.get(a_m)
+        if found is None:
+            continue
+        driven, reason, target, points, late, asked = found
+        k0, k1 = pos.index(a_m), pos.index(b_m)
+        run_s = float(sum(rt[k0:k1]))
+        out.append(DrivenStretch(names[a_m], names[b_m], driven, reason, target, run_s, points, late, asked))
+    return tuple(out)
 
 
 def _planned_blocking(
