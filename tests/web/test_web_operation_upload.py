@@ -107,7 +107,7 @@ def test_a_reference_outside_the_upload_is_refused_with_its_line(client: TestCli
     assert fields["line.route"]["line"] == 9 and fields["trains[0].train"]["line"] == 33
     # absolute paths and paths out of the zip's folder: refused before anything is read
     files = single_track_files()
-    for bad in ("/etc/passwd", "../../../../../etc/passwd", "../../../outside.yaml"):
+    for bad in ("/etc/passwd", "../../../../../etc/passwd", "../../../outside.yaml", '"x\\0y"', "x/" * 3000):
         op = (
             (OPS / "single_track.yaml")
             .read_text()

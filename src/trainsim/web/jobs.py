@@ -656,11 +656,20 @@ def _check_operation_upload(path: Path, data: dict[str, Any], folder: Path, limi
     ]
     problems = []
     inside = folder.resolve()
+
+    def outside(ref: str) -> bool:
+        try:
+            target = (path.parent / ref).resolve()
+            target.exists()  # a name the system refuses (too long) is no file of the upload either
+            return not target.is_relative_to(inside)
+        except (ValueError, OSError):  # a NUL character, a name too long
+            return True
+
     for field, loc, ref in named:
-        if isinstance(ref, str) and not (path.parent / ref).resolve().is_relative_to(inside):
+        if isinstance(ref, str) and outside(ref):
             problems.append(
                 Problem(
-                    "a file named outside the upload",
+                    "a file named outside the upload (or a path no file can have)",
                     file=str(path),
                     line=_line_of(text, loc),
                     field=field,
