@@ -12,6 +12,7 @@ tolerance).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -24,7 +25,7 @@ from trainsim.power.onboard import OnboardStorage, assist_power_w, charge_power_
 from trainsim.power.solver import StepGuess, StepLoads, solve_step
 from trainsim.sim.result import RunResult
 
-__all__ = ["PowerResult", "TrainLoad", "simulate", "train_load_from_run"]
+__all__ = ["CompactPowerResult", "PowerResult", "TrainLoad", "simulate", "train_load_from_run"]
 
 #: Windows of the moving RMS substation current [s] (rating of rectifiers and transformers).
 RMS_WINDOWS_S = (60.0, 900.0, 3600.0)
@@ -140,7 +141,19 @@ class PowerResult:
         return 0.0 if self.storage_power_w is None else float(np.sum(self.storage_power_w))
 
     def _onboard_kwh(self, p: np.ndarray | None, k: int) -> float:
-        return 0.0 if p is None else float(np.nansum(p[:, k]) * self.dt_s) / KWH
+        return 0.0 if p is None else float(np.nansum(self.train_series(p, k)) * self.dt_s) / KWH
+
+    def _train_kwh(self, a: np.ndarray, k: int) -> float:
+        return float(np.nansum(self.train_series(a, k)) * self.dt_s) / KWH
+
+    def train_series(self, a: np.ndarray, k: int) -> np.ndarray:
+        """Train k's values of a train field (``train_voltage_v``, ...): one per time step, NaN
+        where it is not on the network."""
+        return a[:, k]
+
+    def train_time_s(self, k: int) -> np.ndarray:
+        """The times of :meth:`train_series` [s]."""
+        return self.time_s
 
     def energy_balance_error(self) -> float:
         """|sources - (trains + losses)| / sources over the whole run [-]."""
@@ -167,7 +180,9 @@ class PowerResult:
         offered = float(np.nansum(self.regen_offered_w) * self.dt_s)
         accepted = float(np.nansum(self.regen_accepted_w) * self.dt_s)
         returned = float(np.sum(np.maximum(-self.substation_power_w, 0.0)) * self.dt_s)
-        onboard = 0.0 if self.onboard_charge_w is None else float(np.nansum(self.onboard_charge_w) * self.dt_s)
+        onboard = (
+            0.0 if self.onboard_charge_w is None else float(np.nansum(self.onboard_charge_w) * self.dt_s)
+        )
         out = {
             "offered": offered / KWH,
             "accepted": accepted / KWH,
@@ -293,32 +308,30 @@ class PowerResult:
             )
         trains = []
         for k, tid in enumerate(self.train_ids):
-            v = self.train_voltage_v[:, k]
+            v = self.train_series(self.train_voltage_v, k)
             on = np.isfinite(v)
+            offered = self.train_series(self.regen_offered_w, k)
+            accepted = self.train_series(self.regen_accepted_w, k)
             trains.append(
                 {
                     "id": tid,
                     "min_voltage_v": _num(np.min(v[on])) if on.any() else None,
                     "max_voltage_v": _num(np.max(v[on])) if on.any() else None,
-                    "energy_kwh": float(np.nansum(self.train_power_w[:, k]) * self.dt_s) / KWH,
-                    "traction_demand_kwh": float(np.nansum(self.traction_demand_w[:, k]) * self.dt_s) / KWH,
-                    "traction_delivered_kwh": float(np.nansum(self.traction_delivered_w[:, k]) * self.dt_s)
-                    / KWH,
-                    "regen_offered_kwh": float(np.nansum(self.regen_offered_w[:, k]) * self.dt_s) / KWH,
-                    "regen_accepted_kwh": float(np.nansum(self.regen_accepted_w[:, k]) * self.dt_s) / KWH,
-                    "regen_dissipated_kwh": float(
-                        np.nansum(self.regen_offered_w[:, k] - self.regen_accepted_w[:, k]) * self.dt_s
-                    )
-                    / KWH
+                    "energy_kwh": self._train_kwh(self.train_power_w, k),
+                    "traction_demand_kwh": self._train_kwh(self.traction_demand_w, k),
+                    "traction_delivered_kwh": self._train_kwh(self.traction_delivered_w, k),
+                    "regen_offered_kwh": float(np.nansum(offered) * self.dt_s) / KWH,
+                    "regen_accepted_kwh": float(np.nansum(accepted) * self.dt_s) / KWH,
+                    "regen_dissipated_kwh": float(np.nansum(offered - accepted) * self.dt_s) / KWH
                     - self._onboard_kwh(self.onboard_charge_w, k),
-                    "peak_current_a": _num(np.nanmax(np.abs(self.train_current_a[:, k])))
+                    "peak_current_a": _num(np.nanmax(np.abs(self.train_series(self.train_current_a, k))))
                     if on.any()
                     else None,
                 }
             )
         if self.onboard_energy_j is not None:
             for k, t in enumerate(trains):
-                e = self.onboard_energy_j[:, k]
+                e = self.train_series(self.onboard_energy_j, k)
                 if np.any(np.isfinite(e)):
                     t["onboard_charged_kwh"] = self._onboard_kwh(self.onboard_charge_w, k)
                     t["onboard_discharged_kwh"] = self._onboard_kwh(self.onboard_discharge_w, k)
@@ -375,6 +388,50 @@ class PowerResult:
             out["storages_energy_kwh"] = self._storage_net_w() * self.dt_s / KWH
         out.update({k: v for k, v in self.extra.items() if k != "trains"})
         return out
+
+
+@dataclass(frozen=True)
+class CompactPowerResult(PowerResult):
+    """A :class:`PowerResult` whose train fields keep only the steps where each train is on the
+    network (``simulate(traces="on_network")``, for a whole day): every train field is one flat
+    array, train k's values at rows ``train_offset[k] : train_offset[k + 1]``, its steps
+    ``train_step_range[k, 0] ..`` of ``time_s``. Sums, extremes, the summary and the status are the
+    same as the full result's (the same values, without the NaN padding); read one train's series
+    with :meth:`train_series` and :meth:`train_time_s`, and :meth:`full` gives the dense result
+    back for short spans (tables and plots that take the time x train arrays)."""
+
+    train_step_range: np.ndarray | None = None
+    train_offset: np.ndarray | None = None
+
+    def train_series(self, a: np.ndarray, k: int) -> np.ndarray:
+        return a[self.train_offset[k] : self.train_offset[k + 1]]
+
+    def train_time_s(self, k: int) -> np.ndarray:
+        return self.time_s[self.train_step_range[k, 0] : self.train_step_range[k, 1]]
+
+    def memory_bytes(self) -> int:
+        """Bytes held by the result's arrays."""
+        return sum(
+            v.nbytes
+            for v in (getattr(self, f.name) for f in dataclasses.fields(self))
+            if isinstance(v, np.ndarray)
+        )
+
+    def full(self) -> PowerResult:
+        """The same result with time x train arrays (NaN where a train is not on the network); the
+        same cap as ``simulate(traces="full")``."""
+        n, nt = len(self.time_s), len(self.train_ids)
+        if n * nt > MAX_FULL_TRAIN_STEPS:
+            raise InputError(
+                f"too many time steps x trains ({n} x {nt}) for time x train arrays",
+                field="simulation.traces",
+                value="full",
+                allowed=f"at most {MAX_FULL_TRAIN_STEPS:.0e} train-steps: a shorter span (start_s, end_s)",
+            )
+        flat = {f.name: getattr(self, f.name) for f in dataclasses.fields(PowerResult)}
+        train = _Flat.from_fields(flat)
+        flat.update(train.dense(n, self.train_step_range, self.train_offset))
+        return PowerResult(**flat)
 
 
 def _stray_summary(stray: np.ndarray | None, dt_s: float) -> dict[str, float | None]:
@@ -435,6 +492,26 @@ def _check_load(net: Network, load: TrainLoad, k: int) -> int:
     return ti
 
 
+#: Train-steps kept with every train's series over the whole span (``traces="full"``): the dense
+#: arrays take about 100 bytes per train-step, so 1e7 is about 1 GB.
+MAX_FULL_TRAIN_STEPS = 10_000_000
+#: Train-steps on the network kept with ``traces="on_network"`` (about 90 bytes each with on-board
+#: storage, 65 without; an 18 h metro day of 720 departures is about 3e5).
+MAX_ON_NETWORK_TRAIN_STEPS = 10_000_000
+#: Time steps at most (the substation and network series: about 8 (3 n_substations + 7) bytes
+#: per step; 1e6 is 11.6 days at 1 s).
+MAX_STEPS = 1_000_000
+
+
+def _step_range(t: np.ndarray, load: TrainLoad) -> tuple[int, int]:
+    """(first, last + 1) step of the time grid ``t`` at which the train is on the network: the
+    steps with load.time_s[0] <= t <= load.time_s[-1] (the same comparisons as a mask over t)."""
+    return (
+        int(np.searchsorted(t, load.time_s[0], side="left")),
+        int(np.searchsorted(t, load.time_s[-1], side="right")),
+    )
+
+
 def simulate(
     network: Network,
     trains: list[TrainLoad],
@@ -442,59 +519,226 @@ def simulate(
     dt_s: float = 1.0,
     start_s: float | None = None,
     end_s: float | None = None,
+    traces: str = "full",
 ) -> PowerResult:
     """Solve the network at every time step from ``start_s`` to ``end_s`` (default: the span of
-    the trains' trajectories) with step ``dt_s`` [s]."""
+    the trains' trajectories) with step ``dt_s`` [s].
+
+    ``traces``: ``full`` keeps each train's series over the whole span (NaN where it is not on the
+    network; a :class:`PowerResult`, at most :data:`MAX_FULL_TRAIN_STEPS` steps x trains);
+    ``on_network`` keeps them only at the steps where the train is on the network (a
+    :class:`CompactPowerResult`, for a whole day: memory grows with the trains' running time, not
+    with the span times the number of trains). Both solve the same steps in the same order with the
+    same warm starts and storage states, so their figures are equal bit for bit.
+    """
     if not trains:
         raise InputError("no trains to simulate", field="trains", allowed="one or more trains")
     if not (np.isfinite(dt_s) and 0 < dt_s <= 60):
         raise InputError("invalid time step", field="step_s", value=dt_s, allowed="0 < step <= 60 s")
+    if traces not in ("full", "on_network"):
+        raise InputError(
+            "unknown traces", field="simulation.traces", value=traces, allowed="full, on_network"
+        )
     tracks = np.array([_check_load(network, load, k) for k, load in enumerate(trains)], dtype=np.int64)
     t0 = min(float(tr.time_s[0]) for tr in trains) if start_s is None else start_s
     t1 = max(float(tr.time_s[-1]) for tr in trains) if end_s is None else end_s
     n_steps = int(np.floor((t1 - t0) / dt_s + 1e-9)) + 1
-    if n_steps > 10_000_000 // max(len(trains), 1):
+    if n_steps > MAX_STEPS:
         raise InputError(
-            "too many time steps x trains", field="step_s", value=dt_s, allowed="at most 1e7 train-steps"
+            f"too many time steps ({n_steps}) for the substation series",
+            field="step_s",
+            value=dt_s,
+            allowed=f"at most {MAX_STEPS} steps: a longer step or a shorter span (start_s, end_s)",
+        )
+    nt = len(trains)
+    if traces == "full" and n_steps * nt > MAX_FULL_TRAIN_STEPS:
+        raise InputError(
+            f"too many time steps x trains ({n_steps} x {nt}) to keep every train's series over the whole span",
+            field="simulation.traces",
+            value=traces,
+            allowed=f"at most {MAX_FULL_TRAIN_STEPS:.0e} train-steps; for a whole day keep the series only while "
+            "each train runs (traces: on_network, or simulate(..., traces='on_network')), or shorten the span "
+            "(start_s, end_s)",
         )
     t = t0 + dt_s * np.arange(n_steps)
+    ranges = np.array([_step_range(t, load) for load in trains], dtype=np.int64).reshape(nt, 2)
+    ranges[:, 1] = np.maximum(ranges[:, 1], ranges[:, 0])
+    counts = ranges[:, 1] - ranges[:, 0]
+    offset = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    if traces == "on_network" and offset[-1] > MAX_ON_NETWORK_TRAIN_STEPS:
+        raise InputError(
+            f"the trains are on the network for {offset[-1]} train-steps in all",
+            field="step_s",
+            value=dt_s,
+            allowed=f"at most {MAX_ON_NETWORK_TRAIN_STEPS:.0e}: a longer step, or the day in parts (start_s, end_s)",
+        )
+    flat = _Flat.sample(network, trains, tracks, t, ranges, offset)
+    series = _Series.empty(n_steps, len(network.substations), len(network.storages))
+    _solve_steps(network, trains, tracks, dt_s, ranges, offset, flat, series)
+    common = {
+        "network": network,
+        "time_s": t,
+        "dt_s": dt_s,
+        "train_ids": tuple(tr.id for tr in trains),
+        **series.fields(),
+    }
+    if traces == "on_network":
+        return CompactPowerResult(**common, **flat.fields(), train_step_range=ranges, train_offset=offset)
+    return PowerResult(**common, **flat.dense(n_steps, ranges, offset))
+
+
+@dataclass
+class _Flat:
+    """Per train and step on the network, train after train (train k: rows offset[k]:offset[k+1],
+    its steps ranges[k, 0] ..)."""
+
+    position_m: np.ndarray
+    traction_w: np.ndarray
+    regen_w: np.ndarray
+    supplied: np.ndarray
+    voltage_v: np.ndarray
+    power_w: np.ndarray
+    current_a: np.ndarray
+    delivered_w: np.ndarray
+    accepted_w: np.ndarray
+    ob_charge_w: np.ndarray | None
+    ob_discharge_w: np.ndarray | None
+    ob_energy_j: np.ndarray | None
+
+    @classmethod
+    def sample(
+        cls,
+        network: Network,
+        trains: list[TrainLoad],
+        tracks: np.ndarray,
+        t: np.ndarray,
+        ranges: np.ndarray,
+        offset: np.ndarray,
+    ) -> _Flat:
+        n = int(offset[-1])
+        x, pt, pr = np.zeros(n), np.zeros(n), np.zeros(n)
+        sup = np.zeros(n, dtype=bool)
+        for k, load in enumerate(trains):
+            a, b = offset[k], offset[k + 1]
+            tk = t[ranges[k, 0] : ranges[k, 1]]
+            x[a:b] = np.interp(tk, load.time_s, load.position_m)
+            pt[a:b] = np.interp(tk, load.time_s, load.traction_power_w)
+            pr[a:b] = np.interp(tk, load.time_s, load.regen_power_w)
+            sup[a:b] = network.supplied(int(tracks[k]), x[a:b])
+        has_ob = any(tr.onboard_storage is not None for tr in trains)
+        nan = np.full(n, np.nan)
+        return cls(x, pt, pr, sup, nan.copy(), nan.copy(), nan.copy(), nan.copy(), nan.copy(),
+                   nan.copy() if has_ob else None, nan.copy() if has_ob else None,
+                   nan.copy() if has_ob else None)  # fmt: skip
+
+    @classmethod
+    def from_fields(cls, fields: dict[str, Any]) -> _Flat:
+        """The train fields of a compact result (inverse of :meth:`fields`; not for solving)."""
+        return cls(fields["train_position_m"], fields["traction_demand_w"], fields["regen_offered_w"],
+                   np.zeros(0, dtype=bool), fields["train_voltage_v"], fields["train_power_w"],
+                   fields["train_current_a"], fields["traction_delivered_w"], fields["regen_accepted_w"],
+                   fields["onboard_charge_w"], fields["onboard_discharge_w"], fields["onboard_energy_j"])  # fmt: skip
+
+    def fields(self) -> dict[str, np.ndarray | None]:
+        """The train fields of a result, as kept (on-network steps only)."""
+        return {
+            "train_position_m": self.position_m,
+            "train_voltage_v": self.voltage_v,
+            "train_power_w": self.power_w,
+            "train_current_a": self.current_a,
+            "traction_demand_w": self.traction_w,
+            "traction_delivered_w": self.delivered_w,
+            "regen_offered_w": self.regen_w,
+            "regen_accepted_w": self.accepted_w,
+            "onboard_charge_w": self.ob_charge_w,
+            "onboard_discharge_w": self.ob_discharge_w,
+            "onboard_energy_j": self.ob_energy_j,
+        }
+
+    def dense(self, n_steps: int, ranges: np.ndarray, offset: np.ndarray) -> dict[str, np.ndarray | None]:
+        """The train fields over the whole span [step, train], NaN where a train is not on the network."""
+        nt = len(ranges)
+        rows = np.concatenate([np.arange(ranges[k, 0], ranges[k, 1]) for k in range(nt)]).astype(np.int64)
+        cols = np.repeat(np.arange(nt), offset[1:] - offset[:-1])
+        out: dict[str, np.ndarray | None] = {}
+        for name, a in self.fields().items():
+            if a is None:
+                out[name] = None
+                continue
+            d = np.full((n_steps, nt), np.nan)
+            d[rows, cols] = a
+            out[name] = d
+        return out
+
+
+@dataclass
+class _Series:
+    """Per time step: substations, network and wayside storages."""
+
+    p_sub: np.ndarray
+    p_src: np.ndarray
+    i_sub: np.ndarray
+    line_loss: np.ndarray
+    sub_loss: np.ndarray
+    rmin: np.ndarray
+    rmax: np.ndarray
+    stray: np.ndarray
+    converged: np.ndarray
+    iterations: np.ndarray
+    st_power: np.ndarray | None
+    st_energy: np.ndarray | None
+
+    @classmethod
+    def empty(cls, n: int, ns: int, n_st: int) -> _Series:
+        return cls(np.zeros((n, ns)), np.zeros((n, ns)), np.zeros((n, ns)), np.zeros(n), np.zeros(n),
+                   np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan), np.ones(n, dtype=bool),
+                   np.zeros(n, dtype=np.int64), np.zeros((n, n_st)) if n_st else None,
+                   np.zeros((n, n_st)) if n_st else None)  # fmt: skip
+
+    def fields(self) -> dict[str, np.ndarray | None]:
+        return {
+            "substation_power_w": self.p_sub,
+            "substation_source_w": self.p_src,
+            "substation_current_a": self.i_sub,
+            "line_loss_w": self.line_loss,
+            "substation_loss_w": self.sub_loss,
+            "rail_potential_min_v": self.rmin,
+            "rail_potential_max_v": self.rmax,
+            "converged": self.converged,
+            "iterations": self.iterations,
+            "storage_power_w": self.st_power,
+            "storage_energy_j": self.st_energy,
+            "stray_current_a": self.stray,
+        }
+
+
+def _solve_steps(
+    network: Network,
+    trains: list[TrainLoad],
+    tracks: np.ndarray,
+    dt_s: float,
+    ranges: np.ndarray,
+    offset: np.ndarray,
+    f: _Flat,
+    out: _Series,
+) -> None:
+    """The network solved step after step, only the trains on the network at each step taken
+    (the state carried from step to step: rectifier states and potentials as the next warm start,
+    the storages' energy)."""
     nt, ns = len(trains), len(network.substations)
-    present = np.zeros((n_steps, nt), dtype=bool)
-    xs = np.zeros((n_steps, nt))
-    pt = np.zeros((n_steps, nt))
-    pr = np.zeros((n_steps, nt))
-    supplied = np.zeros((n_steps, nt), dtype=bool)
-    for k, load in enumerate(trains):
-        present[:, k], xs[:, k], pt[:, k], pr[:, k] = _sample(load, t)
-        supplied[:, k] = present[:, k] & network.supplied(int(tracks[k]), xs[:, k])
+    n_steps = len(out.converged)
     aux = np.array([tr.auxiliary_power_w for tr in trains])
     tan_phi = np.array([np.sqrt(1 - tr.power_factor**2) / tr.power_factor for tr in trains])
     if network.system == "dc":
         tan_phi[:] = 0.0
-    nan = np.full((n_steps, nt), np.nan)
-    volt, power, current = nan.copy(), nan.copy(), nan.copy()
-    demand, delivered = nan.copy(), nan.copy()
-    offered, accepted = nan.copy(), nan.copy()
-    p_sub = np.zeros((n_steps, ns))
-    p_src = np.zeros((n_steps, ns))
-    i_sub = np.zeros((n_steps, ns))
-    line_loss = np.zeros(n_steps)
-    sub_loss = np.zeros(n_steps)
-    rmin = np.full(n_steps, np.nan)
-    rmax = np.full(n_steps, np.nan)
-    stray = np.full(n_steps, np.nan)
-    converged = np.ones(n_steps, dtype=bool)
-    iterations = np.zeros(n_steps, dtype=np.int64)
     on = np.ones(ns, dtype=bool)
     n_st = len(network.storages)
     st_energy = np.array([st.initial_soc * st.capacity_j for st in network.storages])
     st_cap = np.array([st.capacity_j for st in network.storages])
     st_pmax = np.array([st.max_power_w for st in network.storages])
     st_eta = np.sqrt(np.array([st.efficiency for st in network.storages]))
-    st_power = np.zeros((n_steps, n_st)) if n_st else None
-    st_record = np.zeros((n_steps, n_st)) if n_st else None
     ob = [tr.onboard_storage for tr in trains]
-    has_ob = any(o is not None for o in ob)
+    has_ob = f.ob_energy_j is not None
     if has_ob:
         for k, o in enumerate(ob):
             if o is not None:
@@ -509,28 +753,49 @@ def simulate(
         ob_emin, ob_emax = ob_cap * _ob("min_soc", 0.0), ob_cap * _ob("max_soc", 0.0)
         ob_thr = _ob("assist_above_w", np.inf)
         ob_energy = ob_cap * _ob("initial_soc", 0.0)
-        ob_charge, ob_discharge, ob_record = nan.copy(), nan.copy(), nan.copy()
         with_ob = np.array([o is not None for o in ob])
     fixed_v = None
     prev_c = np.full(nt, np.nan)
     prev_r = np.full(nt, np.nan)
+    # the trains on the network change only where one enters or leaves: the active set is rebuilt there
+    order_in = np.argsort(ranges[:, 0], kind="stable")
+    order_out = np.argsort(ranges[:, 1], kind="stable")
+    active = np.zeros(nt, dtype=bool)
+    n_in = n_out = 0
+    act = np.zeros(0, dtype=np.int64)
+    base = offset[:-1] - ranges[:, 0]
     for j in range(n_steps):
-        sel = np.flatnonzero(supplied[j])
+        changed = False
+        while n_in < nt and ranges[order_in[n_in], 0] <= j:
+            active[order_in[n_in]] = ranges[order_in[n_in], 1] > j
+            n_in += 1
+            changed = True
+        while n_out < nt and ranges[order_out[n_out], 1] <= j:
+            active[order_out[n_out]] = False
+            n_out += 1
+            changed = True
+        if changed:
+            act = np.flatnonzero(active)
+        rows = base[act] + j
+        sup = f.supplied[rows]
+        sel, rs = act[sup], rows[sup]
         # present but off the wire (neutral section): no supply, demands unmet
-        off = present[j] & ~supplied[j]
-        demand[j, present[j]] = pt[j, present[j]]
-        offered[j, present[j]] = pr[j, present[j]]
-        delivered[j, off] = 0.0
-        accepted[j, off] = 0.0
-        power[j, off] = 0.0
-        current[j, off] = 0.0
-        pt_line = pt[j]
+        ro = rows[~sup]
+        pt_a = f.traction_w[rows]
+        pr_a = f.regen_w[rows]
+        f.accepted_w[ro] = 0.0
+        f.power_w[ro] = 0.0
+        f.current_a[ro] = 0.0
+        pt_line = pt_a
         if has_ob:
-            assist = np.where(present[j] & with_ob,
-                              assist_power_w(pt[j], ob_energy, ob_thr, ob_pmax, ob_emin, ob_eta_d, dt_s), 0.0)
-            pt_line = pt[j] - assist
-            delivered[j, off] = assist[off]  # fmt: skip
-        loads = StepLoads(tracks[sel], xs[j, sel], pt_line[sel], pr[j, sel], aux[sel], tan_phi[sel])
+            w = with_ob[act]
+            assist = np.where(w, assist_power_w(pt_a, ob_energy[act], ob_thr[act], ob_pmax[act], ob_emin[act],
+                                                ob_eta_d[act], dt_s), 0.0)  # fmt: skip
+            pt_line = pt_a - assist
+            f.delivered_w[ro] = assist[~sup]
+        else:
+            f.delivered_w[ro] = 0.0
+        loads = StepLoads(tracks[sel], f.position_m[rs], pt_line[sup], pr_a[sup], aux[sel], tan_phi[sel])
         if n_st:
             # what each storage can take / give during this step: its power, and its charge
             loads.storage_charge_max_w = np.minimum(st_pmax, (st_cap - st_energy) / (st_eta * dt_s))
@@ -544,62 +809,34 @@ def simulate(
         on = sol.substation_on
         if n_st:
             ps = sol.storage_power_w
-            st_power[j] = ps
+            out.st_power[j] = ps
             st_energy = np.clip(
                 st_energy + (np.maximum(ps, 0.0) * st_eta - np.maximum(-ps, 0.0) / st_eta) * dt_s, 0.0, st_cap
             )
-            st_record[j] = st_energy
-        converged[j] = sol.converged
-        iterations[j] = sol.iterations
-        volt[j, sel] = sol.train_voltage_v
-        power[j, sel] = sol.train_power_w
-        current[j, sel] = sol.train_current_a
-        delivered[j, sel] = pt_line[sel] * sol.traction_share
-        accepted[j, sel] = pr[j, sel] * sol.regen_share
+            out.st_energy[j] = st_energy
+        out.converged[j] = sol.converged
+        out.iterations[j] = sol.iterations
+        f.voltage_v[rs] = sol.train_voltage_v
+        f.power_w[rs] = sol.train_power_w
+        f.current_a[rs] = sol.train_current_a
+        f.delivered_w[rs] = pt_line[sup] * sol.traction_share
+        f.accepted_w[rs] = pr_a[sup] * sol.regen_share
         if has_ob:
-            delivered[j, sel] += assist[sel]
-            on_net = present[j] & with_ob
-            curtailed = np.where(on_net, pr[j] - np.nan_to_num(accepted[j]), 0.0)
-            charge = np.where(on_net, charge_power_w(curtailed, ob_energy, ob_pmax, ob_emax, ob_eta_c, dt_s), 0.0)
-            ob_energy = ob_energy + (ob_eta_c * charge - assist / ob_eta_d) * dt_s
-            ob_charge[j, on_net] = charge[on_net]
-            ob_discharge[j, on_net] = assist[on_net]
-            ob_record[j, on_net] = ob_energy[on_net]
-        p_sub[j] = sol.substation_power_w
-        p_src[j] = sol.substation_source_w
-        i_sub[j] = sol.substation_current_a
-        line_loss[j] = sol.line_loss_w
-        sub_loss[j] = sol.substation_loss_w
-        stray[j] = sol.stray_current_a
+            f.delivered_w[rs] += assist[sup]
+            curtailed = np.where(w, pr_a - f.accepted_w[rows], 0.0)
+            charge = np.where(w, charge_power_w(curtailed, ob_energy[act], ob_pmax[act], ob_emax[act],
+                                                ob_eta_c[act], dt_s), 0.0)  # fmt: skip
+            ob_energy[act] = ob_energy[act] + (ob_eta_c[act] * charge - assist / ob_eta_d[act]) * dt_s
+            rw = rows[w]
+            f.ob_charge_w[rw] = charge[w]
+            f.ob_discharge_w[rw] = assist[w]
+            f.ob_energy_j[rw] = ob_energy[act][w]
+        out.p_sub[j] = sol.substation_power_w
+        out.p_src[j] = sol.substation_source_w
+        out.i_sub[j] = sol.substation_current_a
+        out.line_loss[j] = sol.line_loss_w
+        out.sub_loss[j] = sol.substation_loss_w
+        out.stray[j] = sol.stray_current_a
         if len(sol.rail_potential_v):
-            rmin[j] = np.min(sol.rail_potential_v)
-            rmax[j] = np.max(sol.rail_potential_v)
-    return PowerResult(
-        network=network,
-        time_s=t,
-        dt_s=dt_s,
-        train_ids=tuple(tr.id for tr in trains),
-        train_position_m=np.where(present, xs, np.nan),
-        train_voltage_v=volt,
-        train_power_w=power,
-        train_current_a=current,
-        traction_demand_w=demand,
-        traction_delivered_w=delivered,
-        regen_offered_w=offered,
-        regen_accepted_w=accepted,
-        substation_power_w=p_sub,
-        substation_source_w=p_src,
-        substation_current_a=i_sub,
-        line_loss_w=line_loss,
-        substation_loss_w=sub_loss,
-        rail_potential_min_v=rmin,
-        rail_potential_max_v=rmax,
-        converged=converged,
-        iterations=iterations,
-        storage_power_w=st_power,
-        storage_energy_j=st_record,
-        stray_current_a=stray,
-        onboard_charge_w=ob_charge if has_ob else None,
-        onboard_discharge_w=ob_discharge if has_ob else None,
-        onboard_energy_j=ob_record if has_ob else None,
-    )
+            out.rmin[j] = np.min(sol.rail_potential_v)
+            out.rmax[j] = np.max(sol.rail_potential_v)
