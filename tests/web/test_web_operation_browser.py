@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import pytest
 
+from trainsim.web.jobs import OPERATION_EXAMPLES
+
 from .test_web_browser import browser, page, shot  # noqa: F401 (fixtures)
 from .test_web_operation_upload import _zip, single_track_files
 
@@ -19,7 +21,7 @@ def test_an_uploaded_operation_shows_its_train_graph_with_conflicts(page) -> Non
     pg.click("button[data-tab=run]")
     # every shipped operation is offered
     options = pg.locator("#op-example option").all_inner_texts()
-    assert len(options) == 7 and any(o.startswith("single_track") for o in options)
+    assert len(options) == len(OPERATION_EXAMPLES) and any(o.startswith("single_track") for o in options)
     zipped = _zip(single_track_files())
     pg.set_input_files(
         "#op-file", files=[{"name": "mine.zip", "mimeType": "application/zip", "buffer": zipped}]

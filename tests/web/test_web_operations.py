@@ -125,7 +125,7 @@ def test_shipped_operation_files_equal_the_repository_examples() -> None:
     for file, _ in OPERATION_EXAMPLES.values():
         shipped = (EXAMPLES_DIR / "operations" / file).read_text()
         assert shipped == (OPS / file).read_text().replace(*moved), file
-    for extra in ("single_track_route.yaml", "main_line_route.yaml"):
+    for extra in ("single_track_route.yaml", "main_line_route.yaml", "branch_line.railml"):
         assert (EXAMPLES_DIR / "operations" / extra).read_text() == (OPS / extra).read_text()
     for table in (OPS / "sheets_double_track" / "line").iterdir():
         shipped = EXAMPLES_DIR / "operations" / "sheets_double_track" / "line" / table.name
@@ -133,3 +133,18 @@ def test_shipped_operation_files_equal_the_repository_examples() -> None:
     for train in ("local", "longdistance", "freight"):
         original = REPO / "tests" / "data" / "trainruns" / "trains" / f"{train}.yaml"
         assert (EXAMPLES_DIR / "trainruns" / f"{train}.yaml").read_text() == original.read_text()
+
+
+def test_every_operation_example_of_the_repository_is_offered() -> None:
+    import yaml
+
+    files = [
+        str(f.relative_to(OPS))
+        for f in sorted(OPS.rglob("*.yaml"))
+        if (yaml.safe_load(f.read_text()) or {}).get("schema") == "trainsim/operation"
+    ]
+    offered = [file for file, _ in OPERATION_EXAMPLES.values()]
+    missing = sorted(set(files) - set(offered))
+    assert not missing, (
+        f"add to trainsim.web.jobs.OPERATION_EXAMPLES (and example_files/operations): {missing}"
+    )

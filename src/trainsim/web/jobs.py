@@ -563,6 +563,9 @@ OPERATION_EXAMPLES: dict[str, tuple[str, str]] = {
     "single_track": ("single_track.yaml", "single-track branch, 5 trains crossing at loops (conflicts)"),
     "single_track_tracks": ("single_track_tracks.yaml", "single-track branch with its tracks drawn in"),
     "main_line_mixed": ("main_line_mixed.yaml", "double-track main line, 7 mixed trains overtaking"),
+    "main_line_etcs": ("main_line_etcs.yaml", "double-track main line, 3 trains, ETCS Level 2"),
+    "branch_line_railml": ("branch_line_railml.yaml", "single-track branch read from railML, 3 trains"),
+    "metro_eco": ("metro_eco.yaml", "metro line B, 2 trains driven energy-efficiently (a conflict)"),
     "sheets_double_track": (
         "sheets_double_track/operation.yaml",
         "double-track line from spreadsheet tables, 5 trains",
