@@ -296,8 +296,9 @@ def test_operation_train_graph_with_blocking_time_stairs(page) -> None:  # noqa:
     pg.click("#op-run")
     pg.wait_for_selector("#plot-train-graph .main-svg", timeout=180_000)
     assert "14 trains" in pg.locator("#op-status").inner_text()
-    # 14 trains: a filled stairs trace and a path each; the station names label the position axis
-    assert pg.locator("#plot-train-graph .scatterlayer .trace").count() == 28
+    # 14 trains: a filled stairs trace, an operated and a planned (timetable) path each, no conflict
+    # marks (the timetable has none); the station names label the position axis
+    assert pg.locator("#plot-train-graph .scatterlayer .trace").count() == 42
     assert "Train graph with blocking times" in pg.locator("#plot-train-graph").inner_text()
     for station in ("S1", "S2", "S3", "S4"):
         assert station in pg.locator("#plot-train-graph").inner_text()
