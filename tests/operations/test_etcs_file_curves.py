@@ -141,3 +141,55 @@ def test_without_a_route_the_steps_are_those_on_level_track(train) -> None:
     assert a and all(
         x.limit_mps <= float(np.min(c_none.indication(np.linspace(x.start_m, x.end_m, 9)))) for x in a
     )
+
+
+@pytest.mark.parametrize("strategy", ["fastest", "lesov"])
+def test_supervised_runs_respect_the_curves_of_a_graded_line(strategy: str) -> None:
+    """The fastest and an energy-efficient run under the permitted limit of an MA built as the operation
+    builds it (file-like data: Kdry, Kwet, a given release speed; a 10 per mille down-gradient and a
+    50 km/h section as targets) never exceed it, and the fastest one is slower than the plain run,
+    which does not respect it."""
+    import trainsim
+    from trainsim import RunSettings, Station
+    from trainsim.model.timetable import SectionSchedule, Timetable
+    from trainsim.operations.supervised import supervised_run
+
+    metro = trainsim.load_train("examples/metro_b/train.yaml")
+    settings = RunSettings(max_step_m=10)
+    limits = (
+        SpeedLimit(0, 1200, 80 * KMH),
+        SpeedLimit(1200, 1500, 50 * KMH),
+        SpeedLimit(1500, 3000, 80 * KMH),
+    )
+    route = Route(
+        "graded",
+        0.0,
+        3000.0,
+        (Station("A", 0.0), Station("B", 2500.0)),
+        limits,
+        gradients=(GradientSection(0.0, 3000.0, -10.0),),
+    )
+    etcs = EtcsBraking(
+        1.0, 0.7, 1.5, 2.0, 1.0, train_fields=(("kdry_rst", 0.95), ("kwet_rst", 0.9)), release_speed=3.0
+    )
+    curves = ma_curves(metro, etcs, 2500.0, 0.0, route, 0.0)
+    timetable = (
+        Timetable(sections=(SectionSchedule(supplement_fraction=0.1),)) if strategy != "fastest" else None
+    )
+    # an energy-efficient run per refinement costs more: refined to 1 s (the limit holds at every step)
+    tolerance_s = 0.1 if strategy == "fastest" else 1.0
+    sup = supervised_run(
+        metro, route, curves, settings, strategy=strategy, timetable=timetable, tolerance_s=tolerance_s
+    )
+    tr = sup.run.trace
+    assert sup.run.status == "ok"
+    assert np.all(tr.speed_mps <= np.asarray(curves.permitted(tr.position_m)) + 1e-9)
+    if strategy == "fastest":
+        plain = trainsim.run_fastest(metro, route, settings)
+        assert np.any(plain.trace.speed_mps > np.asarray(curves.permitted(plain.trace.position_m)) + 0.1)
+        assert sup.run.running_time_s > plain.running_time_s
+        # at the release speed up to the EoA (the limits are 0 from the EoA on, not before), and the
+        # refinements only raise the staircase: the running time never grows
+        assert sup.limits[-1].end_m == pytest.approx(2500.0, abs=1e-9) and sup.limits[-1].limit_mps == 3.0
+        assert tr.position_m[-1] == pytest.approx(2500.0, abs=1e-6)
+        assert np.all(np.diff(sup.refinements) <= 1e-9)

@@ -29,6 +29,8 @@ from trainsim.sim.result import RunResult
 FIRST_STEP_M = 200.0
 FIRST_DV_MPS = 2.0
 MAX_STEPS = 20_000
+#: The staircase samples the ceiling up to this distance before the end of authority [m].
+EOA_OPEN_M = 1e-6
 SUPERVISED_KINDS = ("permitted", "indication", "sbi", "warning", "ebi", "guidance", "sbd", "ebd")
 
 
@@ -110,6 +112,12 @@ def supervised_run(
     if strategy != "fastest" and timetable is None:
         raise InputError("an energy-efficient run needs a timetable", field="timetable", value=strategy)
     start, end = route.start_m, min(route.end_m, eoa)
+    if end >= eoa - EOA_OPEN_M:
+        # every limit is 0 from the EoA on: the staircase's last step ends there but must not take that
+        # value, or a train with a release speed stops short by up to a step (and each refinement,
+        # halving that step, moves its stop, so the running time converges only geometrically)
+        inside = fn
+        fn = lambda x: inside(np.minimum(x, eoa - EOA_OPEN_M))  # noqa: E731
 
     def run_with(limits: tuple[SpeedLimit, ...]) -> tuple[RunResult, OptimizationResult | None]:
         r = with_limits(_stop_short(route, limits, end), limits)
