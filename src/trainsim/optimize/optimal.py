@@ -57,6 +57,10 @@ JUMP_FACTOR = 5.0
 BRIDGE_ITERATIONS = 16
 #: Runs that keep the schedule collected around a ragged crossing before the least-energy one is kept.
 RAGGED_SAMPLES = 3
+#: Tries per coasting point search at the jump of the outcome predicted by the secant line ...
+JUMP_AIMS = 3
+#: ... with two runs this fraction of COAST_POINT_TOLERANCE_M either side of it [-].
+JUMP_AIM_FRACTION = 0.25
 #: First half-width of the bracket around the previous holding speed's final coasting point [m].
 WARM_COAST_STEP_M = 20.0
 #: Largest step of the adjoint-driven phase [m].
@@ -291,6 +295,11 @@ class SectionSolver:
         self._last_holding_speed: float | None = None
         #: whether the variant being built is only compared with the first one of its solve
         self._secondary = False
+        #: W [m/s] by price of time mu [W]: a root search that every final phase repeated
+        self._w_by_mu: dict[float, float] = {}
+        #: the departures ahead of descents already searched in this solve, by everything they
+        #: depend on, with what the search recorded (``_best_departure``)
+        self._departure_memo: dict[tuple, tuple] = {}
         fastest = self._fastest_points()
         self.fastest = fastest
         self.fastest_time_s = float(fastest[2][-1])
@@ -501,6 +510,13 @@ class SectionSolver:
         keep = seg[0] < p
         return tuple(np.concatenate([arr[keep], o]) for arr, o in zip(seg, out, strict=True))
 
+    def _regenerative_holding_speed(self, mu: float) -> float:
+        """``regenerative_holding_speed`` of this train for price of time mu [W], remembered."""
+        W = self._w_by_mu.get(mu)
+        if W is None:
+            W = self._w_by_mu[mu] = regenerative_holding_speed(self.train, mu, self.eta_r)
+        return W
+
     def _path_cost(self, points, mu: float) -> float:
         """Electrical energy [J] + mu [W] x running time [s] of a run to the stop."""
         tr = self.track
@@ -543,7 +559,7 @@ class SectionSolver:
         tr = self.track
         fastest = not np.isfinite(holding_speed) or holding_speed >= 10.0 * float(tr.vlim.max())
         mu = np.inf if fastest else price_of_time_w(self.train, holding_speed)
-        W = regenerative_holding_speed(self.train, mu, self.eta_r)
+        W = self._regenerative_holding_speed(mu)
         n = len(tr.a0)
         return np.full(n, float(holding_speed)), np.full(n, mu), np.full(n, W)
 
@@ -842,6 +858,33 @@ class SectionSolver:
         self, seg, p_lo: float, a: float, W: float, V: float, mu: float, key, v_rejoin: float,
         horizon: float = np.inf,
     ):  # fmt: skip
+        """``_search_departure``, remembered within a solve: a pure function of the run ``seg`` and
+        of its parameters, so the same search repeated (the homotopy of ``_bridge`` rebuilds the
+        departures ahead of the ones it moves: on CH_Fribourg_Bern with the FLIRT one search in
+        eight) is looked up, with what it recorded in ``_decisions`` and ``_has_long_excursions``."""
+        memo_key = (
+            b"".join(np.ascontiguousarray(arr).tobytes() for arr in seg),
+            p_lo, a, W, V, mu, key, v_rejoin, horizon, self.short_excursions, self._forced.get(key),
+        )  # fmt: skip
+        hit = self._departure_memo.get(memo_key)
+        if hit is None:
+            long_before = self._has_long_excursions
+            self._has_long_excursions = False
+            found = self._search_departure(seg, p_lo, a, W, V, mu, key, v_rejoin, horizon)
+            hit = (found, self._decisions.get(key), self._has_long_excursions)
+            self._has_long_excursions |= long_before
+            self._departure_memo[memo_key] = hit
+        else:
+            found, decision, long_excursion = hit
+            if decision is not None:
+                self._decisions[key] = decision
+            self._has_long_excursions |= long_excursion
+        return found
+
+    def _search_departure(
+        self, seg, p_lo: float, a: float, W: float, V: float, mu: float, key, v_rejoin: float,
+        horizon: float = np.inf,
+    ):  # fmt: skip
         """The coasting excursion ahead of a steep descent that starts at a: (p, points, rejoin
         state) with the departure point p in [p_lo, a] that minimises energy + mu x time against
         the run without it, or None when no excursion is cheaper.
@@ -1042,7 +1085,7 @@ class SectionSolver:
             phi_start = self.eta_r * (1.0 - 1e-9) if self.has_regen else -1e-9
         W = -1.0
         if self.has_regen and force_mode < 0 and mu > 0.0:
-            W = regenerative_holding_speed(self.train, mu, self.eta_r)
+            W = self._regenerative_holding_speed(mu)
 
         def run(w_end: float):
             return pk.final_phase_modes(
@@ -1209,22 +1252,38 @@ class SectionSolver:
         lo_points = None
         previous = None  # the coasting point before lo with its residual (the run stopped short)
         bisect = True
+        queued: list[float] = []  # points either side of the predicted jump, tried next
+        jump_aims = JUMP_AIMS
         # on until the train comes to rest at the stop itself, or the bracket closes on the point
         # where the outcome jumps (the run then meets the braking curve there): a coasting point
         # left a metre early (a tolerance) moved with the step and its energy with it
         while r_lo < -STOP_TOLERANCE_M and hi - lo > COAST_POINT_TOLERANCE_M:
             mid = 0.5 * (lo + hi)
-            if not bisect and previous is not None and previous[1] < r_lo:
+            queued = [q for q in queued if lo < q < hi]
+            if queued:
+                mid = queued.pop(0)
+            elif not bisect and previous is not None and previous[1] < r_lo:
                 # where a run stops short moves on continuously with the coasting point (the
                 # residual of a run that meets the braking curve does not): a secant step on
                 # those runs, every other step, the bisection keeping the bracket
                 p0, r0 = previous
+                slope = (lo - p0) / (r_lo - r0)
                 # aimed inside the stop tolerance: just beyond the root the run meets the braking
                 # curve instead, which only moves the bracket's upper end
                 target = -0.25 * STOP_TOLERANCE_M
-                guess = lo + (target - r_lo) * (lo - p0) / (r_lo - r0)
+                guess = lo + (target - r_lo) * slope
                 if lo < guess < hi:
                     mid = guess
+                elif guess >= hi and jump_aims > 0:
+                    # the root lies beyond a run that arrives: the outcome jumps before it, where
+                    # the shortfall falls to the kernel's REST_AT_STOP_M (the run then counts as
+                    # arriving). Bisection took ~35 runs to close on that jump to 1e-9 m; the
+                    # secant line predicts it, and runs just either side of it close the bracket.
+                    jump_aims -= 1
+                    jump = lo + (-pk.REST_AT_STOP_M - r_lo) * slope
+                    eps = JUMP_AIM_FRACTION * COAST_POINT_TOLERANCE_M
+                    if lo < jump - eps and jump + eps < hi:
+                        mid, queued = jump - eps, [jump + eps]
             bisect = not bisect
             r_mid, points = residual(mid)
             if r_mid >= 0.0:
@@ -1279,6 +1338,7 @@ class SectionSolver:
         self._has_limit_braking = False
         self._coast_points = []
         self._time_slope = None
+        self._departure_memo = {}
         built: list[tuple[tuple[bool, ...], SectionPlan]] = []
 
         def build(

@@ -50,6 +50,10 @@ STOPPED_SHORT = 2  # came to rest before the stop: coasting started too early
 #: Below this speed [m/s] the adjoint is not integrated further (mu / v^2 is singular at rest and
 #: the control is maximum braking there anyway).
 PHI_MIN_SPEED = 0.05
+#: A final phase that comes to rest no farther than this before the stop arrives there (HIT_CEILING)
+#: [m]: the run's outcome jumps where its shortfall crosses this, which the coasting point's search
+#: aims at (``optimal.SectionSolver.plan``).
+REST_AT_STOP_M = 1e-6
 
 
 @njit(cache=True)
@@ -268,7 +272,7 @@ def final_phase_modes(
                 _, dts = rk4_energy_time(E, u, hs, mode, line, P, curves)
                 n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u, v, t, mode)
                 n = _emit(out_s, out_v, out_t, out_m, n, x[i] + u + hs, 0.0, t + dts, mode)
-                if x[i] + u + hs >= x[i_end] - 1e-6:
+                if x[i] + u + hs >= x[i_end] - REST_AT_STOP_M:
                     return n, HIT_CEILING, x[i_end], arc_start, arc_end
                 return n, STOPPED_SHORT, x[i] + u + hs, arc_start, arc_end
             v1 = np.sqrt(2.0 * E1)
