@@ -81,6 +81,9 @@ AWARE_MARGIN_S = 1.0
 MAX_AWARE_ITERATIONS = 6
 #: Timing points of two simulations this close are the same (the iteration has converged) [s].
 AWARE_CONVERGED_S = 1e-3
+#: Running times and timing points asked of the optimisation are rounded to these decimals of a
+#: second (1 ms: far below the schedule tolerance of 0.5 s).
+ASKED_DIGITS = 3
 #: Times closer than this are the same instant (a follower at exactly the minimum headway) [s].
 TIME_TOLERANCE_S = 1e-6
 #: Grid of the release points of trains that pick up speed again [m].
@@ -632,76 +635,82 @@ class _TrainState:
         planned: bool = False,
     ) -> Movement:
         """The train's run through ``stops`` under ``limits``: fastest, or with the stretches between
-        scheduled stops driven energy-efficiently (``_eco_plans``). A stretch's plan depends on when
-        the train leaves its first stop, which depends on the stretches before: the plans are found
-        stretch by stretch in at most one pass per stop (each pass fixes the next stretch)."""
+        scheduled stops driven energy-efficiently (``_eco_plan``). A stretch's plan depends on when
+        the train leaves its first stop, which depends on the stretches before it only: the plans are
+        decided stretch by stretch in running order, each from the run with the plans before it."""
         train = train or self.train
         named = [(s.name, s.position_m) for s in stops]
         if self.strategy == "fastest":
             return self.cache.movement(train, self.directed, named, tuple(limits))
         plans: dict[int, EcoPlan] = {}
-        for _ in range(len(stops) + 1):
-            m = self.cache.movement(train, self.directed, named, tuple(limits), plans)
-            if m.status != "ok":
-                return m
+        driven: dict[float, tuple] = {}
+        m = None
+        for k in range(len(stops) - 1):
+            if stops[k].position_m not in self.schedule:
+                continue
+            if m is None:
+                m = self.cache.movement(train, self.directed, named, tuple(limits), plans)
+                if m.status != "ok":
+                    return m
             deps = self._departures(stops, m, planned)
-            new, driven = self._eco_plans(stops, limits, deps, train, planned)
-            if new == plans:
-                break
-            plans = new
+            plan, how = self._eco_plan(stops, limits, deps, train, planned, k)
+            if how is not None:
+                driven[stops[k].position_m] = how
+            if plan is not None:
+                plans[k] = plan
+                m = None  # the departures after it change
+        if m is None:
+            m = self.cache.movement(train, self.directed, named, tuple(limits), plans)
         if not planned and stops is self.stops:
             self.driven = driven
         return m
 
-    def _eco_plans(
+    def _eco_plan(
         self,
         stops: list[_Stop],
         limits: Sequence[SpeedLimit],
         deps: list[float],
         train: Train,
         planned: bool,
-    ) -> tuple[dict[int, EcoPlan], dict[float, tuple]]:
-        """How each stretch between two scheduled stops is driven when the train leaves them at
-        ``deps``: energy-efficiently from its departure to its scheduled arrival (with the timing
-        points that fall on it, from its departure), unless the train leaves late, a signal stopped or slowed it there
-        (the braking curve is a fastest run's), or the schedule leaves no time over the fastest run."""
-        plans: dict[int, EcoPlan] = {}
-        driven: dict[float, tuple] = {}
-        for k, (a, b) in enumerate(pairwise(stops)):
-            sched = self.schedule.get(a.position_m)
-            if sched is None:
-                continue
-            if a.position_m in self.signal_affected and not planned:
-                driven[a.position_m] = ("fastest", "signal", sched[2] - sched[1], (), 0.0, None)
-                continue
-            if b.kind == "signal" or abs(sched[0] - b.position_m) > 1e-6:
-                continue
-            target = sched[2] - sched[1]
-            late = 0.0 if planned else deps[k] - sched[1]
-            if late > LATE_TOLERANCE_S:
-                driven[a.position_m] = ("fastest", "late", target, (), float(late), None)
-                continue
-            fs, _fv, ft, fr = self.cache.stretch(
-                train, self.directed, (a.name, a.position_m), (b.name, b.position_m), limits
+        k: int,
+    ) -> tuple[EcoPlan | None, tuple | None]:
+        """How stretch ``k`` (from ``stops[k]``, a scheduled stop) is driven when the train leaves it
+        at ``deps[k]``: energy-efficiently from its departure to the scheduled arrival at the next
+        scheduled stop (with the timing points that fall on it, from its departure), unless the train
+        leaves late, a signal stopped or slowed it there (the braking curve is a fastest run's), or
+        the schedule leaves no time over the fastest run. Returns the plan (None: fastest) and
+        (driven, reason, scheduled running time, timing points, late, time asked), None for the
+        part of a stretch split at a signal."""
+        a, b = stops[k], stops[k + 1]
+        sched = self.schedule[a.position_m]
+        target = sched[2] - sched[1]
+        if a.position_m in self.signal_affected and not planned:
+            return None, ("fastest", "signal", target, (), 0.0, None)
+        if b.kind == "signal" or abs(sched[0] - b.position_m) > 1e-6:
+            return None, None
+        late = 0.0 if planned else float(deps[k] - sched[1])
+        if late > LATE_TOLERANCE_S:
+            return None, ("fastest", "late", target, (), late, None)
+        fs, _fv, ft, fr = self.cache.stretch(
+            train, self.directed, (a.name, a.position_m), (b.name, b.position_m), limits
+        )
+        points: tuple[TimingPoint, ...] = ()
+        if not planned and self.aware_points:
+            points = tuple(
+                TimingPoint(x, earliest_s=float(round(e - deps[k], ASKED_DIGITS)), name=n)
+                for x, e, n in self.aware_points
+                if a.position_m + 1.0 < x < b.position_m - 1.0 and e - deps[k] > 0
             )
-            points: tuple[TimingPoint, ...] = ()
-            if not planned and self.aware_points:
-                points = tuple(
-                    TimingPoint(x, earliest_s=e - deps[k], name=n)
-                    for x, e, n in self.aware_points
-                    if a.position_m + 1.0 < x < b.position_m - 1.0 and e - deps[k] > 0
-                )
-            # a train that left early (no scheduled departure given) uses the time it gained
-            run_s = target if planned else sched[2] - deps[k]
-            if points:
-                run_s = max(run_s, min_running_time_s(fs, ft, points) * (1 + AWARE_RESERVE))
-            if fr.status != "ok" or run_s <= float(ft[-1] - ft[0]) + ECO_MIN_SUPPLEMENT_S:
-                driven[a.position_m] = ("fastest", "no_supplement", target, (), float(late), None)
-                continue
-            plans[k] = EcoPlan(float(run_s), points)
-            kind = "signal_aware" if points else "optimal"
-            driven[a.position_m] = (kind, "", target, points, float(late), float(run_s))
-        return plans, driven
+        # a train that left early (no scheduled departure given) uses the time it gained; times to
+        # the millisecond, so that a train on time (its arrival within the optimisation's tolerance)
+        # shares the planned run
+        run_s = target if planned else round(sched[2] - deps[k], ASKED_DIGITS)
+        if points:
+            run_s = max(run_s, min_running_time_s(fs, ft, points) * (1 + AWARE_RESERVE))
+        if fr.status != "ok" or run_s <= float(ft[-1] - ft[0]) + ECO_MIN_SUPPLEMENT_S:
+            return None, ("fastest", "no_supplement", target, (), late, None)
+        kind = "signal_aware" if points else "optimal"
+        return EcoPlan(float(run_s), points), (kind, "", target, points, late, float(run_s))
 
     def refresh_movement(self) -> None:
         self.movement = self.candidate(self.stops, self.limits)
