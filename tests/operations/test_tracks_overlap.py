@@ -100,3 +100,26 @@ def test_moving_block_keeps_no_overlap() -> None:
     mb = Signalling(system="moving_block", overlap_m=0.0)
     line = build_line("t", 6000.0, "double_track", STATIONS, mb, tracks={"up": TrackLayout((2100.0,))})
     assert all(r.overlap_m == 0.0 for st in line.paths["up"].steps for r in st.alternatives)
+
+
+def test_moving_block_ignores_detection_points() -> None:
+    # trains are released by their position reports: a line with axle counters gives the same routes
+    # as without them (switches at their clearance point / blade tip, single track one section)
+    mb = Signalling(system="moving_block", overlap_m=0.0, moving_block_step_m=250.0)
+    dets = (2100.0, 3600.0, 5300.0, 5450.0, 5850.0)
+    for layout, key in (("double_track", "up"), ("single_track", "both")):
+
+        def build(detection: tuple[float, ...], layout=layout, key=key):
+            tracks = {key: TrackLayout(detection, SWITCHES)}
+            return build_line("t", 6000.0, layout, STATIONS, mb, tracks=tracks)
+
+        with_dets, without = build(dets), build(())
+        for d in ("up", "down"):
+            assert with_dets.paths[d].steps == without.paths[d].steps
+        # the entry switch is released at its clearance point 5260, not at the axle counter 5300
+        entry = next(s for s in with_dets.paths["up"].steps if s.kind == "entry" and s.station == "B")
+        assert entry.alternatives[0].resources[0].end_m == pytest.approx(5260.0)
+    # fixed block does use them
+    fb = build_line("t", 6000.0, "double_track", STATIONS, SIG, tracks={"up": TrackLayout(dets, SWITCHES)})
+    entry = next(s for s in fb.paths["up"].steps if s.kind == "entry" and s.station == "B")
+    assert entry.alternatives[0].resources[0].end_m == pytest.approx(5300.0)

@@ -207,9 +207,11 @@ class TrackLayout:
 
     Attributes:
         detection_points_m: train detection points (axle counters, track-circuit borders) [m]. They cut
-            the open line's blocks into track sections released one by one (sectional release), and a
+            the open line's blocks into track sections released one by one (sectional release), a
             switch is released at the first one at or beyond its clearance point (entry) or its blade
-            tip (exit).
+            tip (exit), and a signal's overlap runs to one (``overlap_end_m``). Moving block does not
+            use them (trains are released by their position reports: a switch at its clearance point
+            or blade tip, a single-track section as a whole), except as clearance points not given.
         switches: the stations' switches; each belongs to the station on whose entry side (between the
             entry signal and the stopping point) or exit side (beyond the exit signal, before the next
             signal) it lies.
@@ -675,7 +677,10 @@ def _station_sides(
                 entry, exit_ = e, x
         sides.append(_StationSides(p, entry, exit_, entry + st.switch_zone_m, exit_ + st.switch_zone_m))
     dets_line = sorted(float(x) for x in track.detection_points_m)
-    dets = sorted(rp(direction, x) for x in dets_line)
+    # moving block separates and releases by the trains' own position reports, not by track-side
+    # detection: the points only stand for clearance points not given
+    moving = line.signalling.system == "moving_block"
+    dets = [] if moving else sorted(rp(direction, x) for x in dets_line)
     entry_sw: list[list[tuple[float, float]]] = [[] for _ in ordered]  # (clearance, release) per station
     exit_sw: list[list[tuple[float, float]]] = [[] for _ in ordered]
     for k, sw in enumerate(track.switches):
