@@ -155,7 +155,7 @@ def test_an_energy_efficient_train_needs_its_scheduled_arrivals() -> None:
     with pytest.raises(InputError, match="give the scheduled arrival at B") as e:
         simulate(line, geometry, [svc], SETTINGS)
     assert "trains[0].stops[0].arrival" in str(e.value)
-    assert "give the scheduled arrival at C" in str(e.value)
+    assert "give the scheduled arrival at C (a stop entry for the destination" in str(e.value)
     with pytest.raises(InputError, match="unknown driving strategy"):
         simulate(line, geometry, [replace(svc, strategy="lazy")], SETTINGS)
 

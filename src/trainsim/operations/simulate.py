@@ -79,8 +79,11 @@ AWARE_MARGIN_S = 1.0
 #: The most simulations of a timetable with signal-aware trains (each takes its timing points from
 #: the blocking times of the one before).
 MAX_AWARE_ITERATIONS = 6
-#: Timing points of two simulations this close are the same (the iteration has converged) [s].
+#: Timing points of two simulations this close are the same (the iteration has converged) [s, m].
+#: Under moving block a train's approach start follows its own speed (its braking distance) and moves
+#: by some 0.1 m from one simulation to the next; half a metre is passed well within ``AWARE_MARGIN_S``.
 AWARE_CONVERGED_S = 1e-3
+AWARE_CONVERGED_M = 0.5
 #: Running times and timing points asked of the optimisation are rounded to these decimals of a
 #: second (1 ms: far below the schedule tolerance of 0.5 s).
 ASKED_DIGITS = 3
@@ -1303,10 +1306,15 @@ def _check_services(line: Line, services: Sequence[TrainService]) -> None:
                     problems.append(
                         Problem(
                             f"strategy {svc.strategy} drives each stretch in its scheduled running time: "
-                            f"give the scheduled arrival at {name}",
-                            field=f"{where}.stops[{'new' if i is None else i}].arrival",
+                            f"give the scheduled arrival at {name}"
+                            + (
+                                " (a stop entry for the destination: {station: ..., arrival: ...})"
+                                if i is None
+                                else ""
+                            ),
+                            field=f"{where}.stops" if i is None else f"{where}.stops[{i}].arrival",
                             value=None,
-                            allowed="a time (a stop entry for the destination gives its arrival)",
+                            allowed="a time",
                         )
                     )
         n_stretches = 1 + sum(1 for s in svc.stops if s.station != svc.destination)
@@ -1457,7 +1465,7 @@ def _same_points(a: dict, b: dict) -> bool:
         if len(a[k]) != len(b[k]):
             return False
         for p, q in zip(a[k], b[k], strict=True):
-            if abs(p[0] - q[0]) > 1e-6 or abs(p[1] - q[1]) > AWARE_CONVERGED_S:
+            if abs(p[0] - q[0]) > AWARE_CONVERGED_M or abs(p[1] - q[1]) > AWARE_CONVERGED_S:
                 return False
     return True
 
