@@ -12,7 +12,13 @@ same run: one fastest run of the train over the 20 km (the single-train simulati
 had), both in CPU time (process_time), which other processes on a shared machine disturb much less
 than the wall time. Prints the load average too.
 
-Run: python benchmarks/bench_power.py [--repeat N] [--reversible] [--sparse]
+--day: a whole day instead (issue 18), examples/power/metro_750v_diode_day.yaml (source 002's metro,
+3-minute headway each way from 05:00 to 23:00, 720 departures): memory per train-step of full traces
+(time x train arrays) and of traces kept while each train runs, measured with tracemalloc on the
+first hour, and the CPU time of the whole 18 h day with compact traces, each as a ratio to the
+baseline (here one fastest run of that metro over its 4.6 km line, timed in the same run).
+
+Run: python benchmarks/bench_power.py [--repeat N] [--reversible] [--sparse] [--day]
 """
 
 from __future__ import annotations
@@ -96,7 +102,11 @@ def main() -> None:
         action="store_true",
         help="also time the sparse Newton (SuperLU, numpy) the compiled one replaced, in the same run",
     )
+    parser.add_argument("--day", action="store_true", help="an 18 h day with compact traces (see above)")
     args = parser.parse_args()
+    if args.day:
+        day()
+        return
     net, loads, (train, route, settings), trip = line_and_trains(args.reversible)
     baseline = []
     for _ in range(5):
@@ -150,6 +160,68 @@ def main() -> None:
             f"(= {statistics.median(sparse_cpu) / base:.0f} x the baseline); compiled / sparse "
             f"{statistics.median(cpu) / statistics.median(sparse_cpu):.2f}; substation powers agree to {diff:.1e}"
         )
+    print(f"load average: {os.getloadavg()[0]:.2f}")
+
+
+def day() -> None:
+    """Memory per train-step and the time of an 18 h day (module doc)."""
+    import resource
+    import tracemalloc
+
+    from trainsim.io.power_file import load_power_file
+    from trainsim.power.day import departure_loads
+
+    _, net, services = load_power_file(ROOT / "examples" / "power" / "metro_750v_diode_day.yaml")
+    loads, _ = departure_loads(services)
+    sc = services[0].scenario
+    baseline = []
+    for _ in range(5):
+        c0 = time.process_time()
+        trainsim.run_fastest(sc.train, sc.route, sc.settings)
+        baseline.append(time.process_time() - c0)
+    base = statistics.median(baseline)
+    print(f"baseline (one fastest run of the metro, CPU time): {base * 1e3:.1f} ms")
+    hour = (18000.0, 21599.0)
+    first = [ld for ld in loads if ld.time_s[0] <= hour[1] and ld.time_s[-1] >= hour[0]]
+    peaks, results, cpus = {}, {}, {}
+    for traces in ("full", "on_network"):
+        # CPU without tracemalloc (it slows numpy's allocations several times), memory with it
+        c0 = time.process_time()
+        results[traces] = simulate(net, first, dt_s=1.0, start_s=hour[0], end_s=hour[1], traces=traces)
+        cpus[traces] = time.process_time() - c0
+        tracemalloc.start()
+        simulate(net, first, dt_s=1.0, start_s=hour[0], end_s=hour[1], traces=traces)
+        peaks[traces] = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    full, compact = results["full"], results["on_network"]
+    same = np.array_equal(full.substation_power_w, compact.substation_power_w)
+    steps, on = len(full.time_s) * len(first), int(compact.train_offset[-1])
+    print(
+        f"first hour, {len(first)} trains, {len(full.time_s)} steps: full traces peak {peaks['full'] / 1e6:.1f} MB "
+        f"({peaks['full'] / steps:.0f} bytes per step x train), compact {peaks['on_network'] / 1e6:.1f} MB "
+        f"({peaks['on_network'] / on:.0f} bytes per train-step on the network, {on} of them); CPU full "
+        f"{cpus['full']:.2f} s, compact {cpus['on_network']:.2f} s (compact / full {cpus['on_network'] / cpus['full']:.2f}); "
+        f"substation series identical: {same}"
+    )
+    rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    t0, c0 = time.perf_counter(), time.process_time()
+    res = simulate(net, loads, dt_s=1.0, traces="on_network")
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    rss1 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    s = res.summary()
+    n_full = len(res.time_s) * len(loads)
+    print(
+        f"18 h day, {len(loads)} departures, {len(res.time_s)} steps of 1 s: CPU {cpu:.1f} s "
+        f"(= {cpu / base:.0f} x the baseline, {cpu / len(res.time_s) * 1e3:.2f} ms per step), wall {wall:.1f} s; "
+        f"result {res.memory_bytes() / 1e6:.1f} MB for {int(res.train_offset[-1])} train-steps on the network "
+        f"(peak RSS grew {(rss1 - rss0) / 1024:.0f} MB); full traces would hold {n_full:.2e} steps x trains "
+        f"(about {n_full * peaks['full'] / steps / 1e9:.1f} GB, cap {trainsim.power.simulation.MAX_FULL_TRAIN_STEPS:.0e})"
+    )
+    print(
+        f"status {s['status']}, substations {s['substations_energy_kwh']:.0f} kWh, largest 1 h RMS current "
+        f"{max(x['rms_current_max_a']['3600s'] for x in s['substations']):.0f} A, energy balance "
+        f"{s['energy_balance_error']:.1e}"
+    )
     print(f"load average: {os.getloadavg()[0]:.2f}")
 
 

@@ -113,3 +113,21 @@ def test_bad_settings_name_the_field(field, value):
     with pytest.raises(InputError) as err:
         SyncSettings(**{field: value})
     assert f"synchronisation.{field}" in str(err.value)
+
+
+def test_overload_excess_is_the_energy_above_the_overload_power(two_trains):
+    """Against a sum written out step by step: 0.4 MW of overload power on each substation."""
+    import dataclasses
+
+    from trainsim.power.synchronise import overload_excess_kwh
+
+    net, loads, _, _ = two_trains
+    subs = tuple(dataclasses.replace(s, rated_power_w=0.3e6, overload_power_w=0.4e6) for s in net.substations)
+    res = simulate(dataclasses.replace(net, substations=subs), loads, dt_s=1.0)
+    by_hand = 0.0
+    for row in res.substation_power_w:
+        for p in row:
+            by_hand += max(p - 0.4e6, 0.0) * 1.0
+    assert by_hand > 0
+    assert overload_excess_kwh(res) == pytest.approx(by_hand / 3.6e6, rel=1e-12)
+    assert overload_excess_kwh(simulate(net, loads, dt_s=1.0)) == 0.0  # no overload power given

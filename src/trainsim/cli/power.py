@@ -52,10 +52,34 @@ def _print_summary(summary: dict) -> None:
         typer.echo(
             f"train {t['id']}: {t['status']}, {t['time_lost_s']:.1f} s lost to voltage-limited traction"
         )
+    sync = summary.get("synchronisation")
+    if sync is not None:
+        _print_synchronisation(sync)
+    traces = summary.get("traces")
+    if traces is not None:
+        typer.echo(
+            f"traces kept while each train runs: {traces['train_steps']} train-steps, {traces['memory_mb']:.1f} MB"
+            + (f"; {traces['outputs']}" if "outputs" in traces else "")
+        )
     if summary["status"] != "ok":
         # every condition, most severe first: one does not hide another
         others = [s for s in summary.get("statuses", []) if s != summary["status"]]
         typer.echo(f"status: {summary['status']}" + (f" (also {', '.join(others)})" if others else ""))
+
+
+def _print_synchronisation(sync: dict) -> None:
+    typer.echo(
+        f"synchronisation ({sync['per']}, {sync['evaluations']} network solutions, {sync['evaluation']}): "
+        f"substations {sync['baseline_kwh']:.2f} kWh as given -> {sync['synchronised_kwh']:.2f} kWh, "
+        f"saving {sync['saving_kwh']:.2f} kWh ({sync['saving_percent']:.2f} %), status {sync['status']}"
+    )
+    if sync["message"]:
+        typer.echo(f"  {sync['message']}")
+    typer.echo(f"  {'departure':<14}{'timetabled s':>14}{'offset s':>10}{'synchronised s':>16}")
+    for d in sync["departures"]:
+        typer.echo(
+            f"  {d['id']:<14}{d['departure_s']:>14.1f}{d['offset_s']:>+10.1f}{d['synchronised_departure_s']:>16.1f}"
+        )
 
 
 def power(
@@ -67,6 +91,14 @@ def power(
         bool, typer.Option("--json/--no-json", help="Print only the summary as JSON.")
     ] = False,
     plots: Annotated[bool, typer.Option("--plots/--no-plots", help="Write PNG plots with --out.")] = True,
+    synchronise: Annotated[
+        bool | None,
+        typer.Option(
+            "--synchronise/--no-synchronise",
+            help="Shift the departures to minimise the substations' energy (the file's synchronisation: block, "
+            "or its defaults); --no-synchronise ignores the block.",
+        ),
+    ] = None,
 ) -> None:
     """Solve a traction power network with many trains over time (substations, voltages, regeneration).
 
@@ -74,7 +106,8 @@ def power(
     voltage_out_of_limits (a pantograph voltage left Umin2 .. Umax2), feedback_not_converged,
     substation_overloaded (above its overload power), traction_limited (the voltage limited traction
     and it was not fed back into the runs), time_lost (a train ran more than 0.5 s slower because of
-    the voltage). Informational, in the warnings only: power above a substation's rated power but
+    the voltage), headway_not_met (synchronisation: no timetable within the windows keeps the minimum
+    headway; nothing shifted). Informational, in the warnings only: power above a substation's rated power but
     within its overload power, regenerated energy the line could not take (burnt on board or by the
     friction brakes: the train still brakes as asked). See docs/POWER.md, "Status".
     """
@@ -82,7 +115,7 @@ def power(
         require_file(file, "power-supply file")
         from trainsim.io.power_file import run_power_file
 
-        summary, status = run_power_file(file, out, plots=plots)
+        summary, status = run_power_file(file, out, plots=plots, synchronise=synchronise)
         if as_json:
             typer.echo(json.dumps(summary, indent=2, allow_nan=False))
         else:

@@ -20,8 +20,8 @@ from trainsim.errors import InputError, Problem
 from trainsim.power.limits import EN50163, standard_limits
 from trainsim.power.network import Connection, Gap, Network, Storage, Substation, Track, regulation_points
 from trainsim.power.onboard import OnboardStorage
-from trainsim.power.simulation import TrainLoad, simulate
-from trainsim.power.study import FeedbackSettings, TrainService, run_study, with_status
+from trainsim.power.simulation import MAX_FULL_TRAIN_STEPS, CompactPowerResult, PowerResult, TrainLoad
+from trainsim.power.study import FeedbackSettings, TrainService, run_study
 
 __all__ = ["PowerFile", "load_power_file", "run_power_file"]
 
@@ -52,8 +52,10 @@ class TrackSpec(_Spec):
     id: str
     start_km: float
     end_km: float
-    contact_resistance_ohm_per_km: NonNegative
-    rail_resistance_ohm_per_km: NonNegative = 0.0
+    #: > 0 for DC, >= 0 for AC (with a reactance): the network states the range of its system
+    contact_resistance_ohm_per_km: float
+    #: >= 0, and 0 on every track or none (an ideal return): the network states it
+    rail_resistance_ohm_per_km: float = 0.0
     rail_to_earth_conductance_s_per_km: NonNegative = 0.0
     contact_reactance_ohm_per_km: NonNegative = 0.0
 
@@ -63,7 +65,8 @@ class SubstationSpec(_Spec):
     position_km: float
     tracks: list[str] = Field(min_length=1)
     no_load_voltage_v: Positive | None = None
-    internal_resistance_ohm: NonNegative | None = None
+    #: > 0 for DC, >= 0 for AC (with a reactance): the network states the range of its system
+    internal_resistance_ohm: float | None = None
     internal_reactance_ohm: NonNegative = 0.0
     rated_power_kw: Positive | None = None
     overload_power_kw: Positive | None = None
@@ -181,6 +184,28 @@ class SimulationSpec(_Spec):
     start_s: float | None = None
     end_s: float | None = None
     feedback: FeedbackSpec = Field(default_factory=FeedbackSpec)
+    #: each train's series kept over the whole span (``full``), only while it runs (``on_network``,
+    #: a whole day: trainsim.power.day), or ``auto``: full when within the cap, else on_network
+    traces: Literal["auto", "full", "on_network"] = "auto"
+
+
+class SynchronisationSpec(_Spec):
+    """Shift departures within windows to minimise the substations' energy (trainsim.power.synchronise)."""
+
+    window_s: Annotated[float, Field(gt=0, le=3600)] = 20.0
+    step_s: Annotated[float, Field(gt=0, le=3600)] = 5.0
+    rounds: Annotated[int, Field(ge=1, le=20)] = 3
+    refinements: Annotated[int, Field(ge=0, le=10)] = 2
+    min_headway_s: Annotated[float, Field(ge=0)] = 90.0
+    per: Literal["departure", "service"] = "departure"
+    #: refuse offsets that put the substations further beyond their overload power
+    avoid_overload: bool = True
+
+    @model_validator(mode="after")
+    def _step_in_window(self) -> SynchronisationSpec:
+        if self.step_s > self.window_s:
+            raise ValueError(f"step_s ({self.step_s:g} s) must not exceed window_s ({self.window_s:g} s)")
+        return self
 
 
 class OperationLinkSpec(_Spec):
@@ -202,11 +227,16 @@ class PowerFile(_Spec):
     trains: list[TrainSpec] = Field(default_factory=list)
     operation: OperationLinkSpec | None = None
     simulation: SimulationSpec = Field(default_factory=SimulationSpec)
+    synchronisation: SynchronisationSpec | None = None
 
     @model_validator(mode="after")
     def _trains_or_operation(self) -> PowerFile:
         if bool(self.trains) == (self.operation is not None):
             raise ValueError("give either trains (a timetable of scenarios) or operation (an operation file)")
+        if self.synchronisation is not None and self.operation is not None:
+            raise ValueError("synchronisation shifts the departures of trains: not of an operation file")
+        if self.operation is not None and self.simulation.traces == "on_network":
+            raise ValueError("simulation.traces: on_network is for trains: operated trains keep full traces")
         return self
 
 
@@ -473,15 +503,26 @@ def operated_train_loads(
 
 
 def _operated_loads(
-    op: Any, services: list, result: Any, file: str, tracks: dict[str, str], origin_m: float
+    op: Any,
+    services: list,
+    result: Any,
+    file: str,
+    tracks: dict[str, str],
+    origin_m: float,
+    stretch_caps: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
+    directed_routes: dict[str, Any] | None = None,
 ) -> tuple[list[TrainLoad], dict[str, Any]]:
     """The loads and ``operation`` block of an operation's ``result`` (see
-    :func:`operated_train_loads`); ``services`` are the ones it ran (a fastest rerun is made with
-    the same traction power cap as the operation's runs)."""
+    :func:`operated_train_loads`); ``services`` are the ones it ran. A fastest rerun is made with the
+    same traction power cap as the operation's runs: the service's, and with ``stretch_caps`` (per
+    train id: its scheduled stops' running positions [m] and a cap per stretch between them [W]) the
+    cap of the stretch the movement lies on; and on the same route (``directed_routes`` per
+    direction, e.g. with the network's neutral sections, else the operation's own)."""
     from trainsim.operations.runs import direction_route, service_route
     from trainsim.sim.fastest import run_fastest
 
     by_id = {svc.id: svc for svc in services}
+    stretch_caps = stretch_caps or {}
     loads, trains = [], []
     for outcome in result.trains:
         svc = by_id[outcome.id]
@@ -497,12 +538,9 @@ def _operated_loads(
         if traj is None:
             trains.append({"id": outcome.id, "status": outcome.status, "on_network": False})
             continue
-        directed = direction_route(op.geometry, op.line.length_m, outcome.direction)
-        train = svc.train
-        if np.isfinite(svc.traction_power_cap_w):
-            train = dataclasses.replace(
-                train, traction=train.traction.capped(power_cap_w=svc.traction_power_cap_w)
-            )
+        directed = (directed_routes or {}).get(outcome.direction) or direction_route(
+            op.geometry, op.line.length_m, outcome.direction
+        )
         t_parts, x_parts, pt_parts, pr_parts = [], [], [], []
         mismatch = 0.0
         t, s = traj.time_s, traj.position_m
@@ -514,6 +552,7 @@ def _operated_loads(
             if own is not None:
                 run = own[k]
             else:
+                train = _capped_train(svc, stretch_caps.get(svc.id), 0.5 * (s[i0] + s[i1]))
                 run = run_fastest(train, service_route(directed, [("a", s[i0]), ("b", s[i1])]), op.settings)
             tr = run.trace
             mismatch = max(mismatch, abs((t[i1] - t[i0]) - (tr.time_s[-1] - tr.time_s[0])))
@@ -538,32 +577,123 @@ def _operated_loads(
     return loads, info
 
 
+def _capped_train(svc: Any, caps: tuple[np.ndarray, np.ndarray] | None, running_m: float) -> Any:
+    """The service's train with the traction power cap at the wheel its operated runs have at
+    running position ``running_m`` [m]: its own cap, and the cap of that stretch of ``caps`` (stops,
+    caps [W]; 0: no traction)."""
+    from trainsim.power.operated import stretch_index
+
+    cap = svc.traction_power_cap_w
+    if caps is not None:
+        stops, values = caps
+        cap = min(cap, float(values[int(stretch_index(stops, np.array([running_m]), len(values))[0])]))
+    if not np.isfinite(cap):
+        return svc.train
+    return dataclasses.replace(
+        svc.train, traction=svc.train.traction.capped(power_cap_w=cap, force_cap_n=None if cap > 0 else 0.0)
+    )
+
+
 def _arrival_s(outcome: Any) -> float:
     """When an operated train arrived at its destination [s] (NaN: it did not)."""
+    if outcome.status != "ok":
+        # a stalled or deadlocked train has no arrival, whatever its last stop's record holds
+        return float("nan")
     last = outcome.stops[-1] if outcome.stops else None
     if last is None or last.arrival_s is None or not np.isfinite(last.arrival_s):
         return float("nan")
     return float(last.arrival_s)
 
 
+def _stretch_cap_cache(
+    settings: Any, geometry: Any = None, directed_routes: dict[str, Any] | None = None
+) -> Any:
+    """A run cache of the operation (``trainsim.operations.runs.RunCache``) that runs some trains with
+    a traction power cap at the wheel per scheduled stretch (``set_caps``), and, with
+    ``directed_routes``, the operation's ``geometry`` in each direction on the route given for it
+    (the line with the network's neutral sections).
+
+    The operation makes a train's operated runs with the train ``power_capped(svc.train, ...)`` hands
+    back, stretch by stretch between two stops (``stretch``, ``eco_stretch``), and its plan with
+    ``svc.train`` itself. So for a capped service ``power_capped`` hands back a stand-in (a copy of the
+    train), and a run of the stand-in is made with the train capped at the cap of the scheduled stretch
+    the run lies on (signal stops split a scheduled stretch, never join two). The plan stays uncapped:
+    a train slowed by the line shows as late. (The operation takes one cap per train of its own,
+    ``TrainService.traction_power_cap_w``; this adds the cap per stretch without changing it.)"""
+    from trainsim.operations.runs import RunCache
+    from trainsim.power.operated import stretch_index
+
+    class StretchCapCache(RunCache):
+        def __init__(self) -> None:
+            super().__init__(settings)
+            # id(train) -> (train, stand-in); id(stand-in) -> (stand-in, train, stops [m], caps [W])
+            self._stand_in: dict[int, tuple[Any, Any]] = {}
+            self._caps: dict[int, tuple[Any, Any, np.ndarray, np.ndarray]] = {}
+            self._no_traction: dict[int, tuple[Any, Any]] = {}
+
+        def directed(self, geometry_: Any, length_m: float, direction: str) -> Any:
+            found = (directed_routes or {}).get(direction)
+            if found is not None and geometry_ is geometry:
+                return found
+            return super().directed(geometry_, length_m, direction)
+
+        def set_caps(self, train: Any, stops_m: np.ndarray, caps_w: np.ndarray) -> None:
+            """Runs of ``train`` (a service's own object) with ``caps_w[k]`` [W] between ``stops_m[k]``
+            and ``stops_m[k + 1]`` (running positions [m]); inf: no cap, 0: no traction."""
+            stand_in = dataclasses.replace(train)
+            self._keep.extend((train, stand_in))  # ids stay valid while the cache lives
+            self._stand_in[id(train)] = (train, stand_in)
+            self._caps[id(stand_in)] = (stand_in, train, np.asarray(stops_m, float), np.asarray(caps_w, float))  # fmt: skip
+
+        def power_capped(self, train: Any, power_cap_w: float) -> Any:
+            found = self._stand_in.get(id(train))
+            if found is not None and found[0] is train:
+                if np.isfinite(power_cap_w):
+                    raise InputError("a train with caps per stretch has no cap of its own",
+                                     field="traction_power_cap_w", value=power_cap_w, allowed="inf")  # fmt: skip
+                return found[1]
+            return super().power_capped(train, power_cap_w)
+
+        def _resolve(self, train: Any, a: tuple[str, float], b: tuple[str, float]) -> Any:
+            found = self._caps.get(id(train))
+            if found is None or found[0] is not train:
+                return train
+            _, base, stops, caps = found
+            cap = float(caps[int(stretch_index(stops, np.array([0.5 * (a[1] + b[1])]), len(caps))[0])])
+            if cap > 0:
+                return super().power_capped(base, cap)
+            zero = self._no_traction.get(id(base))
+            if zero is None or zero[0] is not base:
+                zero = self._no_traction[id(base)] = (
+                    base, dataclasses.replace(base, traction=base.traction.capped(force_cap_n=0.0, power_cap_w=0.0))
+                )  # fmt: skip
+            return zero[1]
+
+        def stretch(self, train, directed, a, b, limits=()):  # type: ignore[no-untyped-def]
+            return super().stretch(self._resolve(train, a, b), directed, a, b, limits)
+
+        def eco_stretch(self, train, directed, a, b, *rest, **options):  # type: ignore[no-untyped-def]
+            return super().eco_stretch(self._resolve(train, a, b), directed, a, b, *rest, **options)
+
+    return StretchCapCache()
+
+
+def _wait_s(outcome: Any) -> float:
+    """The time an operated train waited at signals and was held at stops [s]."""
+    return float(sum(h.wait_s for h in outcome.hindrances))
+
+
 def _run_operated(path: Path, spec: PowerFile, network: Network) -> Any:
     """The power study of the operation file's trains, with voltage-limited traction fed back into
-    the operation when ``simulation.feedback.enabled``.
-
-    Feedback: each operated train whose traction the line limits (it gets less than 1 - tolerance of
-    the traction energy it asks) gets one cap on its traction power at the wheel for its whole run:
-    the least electrical power the line delivered to it at a limited step, times its traction
-    efficiency, lowered again at each iteration where it is still limited (the timetable study's
-    ``constant`` method). The operation is simulated again with those caps (only its operated runs:
-    the plan stays the uncapped one, so the slowed train shows as late), so that a slower train
-    holds the trains behind it through the signalling (knock-on between services), and the network
-    is solved again, until no train is limited or ``max_iterations`` is reached. A train's
-    ``time_lost_s`` is its arrival at its destination minus its arrival in the operation without
-    feedback: its own slower running and the waits behind slowed trains.
+    the operation when ``simulation.feedback.enabled`` (:func:`trainsim.power.operated.feed_back_operated`:
+    caps per stretch or per train as ``feedback.method`` says, the operation re-simulated with them so
+    that a slowed train holds the trains behind it at signals). A train's ``time_lost_s`` is its
+    arrival at its destination minus its arrival in the operation without caps: its own slower
+    running and the waits behind slowed trains (``wait_s`` against ``nominal_wait_s``).
     """
     from trainsim.io.operation_file import read_operation
     from trainsim.io.operation_run import run_operation
-    from trainsim.operations.runs import RunCache
+    from trainsim.power.operated import Operated, OperatedTrain, feed_back_operated, greatest_wheel_power_w
 
     sim = spec.simulation
     link = spec.operation
@@ -571,89 +701,93 @@ def _run_operated(path: Path, spec: PowerFile, network: Network) -> Any:
     tracks = dict(link.tracks)
     origin_m = link.origin_km * 1000
     op = read_operation(where)
-    fb = sim.feedback
-    caps = {svc.id: np.inf for svc in op.services}
-    cache: RunCache | None = None
-    iterations = 0
-    nominal: dict[str, float] = {}
-    while True:
-        iterations += 1
-        if iterations == 1:
+    length = op.line.length_m
+    trains, stops = [], {}
+    for svc in op.services:
+        at = op.line.paths[svc.direction].stop_m
+        names = [svc.origin, *(s.station for s in svc.stops if s.station != svc.destination), svc.destination]
+        stops[svc.id] = np.array([at[n] for n in names])
+        up = svc.direction == "up"
+        el = svc.train.electrical
+        trains.append(OperatedTrain(svc.id, stops[svc.id], origin_m if up else origin_m + length, 1 if up else -1,
+                                    el.traction_efficiency if el is not None else 1.0,
+                                    greatest_wheel_power_w(svc.train), tuple(names)))  # fmt: skip
+    try:
+        routes, neutral = _operated_neutral_sections(op, network, tracks, origin_m)
+    except InputError as exc:
+        raise exc.located(str(path)) from None
+    cache: Any = None
+    own: dict[str, Any] = {}  # a train object per capped service: the cache tells them apart by it
+
+    def operate(caps: dict[str, np.ndarray] | None) -> Operated:
+        nonlocal cache
+        if caps is None and not routes:
             # without caps exactly as without feedback (no shared cache), so that disabling it changes nothing
-            services = list(op.services)
-            operated = run_operation(op)
-            nominal = {o.id: _arrival_s(o) for o in operated.trains}
+            services, operated = list(op.services), run_operation(op)
         else:
-            cache = cache or RunCache(op.settings)
-            services = [
-                dataclasses.replace(svc, traction_power_cap_w=caps[svc.id])
-                if np.isfinite(caps[svc.id])
-                else svc
-                for svc in op.services
-            ]
+            cache = cache or _stretch_cap_cache(op.settings, op.geometry, routes)
+            caps = caps or {}
+            services = []
+            for svc in op.services:
+                if svc.id in caps:
+                    train = own.setdefault(svc.id, dataclasses.replace(svc.train))
+                    cache.set_caps(train, stops[svc.id], caps[svc.id])
+                    svc = dataclasses.replace(svc, train=train)
+                services.append(svc)
             operated = run_operation(op, services, cache)
-        loads, info = _operated_loads(op, services, operated, str(where), tracks, origin_m)
+        capped = {tid: (stops[tid], c) for tid, c in (caps or {}).items()}
+        loads, info = _operated_loads(op, services, operated, str(where), tracks, origin_m, capped, routes)
         if not loads:
             raise InputError("no operated train reached the network", file=str(path), field="operation.file",
                              value=link.file)  # fmt: skip
-        try:
-            result = simulate(network, loads, dt_s=sim.step_s, start_s=sim.start_s, end_s=sim.end_s)
-        except InputError as exc:
-            raise exc.located(str(path)) from None
-        if not fb.enabled:
-            break
-        asked = np.nansum(result.traction_demand_w, axis=0)
-        got = np.nansum(result.traction_delivered_w, axis=0)
-        ratio = np.where(asked > 0, got / np.where(asked > 0, asked, 1.0), 1.0)
-        mismatch = 1.0 - ratio
-        limited = ratio < 1.0 - fb.tolerance
-        consistent = not limited.any()
-        if consistent or iterations >= fb.max_iterations:
-            break
-        short = result.traction_delivered_w < result.traction_demand_w * (1.0 - fb.tolerance)
-        efficiency = {svc.id: svc.train.electrical.traction_efficiency for svc in op.services}
-        for i in np.flatnonzero(limited):
-            tid = result.train_ids[i]
-            delivered = result.traction_delivered_w[short[:, i], i]
-            if delivered.size:
-                # lowered only: a cap raised again could make the iteration cycle
-                caps[tid] = min(caps[tid], float(np.min(delivered)) * efficiency[tid])
-    if not fb.enabled:
-        feedback = {"enabled": False, "iterations": 1, "consistent": True,
-                    "method": "none",
-                    "note": "operated trains are solved once: their delays come from the operation"}  # fmt: skip
-        return with_status(dataclasses.replace(result, extra={"operation": info, "feedback": feedback}))
-    arrivals = {o.id: _arrival_s(o) for o in operated.trains}
-    trains = []
-    for tid in result.train_ids:
-        lost = arrivals.get(tid, np.nan) - nominal.get(tid, np.nan)
-        trains.append({
-            "id": tid,
-            "arrival_s": _finite(arrivals.get(tid, np.nan)),
-            "nominal_arrival_s": _finite(nominal.get(tid, np.nan)),
-            # a train that no longer arrives under its cap lost all: no finite figure, said by its status
-            "time_lost_s": float(lost) if np.isfinite(lost) else None,
-            "traction_power_cap_kw": float(caps[tid]) / 1e3 if np.isfinite(caps[tid]) else None,
-            "traction_power_caps_kw": None,
-        })  # fmt: skip
-    feedback = {
-        "enabled": True,
-        "iterations": iterations,
-        "consistent": bool(consistent),
-        "mismatch": float(np.max(mismatch, initial=0.0)),
-        # between services the operation's signalling and dispatching pass the delays on (not the
-        # timetable study's knock_on between departures of one service, which does not apply)
-        "knock_on": True,
-        "buffer_s": None,
-        # a method name like the timetable study's (constant, per_stretch, per_step); what it means in note
-        "method": "per_train",
-        "note": "constant cap on the traction power at the wheel per operated train for its whole run: least "
-        "power delivered at a limited step; the operation re-simulated with the caps (per-stretch and "
-        "per-step feedback are not done for operated trains)",
-    }
-    return with_status(
-        dataclasses.replace(result, extra={"operation": info, "feedback": feedback, "trains": trains})
+        return Operated(loads, info, {o.id: _arrival_s(o) for o in operated.trains},
+                        {o.id: o.status for o in operated.trains}, {o.id: _wait_s(o) for o in operated.trains})  # fmt: skip
+
+    fb = sim.feedback
+    settings = FeedbackSettings(
+        fb.enabled, fb.max_iterations, fb.tolerance, fb.method, fb.knock_on, fb.buffer_s
     )
+    try:
+        return feed_back_operated(network, trains, operate, settings, explicit=set(fb.model_fields_set),
+                                  dt_s=sim.step_s, start_s=sim.start_s, end_s=sim.end_s,
+                                  blocks={"neutral_sections": neutral} if neutral else None)  # fmt: skip
+    except InputError as exc:
+        raise exc.located(str(path)) from None
+
+
+def _operated_neutral_sections(
+    op: Any, network: Network, tracks: dict[str, str], origin_m: float
+) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """The operation's line in each direction with the network's neutral sections of that
+    direction's track as sections without traction (:func:`trainsim.power.study.route_with_neutral_sections`),
+    where they change it, and the records of the sections for the ``neutral_sections`` block, one per
+    operated train. The line is one route per direction for all its trains: they must share their
+    nominal line voltage (the parts the route leaves uncovered get it)."""
+    from trainsim.operations.runs import direction_route
+    from trainsim.power.study import route_with_neutral_sections
+
+    length = op.line.length_m
+    routes: dict[str, Any] = {}
+    records: list[dict[str, Any]] = []
+    for direction, track in tracks.items():
+        mine = [svc for svc in op.services if svc.direction == direction]
+        if not mine:
+            continue
+        voltages = {svc.train.electrical.line_voltage_v for svc in mine if svc.train.electrical is not None}
+        route = direction_route(op.geometry, length, direction)
+        # chainage of the route's position s: origin + s up, origin + length - s down
+        start = origin_m + route.start_m if direction == "up" else origin_m + length - route.start_m
+        new, found = route_with_neutral_sections(route, mine[0].train, network, track, start,
+                                                 1 if direction == "up" else -1)  # fmt: skip
+        if new is not route:
+            if len(voltages) > 1:
+                raise InputError("the network's neutral sections are laid over the operation's line, one route for "
+                                 "all its trains: they must have one nominal line voltage", field="operation.file",
+                                 value=", ".join(f"{v:g} V" for v in sorted(voltages)),
+                                 allowed="trains of one line voltage per direction")  # fmt: skip
+            routes[direction] = new
+        records.extend({**r, "train": svc.id} for svc in mine for r in found)
+    return routes, records
 
 
 def _finite(x: float) -> float | None:
@@ -661,16 +795,30 @@ def _finite(x: float) -> float | None:
 
 
 def run_power_file(
-    path: str | Path, out_dir: str | Path | None = None, *, plots: bool = True
+    path: str | Path,
+    out_dir: str | Path | None = None,
+    *,
+    plots: bool = True,
+    synchronise: bool | None = None,
 ) -> tuple[dict[str, Any], str]:
     """Run a power-supply file: (summary, status). With ``out_dir``: ``summary.json``, the time
     series as CSV (``trains.csv``, ``substations.csv``, ``network.csv``) and, with ``plots``, PNG
     plots (see :mod:`trainsim.power.plots`). With ``operation:`` the operated trains, with
     voltage-limited traction fed back into the operation unless ``simulation.feedback.enabled`` is
-    false (then solved once, as before: their delays come from the operation alone)."""
+    false (then solved once, as before: their delays come from the operation alone).
+
+    Timetables (``trains:``): ``simulation.traces`` (``auto``: each train's series over the whole span
+    when within :data:`~trainsim.power.simulation.MAX_FULL_TRAIN_STEPS`, else only while it runs, a whole
+    day: :mod:`trainsim.power.day`); the ``synchronisation:`` block shifts the departures first
+    (:func:`~trainsim.power.synchronise.synchronise_departures`; ``synchronise`` True runs it with the
+    block's or the default settings, False skips it) and the summary gets a ``synchronisation`` block."""
     spec, network, services = load_power_file(path)
     sim = spec.simulation
+    sync_block = None
     if spec.operation is not None:
+        if synchronise:
+            raise InputError("synchronisation shifts the departures of trains: not of an operation file",
+                             file=str(path), field="synchronisation", allowed="a file with trains:")  # fmt: skip
         link = spec.operation
         where = Path(path).parent / link.file
         if not where.is_file():
@@ -686,16 +834,123 @@ def run_power_file(
         sim.feedback.enabled, sim.feedback.max_iterations, sim.feedback.tolerance, sim.feedback.method,
         sim.feedback.knock_on, sim.feedback.buffer_s,
     )  # fmt: skip
-        result = run_study(
-            network, services, dt_s=sim.step_s, start_s=sim.start_s, end_s=sim.end_s, feedback=fb
-        )
+        wanted = spec.synchronisation if synchronise is None else (
+            (spec.synchronisation or SynchronisationSpec()) if synchronise else None)  # fmt: skip
+        span = (sim.start_s, sim.end_s)
+        if wanted is not None:
+            try:
+                services, sync_block, span = _synchronised(network, services, wanted, sim)
+            except InputError as exc:
+                raise exc.located(str(path)) from None
+        result = _timetable_result(network, services, sim, fb, span)
     summary = result.summary()
     summary["name"] = spec.name
+    if sync_block is not None:
+        summary["synchronisation"] = sync_block
+        if sync_block["status"] != "ok":
+            summary["statuses"] = [*summary.get("statuses", []), sync_block["status"]]
+            summary["warnings"].append(sync_block["message"])
+            if summary["status"] == "ok":
+                summary["status"] = sync_block["status"]
     if out_dir is not None:
-        from trainsim.power.output import write_outputs
-
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
+        result = _dense_for_outputs(result, summary)
         (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False))
-        write_outputs(result, out, plots=plots)
+        if isinstance(result, CompactPowerResult):
+            from trainsim.power.day import write_compact_outputs
+
+            write_compact_outputs(result, out)
+        else:
+            from trainsim.power.output import write_outputs
+
+            write_outputs(result, out, plots=plots)
     return summary, summary["status"]
+
+
+def _dense_for_outputs(result: PowerResult, summary: dict[str, Any]) -> PowerResult:
+    """A compact result as time x train arrays when they fit (tables and plots take them); else as it
+    is, the summary saying that the plots are left out."""
+    if not isinstance(result, CompactPowerResult):
+        return result
+    n = len(result.time_s) * len(result.train_ids)
+    if n <= MAX_FULL_TRAIN_STEPS:
+        return result.full()
+    summary.setdefault("traces", {})["outputs"] = (
+        "trains.csv, substations.csv and network.csv only: the plots take time x train arrays, "
+        f"{n:.2e} train-steps here (at most {MAX_FULL_TRAIN_STEPS:.0e}); plot a part with start_s, end_s"
+    )
+    return result
+
+
+def _timetable_result(
+    network: Network,
+    services: list[TrainService],
+    sim: SimulationSpec,
+    fb: FeedbackSettings,
+    span: tuple[float | None, float | None],
+) -> PowerResult:
+    """The timetable's study: with every train's series over the span (``run_study``, with feedback)
+    or, for a whole day, only while each train runs (``run_day_study``, see simulation.traces)."""
+    from trainsim.power.day import departure_loads, fits_full, run_day_study
+
+    start_s, end_s = span
+    mode, loads = sim.traces, None
+    if mode == "auto":
+        loads = departure_loads(services)
+        mode = "full" if fits_full(loads[0], sim.step_s, start_s, end_s) else "on_network"
+    if mode == "full":
+        return run_study(network, services, dt_s=sim.step_s, start_s=start_s, end_s=end_s, feedback=fb)
+    return run_day_study(
+        network, services, dt_s=sim.step_s, start_s=start_s, end_s=end_s, feedback=fb, loads=loads
+    )
+
+
+def _synchronised(
+    network: Network, services: list[TrainService], spec: SynchronisationSpec, sim: SimulationSpec
+) -> tuple[list[TrainService], dict[str, Any], tuple[float, float]]:
+    """The services with the departures the synchronisation chose, its summary block and the span it
+    judged every timetable over (the study is solved over the same span)."""
+    from trainsim.power.day import departure_loads
+    from trainsim.power.synchronise import SyncSettings, synchronise_departures
+
+    settings = SyncSettings(**spec.model_dump())
+    loads, _ = departure_loads(services)
+    owner = [k for k, s in enumerate(services) for _ in s.departures_s]
+    groups = [(services[k].track, services[k].direction) for k in owner]
+    out = synchronise_departures(network, loads, groups, settings, services=[services[k].id for k in owner],
+                                 dt_s=sim.step_s, start_s=sim.start_s, end_s=sim.end_s)  # fmt: skip
+    shifted, i = [], 0
+    for s in services:
+        n = len(s.departures_s)
+        offsets = out.offsets_s[i : i + n]
+        shifted.append(dataclasses.replace(s, departures_s=tuple(d + x for d, x in zip(s.departures_s, offsets,
+                                                                                       strict=True))))  # fmt: skip
+        i += n
+    block = {
+        "status": out.status,
+        "message": out.message,
+        "per": settings.per,
+        "method": f"coordinate search: {settings.rounds} passes over a {settings.step_s:g} s grid within "
+        f"+-{settings.window_s:g} s, then {settings.refinements} with the step halved; "
+        f"{settings.min_headway_s:g} s at least between consecutive departures on a track and direction"
+        + ("; no shift further beyond the substations' overload power" if settings.avoid_overload else ""),
+        "evaluation": out.evaluation,
+        "evaluations": out.evaluations,
+        "span_s": list(out.span_s),
+        "baseline_kwh": out.baseline_kwh,
+        "synchronised_kwh": out.synchronised_kwh,
+        "saving_kwh": out.saving_kwh,
+        "saving_percent": out.saving_percent,
+        "departures": [
+            {
+                "id": ld.id,
+                "service": services[k].id,
+                "departure_s": float(ld.time_s[0]),
+                "offset_s": x,
+                "synchronised_departure_s": float(ld.time_s[0]) + x,
+            }
+            for ld, k, x in zip(loads, owner, out.offsets_s, strict=True)
+        ],
+    }
+    return shifted, block, out.span_s

@@ -11,7 +11,8 @@ each service, all its departures together) gets its own offset within +-``window
 trains' order and ``min_headway_s`` between consecutive departures on the same track in the same
 direction. Method: coordinate search. ``rounds`` passes over the departures in time order, each
 trying every offset of the grid -window_s, -window_s + step_s, .. window_s allowed by the headways
-to its neighbours and keeping the best; then ``refinements`` passes with the step halved each time,
+to its neighbours (and, with ``avoid_overload``, not putting the substations further beyond their
+overload power) and keeping the best; then ``refinements`` passes with the step halved each time,
 trying the current offset +- the step. A coordinate search finds an optimum of one offset at a
 time, not necessarily the joint optimum; the saving is exact for the offsets it reports (two full
 solutions, :attr:`SyncOutcome.baseline_kwh` and :attr:`SyncOutcome.synchronised_kwh`).
@@ -147,6 +148,9 @@ class SyncSettings:
         min_headway_s: least time between consecutive departures on the same track in the same
             direction [s] (keeps their order).
         per: ``departure`` (an offset each) or ``service`` (one offset for all of a service's).
+        avoid_overload: refuse an offset that puts the substations further beyond their overload
+            power (energy above it, :func:`overload_excess_kwh`) than the current offsets do:
+            synchronising brings starts together and raises the peaks.
     """
 
     window_s: float = 20.0
@@ -155,6 +159,7 @@ class SyncSettings:
     refinements: int = 2
     min_headway_s: float = 90.0
     per: str = "departure"
+    avoid_overload: bool = True
 
     def __post_init__(self) -> None:
         checks = (
@@ -212,6 +217,15 @@ def substation_energy_kwh(result: PowerResult) -> float:
     """Energy the substations delivered less what they took back [kWh] (the summary's
     ``substations_energy_kwh``, the same sum)."""
     return float(np.sum(result._e(result.substation_power_w))) / KWH
+
+
+def overload_excess_kwh(result: PowerResult) -> float:
+    """Energy the substations delivered above their overload power, summed over them [kWh] (0 for
+    substations without one)."""
+    limit = np.array(
+        [np.inf if s.overload_power_w is None else s.overload_power_w for s in result.network.substations]
+    )
+    return float(np.sum(np.maximum(result.substation_power_w - limit, 0.0)) * result.dt_s) / KWH
 
 
 def _shift(load: TrainLoad, offset_s: float) -> TrainLoad:
@@ -283,19 +297,19 @@ def synchronise_departures(
     evaluation = "full" if storage or settings.per == "service" else "local"
     count = 0
 
-    def solve(x: np.ndarray, a: float, b: float, local: bool = False) -> float:
+    def solve(x: np.ndarray, a: float, b: float, local: bool = False) -> tuple[float, float]:
         nonlocal count
         count += 1
         shifted = [_shift(loads[i], float(x[var[i]])) for i in range(n)]
         if local:
             shifted = [ld for ld in shifted if ld.time_s[-1] >= a and ld.time_s[0] <= b]
         if not shifted:
-            return 0.0
+            return 0.0, 0.0
         res = simulate(network, shifted, dt_s=dt_s, start_s=a, end_s=b, traces="on_network")
-        return substation_energy_kwh(res)
+        return substation_energy_kwh(res), overload_excess_kwh(res)
 
     zero = np.zeros(n_var)
-    baseline = solve(zero, t0, t1)
+    baseline = solve(zero, t0, t1)[0]
     x = _feasible_start(dep, pairs, var, n_var, settings)
     if x is None:
         return SyncOutcome("headway_not_met", tuple(0.0 for _ in range(n)), baseline, baseline, count,
@@ -332,8 +346,12 @@ def synchronise_departures(
             b = min(t0 + dt_s * (np.ceil((last - t0) / dt_s) + 1), t1)
         energies = {c: solve(np.where(np.arange(n_var) == v, c, x), a, b, evaluation == "local")
                     for c in cands}  # fmt: skip
-        best = min(cands, key=lambda c: (energies[c], abs(c)))
-        return best if energies[best] < energies[float(x[v])] - IMPROVEMENT_KWH else float(x[v])
+        now = energies[float(x[v])]
+        if settings.avoid_overload:
+            # a shift may not put the substations further beyond their overload power than they are
+            cands = [c for c in cands if energies[c][1] <= now[1] + IMPROVEMENT_KWH]
+        best = min(cands, key=lambda c: (energies[c][0], abs(c)))
+        return best if energies[best][0] < now[0] - IMPROVEMENT_KWH else float(x[v])
 
     order = np.argsort([min(dep[var == v]) for v in range(n_var)], kind="stable")
     grid = np.arange(-w, w + 1e-9, settings.step_s)
@@ -350,6 +368,6 @@ def synchronise_departures(
         step /= 2
         for v in order:
             x[v] = best_of(int(v), x, np.array([x[v] - step, x[v] + step]))
-    synchronised = solve(x, t0, t1) if np.any(x) else baseline
+    synchronised = solve(x, t0, t1)[0] if np.any(x) else baseline
     return SyncOutcome("ok", tuple(float(x[var[i]]) for i in range(n)), baseline, synchronised, count,
                        evaluation, (t0, t1), message)  # fmt: skip
