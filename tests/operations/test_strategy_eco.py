@@ -186,3 +186,13 @@ def test_the_eco_example_compares_the_strategies_on_the_command_line() -> None:
     assert table.exit_code == 3 and "total delay s" in table.stdout and "optimal kWh" in table.stdout
     bad = CliRunner().invoke(app, ["operate", str(EXAMPLE), "--compare-strategies", "fastest,lazy"])
     assert bad.exit_code == 2 and "--compare-strategies" in bad.output
+
+
+def test_an_unknown_strategy_in_the_file_names_its_field(tmp_path: Path) -> None:
+    text = EXAMPLE.read_text().replace("strategy: signal_aware", "strategy: lazy")
+    text = text.replace("../metro_b/", str(EXAMPLE.parents[1] / "metro_b") + "/")
+    bad = tmp_path / "op.yaml"
+    bad.write_text(text)
+    result = CliRunner().invoke(app, ["operate", str(bad), "--json"])
+    assert result.exit_code == 2
+    assert "trains[1].strategy" in result.output and "signal_aware" in result.output
