@@ -14,7 +14,8 @@ __all__ = ["moving_rms_a", "save_plots", "substation_current_figure", "write_out
 def write_outputs(result: PowerResult, out: Path, *, plots: bool = True) -> list[Path]:
     """Write ``trains.csv`` (long table, one row per train and step on the network),
     ``substations.csv`` (power [kW] and current [A] of each substation per step),
-    ``network.csv`` (losses [kW], rail potential extremes [V] per step), ``substation_table.csv``
+    ``network.csv`` (losses [kW]: line, contact line, return, substations; rail potential extremes
+    [V] per step), ``substation_table.csv``
     (one row per substation: energy, peak power, RMS currents, overloads) and the plots."""
     import pandas as pd
 
@@ -51,17 +52,20 @@ def write_outputs(result: PowerResult, out: Path, *, plots: bool = True) -> list
     pd.DataFrame(subs).to_csv(path, index=False, float_format="%.4f")
     written.append(path)
     path = out / "network.csv"
-    pd.DataFrame(
+    columns = {"time_s": t, "line_loss_kw": result.line_loss_w / 1e3}
+    split = _loss_split_w(result)
+    if split is not None:
+        columns["contact_loss_kw"], columns["return_loss_kw"] = split[0] / 1e3, split[1] / 1e3
+    columns.update(
         {
-            "time_s": t,
-            "line_loss_kw": result.line_loss_w / 1e3,
             "substation_loss_kw": result.substation_loss_w / 1e3,
             "rail_potential_min_v": result.rail_potential_min_v,
             "rail_potential_max_v": result.rail_potential_max_v,
             "converged": result.converged,
             "iterations": result.iterations,
         }
-    ).to_csv(path, index=False, float_format="%.4f")
+    )
+    pd.DataFrame(columns).to_csv(path, index=False, float_format="%.4f")
     written.append(path)
     table = []
     for s in result.summary()["substations"]:
@@ -75,6 +79,13 @@ def write_outputs(result: PowerResult, out: Path, *, plots: bool = True) -> list
     if plots:
         written += save_plots(result, out)
     return written
+
+
+def _loss_split_w(result: PowerResult) -> tuple[np.ndarray, np.ndarray] | None:
+    """(contact line, return) losses per step [W], or None for a result that does not record the
+    split (``line_loss_w`` is then their sum, shown as one)."""
+    contact, ret = getattr(result, "contact_loss_w", None), getattr(result, "return_loss_w", None)
+    return None if contact is None or ret is None else (contact, ret)
 
 
 def save_plots(result: PowerResult, out: Path) -> list[Path]:
@@ -184,8 +195,14 @@ def save_plots(result: PowerResult, out: Path) -> list[Path]:
     save(substation_current_figure(result, plt), "substation_current.png")
 
     fig, ax = plt.subplots(figsize=(10, 4))
-    ax.plot(result.time_s, result.line_loss_w / 1e3, lw=0.7, label="line")
-    ax.plot(result.time_s, result.substation_loss_w / 1e3, lw=0.7, label="substations")
+    split = _loss_split_w(result)
+    if split is None:
+        ax.plot(result.time_s, result.line_loss_w / 1e3, lw=0.7, label="line")
+    else:
+        ax.plot(result.time_s, split[0] / 1e3, lw=0.7, label="contact line")
+        if np.any(split[1] != 0.0):
+            ax.plot(result.time_s, split[1] / 1e3, lw=0.7, label="return (rails)")
+    ax.plot(result.time_s, result.substation_loss_w / 1e3, lw=0.7, label="substations (internal)")
     ax.plot(result.time_s, (result.line_loss_w + result.substation_loss_w) / 1e3, lw=0.7, label="total")
     ax.set(
         xlabel="time [s]",
