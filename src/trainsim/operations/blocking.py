@@ -13,7 +13,8 @@ section 4.2; UIC Code 406, 2nd ed. 2013, section 4) is the time the route is res
   entry; with moving block the service braking distance plus the safety margin before the route's
   entry. A train that stands (stops) between that point and the signal sees the signal when it
   departs, so its approach starts at its departure;
-* the **occupation** lasts until the head reaches the end of the route (next signal plus overlap),
+* the **occupation** lasts until the head reaches the end of the route (next signal plus overlap;
+  with train detection points the overlap ends at one, ``line.overlap_end_m``, set on each route),
   the **clearing** until the rear has passed it (train length), and the resource is released
   ``release_s`` later (sectional release: each resource when the rear has passed its own end;
   whole-route release: all when the rear has passed the route's end).

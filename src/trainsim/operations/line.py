@@ -9,9 +9,11 @@ The model follows Pachl, *Railway Operation and Control* (4th ed., 2018), chapte
 406 (2nd ed., 2013):
 
 * A **route** (block section, or an interlocking route through a station) starts at a main signal and
-  ends at the next main signal plus the **overlap** beyond it. It is made of **resources** (train
-  detection sections: a plain-line block, a station's switch zone, a platform track, a single-track
-  section between two stations). Two trains conflict when they claim one resource at the same time.
+  ends at the next main signal plus the **overlap** beyond it (with train detection points given, up
+  to the first one at least the overlap length beyond: ``overlap_end_m``). It is made of
+  **resources** (train detection sections: a plain-line block, a station's switch zone, a platform
+  track, a single-track section between two stations). Two trains conflict when they claim one
+  resource at the same time.
 * A resource is released when the rear of the train has cleared its end (**sectional release**), or
   when the rear has cleared the end of the whole route (**whole-route release**), plus the release time.
 * Station layout (per direction, in running coordinates, ``p`` the stopping point of the head):
