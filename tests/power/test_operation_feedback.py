@@ -1,7 +1,8 @@
 """Voltage-limited traction of operated trains fed back into the operation (issue 18).
 
-A power file with ``operation:`` on a weak network (the operated example's contact line 5 times as
-resistive): each train the line limits gets a cap on its traction power, the operation is simulated
+A power file with ``operation:`` on a weak network (examples/power/metro_750v_operated_weak.yaml: the
+operated example's contact line 5 times as resistive): each train the line limits gets a cap on its
+traction power per stretch between its stops (the file's ``per_stretch``), the operation is simulated
 again with the caps, so that a slowed train holds the trains behind it at signals, until the network
 gives every train the traction its run asks.
 """
@@ -19,10 +20,11 @@ import yaml
 from trainsim.errors import InputError
 from trainsim.io.operation_file import read_operation
 from trainsim.io.operation_run import run_operation
-from trainsim.io.power_file import run_power_file
+from trainsim.io.power_file import _stretch_cap_cache, run_power_file
 
 ROOT = Path(__file__).resolve().parents[2]
 OPERATION = ROOT / "examples" / "operations" / "metro_fixed_block.yaml"
+WEAK_EXAMPLE = ROOT / "examples" / "power" / "metro_750v_operated_weak.yaml"
 #: the example's contact line is 0.018 ohm/km; five times that limits the traction of every train
 WEAK_OHM_PER_KM = 0.09
 
@@ -34,11 +36,11 @@ def _arrivals(result) -> dict[str, float]:
 def _power_file(tmp_path: Path, name: str, *, weak: bool, enabled: bool | None) -> Path:
     doc = yaml.safe_load((ROOT / "examples" / "power" / "metro_750v_operated.yaml").read_text())
     if weak:
-        for track in doc["network"]["tracks"]:
-            track["contact_resistance_ohm_per_km"] = WEAK_OHM_PER_KM
+        doc = yaml.safe_load(WEAK_EXAMPLE.read_text())
+        assert all(t["contact_resistance_ohm_per_km"] == WEAK_OHM_PER_KM for t in doc["network"]["tracks"])
     doc["operation"]["file"] = OPERATION.as_posix()
     if enabled is not None:
-        doc["simulation"]["feedback"] = {"enabled": enabled}
+        doc["simulation"]["feedback"] = {**doc["simulation"].get("feedback", {}), "enabled": enabled}
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(doc))
     return path
@@ -111,12 +113,20 @@ def test_without_feedback_the_weak_network_is_traction_limited(weak):
 def test_feedback_converges_and_reports_time_lost_instead(weak):
     on, _ = weak
     fb = on["feedback"]
-    assert fb["enabled"] and fb["consistent"] and fb["method"] == "per_train"
+    assert fb["enabled"] and fb["consistent"] and fb["method"] == "per_stretch"
+    assert fb["knock_on"] is True and fb["buffer_s"] == 0.0 and fb["unfinished"] == []
     assert 1 < fb["iterations"] <= 10
     assert fb["mismatch"] <= 1e-3
     assert "traction_limited" not in on["statuses"] and "feedback_not_converged" not in on["statuses"]
     assert "time_lost" in on["statuses"]
     assert on["energy_balance_error"] < 1e-6
+    # a cap per stretch between stops: some trains are limited on some stretches only
+    caps = [t["traction_power_caps_kw"] for t in on["trains"]]
+    assert all(c is not None and len(c) == 3 for c in caps)
+    assert any(None in c and any(x is not None for x in c) for c in caps)
+    for t in on["trains"]:
+        finite = [x for x in t["traction_power_caps_kw"] if x is not None]
+        assert t["traction_power_cap_kw"] == (min(finite) if finite else None)
     # consistent: every train gets at least 1 - tolerance of the traction energy its (capped) run asks
     for t in on["trains"]:
         assert t["traction_delivered_kwh"] >= (1 - 1e-3) * t["traction_demand_kwh"] - 1e-9, t["id"]
@@ -142,17 +152,28 @@ def test_capped_trains_are_later_than_without_feedback(weak):
 @pytest.mark.slow
 def test_the_train_behind_a_slowed_train_is_held_longer(weak, op):
     """Knock-on between services: 'after' runs behind 'late' and is held at a signal. With feedback
-    it arrives later than it would under its own cap alone (every other train uncapped): the rest of
-    its loss is the slowed 'late' ahead of it, passed on by the signalling."""
+    it arrives later than it would under its own caps alone (every other train uncapped): the rest of
+    its loss is the slowed 'late' ahead of it, passed on by the signalling, and shows as a longer
+    wait (``wait_s`` against ``nominal_wait_s``)."""
     on, _ = weak
     by_id = {t["id"]: t for t in on["trains"]}
     assert by_id["late"]["traction_power_cap_kw"] is not None
-    own_cap_w = by_id["after"]["traction_power_cap_kw"] * 1e3
-    alone = [
-        dataclasses.replace(s, traction_power_cap_w=own_cap_w) if s.id == "after" else s for s in op.services
-    ]
-    arrival_alone = _arrivals(run_operation(op, alone))["after"]
+    own_caps_w = np.array(
+        [np.inf if c is None else c * 1e3 for c in by_id["after"]["traction_power_caps_kw"]]
+    )
+    cache = _stretch_cap_cache(op.settings)
+    at = op.line.paths["up"].stop_m
+    services = []
+    for s in op.services:
+        if s.id == "after":
+            train = dataclasses.replace(s.train)
+            cache.set_caps(train, np.array([at[n] for n in ("S1", "S2", "S3", "S4")]), own_caps_w)
+            s = dataclasses.replace(s, train=train)
+        services.append(s)
+    arrival_alone = _arrivals(run_operation(op, services, cache))["after"]
     assert by_id["after"]["arrival_s"] > arrival_alone + 1.0
+    assert by_id["after"]["wait_s"] > by_id["after"]["nominal_wait_s"] + 1.0
+    assert by_id["after"]["time_lost_s"] > 0.5
 
 
 @pytest.mark.slow
@@ -165,7 +186,7 @@ def test_feedback_changes_nothing_where_the_line_limits_no_train(tmp_path):
     assert on["feedback"]["iterations"] == 1 and on["feedback"]["consistent"]
     assert "traction_limited" not in off["statuses"]
     added = {"arrival_s", "nominal_arrival_s", "time_lost_s", "traction_power_cap_kw", "traction_power_caps_kw",
-             "status"}  # fmt: skip
+             "status", "operated_status", "wait_s", "nominal_wait_s"}  # fmt: skip
     for a, b in zip(on["trains"], off["trains"], strict=True):
         assert a["time_lost_s"] == 0.0 and a["traction_power_cap_kw"] is None
         assert {k: v for k, v in a.items() if k not in added} == {
@@ -174,3 +195,24 @@ def test_feedback_changes_nothing_where_the_line_limits_no_train(tmp_path):
     for key in set(on) | set(off):
         if key not in ("feedback", "trains"):
             assert on[key] == off[key], key
+
+
+@pytest.mark.slow
+def test_constant_method_gives_one_cap_per_operated_train(tmp_path):
+    """``method: constant``: one cap per limited train for its whole run (the feedback before per
+    stretch was done), converged, reported as such."""
+    doc = yaml.safe_load(WEAK_EXAMPLE.read_text())
+    doc["operation"]["file"] = OPERATION.as_posix()
+    doc["simulation"]["feedback"]["method"] = "constant"
+    path = tmp_path / "constant.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    summary = run_power_file(path, plots=False)[0]
+    fb = summary["feedback"]
+    assert fb["method"] == "constant" and fb["consistent"] and 1 < fb["iterations"] <= 10
+    capped = [t for t in summary["trains"] if t["traction_power_cap_kw"] is not None]
+    assert capped
+    for t in summary["trains"]:
+        assert t["traction_power_caps_kw"] is None
+    for t in capped:
+        assert t["time_lost_s"] > 0.5 and t["status"] == "time_lost"
+        assert t["traction_delivered_kwh"] >= (1 - 1e-3) * t["traction_demand_kwh"] - 1e-9, t["id"]
