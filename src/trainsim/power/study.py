@@ -51,6 +51,7 @@ __all__ = [
     "TrainService",
     "route_with_neutral_sections",
     "run_study",
+    "with_neutral_sections",
     "with_status",
 ]
 
@@ -287,11 +288,13 @@ def route_with_neutral_sections(
     return dataclasses.replace(route, electrification=tuple(sections)), records
 
 
-def _with_neutral_sections(
+def with_neutral_sections(
     network: Network, services: list[TrainService]
 ) -> tuple[list[TrainService], list[dict[str, Any]]]:
     """Every service with the network's neutral sections laid over its route
-    (:func:`route_with_neutral_sections`), and the records of the sections, each with its ``train``."""
+    (:func:`route_with_neutral_sections`), and the records of the sections, each with its ``train``
+    (the study's ``neutral_sections`` block). Any path that makes the services' runs itself (not
+    through :func:`run_study`) calls it first, so that its trains coast through the sections too."""
     out, records = [], []
     for s in services:
         sc = s.scenario
@@ -323,7 +326,7 @@ def run_study(
     if not services:
         raise InputError("no trains", field="trains", allowed="one or more trains")
     # before any run: a train must coast through the network's neutral sections, where it gets no supply
-    services, neutral = _with_neutral_sections(network, services)
+    services, neutral = with_neutral_sections(network, services)
     runs: dict[tuple, RunResult | JoinedRun] = {}
     per_stretch = [feedback.method == "per_stretch" and s.scenario.strategy == "fastest" for s in services]
     stops = [stop_positions(s.scenario.route) for s in services]
