@@ -172,3 +172,20 @@ def test_limited_traction_on_a_compact_day_is_a_status_not_hidden(tmp_path):
     summary, status = run_power_file(path)
     assert status != "ok" and "feedback_not_converged" in summary["statuses"]
     assert any("traces: full" in w for w in summary["warnings"])
+
+
+def test_auto_traces_fall_back_to_compact_beyond_the_cap(tmp_path, monkeypatch):
+    """With the cap lowered below the small file's steps x trains, ``auto`` runs it compact and writes
+    the CSV tables without plots; ``full`` is refused naming the file and the field."""
+    from trainsim.io.power_file import run_power_file
+    from trainsim.power import simulation
+
+    monkeypatch.setattr(simulation, "MAX_FULL_TRAIN_STEPS", 1000)
+    summary, _ = run_power_file(_small_file(tmp_path), tmp_path / "out")
+    assert summary["traces"]["kept"] == "on_network" and "plots" in summary["traces"]["outputs"]
+    written = sorted(p.name for p in (tmp_path / "out").iterdir())
+    assert written == ["network.csv", "substations.csv", "summary.json", "trains.csv"]
+    with pytest.raises(InputError) as err:
+        run_power_file(_small_file(tmp_path, traces="full"))
+    problem = err.value.problems[0]
+    assert problem.field == "simulation.traces" and problem.file.endswith("small.yaml")

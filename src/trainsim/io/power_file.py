@@ -20,7 +20,7 @@ from trainsim.errors import InputError, Problem
 from trainsim.power.limits import EN50163, standard_limits
 from trainsim.power.network import Connection, Gap, Network, Storage, Substation, Track, regulation_points
 from trainsim.power.onboard import OnboardStorage
-from trainsim.power.simulation import MAX_FULL_TRAIN_STEPS, CompactPowerResult, PowerResult, TrainLoad
+from trainsim.power.simulation import CompactPowerResult, PowerResult, TrainLoad
 from trainsim.power.study import FeedbackSettings, TrainService, run_study
 
 __all__ = ["PowerFile", "load_power_file", "run_power_file"]
@@ -842,7 +842,10 @@ def run_power_file(
                 services, sync_block, span = _synchronised(network, services, wanted, sim)
             except InputError as exc:
                 raise exc.located(str(path)) from None
-        result = _timetable_result(network, services, sim, fb, span)
+        try:
+            result = _timetable_result(network, services, sim, fb, span)
+        except InputError as exc:
+            raise exc.located(str(path)) from None
     summary = result.summary()
     summary["name"] = spec.name
     if sync_block is not None:
@@ -873,12 +876,12 @@ def _dense_for_outputs(result: PowerResult, summary: dict[str, Any]) -> PowerRes
     is, the summary saying that the plots are left out."""
     if not isinstance(result, CompactPowerResult):
         return result
-    n = len(result.time_s) * len(result.train_ids)
-    if n <= MAX_FULL_TRAIN_STEPS:
+    if result.fits_full():
         return result.full()
+    n = len(result.time_s) * len(result.train_ids)
     summary.setdefault("traces", {})["outputs"] = (
         "trains.csv, substations.csv and network.csv only: the plots take time x train arrays, "
-        f"{n:.2e} train-steps here (at most {MAX_FULL_TRAIN_STEPS:.0e}); plot a part with start_s, end_s"
+        f"{n:.2e} train-steps here (more than the cap of full traces); plot a part with start_s, end_s"
     )
     return result
 
@@ -892,18 +895,17 @@ def _timetable_result(
 ) -> PowerResult:
     """The timetable's study: with every train's series over the span (``run_study``, with feedback)
     or, for a whole day, only while each train runs (``run_day_study``, see simulation.traces)."""
-    from trainsim.power.day import departure_loads, fits_full, run_day_study
+    from trainsim.power.day import run_day_study
 
     start_s, end_s = span
-    mode, loads = sim.traces, None
-    if mode == "auto":
-        loads = departure_loads(services)
-        mode = "full" if fits_full(loads[0], sim.step_s, start_s, end_s) else "on_network"
-    if mode == "full":
-        return run_study(network, services, dt_s=sim.step_s, start_s=start_s, end_s=end_s, feedback=fb)
-    return run_day_study(
-        network, services, dt_s=sim.step_s, start_s=start_s, end_s=end_s, feedback=fb, loads=loads
-    )
+    if sim.traces != "on_network":
+        try:
+            return run_study(network, services, dt_s=sim.step_s, start_s=start_s, end_s=end_s, feedback=fb)
+        except InputError as exc:
+            # auto: the full traces' cap is checked before any step is solved (the runs are made again)
+            if sim.traces == "full" or not any(p.field == "simulation.traces" for p in exc.problems):
+                raise
+    return run_day_study(network, services, dt_s=sim.step_s, start_s=start_s, end_s=end_s, feedback=fb)
 
 
 def _synchronised(

@@ -31,16 +31,10 @@ import numpy as np
 
 from trainsim.errors import InputError
 from trainsim.power.network import Network
-from trainsim.power.simulation import (
-    MAX_FULL_TRAIN_STEPS,
-    CompactPowerResult,
-    PowerResult,
-    TrainLoad,
-    simulate,
-)
+from trainsim.power.simulation import CompactPowerResult, PowerResult, TrainLoad, simulate
 from trainsim.power.study import FeedbackSettings, TrainService, _load, _run, with_status
 
-__all__ = ["departure_loads", "full_train_steps", "run_day_study", "write_compact_outputs"]
+__all__ = ["departure_loads", "run_day_study", "write_compact_outputs"]
 
 
 def departure_loads(services: list[TrainService]) -> tuple[list[TrainLoad], list[float]]:
@@ -57,18 +51,6 @@ def departure_loads(services: list[TrainService]) -> tuple[list[TrainLoad], list
             loads.append(_load(s, run, f"{s.id}#{j}" if len(s.departures_s) > 1 else s.id, dep))
             running.append(float(run.running_time_s))
     return loads, running
-
-
-def full_train_steps(loads: list[TrainLoad], dt_s: float, start_s: float | None, end_s: float | None) -> int:
-    """Steps x trains of a full run (``simulate(traces="full")``) of these loads."""
-    t0 = min(float(x.time_s[0]) for x in loads) if start_s is None else start_s
-    t1 = max(float(x.time_s[-1]) for x in loads) if end_s is None else end_s
-    return (int(np.floor((t1 - t0) / dt_s + 1e-9)) + 1) * len(loads)
-
-
-def fits_full(loads: list[TrainLoad], dt_s: float, start_s: float | None, end_s: float | None) -> bool:
-    """Whether a full run of these loads is within :data:`MAX_FULL_TRAIN_STEPS`."""
-    return full_train_steps(loads, dt_s, start_s, end_s) <= MAX_FULL_TRAIN_STEPS
 
 
 def run_day_study(

@@ -417,11 +417,15 @@ class CompactPowerResult(PowerResult):
             if isinstance(v, np.ndarray)
         )
 
+    def fits_full(self) -> bool:
+        """Whether :meth:`full` is within :data:`MAX_FULL_TRAIN_STEPS`."""
+        return len(self.time_s) * len(self.train_ids) <= MAX_FULL_TRAIN_STEPS
+
     def full(self) -> PowerResult:
         """The same result with time x train arrays (NaN where a train is not on the network); the
         same cap as ``simulate(traces="full")``."""
         n, nt = len(self.time_s), len(self.train_ids)
-        if n * nt > MAX_FULL_TRAIN_STEPS:
+        if not self.fits_full():
             raise InputError(
                 f"too many time steps x trains ({n} x {nt}) for time x train arrays",
                 field="simulation.traces",
