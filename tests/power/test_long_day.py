@@ -170,7 +170,8 @@ def test_limited_traction_on_a_compact_day_is_a_status_not_hidden(tmp_path):
     data["network"]["connections"] = []
     path.write_text(yaml.safe_dump(data))
     summary, status = run_power_file(path)
-    assert status != "ok" and "feedback_not_converged" in summary["statuses"]
+    assert status != "ok" and "traction_limited" in summary["statuses"]
+    assert summary["feedback"]["requested"] and not summary["feedback"]["enabled"]
     assert any("traces: full" in w for w in summary["warnings"])
 
 

@@ -18,8 +18,9 @@ rounding (other summation order, 1e-15 relative).
 Feedback of voltage-limited traction (:mod:`trainsim.power.study`) needs each train's series over
 the span and is not done on a compact day: the day is solved once with every train's nominal run
 (the study's first iteration), and where the line limits a departure by more than the feedback
-tolerance, the status says so (``feedback_not_converged`` with feedback enabled,
-``traction_limited`` without), naming how to proceed (those hours with ``traces: full``).
+tolerance, the status is ``traction_limited`` (the limitation was not fed back into the runs; the
+feedback block says ``enabled: false, requested: true``) and a warning names the departures and how
+to proceed (those hours with ``traces: full``).
 """
 
 from __future__ import annotations
@@ -85,7 +86,9 @@ def run_day_study(
         for load, rt in zip(day_loads, running, strict=True)
     ]  # fmt: skip
     block: dict[str, Any] = {
-        "enabled": feedback.enabled,
+        # not fed back: the study's status is then traction_limited where the line limits a departure
+        "enabled": False,
+        "requested": feedback.enabled,
         "iterations": 1,
         "consistent": not bool(limited.any()),
         "mismatch": float(np.max(1.0 - ratio, initial=0.0)),
@@ -103,7 +106,7 @@ def run_day_study(
         ),
     }
     base = with_status(_replace_extra(result, {"trains": trains, "feedback": block}))
-    if limited.any() and feedback.enabled:
+    if limited.any():
         base.extra["warnings"].append(block["note"])
     base.extra["traces"] = {
         "kept": "on_network",
