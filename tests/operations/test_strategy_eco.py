@@ -8,6 +8,7 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -107,7 +108,17 @@ def test_the_signal_aware_follower_coasts_instead_of_braking_for_a_signal(runs) 
     # so is the signal-blind optimal one, which then drives that stretch fastest
     assert any(h.kind in ("signal", "slowed") for h in fastest.hindrances)
     assert any(h.kind in ("signal", "slowed") for h in blind.hindrances)
-    assert [(d.driven, d.reason) for d in blind.stretches] == [("optimal", ""), ("fastest", "signal")]
+    assert [(d.driven, d.reason) for d in blind.stretches] == [
+        ("optimal", ""),
+        ("optimal, fastest from the braking", "signal"),
+    ]
+    # up to where its driver starts braking it is on its energy-efficient run (as alone, leaving B on
+    # time): the signal does not change its past
+    alone = _follower(out["alone optimal"])
+    assert blind.stops[1].departure_s == pytest.approx(alone.stops[1].departure_s, abs=1e-9)
+    for x in np.linspace(STATIONS_M["B"] + 1.0, 3800.0, 40):
+        assert blind.trajectory.first_time_s(x) == pytest.approx(alone.trajectory.first_time_s(x), abs=1e-6)
+    assert blind.runs[1].energy_balance["relative_error"] == pytest.approx(0.0, abs=1e-6)
     # the aware one never meets a restrictive aspect: no stand and no slowdown at any signal, on
     # either stretch
     assert aware.hindrances == []

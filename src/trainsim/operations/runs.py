@@ -23,7 +23,8 @@ from trainsim.model.timetable import SectionSchedule, Timetable, TimingPoint
 from trainsim.operations.blocking import Trajectory
 from trainsim.operations.ceiling import with_limits
 from trainsim.sim.fastest import run_fastest
-from trainsim.sim.result import RunResult
+from trainsim.sim.profile import line_resistance_profile, speed_ceiling
+from trainsim.sim.result import RunResult, build_result
 
 #: Two stops of one run closer than this are merged (the core needs them >= 1 m apart) [m].
 MIN_STOP_SPACING_M = 2.0
@@ -221,6 +222,38 @@ class Movement:
         return float(sum(r.energy_kwh.net for r in self.results) + auxiliary_power_w * standing_s / KWH)
 
 
+@dataclass(frozen=True, eq=False)
+class Splice:
+    """An energy-efficient stretch a signal stopped or slowed the train on: the energy-efficient run
+    it was driving (``position_m``, ``speed_mps``, ``time_s``, ``regime``, from the stretch's first
+    stop) up to where the fastest run under the driver's braking curve meets it, at or before
+    ``start_m`` where the driver starts braking, and that fastest run from there (``RunCache.movement``).
+    Compared by identity (one per signal stop)."""
+
+    position_m: np.ndarray
+    speed_mps: np.ndarray
+    time_s: np.ndarray
+    regime: np.ndarray
+    start_m: float
+    driven: str = "optimal"
+
+    def key(self) -> tuple:
+        return ("splice", id(self))
+
+
+def splice_point(
+    eco_s: np.ndarray, eco_v: np.ndarray, fast_s: np.ndarray, fast_v: np.ndarray, start_m: float
+) -> float:
+    """Where a run under the braking curve from ``start_m`` takes over from the energy-efficient run
+    [m]: the last position at or before ``start_m`` where the fastest run under the curve is not
+    slower than the energy-efficient one (the fastest run is faster everywhere before it brakes to
+    the curve's first step, which is the energy-efficient speed at ``start_m``)."""
+    grid = np.unique(np.concatenate([eco_s[eco_s <= start_m], fast_s[fast_s <= start_m], [start_m]]))
+    diff = np.interp(grid, fast_s, fast_v) - np.interp(grid, eco_s, eco_v)
+    ok = np.nonzero(diff >= -1e-9)[0]
+    return float(grid[ok[-1]]) if ok.size else float(grid[0])
+
+
 class RunCache:
     """Fastest runs by train, direction and stretch between two stops, so that identical stretches are
     simulated once: a train held at one more signal only needs the two runs of the stretch it splits.
@@ -321,6 +354,60 @@ class RunCache:
             s, v, t = np.append(s, b[1]), np.append(v, 0.0), np.append(t, t[-1])
         self.computed += 1
         found = self._runs[key] = (s, v, t, opt.run, opt)
+        return found
+
+    def spliced_stretch(
+        self,
+        train: Train,
+        directed: Route,
+        a: tuple[str, float],
+        b: tuple[str, float],
+        limits: Sequence[SpeedLimit],
+        splice: Splice,
+    ):
+        """The run from stop ``a`` to stop ``b`` of an energy-efficient stretch a signal stopped or
+        slowed the train on (``Splice``): (position, speed, time, result); the result's figures are
+        evaluated along the joined points (``build_result``)."""
+        limits, key = self._stretch_key(train, directed, a, b, limits)
+        key = ("spliced", *key, splice.key())
+        found = self._runs.get(key)
+        if found is not None:
+            self.hits += 1
+            return found
+        fs, fv, ft, fr = self.stretch(train, directed, a, b, limits)
+        if fr.status != "ok" or fr.trace is None:
+            return fs, fv, ft, fr
+        self._keep.append(splice)
+        x = splice_point(splice.position_m, splice.speed_mps, fs, fv, splice.start_m)
+        e = splice.position_m < x - 1e-9
+        f = fs >= x - 1e-9
+        t_e = float(np.interp(x, splice.position_m, splice.time_s))
+        t_f = float(np.interp(x, fs, ft))
+        s = np.concatenate([splice.position_m[e], fs[f]])
+        v = np.concatenate([splice.speed_mps[e], fv[f]])
+        t = np.concatenate([splice.time_s[e], ft[f] - t_f + t_e])
+        fregime = fr.trace.regime
+        if len(fregime) < len(fs):
+            # ``stretch`` appended the end point: it takes the last regime
+            fregime = np.concatenate([fregime, fregime[-1:]])
+        fregime = fregime[f]
+        regime = np.concatenate([splice.regime[e], fregime]).astype(np.int8)
+        route = service_route(directed, [a, b], limits)
+        result = build_result(
+            train=train,
+            route=route,
+            settings=self.settings,
+            profile=line_resistance_profile(route, train),
+            ceiling=speed_ceiling(route, train),
+            s=s,
+            v=v,
+            t=t,
+            regime=regime,
+            status="ok",
+            kind="spliced",
+        )
+        self.computed += 1
+        found = self._runs[key] = (s, v, t, result)
         return found
 
     def _run_stretch(
@@ -495,7 +582,7 @@ class RunCache:
         directed: Route,
         stops: list[tuple[str, float]],
         limits: Sequence[SpeedLimit] = (),
-        eco: dict[int, EcoPlan] | None = None,
+        eco: dict[int, EcoPlan | Splice] | None = None,
     ) -> Movement:
         """The fastest run of ``train`` on ``directed`` through ``stops`` (names and running positions)
         under the extra ceilings ``limits`` (running positions); one object per train, route, stop
@@ -519,14 +606,16 @@ class RunCache:
         directed: Route,
         stops: list[tuple[str, float]],
         limits: Sequence[SpeedLimit],
-        eco: dict[int, EcoPlan],
+        eco: dict[int, EcoPlan | Splice],
     ) -> Movement:
         ss, vs, ts, results = [], [], [], []
         arr, dep = [0], [0]
         n = 0
         t0 = 0.0
         for k, (a, b) in enumerate(pairwise(stops)):
-            if k in eco:
+            if isinstance(eco.get(k), Splice):
+                s, v, t, result = self.spliced_stretch(train, directed, a, b, limits, eco[k])
+            elif k in eco:
                 s, v, t, result, _opt = self.eco_stretch(train, directed, a, b, limits, eco[k])
             else:
                 s, v, t, result = self.stretch(train, directed, a, b, limits)
@@ -604,8 +693,10 @@ __all__ = [
     "EcoPlan",
     "Movement",
     "RunCache",
+    "Splice",
     "auxiliary_power_w",
     "direction_route",
     "min_running_time_s",
     "service_route",
+    "splice_point",
 ]

@@ -62,6 +62,7 @@ from trainsim.operations.runs import (
     EcoPlan,
     Movement,
     RunCache,
+    Splice,
     auxiliary_power_w,
     min_running_time_s,
 )
@@ -494,7 +495,8 @@ class _TrainState:
         # signal-aware timing points: (running position, earliest passing time, name) [m, s]
         self.aware_points = aware_points
         # station stop positions whose stretch a signal stopped or slowed the train on (driven fastest)
-        self.signal_affected: set[float] = set()
+        # -> the energy-efficient run it was on up to the braking (None: it was driving fastest)
+        self.signal_affected: dict[float, Splice | None] = {}
         # station stop position -> (driven, reason, scheduled running time, timing points, late, running
         # time asked of the optimisation) of the stretch from it, as last decided for the operated run
         self.driven: dict[float, tuple] = {}
@@ -645,7 +647,7 @@ class _TrainState:
         named = [(s.name, s.position_m) for s in stops]
         if self.strategy == "fastest":
             return self.cache.movement(train, self.directed, named, tuple(limits))
-        plans: dict[int, EcoPlan] = {}
+        plans: dict[int, EcoPlan | Splice] = {}
         driven: dict[float, tuple] = {}
         m = None
         for k in range(len(stops) - 1):
@@ -659,6 +661,8 @@ class _TrainState:
             plan, how = self._eco_plan(stops, limits, deps, train, planned, k)
             if how is not None:
                 driven[stops[k].position_m] = how
+            if not planned and self.signal_affected.get(stops[k].position_m) is not None:
+                plan = self.signal_affected[stops[k].position_m]
             if plan is not None:
                 plans[k] = plan
                 m = None  # the departures after it change
@@ -667,6 +671,23 @@ class _TrainState:
         if not planned and stops is self.stops:
             self.driven = driven
         return m
+
+    def mark_signal(self, k: int, start_m: float) -> None:
+        """A signal stop was put in at ``stops[k]``, the driver braking from ``start_m`` [m]: the
+        scheduled stretch it lies on is driven as the fastest strategy drives it (braking curve to the
+        signal, a stand or a release, fastest runs on); an energy-efficient run up to the braking
+        stays what it was (``Splice``), the first signal on a stretch decides."""
+        a_m = max(s.position_m for s in self.stops[:k] if s.kind != "signal")
+        if a_m in self.signal_affected or a_m not in self.schedule:
+            return
+        how = self.driven.get(a_m)
+        old = [s.position_m for s in self.stops if s is not self.stops[k]]
+        splice = None
+        if how is not None and how[0] != "fastest" and self.movement.status == "ok":
+            tr = self.movement.results[old.index(a_m)].trace
+            if tr is not None:
+                splice = Splice(tr.position_m, tr.speed_mps, tr.time_s, tr.regime, float(start_m), how[0])
+        self.signal_affected[a_m] = splice
 
     def _eco_plan(
         self,
@@ -688,7 +709,9 @@ class _TrainState:
         sched = self.schedule[a.position_m]
         target = sched[2] - sched[1]
         if a.position_m in self.signal_affected and not planned:
-            return None, ("fastest", "signal", target, (), 0.0, None)
+            splice = self.signal_affected[a.position_m]
+            kind = "fastest" if splice is None else f"{splice.driven}, fastest from the braking"
+            return None, (kind, "signal", target, (), 0.0, None)
         if b.kind == "signal" or abs(sched[0] - b.position_m) > 1e-6:
             return None, None
         late = 0.0 if planned else float(deps[k] - sched[1])
@@ -1111,9 +1134,6 @@ class _Dispatcher:
                 name = f"signal {step.alternatives[0].signal}"
                 k = int(np.searchsorted(pos, q))
                 st.stops.insert(k, _Stop(name, q, "signal", 0.0, None))
-                # an energy-efficient stretch a signal stops the train on is driven as the fastest
-                # strategy does (braking curve to the signal, fastest runs on), from its departure
-                st.signal_affected.add(max(s.position_m for s in st.stops[:k] if s.kind != "signal"))
                 v = st.trajectory.speed_at(a)
                 brake = self.approach_brake(st)
                 if brake is not None and brake(v) > q - a + 1e-6:
@@ -1122,6 +1142,7 @@ class _Dispatcher:
                         f"aspect only {q - a:.0f} m before (warning too late for its braking distance)"
                     )
                 start = max(a, float(pos[pos < q - 1e-9].max(initial=a)))
+                st.mark_signal(k, start)
                 if st.ma_steps is not None:
                     # ETCS: the MA ends at this route's start; the driver brakes to its indication limit
                     steps = st.ma_steps(step.start_m, start, q)
