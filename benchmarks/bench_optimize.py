@@ -5,6 +5,10 @@ regeneration, at 5, 10, 20 and 30 % supplements, section by section.
 
 Run: python benchmarks/bench_optimize.py [--out table.csv] [--tracks NAME ...] [--trains NAME ...]
      [--extra-only] [--no-extra] [--no-lesov] [--no-bound]
+     python benchmarks/bench_optimize.py --speed [--max-km 35] [--tracks ...] [--trains ...]
+``--speed`` times the optimal strategy alone at +10 % (no reference): a fresh solver per section,
+numba compiled beforehand, wall and CPU time against the RK4 baseline of ``_timing`` timed around
+each solve, summarised per length class (docs/OPTIMIZATION.md, Speed).
 Prints one line per case and a summary; energies are net electrical energy without auxiliaries;
 gaps are (x - reference) / |reference| and the certified gap (optimal - lower bound) / |lower bound|
 (net-regenerating descents have negative energies).
@@ -21,6 +25,8 @@ import statistics
 import time
 from itertools import pairwise
 from pathlib import Path
+
+from _timing import machine, rk4_line
 
 from trainsim.io.ttobench import read_ttobench_track, read_ttobench_train
 from trainsim.model.route import Station
@@ -74,6 +80,58 @@ def cases(args):
         yield "heavy_haul", "heavy haul (head power)", heavy.train, heavy.route, list(pairwise(stops))
 
 
+#: Length classes of the speed targets (issue 16): (label, longest section [m], target max [ms]).
+SPEED_CLASSES = (("<= 10 km", 10_000.0, 50.0), ("10-35 km", 35_000.0, 500.0))
+
+
+def _timed(fn) -> tuple[float, float]:
+    """(wall, CPU) seconds of one call."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    fn()
+    return time.perf_counter() - t0, time.process_time() - c0
+
+
+def speed(args) -> None:
+    """Per-section times of the optimal strategy at +10 % with the baseline around each solve."""
+    print(machine(), flush=True)
+    rows = []
+    warm = True
+    for track, train_name, train, route, sections in cases(args):
+        for s0, s1 in sections:
+            if s1 - s0 > args.max_km * 1e3:
+                continue
+            if warm:  # numba's compilation (or cache load) is not what is timed
+                solver = SectionSolver(train, route, s0, s1)
+                solver.solve(solver.fastest_time_s * 1.1)
+                rk4_line()
+                warm = False
+            base0 = _timed(rk4_line)
+
+            def run(s0=s0, s1=s1, train=train, route=route):
+                solver = SectionSolver(train, route, s0, s1)
+                solver.solve(solver.fastest_time_s * 1.1)
+
+            wall, cpu = _timed(run)
+            base1 = _timed(rk4_line)
+            base_wall, base_cpu = min(base0[0], base1[0]), max(min(base0[1], base1[1]), 1e-6)
+            rows.append((s1 - s0, wall, cpu, cpu / base_cpu))
+            print(f"{track[:26]:26s} {train_name[:12]:12s} {s0:7.0f}-{s1:7.0f} wall {wall * 1e3:8.1f} ms "
+                  f"cpu {cpu * 1e3:8.1f} ms  baseline {base_wall * 1e3:5.2f} ms  cpu ratio {cpu / base_cpu:7.0f}",
+                  flush=True)  # fmt: skip
+    lower = 0.0
+    for label, upper, target_ms in SPEED_CLASSES:
+        g = [r for r in rows if lower < r[0] <= upper]
+        lower = upper
+        if not g:
+            continue
+        wall = [r[1] * 1e3 for r in g]
+        print(f"{label}: {len(g)} sections, wall median {statistics.median(wall):.0f} ms, max {max(wall):.0f} ms "
+              f"({sum(w <= target_ms for w in wall)}/{len(g)} within {target_ms:.0f} ms); CPU median "
+              f"{statistics.median(r[2] * 1e3 for r in g):.0f} ms; CPU / baseline median "
+              f"{statistics.median(r[3] for r in g):.0f}, max {max(r[3] for r in g):.0f}")  # fmt: skip
+    print(machine())
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--out", type=Path, default=None, help="write the table as CSV (appended row by row)")
@@ -83,7 +141,12 @@ def main() -> None:
     parser.add_argument("--no-extra", action="store_true", help="only the TTOBench cases")
     parser.add_argument("--no-lesov", action="store_true")
     parser.add_argument("--no-bound", action="store_true", help="skip the lower bound")
+    parser.add_argument("--speed", action="store_true", help="time the optimal strategy only, at +10 %%")
+    parser.add_argument("--max-km", type=float, default=35.0, help="with --speed: longest section [km]")
     args = parser.parse_args()
+    if args.speed:
+        speed(args)
+        return
     rows = []
     header = (f"{'track':26s} {'train':10s} {'section m':>15s} {'sup':>4s} {'ref kWh':>9s} {'opt kWh':>9s} "
               f"{'gap %':>7s} {'cert %':>7s} {'opt ms':>7s} {'ref s':>6s} {'N':>6s} {'004 gap %':>9s}")  # fmt: skip
