@@ -190,3 +190,15 @@ def test_auto_traces_fall_back_to_compact_beyond_the_cap(tmp_path, monkeypatch):
         run_power_file(_small_file(tmp_path, traces="full"))
     problem = err.value.problems[0]
     assert problem.field == "simulation.traces" and problem.file.endswith("small.yaml")
+
+
+def test_the_day_example_is_a_whole_day_beyond_full_traces():
+    """examples/power/metro_750v_diode_day.yaml: 720 departures from 05:00 to 23:00, over the cap
+    of full traces at its 1 s step (so `trainsim power` runs it compact)."""
+    from trainsim.io.power_file import load_power_file
+
+    spec, _, services = load_power_file(EXAMPLES / "metro_750v_diode_day.yaml")
+    deps = [d for s in services for d in s.departures_s]
+    assert len(deps) == 720 and min(deps) == 5 * 3600 and max(deps) < 23 * 3600
+    assert spec.simulation.traces == "auto"
+    assert (max(deps) - min(deps)) / spec.simulation.step_s * len(deps) > MAX_FULL_TRAIN_STEPS

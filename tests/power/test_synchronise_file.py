@@ -89,3 +89,18 @@ def test_an_impossible_headway_is_a_status_and_exit_3(tmp_path):
     res = CliRunner().invoke(app, ["power", str(path)])
     assert res.exit_code == 3, res.output
     assert "headway_not_met" in res.output and "250 s" in res.output
+
+
+def test_the_synchronised_example_reads():
+    spec, _, services = load_power_file(EXAMPLES / "metro_750v_diode_sync.yaml")
+    s = spec.synchronisation
+    assert (s.window_s, s.step_s, s.rounds, s.refinements, s.min_headway_s, s.per, s.avoid_overload) == (
+        20,
+        10,
+        2,
+        1,
+        150,
+        "departure",
+        True,
+    )
+    assert sum(len(x.departures_s) for x in services) == 20
