@@ -136,6 +136,10 @@ def synchronise(
     return SyncResult(offsets, baseline, best, len(cache), result)
 
 
+def _whole(x: object) -> bool:
+    return isinstance(x, int | np.integer) and not isinstance(x, bool)
+
+
 @dataclass(frozen=True)
 class SyncSettings:
     """The search of :func:`synchronise_departures` (the power file's ``synchronisation:`` block).
@@ -166,8 +170,8 @@ class SyncSettings:
             ("window_s", self.window_s, np.isfinite(self.window_s) and 0 < self.window_s <= 3600, "0 < x <= 3600 s"),
             ("step_s", self.step_s, np.isfinite(self.step_s) and 0 < self.step_s <= self.window_s,
              f"0 < x <= window_s ({self.window_s:g} s)"),
-            ("rounds", self.rounds, isinstance(self.rounds, int) and 1 <= self.rounds <= 20, "1 .. 20"),
-            ("refinements", self.refinements, isinstance(self.refinements, int) and 0 <= self.refinements <= 10,
+            ("rounds", self.rounds, _whole(self.rounds) and 1 <= self.rounds <= 20, "1 .. 20"),
+            ("refinements", self.refinements, _whole(self.refinements) and 0 <= self.refinements <= 10,
              "0 .. 10"),
             ("min_headway_s", self.min_headway_s, np.isfinite(self.min_headway_s) and self.min_headway_s >= 0,
              ">= 0 s"),
