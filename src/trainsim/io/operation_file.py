@@ -214,6 +214,17 @@ class _Switch(_Spec):
     name: str
     position_m: float
     clearance_m: float | None = None
+    #: highest speed over the diverging branch [km/h]; none: line speed
+    diverging_speed_kmh: float | None = None
+    #: the platform tracks reached over the diverging branch; none: all but track 1
+    diverging_tracks: list[int] | None = None
+
+    @field_validator("diverging_speed_kmh")
+    @classmethod
+    def _diverging_speed(cls, v: float | None) -> float | None:
+        if v is not None and not (np.isfinite(v) and 0 < v <= 540):
+            raise ValueError("the diverging speed must be 0 < v <= 540 km/h, or none for line speed")
+        return v
 
 
 class _Track(_Spec):
@@ -1033,7 +1044,16 @@ def _tracks(
     tracks = {
         key: TrackLayout(
             tuple(t.detection_points_m),
-            tuple(SwitchLayout(w.name, w.position_m, w.clearance_m) for w in t.switches),
+            tuple(
+                SwitchLayout(
+                    w.name,
+                    w.position_m,
+                    w.clearance_m,
+                    None if w.diverging_speed_kmh is None else w.diverging_speed_kmh * KMH,
+                    None if w.diverging_tracks is None else tuple(w.diverging_tracks),
+                )
+                for w in t.switches
+            ),
             dict(t.station_signals_m),
         )
         for key, t in given.items()
@@ -1090,7 +1110,7 @@ def _railml_tracks(spec: _Operation, read) -> dict[str, TrackLayout] | None:
                 lo, hi = sorted((w.position_m, stop))
                 if not any(lo < d < hi for d in dets):
                     clearance = w.position_m + (distance if stop > w.position_m else -distance)
-            switches.append(SwitchLayout(w.name, w.position_m, clearance))
+            switches.append(SwitchLayout(w.name, w.position_m, clearance, w.diverging_speed_mps))
         out["both" if single else path] = TrackLayout(tuple(dets), tuple(switches), signals)
     return out
 

@@ -531,6 +531,10 @@ class _TrainState:
         self.approaches: dict[float, tuple[tuple[SpeedLimit, ...], Trajectory, float]] = {}
         if ma_steps is not None:
             self.limits.extend(self._stop_ceilings())
+        # the diverging switches of the platform tracks asked for (the others when given, ``grant``)
+        for s in self.stops:
+            if s.track is not None:
+                self.limits.extend(path.track_speed_limits(s.name, s.track))
         self.refresh_movement()
         # the plan is the uncapped train's: a traction power cap is a disturbance of the operation
         if self.strategy != "fastest":
@@ -1005,6 +1009,11 @@ class _Dispatcher:
 
     def grant(self, st: _TrainState, choice: list[tuple[int, Route]], t: float) -> None:
         sig = self.line.signalling
+        # a route over a diverging switch: the train keeps to its speed (line.Route.speed_limits)
+        extra = [x for _j, r in choice for x in r.speed_limits if x not in st.limits]
+        if extra:
+            st.limits.extend(extra)
+            st.refresh_movement()
         for j, r in choice:
             for res in r.resources:
                 self.holder[res.name] = st.index
@@ -1525,13 +1534,18 @@ def _simulate_once(
     directed = {d: cache.directed(geometry, line.length_m, d) for d in ("up", "down")}
     approach: dict[int, Callable | None] = {}
     states = []
-    ma_steps: dict[int, Callable] = {}
+    # ETCS: the supervision curves of each train type and direction on the line's gradients and speed
+    # limits as that train runs them
+    ma_steps: dict[tuple[int, str], Callable] = {}
     for i, svc in enumerate(services):
         ma = None
         if line.signalling.system == "etcs_l2":
-            ma = ma_steps.get(id(svc.train))
+            key = (id(svc.train), svc.direction)
+            ma = ma_steps.get(key)
             if ma is None:
-                ma = ma_steps[id(svc.train)] = ma_indication_steps(svc.train, etcs, line.signalling.overlap_m)
+                ma = ma_steps[key] = ma_indication_steps(
+                    svc.train, etcs, line.signalling.overlap_m, directed[svc.direction]
+                )
         st = _TrainState(
             i, svc, line, directed[svc.direction], cache, ma, disturbed_energy, aware_points.get(i, ())
         )
