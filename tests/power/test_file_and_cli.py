@@ -67,6 +67,24 @@ def test_every_example_runs_ok_with_its_energy_balance(name):
     s = result.summary()
     assert s["status"] == "ok", s["warnings"]
     assert s["energy_balance_error"] < 1e-6
+    # the losses split by where they arise (issue 18): their parts sum to the total, and the energy is
+    # conserved at the substations' sources (all losses) and at their busbars (the lines' losses only)
+    losses = s["losses"]
+    parts = losses["contact_line_kwh"] + losses["return_kwh"] + losses["substation_internal_kwh"]
+    assert parts == pytest.approx(losses["total_kwh"], rel=1e-12)
+    assert losses["total_kwh"] == pytest.approx(s["losses_kwh"], rel=1e-12)
+    assert losses["substation_internal_kwh"] == pytest.approx(s["substation_losses_kwh"], rel=1e-12)
+    assert (losses["return_kwh"] > 0) == (not network.ideal_return)
+    stored = s.get("storages_energy_kwh", 0.0)
+    trains = s["trains_energy_kwh"] + stored
+    assert s["substations_source_energy_kwh"] == pytest.approx(trains + losses["total_kwh"], rel=1e-6)
+    line = losses["contact_line_kwh"] + losses["return_kwh"]
+    assert s["substations_energy_kwh"] == pytest.approx(trains + line, rel=1e-6)
+    for sub in s["substations"]:
+        assert sub["energy_at_source_kwh"] == pytest.approx(
+            sub["energy_kwh"] + sub["internal_losses_kwh"], rel=1e-12
+        )
+        assert sub["internal_losses_kwh"] >= 0.0
     assert s["feedback"]["consistent"]
     assert result.converged.all()
     v = result.train_voltage_v
@@ -107,7 +125,8 @@ def test_cli_json_and_outputs(tmp_path):
         (
             {"network.tracks.0.contact_resistance_ohm_per_km": -0.02},
             "network.tracks[0].contact_resistance_ohm_per_km",
-            "greater than or equal to 0",
+            # DC: 0 is refused too, so the range stated is > 0 (issue 18)
+            "allowed: > 0 (DC: a contact line has a resistance)",
         ),
         (
             {

@@ -107,3 +107,18 @@ def test_direction_down_section_insulators_and_a_route_that_already_agrees(both)
     dead = [(e.start_m, e.end_m) for e in out.electrification if e.voltage_v == 0]
     assert dead == [(23800.0, 24200.0), (24800.0, 25200.0)]
     assert {r["gap"] for r in records} == {"NS-down", None}
+
+
+def test_a_whole_day_run_coasts_through_the_network_neutral_sections_too(both):
+    """The compact (whole-day) path makes its runs itself: with the gap in the network only it must
+    give the figures of the full study, whose runs coast through the section."""
+    from trainsim.power.day import run_day_study
+
+    spec, network, services = load_power_file(EXAMPLES / "main_line_25kv_network_neutral.yaml")
+    (_, in_route), _ = both
+    day = run_day_study(network, services, dt_s=spec.simulation.step_s, end_s=END_S).summary()
+    full = in_route.summary()
+    assert day["substations_energy_kwh"] == pytest.approx(full["substations_energy_kwh"], rel=1e-9)
+    for sa, sb in zip(full["substations"], day["substations"], strict=True):
+        assert sb["peak_power_kw"] == pytest.approx(sa["peak_power_kw"], rel=1e-9)
+    assert {r["gap"] for r in day["neutral_sections"]} == {"NS-up", "NS-down"}

@@ -914,10 +914,12 @@ def _synchronised(
     """The services with the departures the synchronisation chose, its summary block and the span it
     judged every timetable over (the study is solved over the same span)."""
     from trainsim.power.day import departure_loads
+    from trainsim.power.study import with_neutral_sections
     from trainsim.power.synchronise import SyncSettings, synchronise_departures
 
     settings = SyncSettings(**spec.model_dump())
-    loads, _ = departure_loads(services)
+    # the candidates' runs coast through the network's neutral sections like the study's
+    loads, _ = departure_loads(with_neutral_sections(network, services)[0])
     owner = [k for k, s in enumerate(services) for _ in s.departures_s]
     groups = [(services[k].track, services[k].direction) for k in owner]
     out = synchronise_departures(network, loads, groups, settings, services=[services[k].id for k in owner],

@@ -33,7 +33,14 @@ import numpy as np
 from trainsim.errors import InputError
 from trainsim.power.network import Network
 from trainsim.power.simulation import CompactPowerResult, PowerResult, TrainLoad, simulate
-from trainsim.power.study import FeedbackSettings, TrainService, _load, _run, with_status
+from trainsim.power.study import (
+    FeedbackSettings,
+    TrainService,
+    _load,
+    _run,
+    with_neutral_sections,
+    with_status,
+)
 
 __all__ = ["departure_loads", "run_day_study", "write_compact_outputs"]
 
@@ -66,10 +73,13 @@ def run_day_study(
 ) -> CompactPowerResult:
     """The timetable's departures solved once over the span with compact traces (module doc), with
     the study's summary blocks (``trains``: running times, no caps; ``feedback``) and status.
-    ``loads``: :func:`departure_loads` already computed."""
+    ``loads``: :func:`departure_loads` already computed, of services with the network's neutral
+    sections laid over their routes (:func:`~trainsim.power.study.with_neutral_sections`)."""
     feedback = feedback or FeedbackSettings()
     if not services:
         raise InputError("no trains", field="trains", allowed="one or more trains")
+    # the runs coast through the network's neutral sections, as run_study's do
+    services, neutral = with_neutral_sections(network, services)
     day_loads, running = loads if loads is not None else departure_loads(services)
     result = simulate(network, day_loads, dt_s=dt_s, start_s=start_s, end_s=end_s, traces="on_network")
     asked = np.array(
@@ -105,7 +115,9 @@ def run_day_study(
             else ""
         ),
     }
-    base = with_status(_replace_extra(result, {"trains": trains, "feedback": block}))
+    base = with_status(
+        _replace_extra(result, {"trains": trains, "feedback": block, "neutral_sections": neutral})
+    )
     if limited.any():
         base.extra["warnings"].append(block["note"])
     base.extra["traces"] = {

@@ -24,20 +24,22 @@ def write_outputs(result: PowerResult, out: Path, *, plots: bool = True) -> list
     t = result.time_s
     rows = []
     for k, tid in enumerate(result.train_ids):
-        on = np.isfinite(result.train_position_m[:, k])
+        # train_series / train_time_s: a train's own steps, for full and compact (whole-day) results alike
+        on = np.isfinite(result.train_series(result.train_position_m, k))
+        tk = result.train_time_s(k)
         rows.append(
             pd.DataFrame(
                 {
-                    "time_s": t[on],
+                    "time_s": tk[on],
                     "train": tid,
-                    "position_m": result.train_position_m[on, k],
-                    "voltage_v": result.train_voltage_v[on, k],
-                    "current_a": result.train_current_a[on, k],
-                    "power_kw": result.train_power_w[on, k] / 1e3,
-                    "traction_demand_kw": result.traction_demand_w[on, k] / 1e3,
-                    "traction_delivered_kw": result.traction_delivered_w[on, k] / 1e3,
-                    "regen_offered_kw": result.regen_offered_w[on, k] / 1e3,
-                    "regen_accepted_kw": result.regen_accepted_w[on, k] / 1e3,
+                    "position_m": result.train_series(result.train_position_m, k)[on],
+                    "voltage_v": result.train_series(result.train_voltage_v, k)[on],
+                    "current_a": result.train_series(result.train_current_a, k)[on],
+                    "power_kw": result.train_series(result.train_power_w, k)[on] / 1e3,
+                    "traction_demand_kw": result.train_series(result.traction_demand_w, k)[on] / 1e3,
+                    "traction_delivered_kw": result.train_series(result.traction_delivered_w, k)[on] / 1e3,
+                    "regen_offered_kw": result.train_series(result.regen_offered_w, k)[on] / 1e3,
+                    "regen_accepted_kw": result.train_series(result.regen_accepted_w, k)[on] / 1e3,
                 }
             )
         )
@@ -131,14 +133,19 @@ def save_plots(result: PowerResult, out: Path) -> list[Path]:
 
     fig, ax = plt.subplots(figsize=(10, 4.5))
     for k in range(len(result.train_ids)):
-        ax.plot(result.time_s, result.train_voltage_v[:, k], lw=0.7)
+        ax.plot(result.train_time_s(k), result.train_series(result.train_voltage_v, k), lw=0.7)
     limit_lines(ax)
     ax.set(xlabel="time [s]", ylabel="pantograph voltage [V]", title="Pantograph voltage of every train")
     save(fig, "voltage_time.png")
 
     fig, ax = plt.subplots(figsize=(10, 4.5))
     for k in range(len(result.train_ids)):
-        ax.plot(result.train_position_m[:, k] / 1e3, result.train_voltage_v[:, k], ".", ms=1.2)
+        ax.plot(
+            result.train_series(result.train_position_m, k) / 1e3,
+            result.train_series(result.train_voltage_v, k),
+            ".",
+            ms=1.2,
+        )
     limit_lines(ax)
     for s in result.network.substations:
         ax.axvline(s.position_m / 1e3, color="tab:red", lw=0.6, alpha=0.5)
@@ -185,7 +192,7 @@ def save_plots(result: PowerResult, out: Path) -> list[Path]:
 
     fig, ax = plt.subplots(figsize=(10, 4.5))
     for k, tid in enumerate(result.train_ids):
-        ax.plot(result.time_s, result.train_current_a[:, k], lw=0.7, label=tid)
+        ax.plot(result.train_time_s(k), result.train_series(result.train_current_a, k), lw=0.7, label=tid)
     ax.axhline(0, color="k", lw=0.5)
     ax.set(xlabel="time [s]", ylabel="train current [A] (negative: regenerating)", title="Train current")
     if len(result.train_ids) <= 24:

@@ -131,6 +131,8 @@ class PowerResult:
     onboard_charge_w: np.ndarray | None = None
     onboard_discharge_w: np.ndarray | None = None
     onboard_energy_j: np.ndarray | None = None
+    contact_loss_w: np.ndarray | None = None
+    return_loss_w: np.ndarray | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     # ---- derived figures --------------------------------------------------------------------
@@ -154,6 +156,28 @@ class PowerResult:
     def train_time_s(self, k: int) -> np.ndarray:
         """The times of :meth:`train_series` [s]."""
         return self.time_s
+
+    def losses_kwh(self) -> dict[str, float | None]:
+        """The losses over the run split by where they arise [kWh]: ``contact_line_kwh`` (contact
+        lines and the contact-to-return leakage; AC: the loop impedance, return included),
+        ``return_kwh`` (DC rails in series and leaking to earth; 0 with an ideal return and for AC),
+        ``substation_internal_kwh`` (internal resistances: source energy less busbar energy) and
+        ``total_kwh``, their sum (``losses_kwh``). The substations' energy at their sources equals
+        the trains' at the pantographs plus ``total_kwh`` (plus the wayside storages' intake); at
+        their busbars, the trains' plus the contact line's and the return's (None: not recorded)."""
+        line = float(np.sum(self.line_loss_w) * self.dt_s)
+        sub = float(np.sum(self.substation_loss_w) * self.dt_s)
+        if self.contact_loss_w is None or self.return_loss_w is None:
+            contact = ret = None
+        else:
+            contact = float(np.sum(self.contact_loss_w) * self.dt_s) / KWH
+            ret = float(np.sum(self.return_loss_w) * self.dt_s) / KWH
+        return {
+            "contact_line_kwh": contact,
+            "return_kwh": ret,
+            "substation_internal_kwh": sub / KWH,
+            "total_kwh": (line + sub) / KWH,
+        }
 
     def energy_balance_error(self) -> float:
         """|sources - (trains + losses)| / sources over the whole run [-]."""
@@ -288,6 +312,7 @@ class PowerResult:
         """JSON-ready summary (see docs/POWER.md for every field)."""
         status, warnings = self.problems()
         e_sub = self._e(self.substation_power_w)
+        e_src = self._e(self.substation_source_w)
         rms = {f"{int(w)}s": self.rms_current_a(w) for w in RMS_WINDOWS_S}
         substations = []
         for si, s in enumerate(self.network.substations):
@@ -297,6 +322,8 @@ class PowerResult:
                 {
                     "id": s.id,
                     "energy_kwh": float(e_sub[si]) / KWH,
+                    "energy_at_source_kwh": float(e_src[si]) / KWH,
+                    "internal_losses_kwh": float(e_src[si] - e_sub[si]) / KWH,
                     "energy_delivered_kwh": float(np.sum(np.maximum(p, 0)) * self.dt_s) / KWH,
                     "energy_returned_kwh": float(np.sum(np.maximum(-p, 0)) * self.dt_s) / KWH,
                     "peak_power_kw": float(np.max(p)) / 1000,
@@ -351,10 +378,12 @@ class PowerResult:
             "substations": substations,
             "trains": trains,
             "substations_energy_kwh": float(np.sum(e_sub)) / KWH,
+            "substations_source_energy_kwh": float(np.sum(e_src)) / KWH,
             "trains_energy_kwh": float(np.nansum(self.train_power_w) * self.dt_s) / KWH,
             "losses_kwh": float(np.sum(self.line_loss_w + self.substation_loss_w) * self.dt_s) / KWH,
             "line_losses_kwh": float(np.sum(self.line_loss_w) * self.dt_s) / KWH,
             "substation_losses_kwh": float(np.sum(self.substation_loss_w) * self.dt_s) / KWH,
+            "losses": self.losses_kwh(),
             "regen_kwh": self.regen_kwh(),
             "rail_potential_v": {
                 "min": _num(np.nanmin(self.rail_potential_min_v)) if rail_defined else None,
@@ -684,6 +713,8 @@ class _Series:
     i_sub: np.ndarray
     line_loss: np.ndarray
     sub_loss: np.ndarray
+    contact_loss: np.ndarray
+    return_loss: np.ndarray
     rmin: np.ndarray
     rmax: np.ndarray
     stray: np.ndarray
@@ -695,6 +726,7 @@ class _Series:
     @classmethod
     def empty(cls, n: int, ns: int, n_st: int) -> _Series:
         return cls(np.zeros((n, ns)), np.zeros((n, ns)), np.zeros((n, ns)), np.zeros(n), np.zeros(n),
+                   np.zeros(n), np.zeros(n),
                    np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan), np.ones(n, dtype=bool),
                    np.zeros(n, dtype=np.int64), np.zeros((n, n_st)) if n_st else None,
                    np.zeros((n, n_st)) if n_st else None)  # fmt: skip
@@ -706,6 +738,8 @@ class _Series:
             "substation_current_a": self.i_sub,
             "line_loss_w": self.line_loss,
             "substation_loss_w": self.sub_loss,
+            "contact_loss_w": self.contact_loss,
+            "return_loss_w": self.return_loss,
             "rail_potential_min_v": self.rmin,
             "rail_potential_max_v": self.rmax,
             "converged": self.converged,
@@ -840,6 +874,8 @@ def _solve_steps(
         out.i_sub[j] = sol.substation_current_a
         out.line_loss[j] = sol.line_loss_w
         out.sub_loss[j] = sol.substation_loss_w
+        out.contact_loss[j] = sol.contact_loss_w
+        out.return_loss[j] = sol.return_loss_w
         out.stray[j] = sol.stray_current_a
         if len(sol.rail_potential_v):
             out.rmin[j] = np.min(sol.rail_potential_v)
