@@ -1,8 +1,9 @@
 """The optimal strategy's speed work (issue 16) changes how the solver searches, not what it finds.
 
 * The final coasting point's search aims at the jump of the outcome (where a run that stops short by
-  less than ``pk.REST_AT_STOP_M`` counts as arriving) instead of bisecting onto it: same coasting
-  point to the search's own tolerance, same run, fewer final-phase runs.
+  less than ``pk.REST_AT_STOP_M`` counts as arriving) and shortens secant steps after one overshot
+  it, instead of bisecting onto it: same coasting point to the search's own tolerance, same run,
+  fewer final-phase runs.
 * Departures ahead of descents searched once per solve (``_best_departure``'s memo) and W remembered
   by price of time: the solve is bit for bit the one that searches every time.
 
@@ -55,7 +56,9 @@ def test_coast_point_aimed_at_the_jump_is_the_bisections(kiss_stadelhofen, monke
     count = _counting(monkeypatch)
     aimed = SectionSolver(train, route, s0, s1).plan(V)
     runs_aimed = count["runs"]
-    monkeypatch.setattr(optimal, "JUMP_AIMS", 0)  # the search before: bisection onto the jump
+    # the search before: secant steps to the line's root alternating with bisection onto the jump
+    monkeypatch.setattr(optimal, "JUMP_AIMS", 0)
+    monkeypatch.setattr(optimal, "SECANT_SHORTENING", 1.0)
     count["runs"] = 0
     bisected = SectionSolver(train, route, s0, s1).plan(V)
     runs_bisected = count["runs"]

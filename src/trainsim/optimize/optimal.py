@@ -61,6 +61,9 @@ RAGGED_SAMPLES = 3
 JUMP_AIMS = 3
 #: ... with two runs this fraction of COAST_POINT_TOLERANCE_M either side of it [-].
 JUMP_AIM_FRACTION = 0.25
+#: After a secant step of that search that landed beyond the jump, the next ones go this fraction
+#: of the way to the secant line's root [-].
+SECANT_SHORTENING = 0.9
 #: First half-width of the bracket around the previous holding speed's final coasting point [m].
 WARM_COAST_STEP_M = 20.0
 #: Largest step of the adjoint-driven phase [m].
@@ -1254,6 +1257,7 @@ class SectionSolver:
         bisect = True
         queued: list[float] = []  # points either side of the predicted jump, tried next
         jump_aims = JUMP_AIMS
+        secant = overshot = False  # whether this step, and the last secant step, is beyond the jump
         # on until the train comes to rest at the stop itself, or the bracket closes on the point
         # where the outcome jumps (the run then meets the braking curve there): a coasting point
         # left a metre early (a tolerance) moved with the step and its energy with it
@@ -1272,8 +1276,14 @@ class SectionSolver:
                 # curve instead, which only moves the bracket's upper end
                 target = -0.25 * STOP_TOLERANCE_M
                 guess = lo + (target - r_lo) * slope
+                if overshot:
+                    # the last secant step landed beyond the jump (the line overshoots where the
+                    # shortfall curves): short of the line's root, the next short run is close to
+                    # the jump and the line through it accurate (bisection alone moved lo by halves)
+                    guess = lo + SECANT_SHORTENING * (guess - lo)
                 if lo < guess < hi:
                     mid = guess
+                    secant = True
                 elif guess >= hi and jump_aims > 0:
                     # the root lies beyond a run that arrives: the outcome jumps before it, where
                     # the shortfall falls to the kernel's REST_AT_STOP_M (the run then counts as
@@ -1286,6 +1296,8 @@ class SectionSolver:
                         mid, queued = jump - eps, [jump + eps]
             bisect = not bisect
             r_mid, points = residual(mid)
+            if secant:
+                overshot, secant = r_mid >= 0.0, False
             if r_mid >= 0.0:
                 hi, best, r_hi = mid, points, r_mid
             else:
