@@ -14,7 +14,17 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
 
 from trainsim.errors import InputError, Problem
 from trainsim.power.limits import EN50163, standard_limits
@@ -31,8 +41,26 @@ Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
 
 
+def _not_bool(allowed: str) -> BeforeValidator:
+    """Refuse true/false where a Literal of numbers is wanted: YAML's true is a Python bool, and
+    bool is an int, so even a strict Literal[1, -1] would take it for 1."""
+
+    def check(value: Any) -> Any:
+        if isinstance(value, bool):
+            raise PydanticCustomError("bool_not_number", "true/false is not a number", {"allowed": allowed})
+        return value
+
+    return BeforeValidator(check)
+
+
+#: a direction along the track: +1 (increasing km) or -1
+Direction = Annotated[Literal[1, -1], _not_bool("1 or -1")]
+
+
 class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    # strict: a bool or a string never becomes a number (true -> 1 pass, "3" -> 3) and a string
+    # never becomes a bool ('yes' -> True); ints are still taken for floats
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
 
 
 class LimitsSpec(_Spec):
@@ -74,6 +102,14 @@ class SubstationSpec(_Spec):
     #: DC regulation curve [[current_a, voltage_v], ...] instead of no_load_voltage_v and
     #: internal_resistance_ohm (which it sets: the voltage at 0 A and the first segment's slope)
     regulation: list[tuple[float, Positive]] | None = Field(default=None, min_length=2, max_length=100)
+
+    @field_validator("regulation", mode="before")
+    @classmethod
+    def _pairs_as_tuples(cls, value: Any) -> Any:
+        # YAML gives lists; strict mode takes only tuples for a tuple, the numbers in them stay strict
+        if isinstance(value, list):
+            return [tuple(v) if isinstance(v, list) else v for v in value]
+        return value
 
     @model_validator(mode="after")
     def _source(self) -> SubstationSpec:
@@ -154,7 +190,7 @@ class TrainSpec(_Spec):
     scenario: str
     track: str
     origin_km: float = 0.0
-    direction: Literal[1, -1] = 1
+    direction: Direction = 1
     departures_s: list[float] | None = None
     headway: HeadwaySpec | None = None
     onboard_storage: OnboardStorageSpec | None = None
@@ -201,11 +237,18 @@ class SynchronisationSpec(_Spec):
     #: refuse offsets that put the substations further beyond their overload power
     avoid_overload: bool = True
 
-    @model_validator(mode="after")
-    def _step_in_window(self) -> SynchronisationSpec:
-        if self.step_s > self.window_s:
-            raise ValueError(f"step_s ({self.step_s:g} s) must not exceed window_s ({self.window_s:g} s)")
-        return self
+    @field_validator("step_s")
+    @classmethod
+    def _step_in_window(cls, step_s: float, info: ValidationInfo) -> float:
+        # a field validator (window_s comes first) so the error names synchronisation.step_s
+        window_s = info.data.get("window_s")
+        if window_s is not None and step_s > window_s:
+            raise PydanticCustomError(
+                "step_beyond_window",
+                f"step_s ({step_s:g} s) must not exceed window_s ({window_s:g} s)",
+                {"window_s": window_s},
+            )
+        return step_s
 
 
 class OperationLinkSpec(_Spec):
@@ -220,7 +263,7 @@ class PowerFile(_Spec):
     """The whole file."""
 
     schema_: Literal["trainsim/power"] = Field(alias="schema")
-    version: Literal[1]
+    version: Annotated[Literal[1], _not_bool("1")]
     name: str = "power supply"
     description: str | None = None
     network: NetworkSpec
@@ -252,6 +295,15 @@ def _field(loc: tuple) -> str:
     return out
 
 
+#: what a field of each type takes, for the errors of the strict types (which give no ctx)
+_STRICT_ALLOWED = {
+    "float_type": "a number (not true/false or a quoted string)",
+    "int_type": "a whole number (not true/false, a quoted string or a fraction)",
+    "bool_type": "true or false (not 'yes', 1 or a quoted string)",
+    "string_type": "a string",
+}
+
+
 def _validation_problems(exc: ValidationError, file: str) -> list[Problem]:
     problems = []
     for err in exc.errors(include_url=False):
@@ -267,6 +319,11 @@ def _validation_problems(exc: ValidationError, file: str) -> list[Problem]:
             if key in ctx
         ]
         allowed = " and ".join(bounds) or (str(ctx["expected"]) if "expected" in ctx else None)
+        allowed = _STRICT_ALLOWED.get(err["type"], allowed)
+        if err["type"] == "bool_not_number":
+            allowed = ctx["allowed"]
+        if err["type"] == "step_beyond_window":
+            allowed = f"<= window_s ({ctx['window_s']:g} s)"
         if err["type"] == "extra_forbidden":
             reason = "unknown field"
             allowed = "the fields of docs/POWER.md"
