@@ -242,7 +242,9 @@ def approach_start_m(
     previous main signal for 3, the second previous for 4, minus the sighting distance. ETCS L2 and
     moving block: the signal (block marker, or the start of the virtual section) minus
     ``approach_distance_m(v)`` at the train's speed there, found by fixed-point iteration on the
-    highest speed of the trajectory over the approach (moving block adds the safety margin).
+    highest speed of the trajectory over the approach (moving block adds the safety margin). A function
+    with an ``at_eoa(x)`` method (``separation.EtcsApproach`` on the line's gradients) is asked for the
+    distance of an EoA at the signal ``x``.
     """
     sig = signalling
     x = path.steps[step].start_m
@@ -257,6 +259,10 @@ def approach_start_m(
     if trajectory is None or approach_distance_m is None:
         raise ValueError("ETCS and moving block need the train's trajectory and approach distance")
     margin = sig.safety_margin_m if sig.system == "moving_block" else 0.0
+    at_eoa = getattr(approach_distance_m, "at_eoa", None)
+    if at_eoa is not None:
+        # ETCS on the line's gradients: the MA would end at this route's start
+        approach_distance_m = at_eoa(x)
     p = x - margin - approach_distance_m(trajectory.speed_at(x))
     for _ in range(4):
         q = x - margin - approach_distance_m(trajectory.max_speed_between(p, x))

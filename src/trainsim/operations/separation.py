@@ -4,8 +4,9 @@
   reaching beyond a block marker before its head reaches the **indication point** of an MA ending at
   that marker (ERA SUBSET-026-3 3.13.9.3.6: where the driver is told to start braking to stay below the
   permitted speed). The approach distance is ``EoA - indication point`` at the train's speed, computed
-  with ``trainsim.operations.etcs.supervision_curves`` on level track (EoA at the marker, supervised
-  location at the end of the overlap): the dispatcher asks it by speed only, wherever the train is.
+  with ``trainsim.operations.etcs.supervision_curves`` (EoA at the marker, supervised location at the
+  end of the overlap) on the line's gradients as the train runs them, by speed and marker
+  (``EtcsApproach.at_eoa``); on level track where no line is given.
 * Moving block: the service braking distance (``blocking.braking_distance_table``) plus the safety
   margin (added by ``blocking.approach_start_m``).
 
@@ -279,18 +280,65 @@ def ma_indication_steps(
     return steps
 
 
-def etcs_approach_distance(
-    train: Train, etcs: EtcsBraking | None, overlap_m: float
-) -> Callable[[float], float]:
+class EtcsApproach:
     """Distance from the indication point to the end of authority at speed ``v`` [m] (0 below the
-    release speed, where no braking is asked for), tabulated over the train's speed range on level
-    track, for an MA whose supervised location is ``overlap_m`` beyond its end."""
-    curves = ma_curves(train, etcs, 0.0, overlap_m)
-    v = np.linspace(0.0, train.max_speed_mps * 1.02, 120)
-    point = np.asarray(curves.indication_point_m(v), dtype=float)
-    distance = np.where(np.isfinite(point), np.maximum(-point, 0.0), 0.0)
+    release speed, where no braking is asked for), tabulated over the train's speed range, for an MA
+    whose supervised location is ``overlap_m`` beyond its end.
 
-    def approach(speed_mps: float) -> float:
-        return float(np.interp(speed_mps, v, distance))
+    ``approach(v)``: on level track (the EoA anywhere). ``approach.at_eoa(eoa_m)``: the same for an EoA
+    at running position ``eoa_m`` of ``directed`` (the line as the train runs it), on its gradients
+    compensated for the train length (3.13.4); level track without ``directed``. The MA's own targets
+    only (EoA and SvL): a speed decrease of the line asks the driver to brake but not for a route, and
+    the line's speed limits enter through the speed the dispatcher asks it at (the train's run obeys
+    them). Tabulated once per EoA (block markers: a few dozen per line)."""
 
-    return approach
+    def __init__(
+        self, train: Train, etcs: EtcsBraking | None, overlap_m: float, directed: Route | None = None
+    ) -> None:
+        self._braking = _require(etcs)
+        self._train = train
+        self._overlap_m = float(overlap_m)
+        self._directed = directed
+        self._v = np.linspace(0.0, train.max_speed_mps * 1.02, 120)
+        self._level = self._table(None, 0.0)
+        self._tables: dict[float, np.ndarray] = {}
+
+    def _table(self, directed: Route | None, eoa_m: float) -> np.ndarray:
+        b = self._braking
+        curves = supervision_curves(
+            b.train_data(self._train),
+            b.national,
+            directed,
+            float(eoa_m),
+            svl_position_m=eoa_m + max(self._overlap_m, 0.0),
+            release_speed=b.release_speed,
+        )
+        point = np.asarray(curves.indication_point_m(self._v), dtype=float)
+        return np.where(np.isfinite(point), np.maximum(eoa_m - point, 0.0), 0.0)
+
+    def __call__(self, speed_mps: float) -> float:
+        return float(np.interp(speed_mps, self._v, self._level))
+
+    def at_eoa(self, eoa_m: float) -> Callable[[float], float]:
+        """The approach distance over speed [m] for an EoA at running position ``eoa_m`` [m]."""
+        if self._directed is None:
+            return self
+        key = round(float(eoa_m), 3)
+        table = self._tables.get(key)
+        if table is None:
+            table = self._tables[key] = self._table(self._directed, key)
+        v = self._v
+        return lambda speed_mps: float(np.interp(speed_mps, v, table))
+
+    def max_m(self, eoa_m: float) -> float:
+        """The longest approach distance for an EoA at ``eoa_m`` (at 1.02 times the train's maximum
+        speed) [m]."""
+        return self.at_eoa(eoa_m)(float(self._v[-1]))
+
+
+def etcs_approach_distance(
+    train: Train, etcs: EtcsBraking | None, overlap_m: float, directed: Route | None = None
+) -> EtcsApproach:
+    """The approach distance of ``train`` under ETCS Level 2 (``EtcsApproach``): by speed on level
+    track, and by speed and EoA on ``directed``'s gradients when it is given."""
+    return EtcsApproach(train, etcs, overlap_m, directed)

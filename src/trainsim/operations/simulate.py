@@ -811,7 +811,28 @@ class _TrainState:
         return value
 
     def _request_point(self, approach_fn) -> tuple[float, float | None, float]:
-        j, step = self.pending_step()
+        value = self._own_request_point(self.steps[self.next], approach_fn)
+        if self.line.signalling.system == "fixed_block":
+            return value
+        # ETCS and moving block: the approach distance falls with the speed, so a later route's approach
+        # can start before this one's (at a stop, the exit route's approach is a few metres, the next
+        # block's the indication distance at line speed). Routes are given in order, so this route is
+        # needed when the earliest of them is: a train standing at a stop inside a later route's
+        # approach has its MA extended over both before its departure (issue 17)
+        margin = self.line.signalling.safety_margin_m
+        for k in range(self.next + 1, len(self.steps)):
+            x = self.path.steps[self.steps[k]].start_m
+            if x - margin - _longest_approach_m(approach_fn, x, self.svc.train.max_speed_mps) >= value[2]:
+                break  # its approach cannot start before this one's (nor can the next ones')
+            later = self._own_request_point(self.steps[k], approach_fn)
+            if later[0] < value[0]:
+                value = later
+        return value
+
+    def _own_request_point(self, j: int, approach_fn) -> tuple[float, float | None, float]:
+        """(request time, stop standing inside the approach or None, approach start) of route step
+        ``j`` on its own."""
+        step = self.path.steps[j]
         sig = self.line.signalling
         a = approach_start_m(self.path, j, sig, self.trajectory, approach_fn)
         # a few stops, asked some 50 times per train: plain floats beat numpy's per-call cost
@@ -1221,12 +1242,23 @@ def service_braking_deceleration(
     return lambda v: np.asarray(curve(np.asarray(v, dtype=float)), dtype=float) * braking_fraction / m
 
 
+def _longest_approach_m(approach_fn, x_m: float, v_max_mps: float) -> float:
+    """The longest approach distance to a signal at ``x_m`` [m], at any speed of the train."""
+    longest = getattr(approach_fn, "max_m", None)
+    return float(longest(x_m)) if longest is not None else float(approach_fn(v_max_mps))
+
+
 def approach_function(
-    line: Line, train: Train, settings: RunSettings, etcs: EtcsBraking | None = None
+    line: Line,
+    train: Train,
+    settings: RunSettings,
+    etcs: EtcsBraking | None = None,
+    directed: GeometryRoute | None = None,
 ) -> Callable[[float], float] | None:
     """The approach distance over speed [m] of ``train`` under the line's separation: None for fixed
     block (the signals fix it), the service braking distance for moving block, the indication distance
-    for ETCS Level 2."""
+    for ETCS Level 2 (on the gradients of ``directed``, the line as the train runs it, per EoA; level
+    track without it)."""
     sig = line.signalling
     brake = braking_distance_table(
         service_braking_deceleration(train, settings.braking_fraction), train.max_speed_mps
@@ -1235,7 +1267,7 @@ def approach_function(
         return None
     if sig.system == "moving_block":
         return brake
-    return etcs_approach_distance(train, etcs, sig.overlap_m)
+    return etcs_approach_distance(train, etcs, sig.overlap_m, directed)
 
 
 def _check_services(line: Line, services: Sequence[TrainService]) -> None:
@@ -1423,16 +1455,18 @@ def simulate(
     settings = settings or RunSettings()
     if cache is None or cache.settings != settings:
         cache = RunCache(settings)
-    args = (line, geometry, services, settings, rule, conflicts, headways, etcs, lookahead_s, cache)
+    _check_inputs(line, geometry, services, rule, lookahead_s)
+    fns = _approach_functions(line, geometry, services, settings, etcs, cache)
+    args = (line, geometry, services, settings, rule, conflicts, headways, etcs, lookahead_s, cache, fns)
     result = _simulate_once(*args, disturbed_energy, {})
     aware = [i for i, svc in enumerate(services) if svc.strategy == "signal_aware"]
     if not aware:
         return result
-    points = _aware_points(line, services, result, aware, settings, etcs)
+    points = _aware_points(line, services, result, aware, fns)
     for n in range(2, MAX_AWARE_ITERATIONS + 1):
         result = _simulate_once(*args, disturbed_energy, points)
         result.iterations = n
-        new = _aware_points(line, services, result, aware, settings, etcs)
+        new = _aware_points(line, services, result, aware, fns)
         if _same_points(new, points):
             return result
         points = new
@@ -1448,8 +1482,7 @@ def _aware_points(
     services: Sequence[TrainService],
     result: OperationResult,
     aware: list[int],
-    settings: RunSettings,
-    etcs: EtcsBraking | None,
+    approach_fns: list[Callable[[float], float] | None],
 ) -> dict[int, tuple[tuple[float, float, str], ...]]:
     """Timing points of each signal-aware train from the operated blocking times of ``result``: at
     the approach start of each of its routes, no earlier than the latest release of the route's
@@ -1467,7 +1500,7 @@ def _aware_points(
         if o.status != "ok" or o.trajectory is None:
             continue
         path = line.paths[svc.direction]
-        fn = approach_function(line, svc.train, settings, etcs)
+        fn = approach_fns[i]
         stops_m = [path.stop_m[s.station] for s in o.stops]
         points = []
         for j, route in o.routes:
@@ -1485,6 +1518,48 @@ def _aware_points(
                 earliest = max(ends) + sig.setup_s + sig.reaction_s + AWARE_MARGIN_S
                 points.append((float(a), float(earliest), f"approach to {route.name}"))
         out[i] = tuple(points)
+    return out
+
+
+def _check_inputs(
+    line: Line, geometry: GeometryRoute, services: Sequence[TrainService], rule: Rule, lookahead_s: float
+) -> None:
+    if not (np.isfinite(lookahead_s) and 0 <= lookahead_s <= 7200):
+        raise InputError(
+            "invalid look-ahead", field="dispatching.lookahead_s", value=lookahead_s, allowed="0 .. 7200 s"
+        )
+    if rule not in ("fcfs", "priority"):
+        raise InputError(
+            "unknown dispatching rule", field="dispatching.rule", value=rule, allowed="fcfs, priority"
+        )
+    if not (abs(geometry.start_m) < 1e-6 and abs(geometry.end_m - line.length_m) < 1e-6):
+        raise InputError(
+            "the line's geometry must cover the whole line",
+            field="line.route",
+            value=(geometry.start_m, geometry.end_m),
+            allowed=f"0 .. {line.length_m:g} m",
+        )
+    _check_services(line, services)
+
+
+def _approach_functions(
+    line: Line,
+    geometry: GeometryRoute,
+    services: Sequence[TrainService],
+    settings: RunSettings,
+    etcs: EtcsBraking | None,
+    cache: RunCache,
+) -> list[Callable[[float], float] | None]:
+    """Each train's approach function (``approach_function``) on the line as it runs it, one per train
+    and direction (an ETCS one tabulates each EoA once for all the trains sharing it)."""
+    shared: dict[tuple[int, str], Callable[[float], float] | None] = {}
+    out = []
+    for svc in services:
+        key = (id(svc.train), svc.direction)
+        if key not in shared:
+            directed = cache.directed(geometry, line.length_m, svc.direction)
+            shared[key] = approach_function(line, svc.train, settings, etcs, directed)
+        out.append(shared[key])
     return out
 
 
@@ -1511,26 +1586,11 @@ def _simulate_once(
     etcs: EtcsBraking | None,
     lookahead_s: float,
     cache: RunCache,
+    approach_fns: list[Callable[[float], float] | None],
     disturbed_energy: bool,
     aware_points: dict[int, tuple[tuple[float, float, str], ...]],
 ) -> OperationResult:
     """One simulation of ``services`` (``simulate``), signal-aware trains with ``aware_points``."""
-    if not (np.isfinite(lookahead_s) and 0 <= lookahead_s <= 7200):
-        raise InputError(
-            "invalid look-ahead", field="dispatching.lookahead_s", value=lookahead_s, allowed="0 .. 7200 s"
-        )
-    if rule not in ("fcfs", "priority"):
-        raise InputError(
-            "unknown dispatching rule", field="dispatching.rule", value=rule, allowed="fcfs, priority"
-        )
-    if not (abs(geometry.start_m) < 1e-6 and abs(geometry.end_m - line.length_m) < 1e-6):
-        raise InputError(
-            "the line's geometry must cover the whole line",
-            field="line.route",
-            value=(geometry.start_m, geometry.end_m),
-            allowed=f"0 .. {line.length_m:g} m",
-        )
-    _check_services(line, services)
     directed = {d: cache.directed(geometry, line.length_m, d) for d in ("up", "down")}
     approach: dict[int, Callable | None] = {}
     states = []
@@ -1549,7 +1609,7 @@ def _simulate_once(
         st = _TrainState(
             i, svc, line, directed[svc.direction], cache, ma, disturbed_energy, aware_points.get(i, ())
         )
-        approach[i] = approach_function(line, svc.train, settings, etcs)
+        approach[i] = approach_fns[i]
         st._brake = braking_distance_table(
             service_braking_deceleration(svc.train, settings.braking_fraction), svc.train.max_speed_mps
         )
