@@ -171,6 +171,31 @@ def _check_range(name: str, value: float, lo: float, hi: float, allowed: str | N
         raise _bad(f"{name} out of range", name, value, allowed or f"{lo} to {hi}")
 
 
+def _check_steps(
+    message: str, name: str, fn: StepFunction, ok: Callable[[float], bool], allowed: str, label: str = ""
+) -> None:
+    """Every value of the step function ``fn`` passes ``ok``; else an error naming the first bad value
+    and, of a function of several steps, the speeds it applies to (not the whole tuple)."""
+    for k, v in enumerate(fn.values):
+        if ok(v):
+            continue
+        where = label
+        if len(fn.values) > 1:
+            lo = 0.0 if k == 0 else fn.upper_limits[k - 1]
+
+            def speed(x: float) -> str:
+                # files give the limits in km/h or m/s
+                return f"{x:.4g} m/s ({x / KMH:.4g} km/h)"
+
+            span = (
+                f"{speed(lo)} to {speed(fn.upper_limits[k])}"
+                if k < len(fn.upper_limits)
+                else f"above {speed(lo)}"
+            )
+            where = f"{label}{', ' if label else ''}step {k + 1} of {len(fn.values)}: speeds {span}"
+        raise _bad(f"{message}{f' ({where})' if where else ''}", name, v, allowed)
+
+
 @dataclass(frozen=True)
 class EtcsTrainData:
     """Train data for the ETCS speed and distance monitoring (3.13.2.2), SI units.
@@ -296,8 +321,9 @@ class EtcsTrainData:
             )
         for name in ("a_brake_emergency", "a_brake_service", "a_brake_normal_service"):
             fn: StepFunction = getattr(self, name)
-            if not all(0 < v <= 10 for v in fn.values):
-                raise _bad(f"{name} must be a deceleration above 0", name, fn.values, "0 < A <= 10 m/s^2")
+            _check_steps(
+                f"{name} must be a deceleration above 0", name, fn, lambda v: 0 < v <= 10, "0 < A <= 10 m/s^2"
+            )
         if isinstance(self.kdry_rst, Mapping):
             kdry = {}
             for key, value in self.kdry_rst.items():
@@ -305,18 +331,22 @@ class EtcsTrainData:
                     raise _bad("Kdry_rst is keyed by the EBCL index", "kdry_rst", key, "integers 0 to 9")
                 kdry[key] = _as_step(value, f"kdry_rst[{key}]")
             object.__setattr__(self, "kdry_rst", kdry)
-            factors = [v for fn in kdry.values() for v in fn.values]
+            kdry_steps = [(f"EBCL {key}", fn) for key, fn in kdry.items()]
         else:
             object.__setattr__(self, "kdry_rst", _as_step(self.kdry_rst, "kdry_rst"))
-            factors = list(self.kdry_rst.values)
-        if not all(0 < v <= 1.5 for v in factors):
-            raise _bad("Kdry_rst out of range", "kdry_rst", factors, "0 < Kdry_rst <= 1.5")
-        if not all(0 < v <= 1 for v in self.kwet_rst.values):
-            raise _bad("Kwet_rst out of range", "kwet_rst", self.kwet_rst.values, "0 < Kwet_rst <= 1")
+            kdry_steps = [("", self.kdry_rst)]
+        for label, fn in kdry_steps:
+            _check_steps(
+                "Kdry_rst out of range", "kdry_rst", fn, lambda v: 0 < v <= 1.5, "0 < Kdry_rst <= 1.5", label
+            )
+        _check_steps(
+            "Kwet_rst out of range", "kwet_rst", self.kwet_rst, lambda v: 0 < v <= 1, "0 < Kwet_rst <= 1"
+        )
         for name in ("kn_plus", "kn_minus"):
-            fn = getattr(self, name)
-            if not all(0 <= v <= 10 for v in fn.values):
-                raise _bad(f"{name} out of range", name, fn.values, "0 to 10 m/s^2 (3.13.2.2.9.2.1)")
+            _check_steps(
+                f"{name} out of range", name, getattr(self, name), lambda v: 0 <= v <= 10,
+                "0 to 10 m/s^2 (3.13.2.2.9.2.1)",
+            )  # fmt: skip
         for name in ("t_brake_emergency_s", "t_brake_service_s", "t_traction_cut_off_s"):
             _check_range(name, getattr(self, name), 0.0, 300.0, "0 to 300 s")
         for name in ("t_brake_emergency_cmt_s", "t_brake_service_cmt_s"):
