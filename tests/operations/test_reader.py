@@ -97,6 +97,9 @@ def test_signal_off_the_open_line_is_an_error(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="open line") as e:
         read_operation(p)
     assert e.value.problems[0].field == "line.block_signals_m.up" and e.value.file == str(p)
+    # the one value off the open line, and the open-line ranges allowed (not the whole list)
+    assert e.value.problems[0].value == 1590.0
+    assert e.value.problems[0].allowed.startswith("between ")
 
 
 def test_disconnected_route_and_bad_time_are_errors(tmp_path: Path) -> None:

@@ -820,6 +820,7 @@ def _direction_path(
     stop_m: dict[str, float] = {}
     platform_m: dict[str, tuple[float, float]] = {}
     used_given: set[int] = set()
+    open_line: list[tuple[float, float]] = []  # (exit switch zone end, next entry signal) [m]
     problems: list[Problem] = []
     sides, dets = _station_sides(line, direction, ordered, problems)
     if problems:
@@ -892,6 +893,7 @@ def _direction_path(
         if sig.system == "moving_block":
             inner = list(np.arange(exit_, next_entry - 1e-6, sig.moving_block_step_m)[1:])
         elif given is not None:
+            open_line.append((zone_end, next_entry))
             inner = [x for x in given if zone_end < x < next_entry]
             used_given.update(j for j, x in enumerate(given) if zone_end < x < next_entry)
         else:
@@ -928,11 +930,16 @@ def _direction_path(
                 )
             )
     if given is not None and len(used_given) != len(given):
-        off = [line.line_position(direction, x) for j, x in enumerate(given) if j not in used_given]
+        # the first value off the open line (in running order; the file's list may be in the other) and
+        # the ranges allowed, in the file's line positions
+        j = min(k for k in range(len(given)) if k not in used_given)
+        spans = sorted(sorted(line.line_position(direction, x) for x in ab) for ab in open_line)
         raise InputError(
-            "block signals must lie on the open line between two stations (beyond the exit switch zone, before the next entry signal)",
+            "block signals must lie on the open line between two stations (beyond the exit switch zone, "
+            "before the next entry signal)",
             field=f"line.block_signals_m.{direction}",
-            value=off,
+            value=line.line_position(direction, given[j]),
+            allowed="between " + ", ".join(f"{a:g} and {b:g} m" for a, b in spans) + " (exclusive)",
         )
     if dets and overlap > 0 and sig.system != "moving_block":
         steps = _overlaps_to_detection(steps, overlap, dets)
