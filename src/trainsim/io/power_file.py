@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -33,7 +34,7 @@ from trainsim.power.onboard import OnboardStorage
 from trainsim.power.simulation import CompactPowerResult, PowerResult, TrainLoad
 from trainsim.power.study import FeedbackSettings, TrainService, run_study
 
-__all__ = ["PowerFile", "load_power_file", "run_power_file"]
+__all__ = ["PowerFile", "StudyReader", "StudyTrains", "load_power_file", "run_power_file"]
 
 SCHEMA = "trainsim/power"
 VERSIONS = (1,)
@@ -251,6 +252,35 @@ class SynchronisationSpec(_Spec):
         return step_s
 
 
+class TimetableStudySpec(_Spec):
+    """The trains of a batch study's timetable (``schema: trainsim/study``, its ``departures:``) on one
+    track: every distinct scenario of the study a train service, its runs' departures its timetable."""
+
+    study: str
+    track: str
+    origin_km: float = 0.0
+    direction: Direction = 1
+    #: prefix of the services' ids (default: the track's id): ``<id>/<study entry's name>``
+    id: str | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class StudyTrains:
+    """One distinct scenario of a batch study and the departures of its runs [s since midnight].
+
+    ``entry`` names the study entry (``runs[k] 'name'``) for the messages."""
+
+    name: str
+    entry: str
+    scenario: Any
+    departures_s: tuple[float, ...]
+
+
+#: Reads a batch study file into its distinct scenarios with their departures. The batch layer
+#: (above this one) provides it: trainsim.batch.power_timetable.read_study_trains.
+StudyReader = Callable[[Path], list[StudyTrains]]
+
+
 class OperationLinkSpec(_Spec):
     """The trains of an operation file (``trainsim operate``), as operated, on this network."""
 
@@ -268,14 +298,18 @@ class PowerFile(_Spec):
     description: str | None = None
     network: NetworkSpec
     trains: list[TrainSpec] = Field(default_factory=list)
+    #: trains from batch studies' timetables (with or without trains:)
+    timetable: list[TimetableStudySpec] = Field(default_factory=list)
     operation: OperationLinkSpec | None = None
     simulation: SimulationSpec = Field(default_factory=SimulationSpec)
     synchronisation: SynchronisationSpec | None = None
 
     @model_validator(mode="after")
     def _trains_or_operation(self) -> PowerFile:
-        if bool(self.trains) == (self.operation is not None):
-            raise ValueError("give either trains (a timetable of scenarios) or operation (an operation file)")
+        if bool(self.trains or self.timetable) == (self.operation is not None):
+            raise ValueError(
+                "give either trains and/or timetable (batch studies) or operation (an operation file)"
+            )
         if self.synchronisation is not None and self.operation is not None:
             raise ValueError("synchronisation shifts the departures of trains: not of an operation file")
         if self.operation is not None and self.simulation.traces == "on_network":
@@ -419,9 +453,85 @@ def _network(spec: NetworkSpec, file: str) -> Network:
         ) from exc
 
 
-def load_power_file(path: str | Path) -> tuple[PowerFile, Network, list[TrainService]]:
+def _check_on_track(
+    network: Network,
+    scenario: Any,
+    track_id: str,
+    origin_km: float,
+    direction: int,
+    what: str,
+    file: str,
+    field: str,
+) -> float:
+    """The origin [m] of a route laid on track ``track_id``; InputError naming ``field`` if the track
+    is unknown or the route leaves the track."""
+    if track_id not in {tr.id for tr in network.tracks}:
+        raise InputError("unknown track", file=file, field=field.rsplit(".", 1)[0] + ".track", value=track_id,
+                         allowed=", ".join(tr.id for tr in network.tracks))  # fmt: skip
+    track = network.tracks[network.track_index(track_id)]
+    origin = origin_km * 1000
+    end = origin + direction * (scenario.route.end_m - scenario.route.start_m)
+    lo, hi = min(origin, end), max(origin, end)
+    if lo < track.start_m - 1e-6 or hi > track.end_m + 1e-6:
+        raise InputError(
+            f"{what} runs off the wire: its route covers {lo / 1000:g} .. {hi / 1000:g} km",
+            file=file,
+            field=field,
+            value=origin_km,
+            allowed=f"a route within track {track.id}'s {track.start_m / 1000:g} .. {track.end_m / 1000:g} km",
+        )
+    return origin
+
+
+def _study_services(
+    path: Path, spec: PowerFile, network: Network, read_study: StudyReader | None
+) -> list[TrainService]:
+    """The train services of the file's ``timetable:`` studies."""
+    file = str(path)
+    services = []
+    studies: dict[Path, list[StudyTrains]] = {}
+    for k, link in enumerate(spec.timetable):
+        where = path.parent / link.study
+        if not where.is_file():
+            raise InputError("study file not found", file=file, field=f"timetable[{k}].study", value=link.study,
+                             allowed="a trainsim/study file, relative to this file")  # fmt: skip
+        if read_study is None:
+            raise InputError(
+                "a batch study's timetable is read by the batch layer: run this file with `trainsim power` "
+                "(or trainsim.batch.power_timetable.run_power_file)",
+                file=file, field=f"timetable[{k}].study", value=link.study,
+            )  # fmt: skip
+        # a study laid on both tracks is read (and its scenarios built) once
+        if where.resolve() not in studies:
+            studies[where.resolve()] = read_study(where)
+        for group in studies[where.resolve()]:
+            if group.scenario.model != "single_point":
+                raise InputError(
+                    f"the power simulation takes single-point scenarios: study entry {group.entry} is "
+                    f"{group.scenario.model}", file=file, field=f"timetable[{k}].study", value=link.study,
+                    allowed="model: single_point",
+                )  # fmt: skip
+            origin = _check_on_track(
+                network, group.scenario, link.track, link.origin_km, link.direction,
+                f"study entry {group.entry} of {link.study}", file, f"timetable[{k}].origin_km",
+            )  # fmt: skip
+            sid = f"{link.id or link.track}/{group.name}"
+            services.append(TrainService(sid, group.scenario, link.track, origin, link.direction,
+                                         group.departures_s, None))  # fmt: skip
+    ids = [s.id for s in services]
+    twice = sorted({i for i in ids if ids.count(i) > 1})
+    if twice:
+        raise InputError("two timetable studies give services of the same id", file=file, field="timetable",
+                         value=twice[0], allowed="a distinct id: per study")  # fmt: skip
+    return services
+
+
+def load_power_file(
+    path: str | Path, *, read_study: StudyReader | None = None
+) -> tuple[PowerFile, Network, list[TrainService]]:
     """Read and check a power-supply file: its spec, the network and the train services (each
-    scenario file read relative to the power file)."""
+    scenario file read relative to the power file). ``read_study`` reads the batch studies of a
+    ``timetable:`` block (the batch layer's, trainsim.batch.power_timetable.read_study_trains)."""
     from trainsim.io.loader import load_scenario
     from trainsim.io.trainsim_yaml import read_yaml
 
@@ -462,26 +572,16 @@ def load_power_file(path: str | Path) -> tuple[PowerFile, Network, list[TrainSer
                 value=t.scenario,
                 allowed="model: single_point",
             )
-        if t.track not in {tr.id for tr in network.tracks}:
-            raise InputError(
-                "unknown track",
-                file=file,
-                field=f"trains[{k}].track",
-                value=t.track,
-                allowed=", ".join(tr.id for tr in network.tracks),
-            )
-        track = network.tracks[network.track_index(t.track)]
-        origin = t.origin_km * 1000
-        end = origin + t.direction * (scenario.route.end_m - scenario.route.start_m)
-        lo, hi = min(origin, end), max(origin, end)
-        if lo < track.start_m - 1e-6 or hi > track.end_m + 1e-6:
-            raise InputError(
-                f"train {t.id} runs off the wire: its route covers {lo / 1000:g} .. {hi / 1000:g} km",
-                file=file,
-                field=f"trains[{k}].origin_km",
-                value=t.origin_km,
-                allowed=f"a route within track {track.id}'s {track.start_m / 1000:g} .. {track.end_m / 1000:g} km",
-            )
+        origin = _check_on_track(
+            network,
+            scenario,
+            t.track,
+            t.origin_km,
+            t.direction,
+            f"train {t.id}",
+            file,
+            f"trains[{k}].origin_km",
+        )
         if t.departures_s is not None:
             deps = tuple(float(x) for x in t.departures_s)
         else:
@@ -494,6 +594,7 @@ def load_power_file(path: str | Path) -> tuple[PowerFile, Network, list[TrainSer
             if problems:
                 raise InputError.from_problems([dataclasses.replace(q, file=file) for q in problems])
         services.append(TrainService(t.id, scenario, t.track, origin, t.direction, deps, storage))
+    services.extend(_study_services(path, spec, network, read_study))
     return spec, network, services
 
 
@@ -857,6 +958,7 @@ def run_power_file(
     *,
     plots: bool = True,
     synchronise: bool | None = None,
+    read_study: StudyReader | None = None,
 ) -> tuple[dict[str, Any], str]:
     """Run a power-supply file: (summary, status). With ``out_dir``: ``summary.json``, the time
     series as CSV (``trains.csv``, ``substations.csv``, ``network.csv``) and, with ``plots``, PNG
@@ -868,8 +970,9 @@ def run_power_file(
     when within :data:`~trainsim.power.simulation.MAX_FULL_TRAIN_STEPS`, else only while it runs, a whole
     day: :mod:`trainsim.power.day`); the ``synchronisation:`` block shifts the departures first
     (:func:`~trainsim.power.synchronise.synchronise_departures`; ``synchronise`` True runs it with the
-    block's or the default settings, False skips it) and the summary gets a ``synchronisation`` block."""
-    spec, network, services = load_power_file(path)
+    block's or the default settings, False skips it) and the summary gets a ``synchronisation`` block.
+    ``read_study`` reads the ``timetable:`` block's batch studies (see :func:`load_power_file`)."""
+    spec, network, services = load_power_file(path, read_study=read_study)
     sim = spec.simulation
     sync_block = None
     if spec.operation is not None:
