@@ -497,8 +497,8 @@ def _study_services(
                              allowed="a trainsim/study file, relative to this file")  # fmt: skip
         if read_study is None:
             raise InputError(
-                "a batch study's timetable is read by the batch layer: run this file with `trainsim power` "
-                "(or trainsim.batch.power_timetable.run_power_file)",
+                "a batch study's timetable is read by the batch layer: run this file with "
+                "trainsim.batch.power_timetable.run_power_file (or load_power_file)",
                 file=file, field=f"timetable[{k}].study", value=link.study,
             )  # fmt: skip
         # a study laid on both tracks is read (and its scenarios built) once
