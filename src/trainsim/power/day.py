@@ -15,12 +15,15 @@ order with that state handed on, which is what the pass does. A compact day solv
 in the same order as a full run: its step solutions are equal bit for bit, its sums equal to
 rounding (other summation order, 1e-15 relative).
 
-Feedback of voltage-limited traction (:mod:`trainsim.power.study`) needs each train's series over
-the span and is not done on a compact day: the day is solved once with every train's nominal run
-(the study's first iteration), and where the line limits a departure by more than the feedback
-tolerance, the status is ``traction_limited`` (the limitation was not fed back into the runs; the
-feedback block says ``enabled: false, requested: true``) and a warning names the departures and how
-to proceed (those hours with ``traces: full``).
+Feedback of voltage-limited traction (:mod:`trainsim.power.study`): with feedback enabled, the day
+is :func:`~trainsim.power.study.run_study`'s loop with compact traces (it reads every train's series
+through ``result.train_series``): the runs the line limits are made again with their caps and the
+day solved again until consistent, the ``feedback`` block giving the iterations, consistency and
+mismatch, each train its caps and time lost, as a full study does (the same figures, sums to
+rounding). Each iteration solves the whole day again. With feedback disabled, the day is solved once
+with every train's nominal run, and where the line limits a departure by more than the feedback
+tolerance, the status is ``traction_limited`` (not fed back: the feedback block says ``enabled:
+false, requested: false``) and a warning names the departures.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from trainsim.power.study import (
     TrainService,
     _load,
     _run,
+    run_study,
     with_neutral_sections,
     with_status,
 )
@@ -71,13 +75,24 @@ def run_day_study(
     feedback: FeedbackSettings | None = None,
     loads: tuple[list[TrainLoad], list[float]] | None = None,
 ) -> CompactPowerResult:
-    """The timetable's departures solved once over the span with compact traces (module doc), with
-    the study's summary blocks (``trains``: running times, no caps; ``feedback``) and status.
+    """The timetable's departures over the span with compact traces (module doc), with the study's
+    summary blocks (``trains``, ``feedback``) and status: with ``feedback.enabled``, fed back into the
+    runs as :func:`~trainsim.power.study.run_study` does; else solved once with the nominal runs.
     ``loads``: :func:`departure_loads` already computed, of services with the network's neutral
-    sections laid over their routes (:func:`~trainsim.power.study.with_neutral_sections`)."""
+    sections laid over their routes (:func:`~trainsim.power.study.with_neutral_sections`); used
+    without feedback only (the fed-back study makes its runs, capped ones included, itself)."""
     feedback = feedback or FeedbackSettings()
     if not services:
         raise InputError("no trains", field="trains", allowed="one or more trains")
+    if feedback.enabled:
+        # the services as given: run_study lays the network's neutral sections over their routes itself
+        fed = run_study(
+            network, services, dt_s=dt_s, start_s=start_s, end_s=end_s, feedback=feedback, traces="on_network"
+        )
+        if not isinstance(fed, CompactPowerResult):  # run_study keeps the traces it is asked for
+            raise TypeError("run_study(traces='on_network') did not return a CompactPowerResult")
+        fed.extra["traces"] = _traces_block(fed)
+        return fed
     # the runs coast through the network's neutral sections, as run_study's do
     services, neutral = with_neutral_sections(network, services)
     day_loads, running = loads if loads is not None else departure_loads(services)
@@ -98,19 +113,19 @@ def run_day_study(
     block: dict[str, Any] = {
         # not fed back: the study's status is then traction_limited where the line limits a departure
         "enabled": False,
-        "requested": feedback.enabled,
+        "requested": False,
         "iterations": 1,
         "consistent": not bool(limited.any()),
         "mismatch": float(np.max(1.0 - ratio, initial=0.0)),
         "knock_on": feedback.knock_on,
         "buffer_s": feedback.buffer_s,
-        "method": "none: a compact (whole-day) run is solved once with the nominal runs",
-        "note": "voltage-limited traction is checked, not fed back, on a compact run"
+        "method": "none: feedback disabled, the day is solved once with the nominal runs",
+        "note": "voltage-limited traction is checked, not fed back (feedback disabled)"
         + (
             f"; it limits {int(limited.sum())} departures ("
             + ", ".join(day_loads[i].id for i in np.flatnonzero(limited)[:5])
             + (", ..." if limited.sum() > 5 else "")
-            + "): run their hours with simulation.traces: full (start_s, end_s) to feed it back"
+            + "): enable simulation.feedback to feed it back into their runs"
             if limited.any()
             else ""
         ),
@@ -120,12 +135,17 @@ def run_day_study(
     )
     if limited.any():
         base.extra["warnings"].append(block["note"])
-    base.extra["traces"] = {
+    base.extra["traces"] = _traces_block(base)
+    return base
+
+
+def _traces_block(result: CompactPowerResult) -> dict[str, Any]:
+    """The summary's ``traces`` block: how the trains' series were kept and what they hold."""
+    return {
         "kept": "on_network",
         "train_steps": int(result.train_offset[-1]),
         "memory_mb": result.memory_bytes() / 1e6,
     }
-    return base
 
 
 def _replace_extra(result: CompactPowerResult, extra: dict[str, Any]) -> CompactPowerResult:

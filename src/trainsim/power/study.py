@@ -39,7 +39,13 @@ from trainsim.model.spans import electrification_cover, split_spans
 from trainsim.model.train import Train
 from trainsim.power.network import Network
 from trainsim.power.onboard import OnboardStorage
-from trainsim.power.simulation import PowerResult, TrainLoad, simulate, train_load_from_run
+from trainsim.power.simulation import (
+    CompactPowerResult,
+    PowerResult,
+    TrainLoad,
+    simulate,
+    train_load_from_run,
+)
 from trainsim.power.stretches import JoinedRun, joined_run, stop_positions
 from trainsim.power.traction_share import SHARE_FLOOR, ShareProfile, route_with_share, step_spans
 from trainsim.sim.result import RunResult
@@ -316,11 +322,17 @@ def run_study(
     start_s: float | None = None,
     end_s: float | None = None,
     feedback: FeedbackSettings | None = None,
+    traces: str = "full",
 ) -> PowerResult:
     """Run every service, solve the network over time, feed limited traction back (see module doc).
 
     The result's summary has per train ``running_time_s``, ``traction_power_cap_kw`` (null when not
     capped), ``time_lost_s`` and a ``feedback`` block (iterations, consistent).
+    ``traces``: how each network solution keeps the trains' series
+    (:func:`~trainsim.power.simulation.simulate`): ``full`` (time x train arrays) or ``on_network``
+    (a :class:`CompactPowerResult`, for a whole day, :mod:`trainsim.power.day`). The feedback reads
+    every train's series through ``result.train_series``, so both give the same caps, iterations and
+    time lost (the sums over a train's steps to rounding: NaN padding and summation order differ).
     """
     feedback = feedback or FeedbackSettings()
     if not services:
@@ -418,13 +430,23 @@ def run_study(
             # the network is asked what each train would draw at full supply, and applies the limitation
             loads = [_full_demand(load, run_of(k, caps[i]), caps[i]) for load, (i, (k, _, _)) in
                      zip(loads, enumerate(departures), strict=True)]  # fmt: skip
-        result = simulate(network, loads, dt_s=dt_s, start_s=start_s, end_s=end_s)
-        asked = np.nansum(result.traction_demand_w, axis=0)
-        got = np.nansum(result.traction_delivered_w, axis=0)
+        result = simulate(network, loads, dt_s=dt_s, start_s=start_s, end_s=end_s, traces=traces)
+        if isinstance(result, CompactPowerResult):
+            asked = np.array(
+                [np.nansum(result.train_series(result.traction_demand_w, i)) for i in range(len(loads))]
+            )
+            got = np.array(
+                [np.nansum(result.train_series(result.traction_delivered_w, i)) for i in range(len(loads))]
+            )
+        else:
+            # kept as it was (one reduction over the time axis): full-trace figures stay bit for bit
+            asked = np.nansum(result.traction_demand_w, axis=0)
+            got = np.nansum(result.traction_delivered_w, axis=0)
         if per_step:
             # consistent: the network gives each train the traction its run used (the run's share of the
             # full demand), step by step summed over the run
-            used = np.array([np.nansum(_run_share(result, i, services[k], caps[i]) * result.traction_demand_w[:, i])
+            used = np.array([np.nansum(_run_share(result, i, services[k], caps[i])
+                                       * result.train_series(result.traction_demand_w, i))
                              for i, (k, _, _) in enumerate(departures)])  # fmt: skip
             mismatch = np.abs(got - used) / np.maximum(used, 1e-30)
             limited = mismatch > feedback.tolerance
@@ -436,19 +458,22 @@ def run_study(
         consistent = not limited.any() and settled
         if consistent or not feedback.enabled or iterations >= feedback.max_iterations:
             break
-        short = result.traction_delivered_w < result.traction_demand_w * (1.0 - feedback.tolerance)
         for i in np.flatnonzero(limited):
             if per_step:
                 caps[i] = _measured_share(result, i, services[departures[i][0]], caps[i])
                 continue
             k = departures[i][0]
             svc = services[k]
+            delivered_i = result.train_series(result.traction_delivered_w, i)
+            short = delivered_i < result.train_series(result.traction_demand_w, i) * (
+                1.0 - feedback.tolerance
+            )
             # the stretch of each limited step: back from chainage to the route's own position
             s_route = svc.scenario.route.start_m + svc.direction * (
-                result.train_position_m[short[:, i], i] - svc.origin_m
+                result.train_series(result.train_position_m, i)[short] - svc.origin_m
             )
             stretch = np.clip(np.searchsorted(stops[k], s_route, side="right") - 1, 0, len(caps[i]) - 1)
-            delivered = result.traction_delivered_w[short[:, i], i]
+            delivered = delivered_i[short]
             for j in np.unique(stretch) if len(caps[i]) > 1 else [0]:
                 mine = delivered[stretch == j] if len(caps[i]) > 1 else delivered
                 caps[i][j] = min(caps[i][j], float(np.min(mine)) * efficiency[i])
@@ -586,16 +611,19 @@ def with_status(result: PowerResult) -> PowerResult:
 
 
 def _route_positions(result: PowerResult, i: int, service: TrainService) -> tuple[np.ndarray, np.ndarray]:
-    """(steps where departure ``i`` is on the network, its route positions there [m]): chainage
-    back to the route's own position."""
-    on = np.flatnonzero(np.isfinite(result.train_position_m[:, i]))
+    """(indices of departure ``i``'s series where it is on the network, its route positions there [m]):
+    chainage back to the route's own position. The indices are into ``result.train_series(.., i)``:
+    time steps of a full result, the train's own steps of a compact one."""
+    position = result.train_series(result.train_position_m, i)
+    on = np.flatnonzero(np.isfinite(position))
     route = service.scenario.route
-    return on, route.start_m + service.direction * (result.train_position_m[on, i] - service.origin_m)
+    return on, route.start_m + service.direction * (position[on] - service.origin_m)
 
 
 def _run_share(result: PowerResult, i: int, service: TrainService, profile: ShareProfile) -> np.ndarray:
-    """The share of tractive effort departure ``i``'s run had at each step (NaN off the network)."""
-    out = np.full(len(result.time_s), np.nan)
+    """The share of tractive effort departure ``i``'s run had at each step of its series (NaN off the
+    network)."""
+    out = np.full(len(result.train_series(result.train_position_m, i)), np.nan)
     on, s_route = _route_positions(result, i, service)
     out[on] = profile.at(s_route)
     return out
@@ -619,9 +647,9 @@ def _measured_share(
     stretch of line that step stands for; 1 elsewhere (see :mod:`trainsim.power.traction_share`)."""
     on, s_route = _route_positions(result, i, service)
     lo, hi = step_spans(s_route)
-    asked = result.traction_demand_w[on, i]
+    asked = result.train_series(result.traction_demand_w, i)[on]
     hit = asked > 0.0
-    share = result.traction_delivered_w[on[hit], i] / asked[hit]
+    share = result.train_series(result.traction_delivered_w, i)[on[hit]] / asked[hit]
     full = ShareProfile.full(profile.x_m[0], profile.x_m[-1])
     return full.lowered(lo[hit], hi[hit], np.clip(share, SHARE_FLOOR, 1.0))
 
