@@ -159,10 +159,11 @@ def test_power_file_compact_outputs_are_the_full_tables(small_runs):
 
 
 def test_limited_traction_on_a_compact_day_is_a_status_not_hidden(tmp_path):
-    """A weak line (0.25 ohm/km) limits traction: the compact day does not feed it back and says so."""
+    """A weak line (0.25 ohm/km) limits traction: with feedback disabled the compact day does not feed
+    it back and says so (with feedback, tests/power/test_long_day_feedback.py)."""
     from trainsim.io.power_file import run_power_file
 
-    path = _small_file(tmp_path, traces="on_network")
+    path = _small_file(tmp_path, traces="on_network", feedback={"enabled": False})
     data = yaml.safe_load(path.read_text())
     for t in data["network"]["tracks"]:
         t["contact_resistance_ohm_per_km"] = 0.25
@@ -171,8 +172,8 @@ def test_limited_traction_on_a_compact_day_is_a_status_not_hidden(tmp_path):
     path.write_text(yaml.safe_dump(data))
     summary, status = run_power_file(path)
     assert status != "ok" and "traction_limited" in summary["statuses"]
-    assert summary["feedback"]["requested"] and not summary["feedback"]["enabled"]
-    assert any("traces: full" in w for w in summary["warnings"])
+    assert not summary["feedback"]["requested"] and not summary["feedback"]["enabled"]
+    assert any("enable simulation.feedback" in w for w in summary["warnings"])
 
 
 def test_auto_traces_fall_back_to_compact_beyond_the_cap(tmp_path, monkeypatch):

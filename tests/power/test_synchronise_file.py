@@ -33,7 +33,7 @@ def _file(tmp_path: Path, sync: dict | None, count: int = 2) -> Path:
     [
         ({"window_s": -5}, "synchronisation.window_s"),
         ({"step_s": 0}, "synchronisation.step_s"),
-        ({"window_s": 10, "step_s": 20}, "synchronisation"),
+        ({"window_s": 10, "step_s": 20}, "synchronisation.step_s"),
         ({"rounds": 0}, "synchronisation.rounds"),
         ({"min_headway_s": -1}, "synchronisation.min_headway_s"),
         ({"per": "day"}, "synchronisation.per"),

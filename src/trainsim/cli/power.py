@@ -113,7 +113,9 @@ def power(
     """
     with user_errors():
         require_file(file, "power-supply file")
-        from trainsim.io.power_file import run_power_file
+        # the batch layer's wrapper: it reads the batch studies of a timetable: block (the file layer
+        # may not import the batch layer)
+        from trainsim.batch.power_timetable import run_power_file
 
         summary, status = run_power_file(file, out, plots=plots, synchronise=synchronise)
         if as_json:
