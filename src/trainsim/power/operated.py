@@ -224,7 +224,20 @@ def feed_back_operated(
         iterations += 1
         if iterations > 1:
             operated = operate({tid: c.copy() for tid, c in caps.items() if not np.all(np.isinf(c))})
-        result = simulate(network, operated.loads, dt_s=dt_s, start_s=start_s, end_s=end_s)
+        try:
+            result = simulate(network, operated.loads, dt_s=dt_s, start_s=start_s, end_s=end_s)
+        except InputError as exc:
+            if not any(p.field == "simulation.traces" for p in exc.problems):
+                raise
+            # the full traces' cap suggests compact traces, which operated trains cannot use (their
+            # feedback re-simulates the operation from each train's series over the whole span)
+            raise InputError(
+                "too many time steps x operated trains to keep every train's series over the whole span",
+                field="simulation",
+                value=f"step_s {dt_s:g}, start_s {start_s}, end_s {end_s}",
+                allowed="a shorter span (simulation.start_s, simulation.end_s) or a longer step_s; compact "
+                "traces (traces: on_network) are for trains of a timetable, not of an operation",
+            ) from None
         if not settings.enabled:
             feedback = {"enabled": False, "iterations": 1, "consistent": True, "method": "none",
                         "note": "operated trains are solved once: their delays come from the operation"}  # fmt: skip

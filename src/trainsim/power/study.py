@@ -577,8 +577,9 @@ def with_status(result: PowerResult) -> PowerResult:
         unfinished = [t["id"] for t in late if t["time_lost_s"] is None]
         if unfinished:
             warnings.append(
-                f"{len(unfinished)} operated train(s) did not reach their destination under the traction cap "
-                "the line allowed: " + ", ".join(unfinished)
+                f"{len(unfinished)} operated train(s) did not reach their destination with the traction the "
+                "line allowed (their own cap, or held behind a train that stalled; feedback.unfinished says "
+                "which): " + ", ".join(unfinished)
             )
     offered = float(np.nansum(result.regen_offered_w)) * dt
     curtailed = offered - float(np.nansum(result.regen_accepted_w)) * dt
