@@ -55,10 +55,13 @@ WARM_START_ITERATIONS = 12
 #: again when below E by as much (7.5e-4 V at 750 V; the power at stake is this times a current
 #: that is zero at the switching point).
 RECTIFIER_MARGIN_SHARE = 1e-6
-#: A diode rectifier's current is ys max(E - U, 0) rounded over this share of Un (7.5 mV at 750 V):
-#: I = ys (x + sqrt(x^2 + d^2)) / 2 with x = E - U. Still I > 0 always (a rectifier never takes
-#: power), the blocked current is ys d^2 / (4 |x|) (about 5e-5 A at 10 V above E), and Newton no
-#: longer cycles when the solution sits at the switching point (a rectifier at exactly E).
+#: A diode rectifier's current is ys max(E - U, 0) rounded over this share of Un (d = 7.5 mV at 750 V)
+#: by a C1 piecewise quadratic in x = E - U (:func:`_diode_forward`): 0 for x <= -d, ys (x + d)^2 / (4 d)
+#: for |x| < d, ys x for x >= d. Newton no longer cycles when the solution sits at the switching point
+#: (a rectifier at exactly E), I >= 0 always (a rectifier never takes power), and the rounding has a
+#: finite tail: a rectifier whose busbar is more than d above E gives exactly 0 A. (A rounding with an
+#: infinite tail, ys (x + sqrt(x^2 + d^2)) / 2, gave ys d^2 / (4 |x|) while blocking, a current that only
+#: the 1e-9 S contact leakage took: an idle section floated hundreds of volts above E.)
 DIODE_SMOOTHING_SHARE = 1e-5
 #: Rounding of the corners of a wayside storage's power ramps, as a share of the ramp (0.2 V on a
 #: 20 V ramp); a storage takes at most C d / 2 (1 % of its power) below its charging threshold.
@@ -546,6 +549,43 @@ def _injection_into(n: int, bins: np.ndarray, values: np.ndarray) -> np.ndarray:
     return np.bincount(bins, weights=values, minlength=n + 1)[:n]
 
 
+def _diode_forward(x: np.ndarray, delta: float) -> np.ndarray:
+    """A diode rectifier's current over its conductance [V], max(x, 0) rounded over delta with a
+    finite tail (DIODE_SMOOTHING_SHARE): 0 for x <= -delta, (x + delta)^2 / (4 delta) for |x| < delta,
+    x for x >= delta (value and slope continuous at +-delta). A blocked rectifier (its busbar more
+    than delta above E) then gives exactly 0 A, as the physical diode does."""
+    x = np.asarray(x, dtype=float)
+    inner = (x + delta) ** 2 / (4.0 * delta)
+    return np.where(x >= delta, x, np.where(x <= -delta, 0.0, inner))
+
+
+def _diode_forward_slope(x: np.ndarray, delta: float) -> np.ndarray:
+    """Derivative of :func:`_diode_forward` with respect to x: 0, (x + delta) / (2 delta), 1."""
+    x = np.asarray(x, dtype=float)
+    return np.where(x >= delta, 1.0, np.where(x <= -delta, 0.0, (x + delta) / (2.0 * delta)))
+
+
+@njit(cache=True)
+def _diode_forward_scalar(x, delta):
+    """:func:`_diode_forward` of one value, for the compiled Newton (the same operations, so the
+    same doubles)."""
+    if x >= delta:
+        return x
+    if x <= -delta:
+        return 0.0
+    return (x + delta) ** 2 / (4.0 * delta)
+
+
+@njit(cache=True)
+def _diode_forward_slope_scalar(x, delta):
+    """:func:`_diode_forward_slope` of one value, for the compiled Newton."""
+    if x >= delta:
+        return 1.0
+    if x <= -delta:
+        return 0.0
+    return (x + delta) / (2.0 * delta)
+
+
 @njit(cache=True, error_model="numpy")
 def _dc_load_residual(
     v, tc, tr, tc_bins, tr_bins, rows0, cols0, w0, rows1, cols1, w1, j_src,
@@ -641,7 +681,7 @@ def _dc_residual_full(
         va = v[dp_[k]] if dp_[k] >= 0 else 0.0
         vb = v[dn_[k]] if dn_[k] >= 0 else 0.0
         x = de[k] - (va - vb)
-        forward = 0.5 * (x + np.sqrt(x * x + delta * delta))
+        forward = _diode_forward_scalar(x, delta)
         i = (forward + reverse_share * (x - forward)) * dy[k]
         f[dn_[k] if dn_[k] >= 0 else n] += i
         f[dp_[k] if dp_[k] >= 0 else n] -= i
@@ -784,7 +824,7 @@ def _newton_dc_core(
             va = v[dp_[k]] if dp_[k] >= 0 else 0.0
             vb = v[dn_[k]] if dn_[k] >= 0 else 0.0
             x = de[k] - (va - vb)
-            slope = 0.5 * (1.0 + x / np.sqrt(x * x + delta * delta))
+            slope = _diode_forward_slope_scalar(x, delta)
             gd[k] = dy[k] * (slope + reverse_share * (1.0 - slope))
         jac = g0.copy()
         _stamp_dense(jac, tc, tr, di)
@@ -1157,7 +1197,7 @@ def solve_step(
     else:
         delta = DIODE_SMOOTHING_SHARE * un
         x_all, _ = asm.sources.x(np.arange(len(subs)), e, us.real)
-        i_sub = np.where(reversible, x_all * ys, _smooth_max(x_all, delta) * ys)
+        i_sub = np.where(reversible, x_all * ys, _diode_forward(x_all, delta) * ys)
         on = reversible | (x_all > 0)
     if ac:
         s_bus = us * np.conj(i_sub)
@@ -1380,7 +1420,7 @@ def _newton_dc(
             ve = _with_earth(v)
         if len(de):
             x, _ = asm.sources.x(d_index, de, ve[dp_] - ve[dn_])
-            forward = np.where(d_exact, x, _smooth_max(x, delta))
+            forward = np.where(d_exact, x, _diode_forward(x, delta))
             i_d = (forward + reverse_share * (x - forward)) * dy
             f += _injection_into(n, dn_bins, i_d) - _injection_into(n, dp_bins, i_d)
         if len(st_c):
@@ -1404,7 +1444,7 @@ def _newton_dc(
         ve = _with_earth(v)
         if len(de):
             x, dxdu = asm.sources.x(d_index, de, ve[dp_] - ve[dn_])
-            slope = np.where(d_exact, 1.0, _smooth_max_slope(x, delta))
+            slope = np.where(d_exact, 1.0, _diode_forward_slope(x, delta))
             data = data + pattern.values(3, -dxdu * dy * (slope + reverse_share * (1.0 - slope)))
         if len(st_c):
             us = np.maximum(ve[st_c] - ve[st_r], u_floor)
