@@ -102,8 +102,9 @@ def notice_first_compile() -> None:
     """Say so on stderr when numba has no cached machine code yet (the first run after an install).
 
     numba compiles the kernels on first use and caches them; the first run after an install therefore
-    takes about half a minute, the later ones milliseconds. The cache is probed through numba's cache
-    object of the main kernel; if numba changes that private layout, no notice is printed.
+    takes about a minute of CPU, the later ones load the cache in about a second. The cache is probed
+    through numba's cache object of the main kernel; if numba changes that private layout, no notice
+    is printed.
     """
     import os
 
@@ -116,7 +117,8 @@ def notice_first_compile() -> None:
     if not os.path.exists(index):
         typer.echo(
             "note: compiling trainsim's numerical kernels for this machine (first run after an install "
-            "only; about half a minute, later runs take milliseconds)",
+            "only; about a minute, more for operate, power and optimize; later runs load them in about a "
+            "second)",
             err=True,
         )
 

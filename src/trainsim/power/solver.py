@@ -11,11 +11,11 @@ voltage u = V_contact - V_rail (EN 50388 traction limitation, regenerative curta
 
     I_k = P_k(u) / u,   P_k(u) = P_traction a(u) + P_aux - P_regen r(u).
 
-DC: Newton's method on this system (Jacobian G + dI/du stamps) with the step limited to 0.3 Un,
-and an active-set iteration for the diode rectifiers: a non-reversible substation whose current
-would be negative is switched off (open), an off one whose busbar voltage falls below its no-load
-voltage is switched on again, until no state changes (complementarity: I_s >= 0, E - U_s >= 0 when
-off). AC: fixed-point iteration on the complex currents I_k = conj(S_k / u_k) with one LU
+DC: Newton's method on this system (Jacobian G + dI/du stamps) with the step limited to 0.3 Un.
+A diode rectifier's current ys max(E - U_s, 0) is rounded over a width d = DIODE_SMOOTHING_SHARE Un
+(C1 piecewise quadratic, exactly 0 A once U_s > E + d), so that Newton does not cycle at the
+switching point and a blocked rectifier takes and gives nothing; continuation through a reverse
+conductance and starts on the curtailment or limitation ramps are the fallbacks (`solve_step`). AC: fixed-point iteration on the complex currents I_k = conj(S_k / u_k) with one LU
 factorisation per step (simplified impedance model). Convergence is checked on every step.
 """
 
