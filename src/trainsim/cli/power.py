@@ -82,6 +82,77 @@ def _print_synchronisation(sync: dict) -> None:
         )
 
 
+def _compare_driving(
+    file: Path,
+    strategies: str | None,
+    supplement: str | None,
+    out: Path | None,
+    as_json: bool,
+    synchronise: bool | None,
+) -> str:
+    """``--compare-driving``: print (and with ``out`` write) the ``driving_comparison`` block; its status."""
+    from trainsim.batch.power_timetable import read_study_trains
+    from trainsim.errors import InputError
+    from trainsim.io.power_compare import compare_driving, parse_strategies
+
+    if strategies is None:
+        raise InputError("--supplement is the supplement of a driving comparison", field="--supplement",
+                         value=supplement, allowed="with --compare-driving, e.g. fastest,optimal")  # fmt: skip
+    names = parse_strategies(strategies)
+    require_file(file, "power-supply file")
+    block, status = compare_driving(
+        file, names, supplement, synchronise=synchronise, read_study=read_study_trains
+    )
+    document = {"driving_comparison": block}
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "driving_comparison.json").write_text(json.dumps(document, indent=2, allow_nan=False))
+    if as_json:
+        typer.echo(json.dumps(document, indent=2, allow_nan=False))
+        return status
+    _print_comparison(block)
+    if out is not None:
+        typer.echo(f"wrote {out}/driving_comparison.json")
+    return status
+
+
+def _print_comparison(block: dict) -> None:
+    given = f", supplement {block['supplement']}" if block["supplement"] is not None else ""
+    typer.echo(f"{block['name']}: driving compared{given} (kWh)")
+    typer.echo(
+        f"{'driving':<11}{'status':<24}{'traction asked':>15}{'pantographs':>13}{'substations':>13}"
+        f"{'losses':>9}{'regen used':>12}{'returned':>10}{'dissipated':>12}"
+    )
+    for r in block["runs"]:
+        g = r["regen_kwh"]
+        typer.echo(
+            f"{r['strategy']:<11}{r['status']:<24}{r['traction_demand_kwh']:>15.1f}{r['trains_energy_kwh']:>13.1f}"
+            f"{r['substations_energy_kwh']:>13.1f}{r['losses_kwh']:>9.1f}{g['used_by_trains']:>12.1f}"
+            f"{g['returned']:>10.1f}{g['dissipated']:>12.1f}"
+        )
+
+    def pct(s: dict) -> str:
+        return "-" if s["percent"] is None else f"{s['percent']:.1f} %"
+
+    for s in block["savings"]:
+        p, u = s["pantographs"], s["substations"]
+        typer.echo(
+            f"{s['strategy']} against {s['against']}: saves {p['kwh']:.1f} kWh ({pct(p)}) at the pantographs, "
+            f"{u['kwh']:.1f} kWh ({pct(u)}) at the substations"
+        )
+    for r in block["runs"]:
+        for w in r["warnings"]:
+            typer.echo(f"warning ({r['strategy']}): {w}", err=True)
+        if r["status"] != "ok":
+            others = [x for x in r["statuses"] if x != r["status"]]
+            typer.echo(
+                f"status ({r['strategy']}): {r['status']}"
+                + (f" (also {', '.join(others)})" if others else "")
+            )
+    if block["status"] != "ok":
+        typer.echo(f"status: {block['status']}")
+
+
 def power(
     file: Annotated[Path, typer.Argument(help="Power-supply file (schema: trainsim/power).")],
     out: Annotated[
@@ -99,6 +170,23 @@ def power(
             "or its defaults); --no-synchronise ignores the block.",
         ),
     ] = None,
+    compare_driving: Annotated[
+        str | None,
+        typer.Option(
+            "--compare-driving",
+            help="Run the file once per driving strategy (comma-separated, e.g. fastest,optimal; every "
+            "train's scenario driven so) and print them side by side with the savings against the first, "
+            "at the pantographs and at the substations.",
+        ),
+    ] = None,
+    supplement: Annotated[
+        str | None,
+        typer.Option(
+            "--supplement",
+            help="With --compare-driving: the running-time supplement of the energy-efficient strategies "
+            "('10%', '30 s'); without it each scenario's own driving: supplement or timetable.",
+        ),
+    ] = None,
 ) -> None:
     """Solve a traction power network with many trains over time (substations, voltages, regeneration).
 
@@ -110,8 +198,15 @@ def power(
     headway; nothing shifted). Informational, in the warnings only: power above a substation's rated power but
     within its overload power, regenerated energy the line could not take (burnt on board or by the
     friction brakes: the train still brakes as asked). See docs/POWER.md, "Status".
+
+    --compare-driving fastest,optimal [--supplement 10%]: the file run once per strategy, side by side
+    (JSON: driving_comparison); exit code 3 when any run is not ok.
     """
     with user_errors():
+        if compare_driving is not None or supplement is not None:
+            status = _compare_driving(file, compare_driving, supplement, out, as_json, synchronise)
+            exit_for_status(status)
+            return
         require_file(file, "power-supply file")
         # the batch layer's wrapper: it reads the batch studies of a timetable: block (the file layer
         # may not import the batch layer)
