@@ -1,6 +1,6 @@
-"""The holding-speed search of the optimal strategy (issue 16) starts from the fastest run capped at
-a holding speed and grows its bracket along the secant of the runs it built: the same holding speed
-(to the time tolerance) as the geometric bracket from the schedule's average speed, in fewer runs.
+"""The holding-speed search of the optimal strategy (issue 16) grows its bracket along the secant of
+the last two runs it built: the same holding speed (to the time tolerance) as the geometric steps
+used before, in fewer runs.
 
 No timed asserts: the counts of runs (``SectionSolver.plan``) are deterministic.
 """
@@ -50,7 +50,7 @@ def _solve_counting(monkeypatch, train, route, s0, s1):
 def test_secant_bracket_finds_the_same_holding_speed_in_fewer_runs(virm_stadelhofen, monkeypatch):
     train, route, s0, s1 = virm_stadelhofen
     plan, target, energy, runs = _solve_counting(monkeypatch, train, route, s0, s1)
-    # the search before: from the schedule's average speed, steps growing by 1.5 each
+    # the search before: steps growing by 1.5 each
     monkeypatch.setattr(optimal, "BRACKET_OVERSHOOT", 0.0)
     before, _, energy_before, runs_before = _solve_counting(monkeypatch, train, route, s0, s1)
 
@@ -60,15 +60,3 @@ def test_secant_bracket_finds_the_same_holding_speed_in_fewer_runs(virm_stadelho
     assert abs(np.log(plan.holding_speed_mps / before.holding_speed_mps)) < 1e-9
     assert energy == pytest.approx(energy_before, rel=1e-9)
     assert runs < runs_before
-
-
-def test_capped_fastest_guess_is_below_the_holding_speed(virm_stadelhofen):
-    # the capped fastest run leaves out the final coast, which only adds time: the guess is low,
-    # so the search brackets upwards from it, and nearer the answer than the average speed
-    train, route, s0, s1 = virm_stadelhofen
-    solver = SectionSolver(train, route, s0, s1)
-    target = 1.1 * solver.fastest_time_s
-    guess, slope = solver._capped_fastest_guess(target)
-    V = solver.solve(target).holding_speed_mps
-    assert (s1 - s0) / target < guess < V
-    assert slope < 0.0

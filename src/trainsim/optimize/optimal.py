@@ -1598,21 +1598,12 @@ class SectionSolver:
         guess: the average speed the schedule needs, a little higher (the train also accelerates
         and brakes), or the holding speed another variant of this solve found."""
         length = self.s1 - self.s0
-        guess, model_slope = None, None
-        if self._last_holding_speed is None and BRACKET_OVERSHOOT > 0.0:
-            guess, model_slope = self._capped_fastest_guess(running_time_s)
-        if guess is None:
-            guess = self._last_holding_speed or 1.1 * length / running_time_s
+        guess = self._last_holding_speed or 1.1 * length / running_time_s
         log_lo = log_hi = float(np.log(guess))
         e_lo = e_hi = excess(log_lo)
         # from another variant's holding speed the answer is near: a first step from the slope of
         # the running time in log V that variant saw, a little long so that it brackets
         factor = np.log(1.25)
-        if model_slope is not None and model_slope < 0.0:
-            # the capped fastest run's slope: the first step as a secant step would take it
-            factor = float(
-                min(BRACKET_MAX_STEP, max(BRACKET_OVERSHOOT * abs(e_lo) / -model_slope, BRACKET_MIN_STEP))
-            )
         if self._last_holding_speed is not None:
             factor = np.log(1.03)
             if self._time_slope is not None and self._time_slope < 0.0:
@@ -1637,28 +1628,6 @@ class SectionSolver:
             e_lo = excess(log_lo)
             factor = self._bracket_step(log_lo, e_lo, log_hi, e_hi, 1.5 * factor)
         return log_lo, log_hi
-
-    def _capped_fastest_guess(self, running_time_s: float) -> tuple[float | None, float | None]:
-        """The holding speed at which the fastest run, its speed capped there, takes
-        ``running_time_s``, and the slope of that time in log V [s] (issue 16: a first guess
-        nearer the answer than the schedule's average speed; the final coast, which the cap
-        leaves out, only adds time, so the answer is higher: 19.1 against 16.4 m/s for the VIRM6
-        on CH_Stadelhofen_Altstetten 3530-5790 m, answer 38.7). (None, None) without a run
-        that slow."""
-        _, v, t, _ = self.fastest
-        dt = np.diff(t)
-        vbar = 0.5 * (v[:-1] + v[1:])
-
-        def capped(V: float) -> float:
-            # a step above V is run at V: its time grows as vbar / V
-            return float(np.sum(dt * np.maximum(1.0, vbar / V)))
-
-        vtop = float(vbar.max(initial=0.0))
-        if not vtop > 0.5 or capped(0.5) < running_time_s or capped(vtop) > running_time_s:
-            return None, None
-        V = float(brentq(lambda x: capped(x) - running_time_s, 0.5, vtop, xtol=1e-6))
-        slope = -float(np.sum(np.where(vbar > V, dt * vbar / V, 0.0)))
-        return V, slope
 
     @staticmethod
     def _bracket_step(a: float, e_a: float, b: float, e_b: float, grown: float) -> float:
