@@ -34,15 +34,7 @@ def read_study_trains(path: Path) -> list[StudyTrains]:
     no departure: a power study places every train in time."""
     study = load_study(path)
     expansion = study.expand()
-    payload = Payload(
-        study.fingerprint,
-        study.name,
-        tuple(e.data for e in study.entries),
-        timetables=tuple(study.timetables.items()),
-        driving=study.driving,
-        profiles=tuple(study.profiles.items()),
-        multi_point=study.multi_point,
-    )
+    payload = Payload.of(study)
     state = WorkerState(payload)
     groups: dict[str, tuple[int, Any, list[float]]] = {}
     for i in range(len(expansion)):

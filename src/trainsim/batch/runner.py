@@ -370,15 +370,7 @@ def run_study(
     todo = [i for i, rid in enumerate(expansion.run_ids) if rid not in done]
     n_workers = 1 if executor == "serial" else (workers or default_workers())  # Dask: known once started
     size = chunk_size or study.spec.chunk_size  # None: automatic, shrinking towards the end
-    payload = Payload(
-        study.fingerprint,
-        study.name,
-        tuple(e.data for e in study.entries),
-        timetables=tuple(study.timetables.items()),
-        driving=study.driving,
-        profiles=tuple(study.profiles.items()),
-        multi_point=study.multi_point,
-    )
+    payload = Payload.of(study)
     already = len(expansion) - len(todo)
     computed = failed = stalled = chunks = 0
     sizes: list[int] = []

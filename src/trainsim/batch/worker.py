@@ -32,11 +32,14 @@ import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from trainsim.batch.expand import RunTask
 from trainsim.batch.paths import parse_path, set_value
 from trainsim.errors import InputError
+
+if TYPE_CHECKING:
+    from trainsim.batch.study import Study
 
 __all__ = [
     "DRIVING_COLUMNS",
@@ -74,6 +77,19 @@ class Payload:
     driving: bool = False
     profiles: tuple[tuple[str, Any], ...] = ()
     multi_point: bool = False
+
+    @classmethod
+    def of(cls, study: Study) -> Payload:
+        """The payload of ``study`` (a :class:`~trainsim.batch.study.Study`)."""
+        return cls(
+            study.fingerprint,
+            study.name,
+            tuple(e.data for e in study.entries),
+            timetables=tuple(study.timetables.items()),
+            driving=study.driving,
+            profiles=tuple(study.profiles.items()),
+            multi_point=study.multi_point,
+        )
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from trainsim.errors import InputError
-from trainsim.io.power_file import StudyReader, _timetable_result, load_power_file
-from trainsim.power.study import FeedbackSettings, TrainService
+from trainsim.io.power_file import StudyReader, load_power_file, timetable_result
+from trainsim.power.study import TrainService
 
 __all__ = ["STRATEGIES", "compare_driving", "parse_strategies"]
 
@@ -122,14 +122,13 @@ def compare_driving(
         raise InputError("the file has a synchronisation: block; the driving comparison runs the timetable as given",
                          file=file, field="--synchronise", allowed="--no-synchronise with --compare-driving")  # fmt: skip
     sim = spec.simulation
-    f = sim.feedback
-    feedback = FeedbackSettings(f.enabled, f.max_iterations, f.tolerance, f.method, f.knock_on, f.buffer_s)
+    feedback = sim.feedback.settings()
     # every strategy's trains first: a missing supplement is reported before any run is made
     variants = [_driven(services, s, None if s == "fastest" else timetable, file) for s in strategies]
     runs = []
     for strategy, driven in zip(strategies, variants, strict=True):
         try:
-            result = _timetable_result(network, driven, sim, feedback, (sim.start_s, sim.end_s))
+            result = timetable_result(network, driven, sim, feedback, (sim.start_s, sim.end_s))
         except InputError as exc:
             raise exc.located(file) from None
         runs.append(_figures(result.summary(), strategy))

@@ -215,6 +215,12 @@ class FeedbackSpec(_Spec):
     knock_on: bool = False
     buffer_s: NonNegative = 0.0
 
+    def settings(self) -> FeedbackSettings:
+        """The power layer's feedback settings of this block."""
+        return FeedbackSettings(
+            self.enabled, self.max_iterations, self.tolerance, self.method, self.knock_on, self.buffer_s
+        )
+
 
 class SimulationSpec(_Spec):
     step_s: Annotated[float, Field(gt=0, le=60)] = 1.0
@@ -902,9 +908,7 @@ def _run_operated(path: Path, spec: PowerFile, network: Network) -> Any:
                         {o.id: o.status for o in operated.trains}, {o.id: _wait_s(o) for o in operated.trains})  # fmt: skip
 
     fb = sim.feedback
-    settings = FeedbackSettings(
-        fb.enabled, fb.max_iterations, fb.tolerance, fb.method, fb.knock_on, fb.buffer_s
-    )
+    settings = fb.settings()
     try:
         return feed_back_operated(network, trains, operate, settings, explicit=set(fb.model_fields_set),
                                   dt_s=sim.step_s, start_s=sim.start_s, end_s=sim.end_s,
@@ -990,10 +994,7 @@ def run_power_file(
                              allowed=", ".join(t.id for t in network.tracks))  # fmt: skip
         result = _run_operated(Path(path), spec, network)
     else:
-        fb = FeedbackSettings(
-        sim.feedback.enabled, sim.feedback.max_iterations, sim.feedback.tolerance, sim.feedback.method,
-        sim.feedback.knock_on, sim.feedback.buffer_s,
-    )  # fmt: skip
+        fb = sim.feedback.settings()
         wanted = spec.synchronisation if synchronise is None else (
             (spec.synchronisation or SynchronisationSpec()) if synchronise else None)  # fmt: skip
         span = (sim.start_s, sim.end_s)
@@ -1003,7 +1004,7 @@ def run_power_file(
             except InputError as exc:
                 raise exc.located(str(path)) from None
         try:
-            result = _timetable_result(network, services, sim, fb, span)
+            result = timetable_result(network, services, sim, fb, span)
         except InputError as exc:
             raise exc.located(str(path)) from None
     summary = result.summary()
@@ -1046,7 +1047,7 @@ def _dense_for_outputs(result: PowerResult, summary: dict[str, Any]) -> PowerRes
     return result
 
 
-def _timetable_result(
+def timetable_result(
     network: Network,
     services: list[TrainService],
     sim: SimulationSpec,
