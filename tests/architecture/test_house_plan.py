@@ -33,7 +33,7 @@ def test_import_contracts_are_kept():
 
 GENERATED = re.compile(
     r"(__pycache__/|\.py[cod]$|\.nb[ic]$|\.egg-info/|(^|/)build/|(^|/)dist/|\.so$|\.ruff_cache/|"
-    r"\.pytest_cache/|(^|/)site/|(^|/)out/|\.coverage$)"
+    r"\.pytest_cache/|(^|/)site/|(^|/)out/|\.coverage$|^src/.*\.c$|^src/.*/_\w+\.html$)"
 )
 
 
@@ -79,3 +79,16 @@ def test_first_run_after_an_install_says_it_compiles(tmp_path):
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
     proc = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, env=env)
     assert "compiling trainsim's numerical kernels" in proc.stderr
+
+
+def test_the_generated_patterns_catch_compiled_extension_artefacts():
+    # Cython writes the C source and the annotated HTML next to the .pyx; the build, the module
+    for name in (
+        "src/trainsim/sim/_forces.c",
+        "src/trainsim/sim/_forces.html",
+        "src/trainsim/sim/_forces.cpython-311-x86_64-linux-gnu.so",
+        "build/temp.linux-x86_64-cpython-311/x.o",
+    ):
+        assert GENERATED.search(name), name
+    assert not GENERATED.search("src/trainsim/sim/_forces.pyx")
+    assert not GENERATED.search("src/trainsim/sim/_forces.pxd")

@@ -1,0 +1,142 @@
+# cython: language_level=3
+"""Shared declarations of the compiled (Cython) hot path of the fastest run: the effort curves as
+C structs and the force laws every integrator evaluates. The same formulas, in the same order of
+floating-point operations, as ``trainsim.sim.kernel`` (numba), so that both give the same bits:
+no ``-ffast-math``, no fused multiply-add (the default x86-64 target has none).
+
+An effort curve is read from the tuple ``(starts, coefs, fcap, pcap)`` of
+``EffortCurve.as_arrays()``; the structs hold pointers into those arrays, which the caller keeps
+alive for the length of the call (the Python entry points hold the tuples).
+"""
+
+from libc.math cimport INFINITY, sqrt
+
+# regimes, as trainsim.sim.kernel numbers them
+cdef enum:
+    TRACTION = 0
+    CRUISE = 1
+    COAST = 2
+    BRAKE = 3
+    DWELL = 4
+    REGEN = 5
+    FOLLOW = 6
+
+# indices into the parameter vector P (trainsim.sim.kernel.P_*)
+cdef enum:
+    P_INERTIAL_MASS = 0
+    P_MASS = 1
+    P_R0 = 2
+    P_R1 = 3
+    P_R2 = 4
+    P_DECEL = 5
+    P_BRAKE_FRACTION = 6
+    P_TRACTION_SCALE = 7
+    N_PARAMS = 8
+
+# trainsim.model.effort.POWER_CAP_MIN_SPEED_MPS [m/s]; a test checks that the two agree
+cdef extern from *:
+    """
+    static const double TRAINSIM_POWER_CAP_MIN_SPEED = 1e-3;
+    """
+    const double POWER_CAP_MIN_SPEED "TRAINSIM_POWER_CAP_MIN_SPEED"
+
+
+cdef struct Curve:
+    const double* starts  # interval start speeds [m/s], increasing, n of them
+    const double* coefs  # n x 4 row-major: c0, c1, c2, ch of c0 + c1 v + c2 v^2 + ch / v [N]
+    Py_ssize_t n
+    double fcap  # force cap [N]
+    double pcap  # power cap [W]
+
+
+cdef struct Curves:
+    Curve traction
+    Curve brake
+    Curve regen
+
+
+cdef inline Py_ssize_t search_right(const double* a, Py_ssize_t n, double v) noexcept nogil:
+    """``np.searchsorted(a, v, side="right")`` on a sorted array without NaN (NaN v sorts last)."""
+    cdef Py_ssize_t lo = 0, hi = n, mid
+    if v != v:
+        return n
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] <= v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+cdef inline Py_ssize_t search_left(const double* a, Py_ssize_t n, double v) noexcept nogil:
+    """``np.searchsorted(a, v, side="left")`` on a sorted array without NaN (NaN v sorts last)."""
+    cdef Py_ssize_t lo = 0, hi = n, mid
+    if v != v:
+        return n
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] < v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+cdef inline double law(double v, Py_ssize_t j, const double* coefs) noexcept nogil:
+    """Interval j's law c0 + c1 v + c2 v^2 + ch / v [N] (``kernel._law``)."""
+    cdef const double* c = coefs + 4 * j
+    cdef double f = c[0] + c[1] * v + c[2] * v * v
+    if c[3] != 0.0:
+        f += c[3] / v if v > 0.0 else INFINITY
+    return f
+
+
+cdef inline double effort(double v, const Curve* k) noexcept nogil:
+    """Maximum force [N] of a compiled EffortCurve at speed v [m/s] (``kernel.effort``)."""
+    cdef Py_ssize_t j = search_right(k.starts, k.n, v) - 1
+    if j < 0:
+        j = 0
+    cdef double f = law(v, j, k.coefs)
+    if f > k.fcap:
+        f = k.fcap
+    cdef double vp = v if v > POWER_CAP_MIN_SPEED else POWER_CAP_MIN_SPEED
+    if f * vp > k.pcap:
+        f = k.pcap / vp
+    return f if f > 0.0 else 0.0
+
+
+cdef inline double effort_branch(double v, double vref, const Curve* k) noexcept nogil:
+    """Force [N] at speed v [m/s] on the smooth branch that holds at ``vref``; the curve itself
+    when ``vref < 0`` (``kernel.effort_branch``)."""
+    if vref < 0.0:
+        return effort(v, k)
+    cdef Py_ssize_t j = search_right(k.starts, k.n, vref) - 1
+    if j < 0:
+        j = 0
+    cdef double best = law(vref, j, k.coefs)
+    cdef int branch = 0
+    if k.fcap < best:
+        best = k.fcap
+        branch = 1
+    cdef double vp = vref if vref > POWER_CAP_MIN_SPEED else POWER_CAP_MIN_SPEED
+    if k.pcap / vp < best:
+        best = k.pcap / vp
+        branch = 2
+    if not best > 0.0:
+        return 0.0
+    if branch == 1:
+        return k.fcap
+    if branch == 2:
+        return k.pcap / (v if v > POWER_CAP_MIN_SPEED else POWER_CAP_MIN_SPEED)
+    cdef double f = law(v, j, k.coefs)
+    return f if f > 0.0 else 0.0
+
+
+cdef inline double speed_of(double E) noexcept nogil:
+    """v = sqrt(2 E) [m/s], 0 at or below standstill."""
+    return sqrt(2.0 * E) if E > 0.0 else 0.0
+
+
+cdef int curve_from(object arrays, Curve* out) except -1
+cdef int curves_from(object curves, Curves* out) except -1

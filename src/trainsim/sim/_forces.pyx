@@ -1,0 +1,48 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
+"""Reading effort curves into the structs of ``_forces.pxd`` (see there)."""
+
+import numpy as np
+
+
+cdef int curve_from(object arrays, Curve* out) except -1:
+    """Fill ``out`` from ``(starts, coefs, fcap, pcap)``; the arrays must stay alive (they are the
+    caller's) and are C-contiguous float64 as ``EffortCurve.as_arrays()`` makes them."""
+    starts, coefs, fcap, pcap = arrays
+    cdef const double[::1] s = starts
+    cdef const double[:, ::1] c = coefs
+    if s.shape[0] == 0 or c.shape[0] != s.shape[0] or c.shape[1] != 4:
+        raise ValueError(f"effort curve arrays of shapes {np.shape(starts)} and {np.shape(coefs)}: need (n,) and (n, 4), n >= 1")
+    out.starts = &s[0]
+    out.coefs = &c[0, 0]
+    out.n = s.shape[0]
+    out.fcap = fcap
+    out.pcap = pcap
+    return 0
+
+
+cdef int curves_from(object curves, Curves* out) except -1:
+    """Fill ``out`` from the kernel's 12-tuple ``(ts, tc, tf, tp, bs, bc, bf, bp, rs, rc, rf, rp)``."""
+    curve_from(curves[0:4], &out.traction)
+    curve_from(curves[4:8], &out.brake)
+    curve_from(curves[8:12], &out.regen)
+    return 0
+
+
+def power_cap_min_speed():
+    """The floor of the power cap's speed compiled into the extension [m/s] (checked by a test
+    against ``trainsim.model.effort.POWER_CAP_MIN_SPEED_MPS``)."""
+    return POWER_CAP_MIN_SPEED
+
+
+def effort_at(double v, object arrays):
+    """``kernel.effort`` through the compiled structs (for tests)."""
+    cdef Curve k
+    curve_from(arrays, &k)
+    return effort(v, &k)
+
+
+def effort_branch_at(double v, double vref, object arrays):
+    """``kernel.effort_branch`` through the compiled structs (for tests)."""
+    cdef Curve k
+    curve_from(arrays, &k)
+    return effort_branch(v, vref, &k)

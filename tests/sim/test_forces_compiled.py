@@ -1,0 +1,44 @@
+"""The compiled force laws (``sim/_forces.pxd``, Cython) give the same bits as the numba kernel's."""
+
+import numpy as np
+import pytest
+
+from trainsim.model.effort import POWER_CAP_MIN_SPEED_MPS
+from trainsim.sim import _forces, kernel
+
+
+def test_the_power_cap_floor_is_the_models():
+    assert _forces.power_cap_min_speed() == POWER_CAP_MIN_SPEED_MPS
+
+
+def _random_curve(rng: np.random.Generator, n: int) -> tuple:
+    starts = np.concatenate(([0.0], np.sort(rng.uniform(0.5, 40.0, n - 1))))
+    coefs = np.column_stack(
+        (
+            rng.uniform(-5e4, 4e5, n),
+            rng.uniform(-2e3, 2e3, n),
+            rng.uniform(-50.0, 50.0, n),
+            np.where(rng.random(n) < 0.3, rng.uniform(0.0, 5e6, n), 0.0),
+        )
+    )
+    fcap = rng.choice([np.inf, rng.uniform(1e5, 4e5)])
+    pcap = rng.choice([np.inf, rng.uniform(1e6, 8e6)])
+    return starts, np.ascontiguousarray(coefs), float(fcap), float(pcap)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_effort_and_its_branches_equal_the_numba_kernel_bit_for_bit(seed):
+    rng = np.random.default_rng(seed)
+    curve = _random_curve(rng, int(rng.integers(1, 12)))
+    speeds = np.concatenate(([0.0, 1e-4, POWER_CAP_MIN_SPEED_MPS], curve[0], rng.uniform(0.0, 60.0, 200)))
+    for v in speeds:
+        assert _forces.effort_at(v, curve) == kernel.effort(v, *curve)
+        for vref in (-1.0, 0.0, v, *rng.uniform(0.0, 60.0, 3)):
+            got = _forces.effort_branch_at(v, vref, curve)
+            want = kernel.effort_branch(v, vref, *curve)
+            assert got == want or (np.isnan(got) and np.isnan(want)), (v, vref, got, want)
+
+
+def test_a_malformed_curve_is_refused_with_its_shapes():
+    with pytest.raises(ValueError, match=r"\(n,\) and \(n, 4\)"):
+        _forces.effort_at(1.0, (np.zeros(2), np.zeros((3, 4)), 1.0, 1.0))
