@@ -42,3 +42,10 @@ def test_effort_and_its_branches_equal_the_numba_kernel_bit_for_bit(seed):
 def test_a_malformed_curve_is_refused_with_its_shapes():
     with pytest.raises(ValueError, match=r"\(n,\) and \(n, 4\)"):
         _forces.effort_at(1.0, (np.zeros(2), np.zeros((3, 4)), 1.0, 1.0))
+
+
+def test_the_compiled_codes_are_the_python_ones():
+    from trainsim.sim import codes
+
+    compiled = _forces.compiled_codes()
+    assert compiled == {name: getattr(codes, name) for name in compiled}

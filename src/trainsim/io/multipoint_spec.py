@@ -229,7 +229,7 @@ def read_profile(path: Path, source: str) -> SpeedProfile:
     plausible range of its quantity, positions and times must not decrease. Errors name the file
     (``source`` if the file is missing: the scenario that names it), the line and the column.
     """
-    from trainsim.sim.kernel import REGIME_NAMES
+    from trainsim.sim.codes import REGIME_NAMES
 
     file = str(path)
     try:

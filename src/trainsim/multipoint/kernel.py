@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from trainsim.sim.kernel import BRAKE, COAST, CRUISE, FOLLOW, REGEN, TRACTION
+from trainsim.sim.codes import BRAKE, COAST, CRUISE, FOLLOW, REGEN, TRACTION
 
 # columns of the vehicle parameter array VP
 V_MASS = 0  # static mass m_i [kg]

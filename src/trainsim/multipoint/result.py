@@ -13,7 +13,7 @@ from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.multipoint import kernel as mpk
 from trainsim.multipoint.model import MultiPointTrain
-from trainsim.sim.kernel import BRAKE, COAST, DWELL, TRACTION
+from trainsim.sim.codes import BRAKE, COAST, DWELL, TRACTION
 from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear, line_voltage
 from trainsim.sim.result import EnergyFigures, RunResult, SectionSummary, build_result
 

@@ -32,8 +32,8 @@ from trainsim.model.train import Train
 from trainsim.multipoint import kernel as mpk
 from trainsim.multipoint.model import MultiPointSettings, MultiPointTrain, build_multipoint_train
 from trainsim.multipoint.result import MultiPointResult, build_multipoint_result
+from trainsim.sim.codes import BRAKE, COAST, CRUISE, DWELL, TRACTION
 from trainsim.sim.fastest import run_fastest
-from trainsim.sim.kernel import BRAKE, COAST, CRUISE, DWELL, TRACTION
 from trainsim.sim.profile import (
     PiecewiseLinear,
     averaged_over_length,

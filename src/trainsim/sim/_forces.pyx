@@ -46,3 +46,14 @@ def effort_branch_at(double v, double vref, object arrays):
     cdef Curve k
     curve_from(arrays, &k)
     return effort_branch(v, vref, &k)
+
+
+def compiled_codes():
+    """The regime codes and parameter indices compiled into the extension (checked by a test
+    against ``trainsim.sim.codes``)."""
+    return {
+        "TRACTION": TRACTION, "CRUISE": CRUISE, "COAST": COAST, "BRAKE": BRAKE, "DWELL": DWELL,
+        "REGEN": REGEN, "FOLLOW": FOLLOW, "P_INERTIAL_MASS": P_INERTIAL_MASS, "P_MASS": P_MASS,
+        "P_R0": P_R0, "P_R1": P_R1, "P_R2": P_R2, "P_DECEL": P_DECEL, "P_BRAKE_FRACTION": P_BRAKE_FRACTION,
+        "P_TRACTION_SCALE": P_TRACTION_SCALE, "N_PARAMS": N_PARAMS,
+    }

@@ -33,7 +33,7 @@ from trainsim.model.effort import POWER_CAP_MIN_SPEED_MPS, EffortCurve
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings, Scenario
 from trainsim.model.train import Train
-from trainsim.sim.kernel import BRAKE, COAST, DWELL, TRACTION
+from trainsim.sim.codes import BRAKE, COAST, DWELL, TRACTION
 from trainsim.sim.profile import (
     PiecewiseLinear,
     line_resistance_profile,

@@ -10,7 +10,7 @@ import numpy as np
 from trainsim.model.effort import POWER_CAP_MIN_SPEED_MPS
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
-from trainsim.sim import kernel
+from trainsim.sim import codes as kernel_codes
 
 __all__ = ["kernel_parameters", "kink_speeds", "regenerative_arrays"]
 
@@ -20,19 +20,19 @@ _NO_CURVE = (np.zeros(1), np.zeros((1, 4)), 0.0, 0.0)
 def kernel_parameters(train: Train, settings: RunSettings) -> tuple:
     """Scalar parameter vector and compiled effort curves of a train for the kernel."""
     law = train.resistance_law
-    P = np.zeros(kernel.N_PARAMS)
-    P[kernel.P_INERTIAL_MASS] = train.inertial_mass_kg
+    P = np.zeros(kernel_codes.N_PARAMS)
+    P[kernel_codes.P_INERTIAL_MASS] = train.inertial_mass_kg
     # the compiled track's line resistance is per unit mass (ratio x the route's g) [N/kg]
-    P[kernel.P_MASS] = train.mass_kg
-    P[kernel.P_R0], P[kernel.P_R1], P[kernel.P_R2] = law.c0, law.c1, law.c2
+    P[kernel_codes.P_MASS] = train.mass_kg
+    P[kernel_codes.P_R0], P[kernel_codes.P_R1], P[kernel_codes.P_R2] = law.c0, law.c1, law.c2
     braking = train.braking
     if braking.deceleration_mps2 is not None:
-        P[kernel.P_DECEL] = braking.deceleration_mps2 * settings.braking_fraction
+        P[kernel_codes.P_DECEL] = braking.deceleration_mps2 * settings.braking_fraction
         brake_curve = _NO_CURVE
     else:
         brake_curve = braking.service_force.as_arrays()
-    P[kernel.P_BRAKE_FRACTION] = settings.braking_fraction
-    P[kernel.P_TRACTION_SCALE] = 1.0
+    P[kernel_codes.P_BRAKE_FRACTION] = settings.braking_fraction
+    P[kernel_codes.P_TRACTION_SCALE] = 1.0
     return P, train.traction.as_arrays(), brake_curve
 
 

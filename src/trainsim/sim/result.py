@@ -13,8 +13,8 @@ from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
 from trainsim.physics import electrical as el
+from trainsim.sim.codes import BRAKE, CRUISE, DWELL, FOLLOW, REGEN, REGIME_NAMES, TRACTION
 from trainsim.sim.energy import run_works
-from trainsim.sim.kernel import BRAKE, CRUISE, DWELL, FOLLOW, REGEN, REGIME_NAMES, TRACTION
 from trainsim.sim.parameters import _NO_CURVE
 from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear, _law_arrays
 from trainsim.sim.trace_kernel import TRACE_ROWS, run_arrays

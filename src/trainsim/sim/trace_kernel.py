@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit
 
 from trainsim.model.effort import POWER_CAP_MIN_SPEED_MPS
-from trainsim.sim.kernel import BRAKE, CRUISE, DWELL, FOLLOW, REGEN, TRACTION
+from trainsim.sim.codes import BRAKE, CRUISE, DWELL, FOLLOW, REGEN, TRACTION
 
 #: The rows of ``run_arrays``'s point arrays: acceleration [m/s^2], forces [N], speed limit [m/s],
 #: powers [W], line currents [A] (the ``result.Trace`` fields of the same names).
