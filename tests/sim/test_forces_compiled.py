@@ -49,3 +49,16 @@ def test_the_compiled_codes_are_the_python_ones():
 
     compiled = _forces.compiled_codes()
     assert compiled == {name: getattr(codes, name) for name in compiled}
+
+
+def test_speed_domain_steps_equal_the_numba_kernel():
+    assert _forces.speed_domain_settings() == (
+        kernel.SPEED_DOMAIN_STEP,
+        kernel.SPEED_DOMAIN_MIN_STEPS,
+        kernel.SPEED_DOMAIN_STEPS_PER_LOG,
+    )
+    rng = np.random.default_rng(7)
+    for _ in range(2000):
+        v0, v1 = rng.uniform(0.0, 40.0, 2)
+        a0, a1 = rng.uniform(-2.0, 2.0, 2) * rng.choice([1e-6, 1.0], 2)
+        assert _forces.speed_domain_steps_of(v0, v1, a0, a1) == kernel.speed_domain_steps(v0, v1, a0, a1)

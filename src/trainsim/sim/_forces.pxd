@@ -9,7 +9,7 @@ An effort curve is read from the tuple ``(starts, coefs, fcap, pcap)`` of
 alive for the length of the call (the Python entry points hold the tuples).
 """
 
-from libc.math cimport INFINITY, sqrt
+from libc.math cimport INFINITY, ceil, fabs, log, sqrt
 
 # regimes, as trainsim.sim.kernel numbers them
 cdef enum:
@@ -136,6 +136,29 @@ cdef inline double effort_branch(double v, double vref, const Curve* k) noexcept
 cdef inline double speed_of(double E) noexcept nogil:
     """v = sqrt(2 E) [m/s], 0 at or below standstill."""
     return sqrt(2.0 * E) if E > 0.0 else 0.0
+
+
+# kernel.SPEED_DOMAIN_STEP [m/s], SPEED_DOMAIN_MIN_STEPS, SPEED_DOMAIN_STEPS_PER_LOG (checked by a test)
+cdef extern from *:
+    """
+    static const double TRAINSIM_SPEED_DOMAIN_STEP = 0.05;
+    static const long TRAINSIM_SPEED_DOMAIN_MIN_STEPS = 3;
+    static const double TRAINSIM_SPEED_DOMAIN_STEPS_PER_LOG = 12.0;
+    """
+    const double SPEED_DOMAIN_STEP "TRAINSIM_SPEED_DOMAIN_STEP"
+    const long SPEED_DOMAIN_MIN_STEPS "TRAINSIM_SPEED_DOMAIN_MIN_STEPS"
+    const double SPEED_DOMAIN_STEPS_PER_LOG "TRAINSIM_SPEED_DOMAIN_STEPS_PER_LOG"
+
+
+cdef inline long speed_domain_steps(double v_from, double v_to, double a_from, double a_to) noexcept nogil:
+    """RK4 steps of a speed-domain integration from v_from to v_to [m/s] (``kernel.speed_domain_steps``)."""
+    cdef double n = fabs(v_to - v_from) / SPEED_DOMAIN_STEP
+    if a_from * a_to > 0.0:
+        n = (n if n < 8.0 else 8.0) + SPEED_DOMAIN_STEPS_PER_LOG * fabs(log(a_to / a_from))
+    cdef long k = <long>ceil(n)
+    if k < SPEED_DOMAIN_MIN_STEPS:
+        k = SPEED_DOMAIN_MIN_STEPS
+    return k if k < 128 else 128
 
 
 cdef int curve_from(object arrays, Curve* out) except -1

@@ -57,3 +57,13 @@ def compiled_codes():
         "P_R0": P_R0, "P_R1": P_R1, "P_R2": P_R2, "P_DECEL": P_DECEL, "P_BRAKE_FRACTION": P_BRAKE_FRACTION,
         "P_TRACTION_SCALE": P_TRACTION_SCALE, "N_PARAMS": N_PARAMS,
     }
+
+
+def speed_domain_steps_of(double v_from, double v_to, double a_from, double a_to):
+    """``kernel.speed_domain_steps`` through the compiled function (for tests)."""
+    return speed_domain_steps(v_from, v_to, a_from, a_to)
+
+
+def speed_domain_settings():
+    """The speed-domain step settings compiled into the extension (checked against ``kernel``)."""
+    return SPEED_DOMAIN_STEP, SPEED_DOMAIN_MIN_STEPS, SPEED_DOMAIN_STEPS_PER_LOG
