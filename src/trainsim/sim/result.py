@@ -500,33 +500,24 @@ def _trace_and_peaks_numpy(
     return trace, peak_current, peak_paper
 
 
-def _trace_and_peaks(
+def _run_arrays_args(
     train: Train,
     settings: RunSettings,
-    route: Route,
     profile: LineResistanceProfile,
     ceiling: PiecewiseLinear,
     availability: PiecewiseLinear,
     voltage: PiecewiseLinear,
     s: np.ndarray,
     v: np.ndarray,
-    t: np.ndarray,
     regime: np.ndarray,
     level: np.ndarray,
     s_right: np.ndarray,
-    w_traction: np.ndarray,
-    w_braking: np.ndarray,
-    e_regen_line: np.ndarray,
-    e_net: np.ndarray,
     eta_t: float,
     eta_r: float,
     aux_w: float,
-    with_trace: bool,
-) -> tuple[Trace | None, np.ndarray, np.ndarray]:
-    """Forces, powers and currents at every point of a run: its trace (None without ``with_trace``)
-    and the line current at each point and the stretch it starts, for the peaks [A]. Evaluated in one
-    compiled pass (``trace_kernel.run_arrays``), the same bits as ``_trace_and_peaks_numpy``; without
-    ``with_trace`` only the peaks are stored."""
+) -> tuple:
+    """The arguments of ``run_arrays`` but ``with_trace``: the run's arrays, the line laws, the
+    train's scalars and its effort curves (see there)."""
     elec = train.electrical
     # the ratios are checked where the numpy form checks them, with the same messages
     el.traction_line_power_w(0.0, 0.0, eta_t)
@@ -566,7 +557,7 @@ def _trace_and_peaks(
         float(aux_w),
         float(elec.power_factor if elec else 1.0),
     )
-    rows, peak_current, peak_paper = run_arrays(
+    return (
         np.ascontiguousarray(s, dtype=float),
         np.ascontiguousarray(v, dtype=float),
         np.ascontiguousarray(regime, dtype=np.int64),
@@ -580,6 +571,53 @@ def _trace_and_peaks(
         traction,
         service,
         regen,
+    )
+
+
+def _trace_and_peaks(
+    train: Train,
+    settings: RunSettings,
+    route: Route,
+    profile: LineResistanceProfile,
+    ceiling: PiecewiseLinear,
+    availability: PiecewiseLinear,
+    voltage: PiecewiseLinear,
+    s: np.ndarray,
+    v: np.ndarray,
+    t: np.ndarray,
+    regime: np.ndarray,
+    level: np.ndarray,
+    s_right: np.ndarray,
+    w_traction: np.ndarray,
+    w_braking: np.ndarray,
+    e_regen_line: np.ndarray,
+    e_net: np.ndarray,
+    eta_t: float,
+    eta_r: float,
+    aux_w: float,
+    with_trace: bool,
+) -> tuple[Trace | None, np.ndarray, np.ndarray]:
+    """Forces, powers and currents at every point of a run: its trace (None without ``with_trace``)
+    and the line current at each point and the stretch it starts, for the peaks [A]. Evaluated in one
+    compiled pass (``trace_kernel.run_arrays``), the same bits as ``_trace_and_peaks_numpy``; without
+    ``with_trace`` only the peaks are stored."""
+    rows, peak_current, peak_paper = run_arrays(
+        *_run_arrays_args(
+            train,
+            settings,
+            profile,
+            ceiling,
+            availability,
+            voltage,
+            s,
+            v,
+            regime,
+            level,
+            s_right,
+            eta_t,
+            eta_r,
+            aux_w,
+        ),
         with_trace,
     )
     if not with_trace:

@@ -1,0 +1,548 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
+"""Compiled (Cython) point and stretch arrays of a run: forces, powers, line currents and their peaks,
+and the per-interval line laws of the kernel grid.
+
+One pass over the points of a run evaluates what ``result._trace_and_peaks_numpy`` evaluates with
+numpy (kept as the reference the tests compare against): at every point the forces of its regime at
+its speed with the line resistance just right of it, the accelerations, the mechanical, electrical
+and paper-convention powers and the line currents (I = P / (U cos phi), source 002 eq. 15); at every
+stretch the end powers of its regime at both of its ends with the line resistance at its middle,
+whose currents enter the running peaks. Every expression is written in the order numpy evaluates it
+(a + b * c + d * e * f is (a + (b * c)) + ((d * e) * f) in C as in Python), without contraction into
+fused multiply-adds or any fast-math licence, so that the arrays are the same bits; with
+``with_trace`` false only the peaks are stored, which is what a summary needs. ``interval_laws``
+evaluates the kernel grid's per-interval line laws the same way (``profile.compile_route``).
+
+A line law is passed as ``(x, left, right, steps)``, the arrays of a ``profile.PiecewiseLinear`` and
+whether it is piecewise constant (``profile._law_arrays``); an effort curve as
+``EffortCurve.as_arrays()``. The loops run on C pointers into those arrays without the GIL: nothing
+in them is reference-counted. The arrays belong to the caller, who holds them for the whole call.
+"""
+
+from libc.math cimport INFINITY, NAN, fabs, sqrt
+from libc.stdint cimport int64_t
+
+import numpy as np
+
+from trainsim.sim._forces cimport (
+    BRAKE,
+    CRUISE,
+    DWELL,
+    FOLLOW,
+    POWER_CAP_MIN_SPEED,
+    REGEN,
+    TRACTION,
+    Curve,
+    curve_from,
+    search_right,
+)
+
+#: The rows of ``run_arrays``'s point arrays: acceleration [m/s^2], forces [N], speed limit [m/s],
+#: powers [W], line currents [A] (the ``result.Trace`` fields of the same names).
+TRACE_ROWS = (
+    "acceleration_mps2",
+    "traction_force_n",
+    "braking_force_n",
+    "regenerative_braking_force_n",
+    "friction_braking_force_n",
+    "running_resistance_n",
+    "gradient_resistance_n",
+    "curve_resistance_n",
+    "tunnel_resistance_n",
+    "speed_limit_mps",
+    "mechanical_power_w",
+    "electrical_power_w",
+    "line_current_a",
+    "paper_power_w",
+    "paper_line_current_a",
+)
+cdef enum:
+    N_ROWS = 15  # len(TRACE_ROWS)
+
+#: The order of the laws ``run_arrays`` takes in its ``laws`` tuple.
+RUN_LAWS = ("gradient", "curve", "tunnel", "tunnel_v2", "availability", "voltage", "ceiling")
+
+
+cdef struct Law:
+    const double* x  # breakpoints [m], increasing, n + 1 of them
+    const double* left  # value at x[k] from the right, n of them
+    const double* right  # value at x[k + 1] from the left, n of them
+    Py_ssize_t n  # pieces
+    bint steps  # piecewise constant: left == right on every piece
+
+
+cdef struct Mech:
+    double inertial_mass  # rho m [kg]
+    double decel  # constant service deceleration [m/s^2] (braking fraction applied)
+    double fraction  # share of the service braking curve used [-]
+    bint has_decel  # brakes at that constant deceleration
+    bint has_service  # has a service braking curve
+    bint has_regen  # has a regenerative braking curve
+
+
+cdef struct Electric:
+    bint is_elec
+    double eta_t  # traction efficiency [-]
+    double eta_r  # regenerative efficiency x receptivity [-]
+    double aux_w  # auxiliary power [W]
+    double pf  # power factor [-]
+
+
+cdef struct Train:
+    Mech mech
+    Electric electric
+    double c0  # running resistance c0 [N]
+    double c1  # [N s/m]
+    double c2  # [N s^2/m^2]
+    double weight  # m g [N]
+    Curve traction
+    Curve service
+    Curve regen
+
+
+cdef struct RunLaws:
+    Law grad
+    Law curve
+    Law tun
+    Law tun2
+    Law avail
+    Law volt
+    Law ceil
+
+
+cdef inline double nmin(double a, double b) noexcept nogil:
+    """min(a, b) with NaN propagated, the first NaN if both are (numpy's ``minimum``)."""
+    if a != a:
+        return a
+    if b != b:
+        return b
+    return a if a <= b else b
+
+
+cdef inline double nmax(double a, double b) noexcept nogil:
+    """max(a, b) with NaN propagated, the first NaN if both are (numpy's ``maximum``)."""
+    if a != a:
+        return a
+    if b != b:
+        return b
+    return a if a >= b else b
+
+
+cdef inline double piecewise_value(const Law* f, double s) noexcept nogil:
+    """Value of a ``PiecewiseLinear`` at position s [m], as its ``__call__`` computes it (the end
+    values beyond the ends; NaN at NaN)."""
+    if s != s:
+        return NAN
+    cdef Py_ssize_t k = search_right(f.x, f.n + 1, s) - 1
+    if k < 0:
+        k = 0
+    if k > f.n - 1:
+        k = f.n - 1
+    if f.steps:
+        # + 0.0: -0.0 becomes 0.0, as left + 0 x frac does
+        return f.left[k] + 0.0
+    cdef double x0 = f.x[k]
+    cdef double frac = nmin(nmax((s - x0) / (f.x[k + 1] - x0), 0.0), 1.0)
+    return f.left[k] + (f.right[k] - f.left[k]) * frac
+
+
+cdef inline double curve_value(double v, const Curve* k) noexcept nogil:
+    """Force [N] of an ``EffortCurve`` at speed v [m/s], as its ``__call__`` computes it (the law, the
+    hyperbolic term c3 / v, the force cap, the power cap P / max(v, 1 mm/s), then the clip at 0).
+    ``_forces.effort`` compares F v with the power cap instead: the same force but for the last bit,
+    which is why the trace has its own."""
+    cdef Py_ssize_t j = search_right(k.starts, k.n, v) - 1
+    if j < 0:
+        j = 0
+    cdef const double* c = k.coefs + 4 * j
+    cdef double f = c[0] + c[1] * v + c[2] * v * v
+    f = f + (c[3] / v if c[3] != 0.0 else 0.0)
+    cdef double power = k.pcap / nmax(v, POWER_CAP_MIN_SPEED)
+    return nmax(nmin(nmin(f, k.fcap), power), 0.0)
+
+
+cdef inline void regime_forces(
+    int64_t mode,
+    double v,
+    double running,
+    double line,
+    double level,
+    double avail,
+    double inertia,
+    const Train* tr,
+    double* ft_out,
+    double* fb_out,
+) noexcept nogil:
+    """(traction, braking) force [N] in regime ``mode`` at speed v [m/s], with running and line
+    resistance [N], the driver's level, the available share of tractive effort and the force the
+    stretch's acceleration needs (FOLLOW) [N] (``result._regime_forces``)."""
+    cdef double ft = 0.0, fb = 0.0, need
+    cdef const Mech* m = &tr.mech
+    if mode == TRACTION:
+        ft = level * avail * curve_value(v, &tr.traction)
+    elif mode == CRUISE:
+        need = running + line
+        ft = nmax(need, 0.0)
+        fb = nmax(-need, 0.0)
+    elif mode == BRAKE:
+        if m.has_decel:
+            fb = level * nmax(m.inertial_mass * m.decel - running - line, 0.0)
+        elif m.has_service:
+            fb = level * m.fraction * curve_value(v, &tr.service)
+    elif mode == REGEN:
+        if m.has_regen:
+            fb = curve_value(v, &tr.regen)
+    elif mode == FOLLOW:
+        need = inertia + running + line
+        ft = nmax(need, 0.0)
+        fb = nmax(-need, 0.0)
+    ft_out[0] = ft
+    fb_out[0] = fb
+
+
+cdef void run_loop(
+    Py_ssize_t n,
+    const double* s,
+    const double* v,
+    const int64_t* regime,
+    const double* level,
+    const double* s_right,
+    const RunLaws* L,
+    const Train* tr,
+    bint with_trace,
+    double* out,
+    double* peak,
+    double* peak_paper,
+) noexcept nogil:
+    """The points' rows (``out``, N_ROWS x n, row-major, written only ``with_trace``) and peaks."""
+    cdef const Mech* mech = &tr.mech
+    cdef const Electric* e = &tr.electric
+    cdef double m_inertial = mech.inertial_mass
+    cdef double c0 = tr.c0, c1 = tr.c1, c2 = tr.c2, weight = tr.weight
+    cdef double eta_t = e.eta_t, eta_r = e.eta_r, aux_w = e.aux_w, pf = e.pf
+    cdef Py_ssize_t i
+    cdef int64_t r
+    cdef double vi, sr, running, grad, curve, tunnel, line, inertia, ds, acc_stretch, avail
+    cdef double ft, fb, cap, fr, p_trac, el_power, paper_power, current, paper_current
+    cdef double u, safe, end_current, end_paper, v0, v1, mid, vm, line_mid, avail_mid, run0, run1
+    cdef double f0t, f0b, f1t, f1b, rg0, rg1, u_mid, safe_mid, end_power
+    for i in range(n):
+        vi = v[i]
+        sr = s_right[i]
+        r = regime[i]
+        running = (c0 + c1 * vi + c2 * vi * vi) * (1.0 if vi > 0.0 else 0.0)
+        grad = weight * piecewise_value(&L.grad, sr)
+        curve = weight * piecewise_value(&L.curve, sr)
+        tunnel = weight * (piecewise_value(&L.tun, sr) + piecewise_value(&L.tun2, sr) * vi * vi)
+        line = grad + curve + tunnel
+        inertia = 0.0
+        if i < n - 1:
+            ds = s[i + 1] - s[i]
+            acc_stretch = (v[i + 1] * v[i + 1] - vi * vi) / (2.0 * ds) if ds > 0.0 else 0.0
+            inertia = m_inertial * acc_stretch
+        avail = piecewise_value(&L.avail, sr)
+        regime_forces(r, vi, running, line, level[i], avail, inertia, tr, &ft, &fb)
+        cap = curve_value(vi, &tr.regen) if mech.has_regen else 0.0
+        fr = nmin(fb, cap)
+        p_trac = ft * vi / eta_t
+        el_power = p_trac + aux_w - fr * vi * eta_r
+        paper_power = ft * vi * eta_t
+        current = NAN
+        paper_current = NAN
+        if e.is_elec:
+            u = piecewise_value(&L.volt, sr)
+            safe = u if u > 0.0 else 1.0
+            current = el_power / (safe * pf) if u > 0.0 else 0.0
+            paper_current = paper_power / (safe * pf) if u > 0.0 else 0.0
+            end_current = -INFINITY
+            end_paper = -INFINITY
+            if i < n - 1:
+                # a point carries the forces of the stretch it starts, so the end of a traction stretch
+                # (full effort at its highest speed, often the peak) is only seen from the stretch
+                v0 = vi
+                v1 = v[i + 1]
+                mid = 0.5 * (s[i] + s[i + 1])
+                vm = sqrt(0.5 * (v0 * v0 + v1 * v1))
+                line_mid = (
+                    weight * piecewise_value(&L.grad, mid)
+                    + weight * piecewise_value(&L.curve, mid)
+                    + weight * (piecewise_value(&L.tun, mid) + piecewise_value(&L.tun2, mid) * vm * vm)
+                )
+                avail_mid = piecewise_value(&L.avail, mid)
+                run0 = c0 + c1 * v0 + c2 * v0 * v0
+                run1 = c0 + c1 * v1 + c2 * v1 * v1
+                regime_forces(r, v0, run0, line_mid, level[i], avail_mid, inertia, tr, &f0t, &f0b)
+                regime_forces(r, v1, run1, line_mid, level[i], avail_mid, inertia, tr, &f1t, &f1b)
+                rg0 = nmin(f0b, curve_value(v0, &tr.regen)) if mech.has_regen else 0.0
+                rg1 = nmin(f1b, curve_value(v1, &tr.regen)) if mech.has_regen else 0.0
+                u_mid = piecewise_value(&L.volt, mid)
+                safe_mid = u_mid if u_mid > 0.0 else 1.0
+                end_power = nmax(f0t * v0 / eta_t - rg0 * v0 * eta_r, f1t * v1 / eta_t - rg1 * v1 * eta_r)
+                if u_mid > 0.0:
+                    end_current = (end_power + aux_w) / (safe_mid * pf)
+                    end_paper = eta_t * nmax(f0t * v0, f1t * v1) / (safe_mid * pf)
+                else:
+                    end_current = 0.0
+                    end_paper = 0.0
+            peak[i] = nmax(current, end_current)
+            peak_paper[i] = nmax(paper_current, end_paper)
+        else:
+            peak[i] = NAN
+            peak_paper[i] = NAN
+        if with_trace:
+            out[i] = 0.0 if r == DWELL else (ft - fb - running - line) / m_inertial
+            out[n + i] = ft
+            out[2 * n + i] = fb
+            out[3 * n + i] = fr
+            out[4 * n + i] = fb - fr
+            out[5 * n + i] = running
+            out[6 * n + i] = grad
+            out[7 * n + i] = curve
+            out[8 * n + i] = tunnel
+            out[9 * n + i] = piecewise_value(&L.ceil, sr)
+            out[10 * n + i] = ft * vi
+            out[11 * n + i] = el_power
+            out[12 * n + i] = current
+            out[13 * n + i] = paper_power
+            out[14 * n + i] = paper_current
+
+
+cdef inline void inside_law(const Law* f, double lo, double hi, double span, double eps, double* f0_out,
+                            double* slope_out) noexcept nogil:
+    """(value at the interval's start, slope) of the line through a law's values at lo and hi,
+    just inside an interval that starts eps before lo and whose inside is ``span`` long."""
+    cdef double f0 = piecewise_value(f, lo)
+    cdef double slope = (piecewise_value(f, hi) - f0) / span
+    f0_out[0] = f0 - slope * eps
+    slope_out[0] = slope
+
+
+cdef void interval_loop(
+    Py_ssize_t n,
+    const double* x,
+    const Law* laws,  # gradient, curve, tunnel, tunnel_v2, ceiling, available
+    double g,
+    double* a0,
+    double* a1,
+    double* b0,
+    double* b1,
+    double* vlim,
+    double* scale,
+) noexcept nogil:
+    cdef Py_ssize_t i
+    cdef double left, right, absleft, eps, span, lo, hi, mid
+    cdef double g0, g1, c0, c1, t0, t1, k0, k1
+    for i in range(n):
+        left = x[i]
+        right = x[i + 1]
+        # Python's max(1.0, |left|): |left| only when strictly larger (so 1.0 for a NaN)
+        absleft = fabs(left)
+        eps = 1e-9 * (absleft if absleft > 1.0 else 1.0)
+        span = nmax(right - left - 2.0 * eps, 1e-12)
+        lo = left + eps
+        hi = right - eps
+        inside_law(&laws[0], lo, hi, span, eps, &g0, &g1)
+        inside_law(&laws[1], lo, hi, span, eps, &c0, &c1)
+        inside_law(&laws[2], lo, hi, span, eps, &t0, &t1)
+        inside_law(&laws[3], lo, hi, span, eps, &k0, &k1)
+        a0[i] = g * (g0 + c0 + t0)
+        a1[i] = g * (g1 + c1 + t1)
+        b0[i] = g * k0
+        b1[i] = g * k1
+        mid = 0.5 * (left + right)
+        vlim[i] = piecewise_value(&laws[4], mid)
+        scale[i] = piecewise_value(&laws[5], mid)
+
+
+# ---- entry points: arguments checked once, then the loops above ----
+
+
+cdef object _vector(str name, object a, object dtype):
+    """``a`` as a C-contiguous 1-D array of ``dtype`` (no copy when it already is one); only real
+    numbers (integers for an integer dtype) are taken."""
+    arr = np.asarray(a)
+    allowed = "iu" if np.dtype(dtype).kind in "iu" else "iuf"
+    if arr.ndim != 1 or arr.dtype.kind not in allowed:
+        kinds = "integers" if allowed == "iu" else "real numbers"
+        raise ValueError(f"{name}: need a 1-D array of {kinds}, got shape {arr.shape} of {arr.dtype}")
+    return np.ascontiguousarray(arr, dtype=dtype)
+
+
+cdef int law_from(str name, object arrays, Law* out) except -1:
+    """Fill ``out`` from ``(x, left, right, steps)``; the arrays must stay alive (they are the
+    caller's) and are C-contiguous float64 as ``profile._law_arrays`` makes them."""
+    if not isinstance(arrays, tuple) or len(arrays) != 4:
+        raise ValueError(f"law {name}: need a tuple (x, left, right, steps), got {type(arrays).__name__}")
+    x, left, right, steps = arrays
+    cdef const double[::1] xv
+    cdef const double[::1] lv
+    cdef const double[::1] rv
+    try:
+        xv = x
+        lv = left
+        rv = right
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"law {name}: x, left and right must be C-contiguous float64 arrays ({err})") from None
+    if lv.shape[0] < 1 or rv.shape[0] != lv.shape[0] or xv.shape[0] != lv.shape[0] + 1:
+        raise ValueError(
+            f"law {name}: arrays of lengths {xv.shape[0]}, {lv.shape[0]}, {rv.shape[0]}: "
+            "need n + 1 breakpoints and n left and right values, n >= 1"
+        )
+    out.x = &xv[0]
+    out.left = &lv[0]
+    out.right = &rv[0]
+    out.n = lv.shape[0]
+    out.steps = bool(steps)
+    return 0
+
+
+cdef int curve_checked(str name, object arrays, Curve* out) except -1:
+    if not isinstance(arrays, tuple) or len(arrays) != 4:
+        raise ValueError(f"{name} curve: need a tuple (starts, coefs, fcap, pcap), got {type(arrays).__name__}")
+    try:
+        return curve_from(arrays, out)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{name} curve: {err}") from None
+
+
+cdef tuple _sized(str name, object values, Py_ssize_t size):
+    if not isinstance(values, tuple) or len(values) != size:
+        raise ValueError(f"{name}: need a tuple of {size} values, got {values!r}")
+    return values
+
+
+def run_arrays(
+    s,
+    v,
+    regime,
+    level,
+    s_right,
+    tuple laws,
+    resist,
+    double weight,
+    mech,
+    electric,
+    tuple traction,
+    tuple service,
+    tuple regen,
+    bint with_trace,
+):
+    """Point arrays of a run and the line-current peaks.
+
+    ``s``, ``v``, ``level``, ``s_right``: positions [m], speeds [m/s], driver levels [-] and the
+    positions just right of each point [m]; ``regime``: the regime code of the stretch each point
+    starts (``codes``). ``laws`` = (gradient, curve, tunnel, tunnel_v2, availability, voltage,
+    ceiling) as ``(x, left, right, steps)`` (``RUN_LAWS``); ``resist`` = running resistance (c0 [N],
+    c1 [N s/m], c2 [N s^2/m^2]); ``weight`` = m g [N]; ``mech`` = (inertial mass [kg], constant
+    service deceleration [m/s^2], braking fraction, brakes at that constant deceleration, has a
+    service braking curve, has a regenerative curve); ``electric`` = (has electrics, traction
+    efficiency, regenerative efficiency x receptivity, auxiliary power [W], power factor); the three
+    curves as ``EffortCurve.as_arrays()`` (any valid curve where the train has none).
+
+    Returns ``(arrays, peak_current, peak_paper_current)``: ``arrays`` of shape (15, n), rows as
+    ``TRACE_ROWS``; (15, 0) without ``with_trace``. The peaks [A] hold, at each point, the larger of
+    its own current and that of the stretch it starts at either end (NaN without electrics)."""
+    s_a = _vector("s", s, np.float64)
+    cdef Py_ssize_t n = s_a.shape[0]
+    v_a = _vector("v", v, np.float64)
+    regime_a = _vector("regime", regime, np.int64)
+    level_a = _vector("level", level, np.float64)
+    s_right_a = _vector("s_right", s_right, np.float64)
+    for name, arr in (("v", v_a), ("regime", regime_a), ("level", level_a), ("s_right", s_right_a)):
+        if arr.shape[0] != n:
+            raise ValueError(f"{name}: length {arr.shape[0]}, need the length of s ({n})")
+    if len(laws) != 7:
+        raise ValueError(f"laws: need 7 laws {RUN_LAWS}, got {len(laws)}")
+    cdef RunLaws L
+    law_from(RUN_LAWS[0], laws[0], &L.grad)
+    law_from(RUN_LAWS[1], laws[1], &L.curve)
+    law_from(RUN_LAWS[2], laws[2], &L.tun)
+    law_from(RUN_LAWS[3], laws[3], &L.tun2)
+    law_from(RUN_LAWS[4], laws[4], &L.avail)
+    law_from(RUN_LAWS[5], laws[5], &L.volt)
+    law_from(RUN_LAWS[6], laws[6], &L.ceil)
+    cdef Train tr
+    tr.c0, tr.c1, tr.c2 = _sized("resist (c0, c1, c2)", resist, 3)
+    tr.weight = weight
+    m = _sized("mech", mech, 6)
+    tr.mech.inertial_mass = m[0]
+    tr.mech.decel = m[1]
+    tr.mech.fraction = m[2]
+    tr.mech.has_decel = m[3]
+    tr.mech.has_service = m[4]
+    tr.mech.has_regen = m[5]
+    el = _sized("electric", electric, 5)
+    tr.electric.is_elec = el[0]
+    tr.electric.eta_t = el[1]
+    tr.electric.eta_r = el[2]
+    tr.electric.aux_w = el[3]
+    tr.electric.pf = el[4]
+    curve_checked("traction", traction, &tr.traction)
+    curve_checked("service braking", service, &tr.service)
+    curve_checked("regenerative braking", regen, &tr.regen)
+
+    out = np.empty((N_ROWS, n if with_trace else 0))
+    peak = np.empty(n)
+    peak_paper = np.empty(n)
+    cdef const double[::1] sv = s_a
+    cdef const double[::1] vv = v_a
+    cdef const int64_t[::1] rv = regime_a
+    cdef const double[::1] lv = level_a
+    cdef const double[::1] srv = s_right_a
+    cdef double[:, ::1] outv = out
+    cdef double[::1] pv = peak
+    cdef double[::1] ppv = peak_paper
+    if n == 0:
+        return out, peak, peak_paper
+    cdef double* rows = &outv[0, 0] if with_trace else NULL
+    with nogil:
+        run_loop(n, &sv[0], &vv[0], &rv[0], &lv[0], &srv[0], &L, &tr, with_trace, rows, &pv[0], &ppv[0])
+    return out, peak, peak_paper
+
+
+def interval_laws(x, tuple gradient, tuple curve, tuple tunnel, tuple tunnel_v2, tuple ceiling,
+                  tuple available, double g):
+    """Per-interval laws of a kernel grid ``x`` [m] (``profile.compile_route``): specific line
+    resistance a0 + a1 u [N/kg] and v^2 coefficient b0 + b1 u [N s^2/(kg m^2)] over the offset u into
+    each interval, each law read just inside the interval so that a jump at a grid point belongs to
+    the interval on its right, and the speed ceiling [m/s] and available share of tractive effort
+    at the interval's middle. Laws as ``(x, left, right, steps)``; g [m/s^2]. Returns the six arrays
+    (a0, a1, b0, b1, vlim, scale), one entry per interval."""
+    x_a = _vector("x", x, np.float64)
+    if x_a.shape[0] < 1:
+        raise ValueError("x: need at least one grid point, got none")
+    cdef Law laws[6]
+    law_from("gradient", gradient, &laws[0])
+    law_from("curve", curve, &laws[1])
+    law_from("tunnel", tunnel, &laws[2])
+    law_from("tunnel_v2", tunnel_v2, &laws[3])
+    law_from("ceiling", ceiling, &laws[4])
+    law_from("available", available, &laws[5])
+    cdef Py_ssize_t n = x_a.shape[0] - 1
+    a0 = np.empty(n)
+    a1 = np.empty(n)
+    b0 = np.empty(n)
+    b1 = np.empty(n)
+    vlim = np.empty(n)
+    scale = np.empty(n)
+    if n == 0:
+        return a0, a1, b0, b1, vlim, scale
+    cdef const double[::1] xv = x_a
+    cdef double[::1] a0v = a0, a1v = a1, b0v = b0, b1v = b1, vv = vlim, sv = scale
+    with nogil:
+        interval_loop(n, &xv[0], laws, g, &a0v[0], &a1v[0], &b0v[0], &b1v[0], &vv[0], &sv[0])
+    return a0, a1, b0, b1, vlim, scale
+
+
+def piecewise_value_at(tuple law, double s):
+    """``piecewise_value`` of a law ``(x, left, right, steps)`` at s [m] (for tests)."""
+    cdef Law f
+    law_from("law", law, &f)
+    return piecewise_value(&f, s)
+
+
+def curve_value_at(double v, tuple curve):
+    """``curve_value`` of an effort curve ``as_arrays()`` at v [m/s] (for tests)."""
+    cdef Curve k
+    curve_checked("effort", curve, &k)
+    return curve_value(v, &k)

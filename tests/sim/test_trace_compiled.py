@@ -1,0 +1,225 @@
+"""The compiled trace (``sim/_trace_c.pyx``, Cython) gives the same bits as the numba functions it
+replaces (``sim/trace_kernel.py``): every output array of ``run_arrays`` and ``interval_laws`` on the
+fastest run of every example and of the TrainRuns freight train on ``realworld``, with every regime
+and driver level, and with bad input refused with a message naming the argument."""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from simcases import make_route, make_train
+
+import trainsim
+from trainsim.model import Electrical, ElectrificationSection, Quadratic
+from trainsim.model.scenario import RunSettings
+from trainsim.sim import _trace_c, trace_kernel
+from trainsim.sim import result as res
+from trainsim.sim.fastest import run_fastest, stops_of
+from trainsim.sim.profile import _law_arrays, compile_route, line_voltage, traction_availability
+
+ROOT = Path(__file__).resolve().parents[2]
+TRAINRUNS = ROOT / "tests" / "data" / "trainruns"
+
+
+def _cases():
+    for path in sorted((ROOT / "examples").rglob("scenario*.yaml")):
+        sc = trainsim.load_scenario(path)
+        yield str(path.relative_to(ROOT / "examples")), sc.train, sc.route, sc.settings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        freight = trainsim.load_train(TRAINRUNS / "trains" / "freight.yaml")
+    route = trainsim.load_route(TRAINRUNS / "paths" / "realworld.yaml", mass_model="homogeneous_strip")
+    yield "trainruns_freight_strip", freight, route, RunSettings()
+    electric = dataclasses.replace(
+        make_train(resistance=Quadratic(3000.0, 20.0, 5.0)),
+        electrical=Electrical(line_voltage_v=1500.0, traction_efficiency=0.9, power_factor=0.95),
+    )
+    gap = dataclasses.replace(
+        make_route(length_m=10_000.0, limit_kmh=160.0, gradient_permille=4.0, apply_over="train_length"),
+        electrification=(
+            ElectrificationSection(0.0, 4000.0, 1500.0),
+            ElectrificationSection(4000.0, 4500.0, 0.0),
+            ElectrificationSection(4500.0, 10_000.0, 1500.0),
+        ),
+    )
+    yield "electrification_gap", electric, gap, RunSettings()
+
+
+@pytest.fixture(scope="module")
+def runs():
+    """Per case: the arguments of ``run_arrays`` (but ``with_trace``) on the run's own regimes and on
+    random ones with random driver levels (the forces are evaluated whatever the motion, so every
+    branch is reached), and the compiled route."""
+    out = {}
+    rng = np.random.default_rng(14)
+    for name, train, route, settings in _cases():
+        run = run_fastest(train, route, settings)
+        tr = run.trace
+        s, v = tr.position_m, tr.speed_mps
+        train = train.at_gravity(route.gravity_mps2)
+        compiled = compile_route(route, train, stops_of(route), settings.max_step_m)
+        availability, voltage = traction_availability(route, train), line_voltage(route, train)
+        elec = train.electrical
+        eta_t = elec.traction_efficiency if elec else 1.0
+        eta_r = elec.regenerative_efficiency * elec.receptivity if elec else 0.0
+        aux = elec.auxiliary_power_w if elec else 0.0
+        s_right = np.minimum(s + 1e-7, route.end_m)
+        variants = []
+        for regime, level in (
+            (tr.regime.astype(np.int64), np.ones(len(s))),
+            (rng.integers(0, 7, len(s)), rng.uniform(0.0, 1.0, len(s))),
+        ):
+            variants.append(
+                res._run_arrays_args(
+                    train,
+                    settings,
+                    compiled.profile,
+                    compiled.ceiling,
+                    availability,
+                    voltage,
+                    s,
+                    v,
+                    regime,
+                    level,
+                    s_right,
+                    eta_t,
+                    eta_r,
+                    aux,
+                )
+            )
+        out[name] = (variants, compiled, route)
+    return out
+
+
+def _same(a, b, what):
+    assert a.dtype == b.dtype and a.shape == b.shape, what
+    assert np.array_equal(np.isnan(a), np.isnan(b)), f"{what}: NaN at other places"
+    # bit for bit: the integer views are equal (NaN payloads aside, which no figure carries)
+    ok = ~np.isnan(a)
+    assert np.array_equal(a[ok].view(np.int64), b[ok].view(np.int64)), f"{what}: differs"
+
+
+def test_run_arrays_equal_numba_bit_for_bit(runs):
+    for name, (variants, _, _) in runs.items():
+        for k, args in enumerate(variants):
+            for with_trace in (True, False):
+                got = _trace_c.run_arrays(*args, with_trace)
+                ref = trace_kernel.run_arrays(*args, with_trace)
+                assert type(got) is tuple and len(got) == 3
+                for label, a, b in zip(("rows", "peak", "peak_paper"), got, ref, strict=True):
+                    _same(a, b, f"{name} variant {k} trace {with_trace}: {label}")
+    assert tuple(_trace_c.TRACE_ROWS) == tuple(trace_kernel.TRACE_ROWS)
+
+
+def test_interval_laws_equal_numba_bit_for_bit(runs):
+    for name, (_, compiled, route) in runs.items():
+        pr = compiled.profile
+        laws = [
+            _law_arrays(f)
+            for f in (pr.gradient, pr.curve, pr.tunnel, pr.tunnel_v2, compiled.ceiling, compiled.available)
+        ]
+        x = compiled.track.x
+        g = float(route.gravity_mps2)
+        got = _trace_c.interval_laws(x, *laws, g)
+        ref = trace_kernel.interval_laws(x, *laws, g)
+        for label, a, b in zip(("a0", "a1", "b0", "b1", "vlim", "scale"), got, ref, strict=True):
+            _same(a, b, f"{name}: {label}")
+
+
+def test_the_comparison_reaches_every_branch(runs):
+    """Not NaN against NaN, and every regime, brake kind and law kind met."""
+    regimes, finite_peaks, decel, service, regen, sloped = set(), 0, False, False, False, False
+    for variants, _, _ in runs.values():
+        for args in variants:
+            regimes |= set(np.unique(args[2]).tolist())
+            mech = args[8]
+            decel |= mech[3]
+            service |= mech[4] and not mech[3]
+            regen |= mech[5]
+            sloped |= any(not law[3] for law in args[5])
+        finite_peaks += int(np.isfinite(_trace_c.run_arrays(*variants[0], False)[1]).sum())
+    assert regimes == set(range(7))
+    assert decel and service and regen and sloped
+    assert finite_peaks > 1000
+
+
+def _small_args():
+    law = (np.array([0.0, 100.0]), np.array([1.0]), np.array([1.0]), True)
+    curve = (np.zeros(1), np.array([[1e5, 0.0, 0.0, 0.0]]), 1e5, 1e6)
+    s = np.array([0.0, 50.0, 100.0])
+    return [
+        s,
+        np.array([0.0, 5.0, 0.0]),
+        np.array([0, 3, 4]),
+        np.ones(3),
+        s,
+        (law,) * 7,
+        (1000.0, 10.0, 1.0),
+        9.81e5,
+        (1e5, 0.5, 1.0, True, False, False),
+        (True, 0.9, 0.8, 1e4, 1.0),
+        curve,
+        curve,
+        curve,
+        True,
+    ]
+
+
+@pytest.mark.parametrize(
+    "index,value,message",
+    [
+        (1, np.ones(2), "v: length 2, need the length of s"),
+        (0, np.ones((3, 1)), "s: need a 1-D array of real numbers"),
+        (2, np.array([0.0, 3.0, 4.0]), "regime: need a 1-D array of integers"),
+        (3, np.array(["a", "b", "c"]), "level: need a 1-D array of real numbers"),
+        (5, ((np.array([0.0, 1.0]),) * 3 + (True,),) * 6, "laws: need 7 laws"),
+        (6, (1.0, 2.0), "resist (c0, c1, c2): need a tuple of 3 values"),
+        (8, (1e5, 0.5, 1.0), "mech: need a tuple of 6 values"),
+        (9, (True, 0.9), "electric: need a tuple of 5 values"),
+        (11, (np.zeros(2), np.zeros((1, 4)), 1.0, 1.0), "service braking curve: effort curve arrays"),
+    ],
+)
+def test_run_arrays_refuses_bad_input_naming_it(index, value, message):
+    args = _small_args()
+    args[index] = value
+    with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        _trace_c.run_arrays(*args)
+
+
+def test_law_with_inconsistent_arrays_is_refused_by_name():
+    args = _small_args()
+    bad = (np.array([0.0, 100.0, 200.0]), np.array([1.0]), np.array([1.0]), True)
+    args[5] = (*args[5][:5], bad, args[5][6])
+    with pytest.raises(ValueError, match="law voltage: arrays of lengths 3, 1, 1"):
+        _trace_c.run_arrays(*args)
+    ints = (np.array([0, 100]), np.array([1.0]), np.array([1.0]), True)
+    with pytest.raises(ValueError, match="law available: x, left and right must be C-contiguous float64"):
+        _trace_c.interval_laws(np.array([0.0, 1.0]), *args[5][:5], ints, 9.81)
+    with pytest.raises(ValueError, match="x: need at least one grid point"):
+        _trace_c.interval_laws(np.array([]), *args[5][:6], 9.81)
+
+
+def test_small_run_by_hand():
+    """Three points on the level, one law everywhere: the traction point's force is the curve's, the
+    braking point's the constant deceleration's, the dwell's acceleration 0 (computed by hand)."""
+    rows, peak, paper = _trace_c.run_arrays(*_small_args())
+    r = dict(zip(_trace_c.TRACE_ROWS, rows, strict=True))
+    assert r["traction_force_n"][0] == 1e5  # TRACTION at 0 m/s: the law, under both caps
+    running = (1000.0 + 10.0 * 5.0 + 1.0 * 25.0) * 1.0
+    line = 9.81e5 * 1.0
+    assert r["running_resistance_n"][1] == running
+    assert r["braking_force_n"][1] == max(1e5 * 0.5 - running - line, 0.0)  # BRAKE, level 1
+    assert r["acceleration_mps2"][2] == 0.0  # DWELL
+    assert r["line_current_a"][0] == (0.0 / 0.9 + 1e4 - 0.0) / (1.0 * 1.0)  # 0 m/s: the auxiliaries only
+    assert np.isfinite(peak).all() and np.isfinite(paper).all()
+    diesel = _small_args()
+    diesel[9] = (False, 0.9, 0.8, 1e4, 1.0)
+    assert np.isnan(_trace_c.run_arrays(*diesel)[1]).all()
+    empty = _small_args()
+    empty[0:5] = [np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)]
+    rows, peak, paper = _trace_c.run_arrays(*empty)
+    assert rows.shape == (15, 0) and peak.shape == (0,) and paper.shape == (0,)
