@@ -1,0 +1,1054 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
+"""Compiled (Cython) fastest-run kernel: the port of ``trainsim.sim.kernel``'s ``fastest_segment``
+and ``insert_kink_points`` with every function they call, giving the same bits as the numba ones.
+
+State and method are those of ``trainsim.sim.kernel`` (see its docstrings, which this module does not
+repeat): E = v^2 / 2 [m^2/s^2] over head position s [m], RK4 in the distance domain with sub-steps,
+kinks of the effort curves located in the speed domain. Every floating-point operation keeps the
+numba code's order and association (``a * b * c`` is ``(a * b) * c``; numba unrolls ``x**3`` with a
+constant exponent into ``x * (x * x)``; ``min(a, b)`` is ``b if b < a else a``, ``max(a, b)`` is
+``b if b > a else a``, as numba evaluates Python's min and max), and the module is compiled without
+fast-math or contraction into fused multiply-adds (setup.py), so both give the same bits (tested in
+``tests/sim/test_kernel_compiled.py``).
+
+The ``def`` entry points take and return what the numba functions do; they check shapes and dtypes
+once, then run in C on pointers, without the GIL and without reference counting.
+
+One difference: numba raises ZeroDivisionError on a float division by zero, C gives inf or nan. The
+only unguarded division that could meet a zero is the cruise's end where the traction stops holding
+the speed, ``(fmax - need_u) / (need_end - need_u)``, reached only when the resistance at both ends
+is the same and above the traction by at most 1e-12 relative.
+"""
+
+from libc.math cimport INFINITY, ceil, fabs, isfinite, sqrt
+
+import numpy as np
+
+from trainsim.sim._forces cimport (
+    BRAKE,
+    CRUISE,
+    DWELL,
+    N_PARAMS,
+    P_BRAKE_FRACTION,
+    P_DECEL,
+    P_INERTIAL_MASS,
+    P_MASS,
+    P_R0,
+    P_R1,
+    P_R2,
+    P_TRACTION_SCALE,
+    REGEN,
+    TRACTION,
+    Curves,
+    curves_from,
+    effort,
+    effort_branch,
+    search_left,
+    search_right,
+    speed_domain_steps,
+    speed_of,
+)
+
+# trainsim.sim.codes / trainsim.sim.kernel constants (checked against them by a test)
+cdef extern from *:
+    """
+    static const double TRAINSIM_SPEED_TOLERANCE = 1e-7;
+    static const double TRAINSIM_POSITION_TOLERANCE = 1e-9;
+    static const double TRAINSIM_LENGTH_SCALE_FRACTION = 0.01;
+    static const long TRAINSIM_MAX_SUBSTEPS = 64;
+    static const long TRAINSIM_TIME_SUBSTEPS = 4;
+    static const long TRAINSIM_STATUS_OK = 0;
+    static const long TRAINSIM_STATUS_STALLED = 1;
+    """
+    const double SPEED_TOLERANCE "TRAINSIM_SPEED_TOLERANCE"
+    const double POSITION_TOLERANCE "TRAINSIM_POSITION_TOLERANCE"
+    const double LENGTH_SCALE_FRACTION "TRAINSIM_LENGTH_SCALE_FRACTION"
+    const long MAX_SUBSTEPS "TRAINSIM_MAX_SUBSTEPS"
+    const long TIME_SUBSTEPS "TRAINSIM_TIME_SUBSTEPS"
+    const long STATUS_OK "TRAINSIM_STATUS_OK"
+    const long STATUS_STALLED "TRAINSIM_STATUS_STALLED"
+
+
+cdef struct Line:
+    # line resistance laws of one grid interval: specific resistance a0 + a1 u [N/kg], v^2 coefficient
+    # b0 + b1 u [N s^2/(kg m^2)] at offset u [m] into the interval
+    double a0
+    double a1
+    double b0
+    double b1
+
+
+cdef struct Kinks:
+    const double* v  # kink speeds [m/s], increasing
+    Py_ssize_t n
+
+
+cdef struct Ctx:
+    # what every integrator reads: the parameter vector P (P_TRACTION_SCALE is written per interval,
+    # in the caller's array, as the numba kernel does) and the effort curves
+    double* P
+    const Curves* curves
+
+
+cdef struct Track:
+    const double* x  # grid [m], n + 1 points
+    const double* a0
+    const double* a1
+    const double* b0
+    const double* b1
+    const double* vlim  # ceiling per interval [m/s]
+    const double* tscale  # traction share per interval [-]
+    Py_ssize_t n  # intervals
+
+
+cdef struct Out:
+    # trace being written: position [m], speed [m/s], time [s], regime code
+    double* s
+    double* v
+    double* t
+    signed char* m
+    Py_ssize_t n
+    Py_ssize_t cap
+    bint overflow
+
+
+cdef struct ET:
+    double E  # [m^2/s^2]
+    double dt  # [s]
+
+
+# ---------------------------------------------------------------------------------------------- forces
+
+
+cdef inline double resistance_force(double v, double u, const Line* line, const double* P) noexcept nogil:
+    """Running plus line resistance [N] at speed v [m/s], offset u [m] (``kernel.resistance_force``)."""
+    cdef double running = P[P_R0] + P[P_R1] * v + P[P_R2] * v * v
+    return running + P[P_MASS] * ((line.a0 + line.a1 * u) + (line.b0 + line.b1 * u) * v * v)
+
+
+cdef double acceleration(
+    long mode, double E, double u, const Line* line, const Ctx* c, double vref
+) noexcept nogil:
+    """dE/ds [m/s^2] in regime ``mode`` at maximum effort (``kernel.acceleration``)."""
+    cdef double v = sqrt(2.0 * E) if E > 0.0 else 0.0
+    cdef const double* P = c.P
+    cdef double res = resistance_force(v, u, line, P)
+    cdef double M = P[P_INERTIAL_MASS]
+    cdef double a_res
+    if mode == TRACTION:
+        return (P[P_TRACTION_SCALE] * effort_branch(v, vref, &c.curves.traction) - res) / M
+    if mode == BRAKE:
+        if P[P_DECEL] > 0.0:
+            a_res = res / M
+            return -a_res if a_res > P[P_DECEL] else -P[P_DECEL]
+        return -(P[P_BRAKE_FRACTION] * effort_branch(v, vref, &c.curves.brake) + res) / M
+    if mode == REGEN:
+        return -(effort_branch(v, vref, &c.curves.regen) + res) / M
+    return -res / M
+
+
+# ---------------------------------------------------------------------------------------- integrators
+
+
+cdef inline long substeps(double E, double h, double a) noexcept nogil:
+    """RK4 sub-steps of a step h [m] from E with acceleration a [m/s^2] (``kernel._substeps``)."""
+    a = fabs(a)
+    if not (a > 0.0 and E > 0.0):
+        return 1
+    cdef long n = <long>ceil(fabs(h) * a / (LENGTH_SCALE_FRACTION * 2.0 * E))
+    if n < 1:
+        n = 1
+    return n if n < MAX_SUBSTEPS else MAX_SUBSTEPS
+
+
+cdef inline double rk4_energy_1(
+    double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref, double k1
+) noexcept nogil:
+    """One RK4 step of E over h [m] (``kernel._rk4_energy_1``)."""
+    cdef double k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, line, c, vref)
+    cdef double k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, line, c, vref)
+    cdef double k4 = acceleration(mode, E + h * k3, u + h, line, c, vref)
+    return E + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+cdef double rk4_energy(
+    double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref
+) noexcept nogil:
+    """E after a step h [m], negative backwards, not clipped at 0 (``kernel.rk4_energy``)."""
+    cdef double k1 = acceleration(mode, E, u, line, c, vref)
+    cdef long n = substeps(E, h, k1)
+    cdef double d = h / n
+    cdef long j
+    for j in range(n):
+        if j > 0:
+            k1 = acceleration(mode, E, u, line, c, vref)
+        E = rk4_energy_1(E, u, d, mode, line, c, vref, k1)
+        u += d
+    return E
+
+
+cdef ET rk4_energy_time_1(
+    double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref, double k1
+) noexcept nogil:
+    """(E, elapsed time [s]) after one forward RK4 step h [m], the time from the cubic Hermite
+    interpolant of E (``kernel._rk4_energy_time_1``)."""
+    cdef double k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, line, c, vref)
+    cdef double k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, line, c, vref)
+    cdef double k4 = acceleration(mode, E + h * k3, u + h, line, c, vref)
+    cdef double E1 = E + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    cdef double d1 = acceleration(mode, E1 if E1 > 0.0 else 0.0, u + h, line, c, vref)
+    cdef double dt = 0.0
+    cdef double v_prev = sqrt(2.0 * E) if E > 0.0 else 0.0
+    cdef double x, x2, x3, h00, h10, h01, h11, Ej, vj
+    cdef long j
+    for j in range(1, TIME_SUBSTEPS + 1):
+        x = (<double>j) / (<double>TIME_SUBSTEPS)
+        # numba unrolls x**2 into x * x and x**3 into x * (x * x)
+        x2 = x * x
+        x3 = x * x2
+        h00 = 2.0 * x3 - 3.0 * x2 + 1.0
+        h10 = x3 - 2.0 * x2 + x
+        h01 = -2.0 * x3 + 3.0 * x2
+        h11 = x3 - x2
+        Ej = h00 * E + h10 * h * k1 + h01 * E1 + h11 * h * d1
+        vj = sqrt(2.0 * Ej) if Ej > 0.0 else 0.0
+        if v_prev + vj > 0.0:
+            dt += 2.0 * (h / (<double>TIME_SUBSTEPS)) / (v_prev + vj)
+        else:
+            dt += INFINITY
+        v_prev = vj
+    cdef ET r
+    r.E = E1
+    r.dt = dt
+    return r
+
+
+cdef ET rk4_energy_time(
+    double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref
+) noexcept nogil:
+    """(E, elapsed time [s]) after a forward step h [m] with sub-steps (``kernel.rk4_energy_time``)."""
+    cdef double k1 = acceleration(mode, E, u, line, c, vref)
+    cdef long n = substeps(E, h, k1)
+    cdef double d = h / n
+    cdef double total = 0.0
+    cdef long j
+    cdef ET r
+    for j in range(n):
+        E = E if E > 0.0 else 0.0
+        if j > 0:
+            k1 = acceleration(mode, E, u, line, c, vref)
+        r = rk4_energy_time_1(E, u, d, mode, line, c, vref, k1)
+        E = r.E
+        total += r.dt
+        u += d
+    r.E = E
+    r.dt = total
+    return r
+
+
+cdef double distance_to_speed(
+    double E, double u, double Et, long mode, const Line* line, const Ctx* c
+) noexcept nogil:
+    """Signed distance [m] along ``mode`` until E reaches Et, RK4 on ds/dv = v / a in the speed
+    domain; inf when Et is never reached (``kernel.distance_to_speed``)."""
+    cdef double v_from = sqrt(2.0 * E) if E > 0.0 else 0.0
+    cdef double v_to = sqrt(2.0 * Et) if Et > 0.0 else 0.0
+    cdef double vref = 0.5 * (v_from + v_to)
+    cdef long n = speed_domain_steps(
+        v_from,
+        v_to,
+        acceleration(mode, E, u, line, c, vref),
+        acceleration(mode, Et, u, line, c, vref),
+    )
+    cdef double dv = (v_to - v_from) / n
+    cdef double v = v_from
+    cdef double s = 0.0
+    cdef double sign = 0.0
+    cdef double a1, a2, a3, a4, r1, r2, r3, r4, vm, ve
+    cdef long k
+    for k in range(n):
+        a1 = acceleration(mode, 0.5 * v * v, u + s, line, c, vref)
+        if sign == 0.0:
+            sign = 1.0 if a1 > 0.0 else -1.0
+        if a1 * sign <= 0.0:
+            return INFINITY
+        r1 = v / a1
+        vm = v + 0.5 * dv
+        a2 = acceleration(mode, 0.5 * vm * vm, u + s + 0.5 * dv * r1, line, c, vref)
+        if a2 * sign <= 0.0:
+            return INFINITY
+        r2 = vm / a2
+        a3 = acceleration(mode, 0.5 * vm * vm, u + s + 0.5 * dv * r2, line, c, vref)
+        if a3 * sign <= 0.0:
+            return INFINITY
+        r3 = vm / a3
+        ve = v + dv
+        a4 = acceleration(mode, 0.5 * ve * ve, u + s + dv * r3, line, c, vref)
+        if a4 * sign <= 0.0:
+            return INFINITY
+        r4 = ve / a4
+        s += dv / 6.0 * (r1 + 2.0 * r2 + 2.0 * r3 + r4)
+        v = ve
+    return s
+
+
+# ------------------------------------------------------------------------------------------------ kinks
+
+
+cdef inline double next_kink(double v0, bint rising, double v_far, const Kinks* kinks) noexcept nogil:
+    """The kink speed next to v0 in the direction of the change, strictly before v_far, or -1
+    (``kernel._next_kink``)."""
+    cdef Py_ssize_t j
+    if rising:
+        j = search_right(kinks.v, kinks.n, v0)
+        if j < kinks.n and kinks.v[j] < v_far:
+            return kinks.v[j]
+    else:
+        j = search_left(kinks.v, kinks.n, v0) - 1
+        if j >= 0 and kinks.v[j] > v_far:
+            return kinks.v[j]
+    return -1.0
+
+
+cdef inline bint is_kink(double v, const Kinks* kinks) noexcept nogil:
+    """Whether v [m/s] is a kink speed to within SPEED_TOLERANCE (``kernel._is_kink``)."""
+    cdef Py_ssize_t j = search_left(kinks.v, kinks.n, v)
+    if j < kinks.n and fabs(kinks.v[j] - v) <= SPEED_TOLERANCE:
+        return True
+    return j > 0 and fabs(kinks.v[j - 1] - v) <= SPEED_TOLERANCE
+
+
+cdef inline Py_ssize_t kinks_between(double v0, double v1, const Kinks* kinks) noexcept nogil:
+    """Kink speeds strictly between v0 and v1 (``kernel._kinks_between``)."""
+    # min and max as numba evaluates them: the first argument unless the second is strictly beyond
+    cdef double lo = v1 if v1 < v0 else v0
+    cdef double hi = v1 if v1 > v0 else v0
+    cdef Py_ssize_t n = search_left(kinks.v, kinks.n, hi) - search_right(kinks.v, kinks.n, lo)
+    return n if n > 0 else 0
+
+
+cdef ET step_energy_time_c(
+    double E, double u, double h, long mode, const Line* line, const Ctx* c, const Kinks* kinks
+) noexcept nogil:
+    """(E, elapsed time [s]) after a step h [m], restarted at every kink on the way
+    (``kernel.step_energy_time``)."""
+    cdef double remaining = h
+    cdef double total_dt = 0.0
+    cdef bint split = is_kink(sqrt(2.0 * E) if E > 0.0 else 0.0, kinks)
+    cdef ET r, rk
+    cdef double v0, v1, v_far, vk, hk
+    cdef bint rising
+    cdef int it
+    for it in range(64):
+        r = rk4_energy_time(E, u, remaining, mode, line, c, -1.0)
+        v0 = sqrt(2.0 * E) if E > 0.0 else 0.0
+        v1 = sqrt(2.0 * r.E) if r.E > 0.0 else 0.0
+        rising = v1 > v0
+        v_far = v1 + 0.5 * (v1 - v0) + 1e-6 if rising else v1 - 0.5 * (v0 - v1) - 1e-6
+        vk = next_kink(v0, rising, v_far, kinks)
+        hk = INFINITY
+        if vk >= 0.0:
+            hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, line, c)
+        if not (hk * remaining > 0.0 and fabs(hk) < fabs(remaining) - POSITION_TOLERANCE):
+            if split or vk >= 0.0:
+                r = rk4_energy_time(E, u, remaining, mode, line, c, 0.5 * (v0 + v1))
+            r.dt = total_dt + r.dt
+            return r
+        split = True
+        rk = rk4_energy_time(E, u, hk, mode, line, c, 0.5 * (v0 + vk))
+        total_dt += rk.dt
+        E = 0.5 * vk * vk
+        u += hk
+        remaining -= hk
+    r.dt = total_dt + r.dt
+    return r
+
+
+cdef double step_energy_c(
+    double E, double u, double h, long mode, const Line* line, const Ctx* c, const Kinks* kinks
+) noexcept nogil:
+    """E after a kink-aware step h [m], negative backwards (``kernel.step_energy``)."""
+    cdef double remaining = h
+    cdef double E1 = E
+    cdef bint split = is_kink(sqrt(2.0 * E) if E > 0.0 else 0.0, kinks)
+    cdef double v0, v1, v_far, vk, hk
+    cdef bint rising
+    cdef int it
+    for it in range(64):
+        E1 = rk4_energy(E, u, remaining, mode, line, c, -1.0)
+        v0 = sqrt(2.0 * E) if E > 0.0 else 0.0
+        v1 = sqrt(2.0 * E1) if E1 > 0.0 else 0.0
+        rising = v1 > v0
+        v_far = v1 + 0.5 * (v1 - v0) + 1e-6 if rising else v1 - 0.5 * (v0 - v1) - 1e-6
+        vk = next_kink(v0, rising, v_far, kinks)
+        hk = INFINITY
+        if vk >= 0.0:
+            hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, line, c)
+        if not (hk * remaining > 0.0 and fabs(hk) < fabs(remaining) - POSITION_TOLERANCE):
+            if split or vk >= 0.0:
+                E1 = rk4_energy(E, u, remaining, mode, line, c, 0.5 * (v0 + v1))
+            return E1
+        split = True
+        E = 0.5 * vk * vk
+        u += hk
+        remaining -= hk
+    return E1
+
+
+cdef double find_speed_crossing_split_c(
+    double E, double u, double H, double target_E, long mode, const Line* line, const Ctx* c,
+    const Kinks* kinks,
+) noexcept nogil:
+    """Signed distance in (0, H] where E reaches target_E along ``mode``, across kinks; H if it is
+    not reached (``kernel.find_speed_crossing_split``)."""
+    cdef double v_t = sqrt(2.0 * target_E) if target_E > 0.0 else 0.0
+    cdef double v = sqrt(2.0 * E) if E > 0.0 else 0.0
+    cdef bint rising = v_t > v
+    cdef double total = 0.0
+    cdef double vk, Ek, hk
+    cdef int it
+    for it in range(64):
+        vk = next_kink(v, rising, v_t, kinks)
+        Ek = 0.5 * vk * vk if vk >= 0.0 else target_E
+        hk = distance_to_speed(E, u + total, Ek, mode, line, c)
+        if not isfinite(hk):
+            return H
+        total += hk
+        if vk < 0.0:
+            break
+        E = Ek
+        v = vk
+    if total * H <= 0.0 or fabs(total) > fabs(H):
+        return H
+    return total
+
+
+cdef double find_curve_meeting(
+    double E, double u, double Er, double w, const Line* line, const Ctx* c, const Kinks* tk,
+    const Kinks* bk,
+) noexcept nogil:
+    """Offset in (u, w] where the traction curve from (u, E) meets the braking curve ending at
+    (w, Er), Illinois method (``kernel.find_curve_meeting``)."""
+    cdef double lo = u, hi = w
+    cdef double f_lo = E - step_energy_c(Er, w, u - w, BRAKE, line, c, bk)
+    cdef double f_hi = step_energy_c(E, u, w - u, TRACTION, line, c, tk) - Er
+    cdef int side = 0
+    cdef double x = hi
+    cdef double f
+    cdef int it
+    for it in range(100):
+        if f_hi == f_lo:
+            break
+        x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        f = step_energy_c(E, u, x - u, TRACTION, line, c, tk) - step_energy_c(Er, w, x - w, BRAKE, line, c, bk)
+        if (f > 0.0) == (f_hi > 0.0):
+            hi = x
+            f_hi = f
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
+        else:
+            lo = x
+            f_lo = f
+            if side == -1:
+                f_hi *= 0.5
+            side = -1
+        if fabs(hi - lo) < POSITION_TOLERANCE or f == 0.0:
+            break
+    return x
+
+
+# --------------------------------------------------------------------------------------------- passes
+
+
+cdef inline Line line_of(const Track* tr, Py_ssize_t i) noexcept nogil:
+    cdef Line line
+    line.a0 = tr.a0[i]
+    line.a1 = tr.a1[i]
+    line.b0 = tr.b0[i]
+    line.b1 = tr.b1[i]
+    return line
+
+
+cdef void braking_ceiling_mixed_c(
+    const Track* tr, Py_ssize_t i0, Py_ssize_t i1, const Ctx* c, const Kinks* bk, const Kinks* rk,
+    const long* modes, long mode_all, double* Cr, double* Cl, double* US,
+) noexcept nogil:
+    """Backward pass from standstill at x[i1] to x[i0] (``kernel.braking_ceiling_mixed``; with
+    ``modes`` NULL every interval's mode is ``mode_all``, as ``kernel.braking_ceiling``). Writes
+    Cr, Cl, US for intervals k = i - i0."""
+    cdef Py_ssize_t m_int = i1 - i0
+    cdef double c_next = 0.0
+    cdef Py_ssize_t k, i
+    cdef double w, cr, Er, El, vl, vlim_i, h
+    cdef Line line
+    cdef long mode
+    cdef const Kinks* kinks
+    for k in range(m_int - 1, -1, -1):
+        i = i0 + k
+        w = tr.x[i + 1] - tr.x[i]
+        vlim_i = tr.vlim[i]
+        cr = c_next if c_next < vlim_i else vlim_i
+        Er = 0.5 * cr * cr
+        line = line_of(tr, i)
+        mode = modes[i] if modes != NULL else mode_all
+        kinks = bk if mode == BRAKE else rk
+        if cr >= vlim_i and (
+            acceleration(mode, Er, 0.0, &line, c, -1.0) < 0.0
+            and acceleration(mode, Er, w, &line, c, -1.0) < 0.0
+        ):
+            # braking backwards from the limit only rises above it: the whole interval is at the limit
+            US[k] = w
+            Cl[k] = vlim_i
+            Cr[k] = cr
+            c_next = vlim_i
+            continue
+        El = step_energy_c(Er, w, -w, mode, &line, c, kinks)
+        vl = sqrt(2.0 * El) if El > 0.0 else 0.0
+        if vl <= vlim_i:
+            US[k] = 0.0
+            Cl[k] = vl
+        else:
+            if cr >= vlim_i - SPEED_TOLERANCE:
+                US[k] = w
+            else:
+                h = find_speed_crossing_split_c(Er, w, -w, 0.5 * vlim_i * vlim_i, mode, &line, c, kinks)
+                US[k] = w + h
+            Cl[k] = vlim_i
+        Cr[k] = cr
+        c_next = Cl[k]
+
+
+cdef inline void push(Out* o, double s, double v, double t, long m) noexcept nogil:
+    """Append a trace point; past the arrays' end nothing is written and the overflow is flagged
+    (the entry point raises: the numba kernel would have written past the arrays)."""
+    if o.n >= o.cap:
+        o.overflow = True
+        return
+    o.s[o.n] = s
+    o.v[o.n] = v
+    o.t[o.n] = t
+    o.m[o.n] = <signed char>m
+    o.n += 1
+
+
+cdef long fastest_segment_c(
+    const Track* tr, Py_ssize_t i0, Py_ssize_t i1, double t0, const Ctx* c, const Kinks* tk,
+    const Kinks* bk, Out* o, double* Cr, double* Cl, double* US, double* stall_at,
+) noexcept nogil:
+    """Fastest run from standstill at x[i0] to standstill at x[i1], appended to ``o``; returns the
+    status, the stall position in ``stall_at`` (``kernel.fastest_segment``). Cr, Cl, US: scratch of
+    i1 - i0 values each."""
+    cdef Py_ssize_t m_int = i1 - i0
+    cdef double* P = c.P
+    braking_ceiling_mixed_c(tr, i0, i1, c, bk, bk, NULL, BRAKE, Cr, Cl, US)
+    cdef double v = 0.0
+    cdef double t = t0
+    cdef Py_ssize_t k, i
+    cdef double w, vl_i, u, E, end, need_u, need_end, fmax, stop_at, h, v1, Er, Eb, xm, xi
+    cdef Line line
+    cdef ET r, rm
+    for k in range(m_int):
+        i = i0 + k
+        xi = tr.x[i]
+        w = tr.x[i + 1] - xi
+        line = line_of(tr, i)
+        vl_i = tr.vlim[i]
+        P[P_TRACTION_SCALE] = tr.tscale[i]
+        u = 0.0
+        while u < w:
+            E = 0.5 * v * v
+            if u < US[k]:
+                end = US[k]
+                if v >= vl_i - SPEED_TOLERANCE:
+                    v = vl_i
+                    # cruise as long as the traction can hold the speed
+                    need_u = resistance_force(v, u, &line, P)
+                    need_end = resistance_force(v, end, &line, P)
+                    fmax = P[P_TRACTION_SCALE] * effort(v, &c.curves.traction)
+                    if need_u > fmax * (1.0 + 1e-12):
+                        stop_at = u
+                    elif need_end > fmax:
+                        stop_at = u + (end - u) * (fmax - need_u) / (need_end - need_u)
+                    else:
+                        stop_at = end
+                    if stop_at > u:
+                        push(o, xi + u, v, t, CRUISE)
+                        t += (stop_at - u) / v
+                        u = stop_at
+                        continue
+                # traction towards the end of this part
+                r = step_energy_time_c(E, u, end - u, TRACTION, &line, c, tk)
+                if r.E <= 0.0:
+                    h = find_speed_crossing_split_c(E, u, end - u, 0.0, TRACTION, &line, c, tk)
+                    push(o, xi + u, v, t, TRACTION)
+                    push(o, xi + u + h, 0.0, t + (2.0 * h / v if v > 0 else 0.0), TRACTION)
+                    stall_at[0] = xi + u + h
+                    return STATUS_STALLED
+                v1 = sqrt(2.0 * r.E)
+                push(o, xi + u, v, t, TRACTION)
+                if v1 > vl_i and v < vl_i:
+                    h = find_speed_crossing_split_c(E, u, end - u, 0.5 * vl_i * vl_i, TRACTION, &line, c, tk)
+                    rm = step_energy_time_c(E, u, h, TRACTION, &line, c, tk)
+                    t += rm.dt
+                    u += h
+                    v = vl_i
+                else:
+                    t += r.dt
+                    u = end
+                    v = vl_i if vl_i < v1 else v1
+            else:
+                # under the braking curve that ends at (w, Cr[k])
+                Er = 0.5 * Cr[k] * Cr[k]
+                Eb = step_energy_c(Er, w, u - w, BRAKE, &line, c, bk)
+                if Eb * (1.0 - 1e-9) - 1e-12 > E:
+                    r = step_energy_time_c(E, u, w - u, TRACTION, &line, c, tk)
+                    push(o, xi + u, v, t, TRACTION)
+                    if Er < r.E:
+                        xm = find_curve_meeting(E, u, Er, w, &line, c, tk, bk)
+                        rm = step_energy_time_c(E, u, xm - u, TRACTION, &line, c, tk)
+                        t += rm.dt
+                        u = xm
+                        v = sqrt(2.0 * rm.E) if rm.E > 0 else 0.0
+                        continue
+                    if r.E <= 0.0:
+                        stall_at[0] = xi + u
+                        return STATUS_STALLED
+                    t += r.dt
+                    u = w
+                    v = sqrt(2.0 * r.E)
+                else:
+                    push(o, xi + u, v, t, BRAKE)
+                    r = step_energy_time_c(0.5 * v * v, u, w - u, BRAKE, &line, c, bk)
+                    t += r.dt
+                    u = w
+                    v = Cr[k]
+    push(o, tr.x[i1], 0.0, t, DWELL)
+    stall_at[0] = 0.0
+    return STATUS_OK
+
+
+# ----------------------------------------------------------------------------------- Python entry points
+
+
+cdef const double* _data(const double[::1] a) noexcept:
+    """First element's address, or NULL for an empty array (never read then)."""
+    return &a[0] if a.shape[0] > 0 else NULL
+
+
+cdef Track _track(
+    const double[::1] x, const double[::1] a0, const double[::1] a1, const double[::1] b0,
+    const double[::1] b1, const double[::1] vlim, const double[::1] tscale, Py_ssize_t need,
+) except *:
+    """The compiled track's arrays as a Track; raises unless x has one more point than the interval
+    arrays and they hold at least ``need`` intervals."""
+    cdef Py_ssize_t n = a0.shape[0]
+    if (
+        a1.shape[0] != n or b0.shape[0] != n or b1.shape[0] != n or tscale.shape[0] != n
+        or (vlim is not None and vlim.shape[0] != n) or x.shape[0] != n + 1
+    ):
+        raise ValueError(
+            f"track arrays of lengths x {x.shape[0]}, a0 {n}, a1 {a1.shape[0]}, b0 {b0.shape[0]}, "
+            f"b1 {b1.shape[0]}, tscale {tscale.shape[0]}"
+            + (f", vlim {vlim.shape[0]}" if vlim is not None else "")
+            + ": need one length n for the intervals and n + 1 for x"
+        )
+    if n < need:
+        raise ValueError(f"the track has {n} intervals, the call needs {need}")
+    cdef Track tr
+    tr.x = &x[0]
+    tr.a0 = _data(a0)
+    tr.a1 = _data(a1)
+    tr.b0 = _data(b0)
+    tr.b1 = _data(b1)
+    tr.vlim = _data(vlim) if vlim is not None else NULL
+    tr.tscale = _data(tscale)
+    tr.n = n
+    return tr
+
+
+cdef int _check_params(const double[::1] P) except -1:
+    if P.shape[0] != N_PARAMS:
+        raise ValueError(f"parameter vector P of length {P.shape[0]}: need {N_PARAMS} (trainsim.sim.codes)")
+    return 0
+
+
+cdef Line _line(object line) except *:
+    cdef Line out
+    if len(line) != 4:
+        raise ValueError(f"line laws of length {len(line)}: need (a0, a1, b0, b1)")
+    out.a0, out.a1, out.b0, out.b1 = line
+    return out
+
+
+cdef Kinks _kinks(const double[::1] k):
+    cdef Kinks out
+    out.v = _data(k)
+    out.n = k.shape[0]
+    return out
+
+
+def fastest_segment(
+    const double[::1] x,
+    const double[::1] a0,
+    const double[::1] a1,
+    const double[::1] b0,
+    const double[::1] b1,
+    const double[::1] vlim,
+    const double[::1] tscale,
+    Py_ssize_t i0,
+    Py_ssize_t i1,
+    double t0,
+    double[::1] P,
+    tuple curves,
+    const double[::1] tk,
+    const double[::1] bk,
+    double[::1] out_s,
+    double[::1] out_v,
+    double[::1] out_t,
+    signed char[::1] out_m,
+    Py_ssize_t n,
+):
+    """Fastest run from standstill at x[i0] to standstill at x[i1] [m], starting at time t0 [s];
+    appends points to the out arrays (float64, regimes int8) from index n. Returns
+    ``(new n, status, position of a stall [m])`` as ``trainsim.sim.kernel.fastest_segment``. Writes
+    P[P_TRACTION_SCALE] as that does."""
+    cdef Track tr = _track(x, a0, a1, b0, b1, vlim, tscale, i1)
+    _check_params(P)
+    if not 0 <= i0 <= i1:
+        raise ValueError(f"segment from interval {i0} to {i1}: need 0 <= i0 <= i1")
+    cdef Py_ssize_t cap = out_s.shape[0]
+    if out_v.shape[0] != cap or out_t.shape[0] != cap or out_m.shape[0] != cap:
+        raise ValueError("the out arrays s, v, t, m must have one length")
+    if not 0 <= n <= cap:
+        raise ValueError(f"start index n = {n} outside the out arrays (length {cap})")
+    cdef Curves cv
+    curves_from(curves, &cv)
+    cdef Ctx c
+    c.P = &P[0]
+    c.curves = &cv
+    cdef Kinks ktk = _kinks(tk), kbk = _kinks(bk)
+    cdef Out o
+    o.s = &out_s[0] if cap > 0 else NULL
+    o.v = &out_v[0] if cap > 0 else NULL
+    o.t = &out_t[0] if cap > 0 else NULL
+    o.m = &out_m[0] if cap > 0 else NULL
+    o.n = n
+    o.cap = cap
+    o.overflow = False
+    cdef Py_ssize_t m_int = i1 - i0
+    scratch = np.empty(3 * m_int + 1)
+    cdef double[::1] sc = scratch
+    cdef double stall_at = 0.0
+    cdef long status
+    with nogil:
+        status = fastest_segment_c(
+            &tr, i0, i1, t0, &c, &ktk, &kbk, &o, &sc[0], &sc[m_int], &sc[2 * m_int], &stall_at
+        )
+    if o.overflow:
+        raise ValueError(f"the out arrays (length {cap}) are too short for the segment's trace")
+    return o.n, status, stall_at
+
+
+def braking_ceiling_mixed(
+    const double[::1] x,
+    const double[::1] a0,
+    const double[::1] a1,
+    const double[::1] b0,
+    const double[::1] b1,
+    const double[::1] vlim,
+    Py_ssize_t i0,
+    Py_ssize_t i1,
+    double[::1] P,
+    tuple curves,
+    const double[::1] bk,
+    const double[::1] rk,
+    const long[::1] modes,
+):
+    """``(Cr, Cl, US)`` of the backward pass from standstill at x[i1] to x[i0], each interval in its
+    mode ``modes[i]`` (BRAKE or REGEN), as ``trainsim.sim.kernel.braking_ceiling_mixed``."""
+    cdef Track tr = _track(x, a0, a1, b0, b1, vlim, a0, i1)
+    _check_params(P)
+    if not 0 <= i0 <= i1:
+        raise ValueError(f"intervals from {i0} to {i1}: need 0 <= i0 <= i1")
+    if modes.shape[0] < i1:
+        raise ValueError(f"modes of length {modes.shape[0]}: need one per interval up to {i1}")
+    return _braking_ceiling(&tr, i0, i1, P, curves, bk, rk, &modes[0] if i1 > 0 else NULL, BRAKE)
+
+
+def braking_ceiling(
+    const double[::1] x,
+    const double[::1] a0,
+    const double[::1] a1,
+    const double[::1] b0,
+    const double[::1] b1,
+    const double[::1] vlim,
+    Py_ssize_t i0,
+    Py_ssize_t i1,
+    double[::1] P,
+    tuple curves,
+    const double[::1] bk,
+    long mode=BRAKE,
+):
+    """``(Cr, Cl, US)`` of the backward pass in one ``mode`` (BRAKE or REGEN) with ``bk`` that
+    curve's kinks, as ``trainsim.sim.kernel.braking_ceiling``."""
+    cdef Track tr = _track(x, a0, a1, b0, b1, vlim, a0, i1)
+    _check_params(P)
+    if not 0 <= i0 <= i1:
+        raise ValueError(f"intervals from {i0} to {i1}: need 0 <= i0 <= i1")
+    return _braking_ceiling(&tr, i0, i1, P, curves, bk, bk, NULL, mode)
+
+
+cdef tuple _braking_ceiling(
+    const Track* tr, Py_ssize_t i0, Py_ssize_t i1, double[::1] P, tuple curves, const double[::1] bk,
+    const double[::1] rk, const long* modes, long mode,
+):
+    cdef Curves cv
+    curves_from(curves, &cv)
+    cdef Ctx c
+    c.P = &P[0]
+    c.curves = &cv
+    cdef Kinks kb = _kinks(bk), kr = _kinks(rk)
+    cdef Py_ssize_t m_int = i1 - i0
+    Cr = np.empty(m_int)
+    Cl = np.empty(m_int)
+    US = np.empty(m_int)
+    cdef double[::1] cr = Cr, cl = Cl, us = US
+    if m_int > 0:
+        with nogil:
+            braking_ceiling_mixed_c(tr, i0, i1, &c, &kb, &kr, modes, mode, &cr[0], &cl[0], &us[0])
+    return Cr, Cl, US
+
+
+cdef Ctx _ctx(double[::1] P, Curves* cv, tuple curves) except *:
+    _check_params(P)
+    curves_from(curves, cv)
+    cdef Ctx c
+    c.P = &P[0]
+    c.curves = cv
+    return c
+
+
+def acceleration_of(long mode, double E, double u, object line, double[::1] P, tuple curves, double vref=-1.0):
+    """``trainsim.sim.kernel.acceleration`` [m/s^2] through the compiled function."""
+    cdef Curves cv
+    cdef Ctx c = _ctx(P, &cv, curves)
+    cdef Line ln = _line(line)
+    return acceleration(mode, E, u, &ln, &c, vref)
+
+
+def rk4_energy_time_of(
+    double E, double u, double h, long mode, object line, double[::1] P, tuple curves, double vref=-1.0
+):
+    """``trainsim.sim.kernel.rk4_energy_time``: (E [m^2/s^2], elapsed time [s])."""
+    cdef Curves cv
+    cdef Ctx c = _ctx(P, &cv, curves)
+    cdef Line ln = _line(line)
+    cdef ET r = rk4_energy_time(E, u, h, mode, &ln, &c, vref)
+    return r.E, r.dt
+
+
+def rk4_energy_of(double E, double u, double h, long mode, object line, double[::1] P, tuple curves, double vref=-1.0):
+    """``trainsim.sim.kernel.rk4_energy``: E [m^2/s^2] after the step."""
+    cdef Curves cv
+    cdef Ctx c = _ctx(P, &cv, curves)
+    cdef Line ln = _line(line)
+    return rk4_energy(E, u, h, mode, &ln, &c, vref)
+
+
+def distance_to_speed_of(double E, double u, double Et, long mode, object line, double[::1] P, tuple curves):
+    """``trainsim.sim.kernel.distance_to_speed`` [m]."""
+    cdef Curves cv
+    cdef Ctx c = _ctx(P, &cv, curves)
+    cdef Line ln = _line(line)
+    return distance_to_speed(E, u, Et, mode, &ln, &c)
+
+
+def step_energy_time(
+    double E, double u, double h, long mode, object line, double[::1] P, tuple curves,
+    const double[::1] kinks,
+):
+    """(E [m^2/s^2], elapsed time [s]) after a kink-aware step h [m], as
+    ``trainsim.sim.kernel.step_energy_time``."""
+    cdef Curves cv
+    cdef Ctx c = _ctx(P, &cv, curves)
+    cdef Line ln = _line(line)
+    cdef Kinks k = _kinks(kinks)
+    cdef ET r = step_energy_time_c(E, u, h, mode, &ln, &c, &k)
+    return r.E, r.dt
+
+
+def step_energy(
+    double E, double u, double h, long mode, object line, double[::1] P, tuple curves,
+    const double[::1] kinks,
+):
+    """E [m^2/s^2] after a kink-aware step h [m], as ``trainsim.sim.kernel.step_energy``."""
+    cdef Curves cv
+    cdef Ctx c = _ctx(P, &cv, curves)
+    cdef Line ln = _line(line)
+    cdef Kinks k = _kinks(kinks)
+    return step_energy_c(E, u, h, mode, &ln, &c, &k)
+
+
+def find_speed_crossing_split(
+    double E, double u, double H, double target_E, long mode, object line, double[::1] P, tuple curves,
+    const double[::1] kinks,
+):
+    """Signed distance [m] where E reaches target_E, as ``trainsim.sim.kernel.find_speed_crossing_split``."""
+    cdef Curves cv
+    cdef Ctx c = _ctx(P, &cv, curves)
+    cdef Line ln = _line(line)
+    cdef Kinks k = _kinks(kinks)
+    return find_speed_crossing_split_c(E, u, H, target_E, mode, &ln, &c, &k)
+
+
+def find_curve_meeting_of(
+    double E, double u, double Er, double w, object line, double[::1] P, tuple curves,
+    const double[::1] tk, const double[::1] bk,
+):
+    """``trainsim.sim.kernel.find_curve_meeting`` [m]."""
+    cdef Curves cv
+    cdef Ctx c = _ctx(P, &cv, curves)
+    cdef Line ln = _line(line)
+    cdef Kinks kt = _kinks(tk), kb = _kinks(bk)
+    return find_curve_meeting(E, u, Er, w, &ln, &c, &kt, &kb)
+
+
+def kinks_between_of(double v0, double v1, const double[::1] kinks):
+    """``trainsim.sim.kernel._kinks_between``."""
+    cdef Kinks k = _kinks(kinks)
+    return kinks_between(v0, v1, &k)
+
+
+def compiled_constants():
+    """The tolerances and step settings compiled into this module (checked by a test against
+    ``trainsim.sim.codes`` and ``trainsim.sim.kernel``)."""
+    return {
+        "SPEED_TOLERANCE": SPEED_TOLERANCE,
+        "POSITION_TOLERANCE": POSITION_TOLERANCE,
+        "LENGTH_SCALE_FRACTION": LENGTH_SCALE_FRACTION,
+        "MAX_SUBSTEPS": MAX_SUBSTEPS,
+        "TIME_SUBSTEPS": TIME_SUBSTEPS,
+        "STATUS_OK": STATUS_OK,
+        "STATUS_STALLED": STATUS_STALLED,
+    }
+
+
+cdef Py_ssize_t insert_kink_points_c(
+    const Track* tr, const Ctx* c, const Kinks* tk, const Kinks* bk, const double* s, const double* v,
+    const double* t, const signed char* m, Py_ssize_t n, Out* o,
+) noexcept nogil:
+    """Copy the trace (s, v, t, m) of n points into ``o``, adding a point wherever a traction or
+    braking stretch crosses a kink of its effort curve (``kernel.insert_kink_points``)."""
+    cdef Py_ssize_t n_int = tr.n
+    cdef Py_ssize_t k, i, ix, q, nk
+    cdef const Kinks* kinks
+    cdef long mode
+    cdef Line line
+    cdef double u, E, time, remaining, vc, vk, hk
+    cdef bint rising
+    cdef ET r
+    for k in range(n):
+        push(o, s[k], v[k], t[k], m[k])
+        mode = m[k]
+        if k == n - 1 or (mode != TRACTION and mode != BRAKE):
+            continue
+        kinks = tk if mode == TRACTION else bk
+        nk = kinks_between(v[k], v[k + 1], kinks)
+        if nk == 0:
+            continue
+        i = search_right(tr.x, n_int + 1, s[k]) - 1
+        if i > n_int - 1:
+            i = n_int - 1
+        # numba indexes -1 as the last element (a point before the grid's start): each array wraps
+        # by its own length
+        ix = i if i >= 0 else i + n_int + 1
+        if i < 0:
+            i += n_int
+        c.P[P_TRACTION_SCALE] = tr.tscale[i]
+        line = line_of(tr, i)
+        u = s[k] - tr.x[ix]
+        E = 0.5 * v[k] * v[k]
+        time = t[k]
+        remaining = s[k + 1] - s[k]
+        rising = v[k + 1] > v[k]
+        vc = v[k]
+        # never more points than counted (the output is sized by that count)
+        for q in range(nk):
+            vk = next_kink(vc, rising, v[k + 1], kinks)
+            if vk < 0.0:
+                break
+            hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, &line, c)
+            if not (0.0 < hk < remaining):
+                break
+            r = rk4_energy_time(E, u, hk, mode, &line, c, 0.5 * (vc + vk))
+            E = 0.5 * vk * vk
+            u += hk
+            remaining -= hk
+            time += r.dt
+            vc = vk
+            push(o, tr.x[ix] + u, vk, time, mode)
+    return o.n
+
+
+def insert_kink_points(
+    const double[::1] x,
+    const double[::1] a0,
+    const double[::1] a1,
+    const double[::1] b0,
+    const double[::1] b1,
+    const double[::1] tscale,
+    double[::1] P,
+    tuple curves,
+    const double[::1] tk,
+    const double[::1] bk,
+    const double[::1] s,
+    const double[::1] v,
+    const double[::1] t,
+    m,
+):
+    """The trace (s [m], v [m/s], t [s], regime m as int8) with a point added wherever a traction or
+    braking stretch crosses a kink of its effort curve, as ``trainsim.sim.kernel.insert_kink_points``
+    (new arrays; writes P[P_TRACTION_SCALE] as that does)."""
+    cdef Track tr = _track(x, a0, a1, b0, b1, None, tscale, 1)
+    _check_params(P)
+    if np.asarray(m).dtype != np.int8:
+        raise ValueError(f"regime codes of dtype {np.asarray(m).dtype}: need int8")
+    cdef const signed char[::1] mm = m
+    cdef Py_ssize_t n = s.shape[0]
+    if v.shape[0] != n or t.shape[0] != n or mm.shape[0] != n:
+        raise ValueError(
+            f"trace arrays of lengths s {n}, v {v.shape[0]}, t {t.shape[0]}, m {mm.shape[0]}: need one length"
+        )
+    cdef Curves cv
+    curves_from(curves, &cv)
+    cdef Ctx c
+    c.P = &P[0]
+    c.curves = &cv
+    cdef Kinks ktk = _kinks(tk), kbk = _kinks(bk)
+    cdef Py_ssize_t extra = 0, k
+    with nogil:
+        for k in range(n - 1):
+            if mm[k] == TRACTION:
+                extra += kinks_between(v[k], v[k + 1], &ktk)
+            elif mm[k] == BRAKE:
+                extra += kinks_between(v[k], v[k + 1], &kbk)
+    out_s = np.empty(n + extra)
+    out_v = np.empty(n + extra)
+    out_t = np.empty(n + extra)
+    out_m = np.empty(n + extra, dtype=np.int8)
+    cdef double[::1] os_ = out_s, ov = out_v, ot = out_t
+    cdef signed char[::1] om = out_m
+    cdef Out o
+    o.n = 0
+    o.cap = n + extra
+    o.overflow = False
+    cdef Py_ssize_t j = 0
+    if n > 0:
+        o.s = &os_[0]
+        o.v = &ov[0]
+        o.t = &ot[0]
+        o.m = &om[0]
+        with nogil:
+            j = insert_kink_points_c(&tr, &c, &ktk, &kbk, &s[0], &v[0], &t[0], &mm[0], n, &o)
+    return out_s[:j], out_v[:j], out_t[:j], out_m[:j]
