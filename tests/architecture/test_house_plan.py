@@ -71,16 +71,6 @@ def test_help_imports_no_command():
     assert proc.stdout.strip().splitlines()[-1] == "LOADED:"
 
 
-def test_first_run_after_an_install_says_it_compiles(tmp_path):
-    # an empty numba cache stands for a fresh install: the user is told why the first run is slow
-    import os
-
-    probe = "import os; from trainsim.cli.context import notice_first_compile; notice_first_compile()"
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
-    proc = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, env=env)
-    assert "compiling trainsim's numerical kernels" in proc.stderr
-
-
 def test_the_generated_patterns_catch_compiled_extension_artefacts():
     # Cython writes the C source and the annotated HTML next to the .pyx; the build, the module
     for name in (
