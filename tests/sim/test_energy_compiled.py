@@ -34,15 +34,15 @@ EXAMPLES = (
 
 
 def _recorded(monkeypatch_target, run) -> list[tuple]:
-    """The arguments of every ``energy.stretch_works`` call that ``run()`` makes."""
+    """The arguments of every compiled ``stretch_works`` call that ``run()`` makes (``run_works``)."""
     calls: list[tuple] = []
-    original = energy.stretch_works
+    original = _energy_c.stretch_works
 
     def record(*args):
         calls.append(args)
         return original(*args)
 
-    monkeypatch_target.setattr(energy, "stretch_works", record)
+    monkeypatch_target.setattr(_energy_c, "stretch_works", record)
     run()
     monkeypatch_target.undo()
     return calls

@@ -30,7 +30,7 @@ from numba import njit
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
-from trainsim.sim import kernel
+from trainsim.sim import _energy_c, kernel
 from trainsim.sim.kernel import BRAKE, COAST, CRUISE, DWELL, FOLLOW, REGEN, TRACTION, effort, effort_branch
 from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear
 
@@ -529,11 +529,12 @@ def run_works(
     lo = min(float(s[0]), route.start_m)
     hi = max(float(s[-1]), route.end_m)
     laws = line_laws(profile, available, lo, hi)
-    return stretch_works(
-        np.ascontiguousarray(s, dtype=float),
-        np.ascontiguousarray(v, dtype=float),
-        np.ascontiguousarray(regime, dtype=np.int64),
-        np.ascontiguousarray(level, dtype=float),
+    # the compiled integration (sim/_energy_c.pyx) converts and checks the point arrays itself
+    return _energy_c.stretch_works(
+        s,
+        v,
+        regime,
+        level,
         laws.x,
         (laws.g0, laws.g1, laws.c0, laws.c1, laws.k0, laws.k1, laws.available),
         P,
