@@ -13,7 +13,8 @@ from trainsim.model.effort import POWER_CAP_MIN_SPEED_MPS
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings, Scenario
 from trainsim.model.train import Train
-from trainsim.sim import kernel
+from trainsim.sim import _kernel_c
+from trainsim.sim.codes import DWELL, P_BRAKE_FRACTION, P_DECEL, P_MASS, P_R0, P_R1, P_R2, STATUS_OK
 from trainsim.sim.parameters import kernel_parameters, kink_speeds, regenerative_arrays
 from trainsim.sim.profile import compile_route
 from trainsim.sim.result import RunResult, build_result
@@ -25,16 +26,16 @@ EMPTY_STRETCH = 1e-6
 def drop_empty_stretches(s, v, t, regime):
     """Remove points that start a stretch of no length and no duration (a regime switch found twice
     by root finding), so that no point shows the forces of a regime the train is never in."""
-    empty = (np.diff(s) < EMPTY_STRETCH) & (np.diff(t) < EMPTY_STRETCH) & (regime[:-1] != kernel.DWELL)
+    empty = (np.diff(s) < EMPTY_STRETCH) & (np.diff(t) < EMPTY_STRETCH) & (regime[:-1] != DWELL)
     keep = np.concatenate([~empty, [True]])
     return s[keep], v[keep], t[keep], regime[keep]
 
 
 def _branch_force(v: np.ndarray, coefs_j: np.ndarray, fcap: float, pcap: float) -> np.ndarray:
     """Force [N] of one interval's law of a compiled EffortCurve at speeds v [m/s], with the curve's
-    caps and the clip at 0, evaluated as ``kernel.effort`` does (the law is inf at standstill when
-    it has a hyperbolic term), but on the given interval whatever the speed (so that both sides of
-    a table step are seen)."""
+    caps and the clip at 0, evaluated as the kernel's ``effort`` (``sim/_forces.pxd``) does (the law
+    is inf at standstill when it has a hyperbolic term), but on the given interval whatever the
+    speed (so that both sides of a table step are seen)."""
     c0, c1, c2, ch = coefs_j
     with np.errstate(divide="ignore"):
         hyperbolic = np.where(v > 0.0, ch / np.where(v > 0.0, v, 1.0), np.inf) if ch else 0.0
@@ -85,8 +86,8 @@ def worst_braking_surplus(
     where a branch is stationary (the roots of cubics again), and every such speed is evaluated.
     A sampled check could miss a narrow dip of the braking force between its samples."""
     starts, coefs, fcap, pcap = brake_curve
-    frac = float(P[kernel.P_BRAKE_FRACTION])
-    r0, q1, q2 = float(P[kernel.P_R0]), float(P[kernel.P_R1]), float(P[kernel.P_R2]) + q2_extra
+    frac = float(P[P_BRAKE_FRACTION])
+    r0, q1, q2 = float(P[P_R0]), float(P[P_R1]), float(P[P_R2]) + q2_extra
     vmin = POWER_CAP_MIN_SPEED_MPS
     best_v, best = 0.0, -np.inf
     for j in range(len(starts)):
@@ -125,7 +126,7 @@ def braking_surplus(track, P: np.ndarray, curves: tuple, i0: int, i1: int) -> tu
     (``worst_braking_surplus``) is computed once per distinct v^2 coefficient and ceiling."""
     idx = np.arange(i0, i1)
     w = track.x[idx + 1] - track.x[idx]
-    m = P[kernel.P_MASS]
+    m = P[P_MASS]
     brake_curve = curves[4:8]
     ends = np.concatenate([np.zeros(len(idx)), w])  # both ends (the laws are linear in between)
     ii = np.concatenate([idx, idx])
@@ -153,7 +154,7 @@ def brake_limited_interval(track, P: np.ndarray, curves: tuple, bk: np.ndarray, 
     everywhere. Trains braking at a constant deceleration (TrainRuns.jl's convention) always
     suffice. ``bk`` (the braking curve's kinks) is kept for the callers; the exact check needs no
     sampled speeds."""
-    if P[kernel.P_DECEL] > 0.0 or i1 <= i0:
+    if P[P_DECEL] > 0.0 or i1 <= i0:
         return -1, float("nan"), float("nan")
     return _first_bad(*braking_surplus(track, P, curves, i0, i1), i0)
 
@@ -213,14 +214,14 @@ def run_fastest(
     out_m = np.empty(n_max, dtype=np.int8)
     n = 0
     t = 0.0
-    status = kernel.STATUS_OK
+    status = STATUS_OK
     stall_at = float("nan")
     stations = route.stops
     warnings: list[str] = []
     brake_limited = False
     # the brake check of every interval at once (one set of distinct laws for the whole line)
     first, last = int(track.stop_index[0]), int(track.stop_index[-1])
-    checked = P[kernel.P_DECEL] == 0.0 and last > first
+    checked = P[P_DECEL] == 0.0 and last > first
     worst, worst_v = braking_surplus(track, P, curves, first, last) if checked else (None, None)
     for k in range(len(stops) - 1):
         i0, i1 = int(track.stop_index[k]), int(track.stop_index[k + 1])
@@ -237,11 +238,11 @@ def run_fastest(
             i1 = j
             if i1 == i0:
                 break
-        n, status, stall_at_k = kernel.fastest_segment(
+        n, status, stall_at_k = _kernel_c.fastest_segment(
             track.x, track.a0, track.a1, track.b0, track.b1, track.vlim, track.traction_scale,
             i0, i1, t, P, curves, tk, bk, out_s, out_v, out_t, out_m, n,
         )  # fmt: skip
-        if status != kernel.STATUS_OK:
+        if status != STATUS_OK:
             stall_at = stall_at_k
             break
         if brake_limited:
@@ -251,11 +252,11 @@ def run_fastest(
             dwell = stations[k + 1].dwell_s
             t += dwell
     if n == 0:  # brake-limited where it starts: it stays at standstill there
-        out_s[0], out_v[0], out_t[0], out_m[0] = stops[0], 0.0, 0.0, kernel.DWELL
+        out_s[0], out_v[0], out_t[0], out_m[0] = stops[0], 0.0, 0.0, DWELL
         n = 1
     s, v, t, regime = drop_empty_stretches(out_s[:n], out_v[:n], out_t[:n], out_m[:n])
     # a point at every effort-curve kink makes the trapezoidal work integrals exact there
-    s, v, t, regime = kernel.insert_kink_points(
+    s, v, t, regime = _kernel_c.insert_kink_points(
         track.x, track.a0, track.a1, track.b0, track.b1, track.traction_scale,
         P, curves, tk, bk, s, v, t, regime,
     )  # fmt: skip
@@ -269,7 +270,7 @@ def run_fastest(
         v=v,
         t=t,
         regime=regime,
-        status="stalled" if status != kernel.STATUS_OK else "brake_limited" if brake_limited else "ok",
+        status="stalled" if status != STATUS_OK else "brake_limited" if brake_limited else "ok",
         stall_position_m=stall_at,
         kind="fastest",
         warnings=warnings,
