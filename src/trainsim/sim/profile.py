@@ -18,6 +18,7 @@ from trainsim.errors import InputError
 from trainsim.model.route import Route
 from trainsim.model.train import Train
 from trainsim.physics import line_resistance as lr
+from trainsim.sim._trace_c import interval_laws
 
 #: Smallest interval kept when merging breakpoints [m]; closer points are the same point.
 POSITION_TOLERANCE_M = 1e-6
@@ -299,8 +300,6 @@ def _breakpoints_inside(functions: tuple[PiecewiseLinear, ...], lo: float, hi: f
 def compile_route(route: Route, train: Train, stops_m: list[float], max_step_m: float) -> CompiledRoute:
     """Build the kernel grid for a run between the first and last of ``stops_m``, with the laws
     the result needs too (``compile_track`` returns its first three)."""
-    from trainsim.sim.trace_kernel import interval_laws
-
     profile = line_resistance_profile(route, train)
     ceiling = speed_ceiling(route, train)
     voltage = line_voltage(route, train)

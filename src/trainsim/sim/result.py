@@ -13,11 +13,11 @@ from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
 from trainsim.physics import electrical as el
+from trainsim.sim._trace_c import TRACE_ROWS, run_arrays
 from trainsim.sim.codes import BRAKE, CRUISE, DWELL, FOLLOW, REGEN, REGIME_NAMES, TRACTION
 from trainsim.sim.energy import run_works
 from trainsim.sim.parameters import _NO_CURVE
 from trainsim.sim.profile import LineResistanceProfile, PiecewiseLinear, _law_arrays
-from trainsim.sim.trace_kernel import TRACE_ROWS, run_arrays
 
 #: What a run's ``status`` can say (``RunResult.status`` and ``summary()["status"]``); anything but
 #: ``ok`` comes with warnings saying where and why, and the result is the best feasible run.
@@ -599,7 +599,7 @@ def _trace_and_peaks(
 ) -> tuple[Trace | None, np.ndarray, np.ndarray]:
     """Forces, powers and currents at every point of a run: its trace (None without ``with_trace``)
     and the line current at each point and the stretch it starts, for the peaks [A]. Evaluated in one
-    compiled pass (``trace_kernel.run_arrays``), the same bits as ``_trace_and_peaks_numpy``; without
+    compiled pass (``_trace_c.run_arrays``, Cython), the same bits as ``_trace_and_peaks_numpy``; without
     ``with_trace`` only the peaks are stored."""
     rows, peak_current, peak_paper = run_arrays(
         *_run_arrays_args(
