@@ -3,6 +3,7 @@ kernel (``sim/kernel.py``) on real cases: every output array, status and stall p
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from pathlib import Path
 
@@ -80,15 +81,24 @@ class Case:
         )
 
 
-@pytest.fixture(scope="module", params=[*EXAMPLES, "trainruns freight realworld"])
+@pytest.fixture(
+    scope="module",
+    params=[*EXAMPLES, "metro_b/scenario.yaml @ 40 m", "trainruns freight realworld", "trainruns @ 2.5 m"],
+)
 def case(request):
-    if request.param.startswith("trainruns"):
+    """A case at its own step, or at another (``@ h m``: other grids, other paths through the kernel)."""
+    name, _, step = request.param.partition(" @ ")
+    if name.startswith("trainruns"):
         found = _trainruns_freight()
         if found is None:
             pytest.skip("TrainRuns.jl data not found")
-        return Case(*found)
-    sc = trainsim.load_scenario(ROOT / "examples" / request.param)
-    return Case(sc.train, sc.route, sc.settings)
+        train, route, settings = found
+    else:
+        sc = trainsim.load_scenario(ROOT / "examples" / name)
+        train, route, settings = sc.train, sc.route, sc.settings
+    if step:
+        settings = dataclasses.replace(settings, max_step_m=float(step.removesuffix(" m")))
+    return Case(train, route, settings)
 
 
 def _same(a, b):
