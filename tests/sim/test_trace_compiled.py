@@ -1,7 +1,9 @@
-"""The compiled trace (``sim/_trace_c.pyx``, Cython) gives the same bits as the numba functions it
-replaces (``sim/trace_kernel.py``): every output array of ``run_arrays`` and ``interval_laws`` on the
-fastest run of every example and of the TrainRuns freight train on ``realworld``, with every regime
-and driver level, and with bad input refused with a message naming the argument."""
+"""The compiled trace (``sim/_trace_c.pyx``, Cython) on its own: ``run_arrays`` gives the same bits
+as the numpy reference ``result._trace_and_peaks_numpy`` (which evaluates the model's own
+``EffortCurve`` and ``PiecewiseLinear`` calls and the electrical formulas with numpy) on the fastest
+run of every example and of the TrainRuns freight train on ``realworld``, with every regime and driver
+level; a small run and the per-interval laws checked by hand; bad input refused with a message naming
+the argument. ``test_trace_kernel.py`` compares the same through ``result`` and ``profile``."""
 
 from __future__ import annotations
 
@@ -16,10 +18,16 @@ from simcases import make_route, make_train
 import trainsim
 from trainsim.model import Electrical, ElectrificationSection, Quadratic
 from trainsim.model.scenario import RunSettings
-from trainsim.sim import _trace_c, trace_kernel
+from trainsim.sim import _trace_c
 from trainsim.sim import result as res
 from trainsim.sim.fastest import run_fastest, stops_of
-from trainsim.sim.profile import _law_arrays, compile_route, line_voltage, traction_availability
+from trainsim.sim.profile import (
+    PiecewiseLinear,
+    _law_arrays,
+    compile_route,
+    line_voltage,
+    traction_availability,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 TRAINRUNS = ROOT / "tests" / "data" / "trainruns"
@@ -51,15 +59,14 @@ def _cases():
 
 @pytest.fixture(scope="module")
 def runs():
-    """Per case: the arguments of ``run_arrays`` (but ``with_trace``) on the run's own regimes and on
-    random ones with random driver levels (the forces are evaluated whatever the motion, so every
-    branch is reached), and the compiled route."""
+    """Per case, on the run's own regimes and on random ones with random driver levels (the forces
+    are evaluated whatever the motion, so every branch is reached): the arguments of ``run_arrays``
+    (but ``with_trace``) and those of the numpy reference (but ``with_trace``)."""
     out = {}
     rng = np.random.default_rng(14)
     for name, train, route, settings in _cases():
-        run = run_fastest(train, route, settings)
-        tr = run.trace
-        s, v = tr.position_m, tr.speed_mps
+        tr = run_fastest(train, route, settings).trace
+        s, v, t = tr.position_m, tr.speed_mps, tr.time_s
         train = train.at_gravity(route.gravity_mps2)
         compiled = compile_route(route, train, stops_of(route), settings.max_step_m)
         availability, voltage = traction_availability(route, train), line_voltage(route, train)
@@ -68,80 +75,69 @@ def runs():
         eta_r = elec.regenerative_efficiency * elec.receptivity if elec else 0.0
         aux = elec.auxiliary_power_w if elec else 0.0
         s_right = np.minimum(s + 1e-7, route.end_m)
+        works = rng.uniform(0.0, 1e6, (4, len(s) - 1))
         variants = []
         for regime, level in (
             (tr.regime.astype(np.int64), np.ones(len(s))),
             (rng.integers(0, 7, len(s)), rng.uniform(0.0, 1.0, len(s))),
         ):
-            variants.append(
-                res._run_arrays_args(
-                    train,
-                    settings,
-                    compiled.profile,
-                    compiled.ceiling,
-                    availability,
-                    voltage,
-                    s,
-                    v,
-                    regime,
-                    level,
-                    s_right,
-                    eta_t,
-                    eta_r,
-                    aux,
-                )
+            laws = (compiled.profile, compiled.ceiling, availability, voltage)
+            args = res._run_arrays_args(
+                train, settings, *laws, s, v, regime, level, s_right, eta_t, eta_r, aux
             )
-        out[name] = (variants, compiled, route)
+            ref_args = (
+                train,
+                settings,
+                route,
+                *laws,
+                s,
+                v,
+                t,
+                regime,
+                level,
+                s_right,
+                *works,
+                eta_t,
+                eta_r,
+                aux,
+            )
+            variants.append((args, ref_args))
+        out[name] = variants
     return out
 
 
-def _same(a, b, what):
-    assert a.dtype == b.dtype and a.shape == b.shape, what
-    assert np.array_equal(np.isnan(a), np.isnan(b)), f"{what}: NaN at other places"
-    # bit for bit: the integer views are equal (NaN payloads aside, which no figure carries)
-    ok = ~np.isnan(a)
-    assert np.array_equal(a[ok].view(np.int64), b[ok].view(np.int64)), f"{what}: differs"
-
-
-def test_run_arrays_equal_numba_bit_for_bit(runs):
-    for name, (variants, _, _) in runs.items():
-        for k, args in enumerate(variants):
+def test_run_arrays_equal_the_numpy_reference_bit_for_bit(runs):
+    for name, variants in runs.items():
+        for k, (args, ref_args) in enumerate(variants):
             for with_trace in (True, False):
-                got = _trace_c.run_arrays(*args, with_trace)
-                ref = trace_kernel.run_arrays(*args, with_trace)
-                assert type(got) is tuple and len(got) == 3
-                for label, a, b in zip(("rows", "peak", "peak_paper"), got, ref, strict=True):
-                    _same(a, b, f"{name} variant {k} trace {with_trace}: {label}")
-    assert tuple(_trace_c.TRACE_ROWS) == tuple(trace_kernel.TRACE_ROWS)
+                rows, peak, paper = _trace_c.run_arrays(*args, with_trace)
+                trace, ref_peak, ref_paper = res._trace_and_peaks_numpy(*ref_args, with_trace)
+                what = f"{name} variant {k} trace {with_trace}"
+                assert rows.shape == ((15, len(peak)) if with_trace else (15, 0)), what
+                np.testing.assert_array_equal(peak, ref_peak, err_msg=f"{what}: peak")
+                np.testing.assert_array_equal(paper, ref_paper, err_msg=f"{what}: paper peak")
+                if with_trace:
+                    for row, field in zip(rows, _trace_c.TRACE_ROWS, strict=True):
+                        np.testing.assert_array_equal(row, getattr(trace, field), err_msg=f"{what}: {field}")
 
 
-def test_interval_laws_equal_numba_bit_for_bit(runs):
-    for name, (_, compiled, route) in runs.items():
-        pr = compiled.profile
-        laws = [
-            _law_arrays(f)
-            for f in (pr.gradient, pr.curve, pr.tunnel, pr.tunnel_v2, compiled.ceiling, compiled.available)
-        ]
-        x = compiled.track.x
-        g = float(route.gravity_mps2)
-        got = _trace_c.interval_laws(x, *laws, g)
-        ref = trace_kernel.interval_laws(x, *laws, g)
-        for label, a, b in zip(("a0", "a1", "b0", "b1", "vlim", "scale"), got, ref, strict=True):
-            _same(a, b, f"{name}: {label}")
+def test_trace_rows_are_trace_fields():
+    assert set(_trace_c.TRACE_ROWS) <= set(res.Trace.__dataclass_fields__)
+    assert len(set(_trace_c.TRACE_ROWS)) == len(_trace_c.TRACE_ROWS) == 15
 
 
 def test_the_comparison_reaches_every_branch(runs):
     """Not NaN against NaN, and every regime, brake kind and law kind met."""
     regimes, finite_peaks, decel, service, regen, sloped = set(), 0, False, False, False, False
-    for variants, _, _ in runs.values():
-        for args in variants:
+    for variants in runs.values():
+        for args, _ in variants:
             regimes |= set(np.unique(args[2]).tolist())
             mech = args[8]
             decel |= mech[3]
             service |= mech[4] and not mech[3]
             regen |= mech[5]
             sloped |= any(not law[3] for law in args[5])
-        finite_peaks += int(np.isfinite(_trace_c.run_arrays(*variants[0], False)[1]).sum())
+        finite_peaks += int(np.isfinite(_trace_c.run_arrays(*variants[0][0], False)[1]).sum())
     assert regimes == set(range(7))
     assert decel and service and regen and sloped
     assert finite_peaks > 1000
@@ -223,3 +219,26 @@ def test_small_run_by_hand():
     empty[0:5] = [np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)]
     rows, peak, paper = _trace_c.run_arrays(*empty)
     assert rows.shape == (15, 0) and peak.shape == (0,) and paper.shape == (0,)
+
+
+def test_interval_laws_by_hand():
+    """Gradient ramp 0 -> 10 per mille over 0-1000 m, curve 1 per mille with a jump to 3 at 250 m
+    (a grid point: the jump belongs to the interval on its right), tunnel v^2 term 1e-5 s^2/m^2:
+    per interval a0 = g (gradient at its start + curve), a1 = g x ramp slope, b0 = g 1e-5, b1 = 0,
+    and the ceiling and availability at its middle."""
+    x = np.array([0.0, 250.0, 1000.0])
+    ramp = PiecewiseLinear(np.array([0.0, 1000.0]), np.array([0.0]), np.array([0.01]))
+    curve = PiecewiseLinear(x, np.array([0.001, 0.003]), np.array([0.001, 0.003]))
+    zero = PiecewiseLinear(np.array([0.0, 1000.0]), np.zeros(1), np.zeros(1))
+    v2 = PiecewiseLinear(np.array([0.0, 1000.0]), np.full(1, 1e-5), np.full(1, 1e-5))
+    ceiling = PiecewiseLinear(np.array([0.0, 500.0, 1000.0]), np.array([20.0, 30.0]), np.array([20.0, 30.0]))
+    avail = PiecewiseLinear(np.array([0.0, 1000.0]), np.array([1.0]), np.array([0.5]))
+    g = 9.81
+    laws = [_law_arrays(f) for f in (ramp, curve, zero, v2, ceiling, avail)]
+    a0, a1, b0, b1, vlim, scale = _trace_c.interval_laws(x, *laws, g)
+    np.testing.assert_allclose(a0, [g * 0.001, g * (0.0025 + 0.003)], rtol=1e-9)
+    np.testing.assert_allclose(a1, [g * 1e-5, g * 1e-5], rtol=1e-6)
+    np.testing.assert_allclose(b0, [g * 1e-5, g * 1e-5], rtol=1e-12)
+    np.testing.assert_array_equal(b1, [0.0, 0.0])
+    np.testing.assert_array_equal(vlim, [20.0, 30.0])  # middles 125 m and 625 m
+    np.testing.assert_allclose(scale, [1.0 - 0.5 * 0.125, 1.0 - 0.5 * 0.625], rtol=1e-15)

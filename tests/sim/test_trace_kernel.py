@@ -1,6 +1,8 @@
-"""The compiled point arrays (``trace_kernel``) are the same bits as the numpy computation they
-replace (``result._trace_and_peaks_numpy``), in every regime, with driver levels, constant-deceleration
-and force-law brakes, regenerative braking, gaps in the electrification and averaged line laws."""
+"""The compiled point arrays (``sim/_trace_c.pyx`` through ``result``) are the same bits as the numpy
+computation they replaced (``result._trace_and_peaks_numpy``), in every regime, with driver levels,
+constant-deceleration and force-law brakes, regenerative braking, gaps in the electrification and
+averaged line laws; so are the kernel grid's per-interval laws (``profile.compile_route``) and the
+compiled law and curve values (the model's own ``PiecewiseLinear`` and ``EffortCurve`` calls)."""
 
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ from simcases import make_route, make_train
 import trainsim
 from trainsim.model import EffortCurve, Electrical, ElectrificationSection, Quadratic
 from trainsim.model.scenario import RunSettings
+from trainsim.sim import _trace_c
 from trainsim.sim import result as res
 from trainsim.sim.fastest import run_fastest, stops_of
 from trainsim.sim.profile import (
@@ -24,7 +27,6 @@ from trainsim.sim.profile import (
     line_voltage,
     traction_availability,
 )
-from trainsim.sim.trace_kernel import curve_value, piecewise_value
 
 ROOT = Path(__file__).resolve().parents[2]
 TRAINRUNS = ROOT / "tests" / "data" / "trainruns"
@@ -137,7 +139,7 @@ def test_curve_value_is_effort_curve_call():
     ]
     for curve in curves:
         arrays = curve.as_arrays()
-        got = np.array([curve_value(x, arrays) for x in speeds])
+        got = np.array([_trace_c.curve_value_at(x, arrays) for x in speeds])
         np.testing.assert_array_equal(got, curve(speeds))
 
 
@@ -147,7 +149,7 @@ def test_piecewise_value_is_piecewise_linear_call():
     ramp = PiecewiseLinear(x, np.array([1.0, -2.0, 0.5]), np.array([3.0, 0.25, -7.0]))
     s = np.concatenate([[-5.0, 0.0, 100.0, 250.0, 1000.0, 2000.0, np.nan], np.linspace(-10.0, 1010.0, 997)])
     for f in (step, ramp):
-        got = np.array([piecewise_value(res._law_arrays(f), q) for q in s])
+        got = np.array([_trace_c.piecewise_value_at(res._law_arrays(f), q) for q in s])
         np.testing.assert_array_equal(got, f(s))
 
 
