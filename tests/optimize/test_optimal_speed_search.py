@@ -1,9 +1,9 @@
 """The optimal strategy's speed work (issue 16) changes how the solver searches, not what it finds.
 
-* The final coasting point's search aims at the jump of the outcome (where a run that stops short by
-  less than ``pk.REST_AT_STOP_M`` counts as arriving) and shortens secant steps after one overshot
-  it, instead of bisecting onto it: same coasting point to the search's own tolerance, same run,
-  fewer final-phase runs.
+* The final coasting point's search predicts the jump of the outcome (where a run that stops short by
+  less than ``pk.REST_AT_STOP_M`` counts as arriving) by interpolating the last short runs and aims
+  just short of it, instead of bisecting onto it: same coasting point to the search's own
+  tolerance, same run, fewer final-phase runs.
 * Departures ahead of descents searched once per solve (``_best_departure``'s memo) and W remembered
   by price of time: the solve is bit for bit the one that searches every time.
 
@@ -50,25 +50,31 @@ def _counting(monkeypatch) -> dict[str, int]:
     return count
 
 
-def test_coast_point_aimed_at_the_jump_is_the_bisections(kiss_stadelhofen, monkeypatch):
+def test_coast_point_predicted_is_the_bisections(kiss_stadelhofen, monkeypatch):
+    """The search predicts the jump from the last short runs; bisection onto it (written here, on
+    the solver's own final-phase runs) finds the same point, hence the same run."""
     train, route, s0, s1 = kiss_stadelhofen
     V = 20.0
     count = _counting(monkeypatch)
-    aimed = SectionSolver(train, route, s0, s1).plan(V)
-    runs_aimed = count["runs"]
-    # the search before: secant steps to the line's root alternating with bisection onto the jump
-    monkeypatch.setattr(optimal, "JUMP_AIMS", 0)
-    monkeypatch.setattr(optimal, "SECANT_SHORTENING", 1.0)
-    count["runs"] = 0
-    bisected = SectionSolver(train, route, s0, s1).plan(V)
-    runs_bisected = count["runs"]
-    # both brackets are narrower than the tolerance and hold the same jump: the runs differ by what
-    # 1e-9 m of coasting point moves (about 1e-11 relative; figures may move by 1e-9)
-    assert abs(aimed.coast_start_m - bisected.coast_start_m) <= optimal.COAST_POINT_TOLERANCE_M
-    assert aimed.running_time_s == pytest.approx(bisected.running_time_s, rel=1e-10)
     solver = SectionSolver(train, route, s0, s1)
-    assert solver.energy_j(aimed) == pytest.approx(solver.energy_j(bisected), rel=1e-10)
-    assert runs_aimed <= runs_bisected - 5, (runs_aimed, runs_bisected)
+    plan = solver.plan(V)
+    runs = count["runs"]
+    phase_a = solver._phase_a(V)
+
+    def arrives(s_c: float) -> bool:
+        return solver._phase_b(phase_a, s_c, plan.price_of_time_w, v_hold=V)[1] == pk.HIT_CEILING
+
+    lo, hi = plan.coast_start_m - 1.0, plan.coast_start_m + 1.0
+    assert not arrives(lo) and arrives(hi)
+    while hi - lo > 0.25 * optimal.COAST_POINT_TOLERANCE_M:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if arrives(mid) else (mid, hi)
+    assert abs(plan.coast_start_m - hi) <= optimal.COAST_POINT_TOLERANCE_M
+    points, _, _ = solver._phase_b(phase_a, hi, plan.price_of_time_w, v_hold=V)
+    # 1e-9 m of coasting point moves the run by about 1e-11 relative
+    assert plan.running_time_s == pytest.approx(points[2][-1], rel=1e-10)
+    # 28 runs with the secant search before (aimed at the line's root, shortened after overshoots)
+    assert runs <= 24, runs
 
 
 def test_coast_point_sits_on_the_jump(kiss_stadelhofen):

@@ -68,13 +68,11 @@ JUMP_FACTOR = 5.0
 BRIDGE_ITERATIONS = 16
 #: Runs that keep the schedule collected around a ragged crossing before the least-energy one is kept.
 RAGGED_SAMPLES = 3
-#: Tries per coasting point search at the jump of the outcome predicted by the secant line ...
-JUMP_AIMS = 3
-#: ... with two runs this fraction of COAST_POINT_TOLERANCE_M either side of it [-].
+#: The final coasting point's search aims at the jump of the outcome predicted from the last short
+#: runs this fraction of the way short of it (grown tenfold after each prediction that overshot) ...
+JUMP_MARGIN = 1e-3
+#: ... and closes the bracket with two runs this fraction of COAST_POINT_TOLERANCE_M either side of it [-].
 JUMP_AIM_FRACTION = 0.25
-#: After a secant step of that search that landed beyond the jump, the next ones go this fraction
-#: of the way to the secant line's root [-].
-SECANT_SHORTENING = 0.9
 #: First half-width of the bracket around the previous holding speed's final coasting point [m].
 WARM_COAST_STEP_M = 20.0
 #: Largest step of the adjoint-driven phase [m].
@@ -1131,6 +1129,27 @@ class SectionSolver:
             s_event,
         )
 
+    @staticmethod
+    def _jump_of(shorts: list[tuple[float, float]]) -> float | None:
+        """Where the shortfall of runs that stop short falls to pk.REST_AT_STOP_M [m], from the last
+        (coasting point, residual) pairs of such runs: inverse quadratic interpolation through three
+        (the shortfall curves a little: a secant line overshot the jump on every step, issue 16),
+        the secant line through two; None from one, or from residuals not distinct."""
+        target = -pk.REST_AT_STOP_M
+        if len(shorts) >= 3:
+            (s0, r0), (s1, r1), (s2, r2) = shorts[-3:]
+            if r0 != r1 and r1 != r2 and r0 != r2:
+                return (
+                    s0 * (target - r1) * (target - r2) / ((r0 - r1) * (r0 - r2))
+                    + s1 * (target - r0) * (target - r2) / ((r1 - r0) * (r1 - r2))
+                    + s2 * (target - r0) * (target - r1) / ((r2 - r0) * (r2 - r1))
+                )
+        if len(shorts) >= 2:
+            (s0, r0), (s1, r1) = shorts[-2:]
+            if r0 != r1:
+                return s1 + (target - r1) * (s1 - s0) / (r1 - r0)
+        return None
+
     def _regen_arc_end(self, run, lo: float, hi: float) -> float | None:
         """Where the final phase's regenerative holding arc (from ``lo``; held to ``hi``, the
         descent's end, the run stops short) ends so that the run stops at the stop: left at once it
@@ -1262,58 +1281,44 @@ class SectionSolver:
                 step *= 1.5
         # the outcome jumps at the boundary (beyond it the train meets the service braking curve
         # some metres before the stop), so the bracket is kept by bisection
-        r_hi = np.inf
         lo_points = None
-        previous = None  # the coasting point before lo with its residual (the run stopped short)
-        bisect = True
-        queued: list[float] = []  # points either side of the predicted jump, tried next
-        jump_aims = JUMP_AIMS
-        secant = overshot = False  # whether this step, and the last secant step, is beyond the jump
+        shorts = [(lo, r_lo)]  # the short runs of the bracket's lower end, latest last (residual < 0)
+        margin = JUMP_MARGIN  # the prediction is aimed this fraction of the way short of the jump
+        queued: list[float] = []  # the run just beyond the predicted jump, tried next
         # on until the train comes to rest at the stop itself, or the bracket closes on the point
         # where the outcome jumps (the run then meets the braking curve there): a coasting point
         # left a metre early (a tolerance) moved with the step and its energy with it
         while r_lo < -STOP_TOLERANCE_M and hi - lo > COAST_POINT_TOLERANCE_M:
             mid = 0.5 * (lo + hi)
             queued = [q for q in queued if lo < q < hi]
+            aimed = False
+            jump = self._jump_of(shorts)
             if queued:
                 mid = queued.pop(0)
-            elif not bisect and previous is not None and previous[1] < r_lo:
-                # where a run stops short moves on continuously with the coasting point (the
-                # residual of a run that meets the braking curve does not): a secant step on
-                # those runs, every other step, the bisection keeping the bracket
-                p0, r0 = previous
-                slope = (lo - p0) / (r_lo - r0)
-                # aimed inside the stop tolerance: just beyond the root the run meets the braking
-                # curve instead, which only moves the bracket's upper end
-                target = -0.25 * STOP_TOLERANCE_M
-                guess = lo + (target - r_lo) * slope
-                if overshot:
-                    # the last secant step landed beyond the jump (the line overshoots where the
-                    # shortfall curves): short of the line's root, the next short run is close to
-                    # the jump and the line through it accurate (bisection alone moved lo by halves)
-                    guess = lo + SECANT_SHORTENING * (guess - lo)
-                if lo < guess < hi:
-                    mid = guess
-                    secant = True
-                elif guess >= hi and jump_aims > 0:
-                    # the root lies beyond a run that arrives: the outcome jumps before it, where
-                    # the shortfall falls to the kernel's REST_AT_STOP_M (the run then counts as
-                    # arriving). Bisection took ~35 runs to close on that jump to 1e-9 m; the
-                    # secant line predicts it, and runs just either side of it close the bracket.
-                    jump_aims -= 1
-                    jump = lo + (-pk.REST_AT_STOP_M - r_lo) * slope
-                    eps = JUMP_AIM_FRACTION * COAST_POINT_TOLERANCE_M
-                    if lo < jump - eps and jump + eps < hi:
-                        mid, queued = jump - eps, [jump + eps]
-            bisect = not bisect
+            elif jump is not None and lo < jump < hi + COAST_POINT_TOLERANCE_M:
+                # where a run stops short moves on smoothly with the coasting point (the residual
+                # of a run that arrives does not): interpolating the last short runs predicts the
+                # jump, where the shortfall falls to the kernel's REST_AT_STOP_M (the run then
+                # counts as arriving; no run stops closer, so the search ends on that jump). Aimed
+                # a little short of it, the next run stays short and the next prediction is
+                # closer; within COAST_POINT_TOLERANCE_M two runs either side close the bracket.
+                eps = JUMP_AIM_FRACTION * COAST_POINT_TOLERANCE_M
+                aim = jump - max(margin * (jump - lo), eps)
+                if aim - lo < eps:
+                    aim = jump + eps  # (the jump lies within eps of lo)
+                else:
+                    queued = [jump + eps] if jump - lo < 1e3 * COAST_POINT_TOLERANCE_M else []
+                if lo < aim < hi:
+                    mid, aimed = aim, True
             r_mid, points = residual(mid)
-            if secant:
-                overshot, secant = r_mid >= 0.0, False
             if r_mid >= 0.0:
-                hi, best, r_hi = mid, points, r_mid
+                hi, best = mid, points
+                if aimed and not queued:
+                    # the prediction overshot: aim farther short of it from now on
+                    margin = min(0.5, 10.0 * margin)
             else:
-                previous = (lo, r_lo)
                 lo, r_lo, lo_points = mid, r_mid, points
+                shorts = [*shorts[-2:], (lo, r_lo)]
         coast_point = hi
         # whether the final phase replaces an arc phase A holds above V by braking
         s_a, v_a, _, m_a = phase_a
