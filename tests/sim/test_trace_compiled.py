@@ -190,11 +190,21 @@ def test_law_with_inconsistent_arrays_is_refused_by_name():
     args = _small_args()
     bad = (np.array([0.0, 100.0, 200.0]), np.array([1.0]), np.array([1.0]), True)
     args[5] = (*args[5][:5], bad, args[5][6])
-    with pytest.raises(ValueError, match="law voltage: arrays of lengths 3, 1, 1"):
+    with pytest.raises(
+        ValueError, match=r"law voltage: arrays of shapes \(3,\), \(1,\), \(1,\): need n \+ 1 breakpoints"
+    ):
         _trace_c.run_arrays(*args)
     ints = (np.array([0, 100]), np.array([1.0]), np.array([1.0]), True)
-    with pytest.raises(ValueError, match="law available: x, left and right must be C-contiguous float64"):
+    with pytest.raises(
+        ValueError, match="law available: x: need a C-contiguous float64 array, got items of format 'l'"
+    ):
         _trace_c.interval_laws(np.array([0.0, 1.0]), *args[5][:5], ints, 9.81)
+    strided = (np.arange(4.0)[::2], np.array([1.0]), np.array([1.0]), True)
+    with pytest.raises(ValueError, match="law ceiling: x: need a C-contiguous float64 array"):
+        _trace_c.interval_laws(np.array([0.0, 1.0]), *args[5][:4], strided, args[5][5], 9.81)
+    flat = (np.zeros((2, 1)), np.array([1.0]), np.array([1.0]), True)
+    with pytest.raises(ValueError, match=r"law gradient: arrays of shapes \(2, 1\)"):
+        _trace_c.interval_laws(np.array([0.0, 1.0]), flat, *args[5][1:6], 9.81)
     with pytest.raises(ValueError, match="x: need at least one grid point"):
         _trace_c.interval_laws(np.array([]), *args[5][:6], 9.81)
 

@@ -21,6 +21,7 @@ in them is reference-counted. The arrays belong to the caller, who holds them fo
 
 from libc.math cimport INFINITY, NAN, fabs, sqrt
 from libc.stdint cimport int64_t
+from cpython.buffer cimport PyBUF_C_CONTIGUOUS, PyBUF_FORMAT, PyBUF_WRITABLE, PyBuffer_Release, PyObject_GetBuffer
 
 import numpy as np
 
@@ -357,6 +358,55 @@ cdef void interval_loop(
 # ---- entry points: arguments checked once, then the loops above ----
 
 
+# Arrays are read through the buffer protocol rather than typed memoryviews: the same pointers, without
+# the memoryview support code Cython would generate into this module (three quarters of its C source,
+# most of its compile time). Every buffer a call takes is held until the call returns.
+cdef enum:
+    MAX_HELD = 32  # run_arrays holds 5 run arrays + 7 laws x 3 + 3 outputs = 29
+
+
+cdef struct Held:
+    Py_buffer views[MAX_HELD]
+    int count
+
+
+cdef void release(Held* held) noexcept:
+    cdef int k
+    for k in range(held.count):
+        PyBuffer_Release(&held.views[k])
+    held.count = 0
+
+
+cdef bint is_format(const char* f, bint integer) noexcept:
+    """A native 8-byte float64 (``d``) or, with ``integer``, int64 (``l`` or ``q``) buffer format."""
+    if f == NULL:
+        return not integer  # no format given means unsigned bytes; never asked for here
+    if f[0] == c'@' or f[0] == c'=':
+        f += 1
+    if f[0] == 0 or f[1] != 0:
+        return False
+    return (f[0] == c'l' or f[0] == c'q') if integer else f[0] == c'd'
+
+
+cdef void* hold(Held* held, str what, object a, bint integer, bint writable, Py_ssize_t* n) except? NULL:
+    """Data pointer of ``a``, a C-contiguous buffer of 8-byte floats (integers with ``integer``), and
+    its element count in ``n``; the buffer is held in ``held`` until ``release``."""
+    if held.count >= MAX_HELD:
+        raise RuntimeError(f"internal: more than {MAX_HELD} arrays held")
+    cdef Py_buffer* view = &held.views[held.count]
+    kind = "int64" if integer else "float64"
+    try:
+        PyObject_GetBuffer(a, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (PyBUF_WRITABLE if writable else 0))
+    except (TypeError, ValueError, BufferError) as err:
+        raise ValueError(f"{what}: need a C-contiguous {kind} array ({err})") from None
+    held.count += 1
+    if view.itemsize != 8 or not is_format(view.format, integer):
+        fmt = view.format.decode("ascii", "replace") if view.format != NULL else "B"
+        raise ValueError(f"{what}: need a C-contiguous {kind} array, got items of format {fmt!r}")
+    n[0] = view.len // 8
+    return view.buf
+
+
 cdef object _vector(str name, object a, object dtype):
     """``a`` as a C-contiguous 1-D array of ``dtype`` (no copy when it already is one); only real
     numbers (integers for an integer dtype) are taken."""
@@ -368,30 +418,22 @@ cdef object _vector(str name, object a, object dtype):
     return np.ascontiguousarray(arr, dtype=dtype)
 
 
-cdef int law_from(str name, object arrays, Law* out) except -1:
-    """Fill ``out`` from ``(x, left, right, steps)``; the arrays must stay alive (they are the
-    caller's) and are C-contiguous float64 as ``profile._law_arrays`` makes them."""
+cdef int law_from(Held* held, str name, object arrays, Law* out) except -1:
+    """Fill ``out`` from ``(x, left, right, steps)``, C-contiguous float64 arrays as
+    ``profile._law_arrays`` makes them."""
     if not isinstance(arrays, tuple) or len(arrays) != 4:
         raise ValueError(f"law {name}: need a tuple (x, left, right, steps), got {type(arrays).__name__}")
     x, left, right, steps = arrays
-    cdef const double[::1] xv
-    cdef const double[::1] lv
-    cdef const double[::1] rv
-    try:
-        xv = x
-        lv = left
-        rv = right
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"law {name}: x, left and right must be C-contiguous float64 arrays ({err})") from None
-    if lv.shape[0] < 1 or rv.shape[0] != lv.shape[0] or xv.shape[0] != lv.shape[0] + 1:
+    cdef Py_ssize_t nx, nl, nr
+    out.x = <const double*>hold(held, f"law {name}: x", x, False, False, &nx)
+    out.left = <const double*>hold(held, f"law {name}: left", left, False, False, &nl)
+    out.right = <const double*>hold(held, f"law {name}: right", right, False, False, &nr)
+    if np.ndim(x) != 1 or np.ndim(left) != 1 or np.ndim(right) != 1 or nl < 1 or nr != nl or nx != nl + 1:
         raise ValueError(
-            f"law {name}: arrays of lengths {xv.shape[0]}, {lv.shape[0]}, {rv.shape[0]}: "
+            f"law {name}: arrays of shapes {np.shape(x)}, {np.shape(left)}, {np.shape(right)}: "
             "need n + 1 breakpoints and n left and right values, n >= 1"
         )
-    out.x = &xv[0]
-    out.left = &lv[0]
-    out.right = &rv[0]
-    out.n = lv.shape[0]
+    out.n = nl
     out.steps = bool(steps)
     return 0
 
@@ -453,14 +495,6 @@ def run_arrays(
             raise ValueError(f"{name}: length {arr.shape[0]}, need the length of s ({n})")
     if len(laws) != 7:
         raise ValueError(f"laws: need 7 laws {RUN_LAWS}, got {len(laws)}")
-    cdef RunLaws L
-    law_from(RUN_LAWS[0], laws[0], &L.grad)
-    law_from(RUN_LAWS[1], laws[1], &L.curve)
-    law_from(RUN_LAWS[2], laws[2], &L.tun)
-    law_from(RUN_LAWS[3], laws[3], &L.tun2)
-    law_from(RUN_LAWS[4], laws[4], &L.avail)
-    law_from(RUN_LAWS[5], laws[5], &L.volt)
-    law_from(RUN_LAWS[6], laws[6], &L.ceil)
     cdef Train tr
     tr.c0, tr.c1, tr.c2 = _sized("resist (c0, c1, c2)", resist, 3)
     tr.weight = weight
@@ -484,19 +518,41 @@ def run_arrays(
     out = np.empty((N_ROWS, n if with_trace else 0))
     peak = np.empty(n)
     peak_paper = np.empty(n)
-    cdef const double[::1] sv = s_a
-    cdef const double[::1] vv = v_a
-    cdef const int64_t[::1] rv = regime_a
-    cdef const double[::1] lv = level_a
-    cdef const double[::1] srv = s_right_a
-    cdef double[:, ::1] outv = out
-    cdef double[::1] pv = peak
-    cdef double[::1] ppv = peak_paper
     if n == 0:
         return out, peak, peak_paper
-    cdef double* rows = &outv[0, 0] if with_trace else NULL
-    with nogil:
-        run_loop(n, &sv[0], &vv[0], &rv[0], &lv[0], &srv[0], &L, &tr, with_trace, rows, &pv[0], &ppv[0])
+    cdef Held held
+    held.count = 0
+    cdef RunLaws L
+    cdef Py_ssize_t size
+    cdef const double* sp
+    cdef const double* vp
+    cdef const int64_t* rp
+    cdef const double* lp
+    cdef const double* srp
+    cdef double* rows = NULL
+    cdef double* pp
+    cdef double* ppp
+    try:
+        law_from(&held, RUN_LAWS[0], laws[0], &L.grad)
+        law_from(&held, RUN_LAWS[1], laws[1], &L.curve)
+        law_from(&held, RUN_LAWS[2], laws[2], &L.tun)
+        law_from(&held, RUN_LAWS[3], laws[3], &L.tun2)
+        law_from(&held, RUN_LAWS[4], laws[4], &L.avail)
+        law_from(&held, RUN_LAWS[5], laws[5], &L.volt)
+        law_from(&held, RUN_LAWS[6], laws[6], &L.ceil)
+        sp = <const double*>hold(&held, "s", s_a, False, False, &size)
+        vp = <const double*>hold(&held, "v", v_a, False, False, &size)
+        rp = <const int64_t*>hold(&held, "regime", regime_a, True, False, &size)
+        lp = <const double*>hold(&held, "level", level_a, False, False, &size)
+        srp = <const double*>hold(&held, "s_right", s_right_a, False, False, &size)
+        if with_trace:
+            rows = <double*>hold(&held, "rows", out, False, True, &size)
+        pp = <double*>hold(&held, "peak", peak, False, True, &size)
+        ppp = <double*>hold(&held, "paper peak", peak_paper, False, True, &size)
+        with nogil:
+            run_loop(n, sp, vp, rp, lp, srp, &L, &tr, with_trace, rows, pp, ppp)
+    finally:
+        release(&held)
     return out, peak, peak_paper
 
 
@@ -511,34 +567,44 @@ def interval_laws(x, tuple gradient, tuple curve, tuple tunnel, tuple tunnel_v2,
     x_a = _vector("x", x, np.float64)
     if x_a.shape[0] < 1:
         raise ValueError("x: need at least one grid point, got none")
-    cdef Law laws[6]
-    law_from("gradient", gradient, &laws[0])
-    law_from("curve", curve, &laws[1])
-    law_from("tunnel", tunnel, &laws[2])
-    law_from("tunnel_v2", tunnel_v2, &laws[3])
-    law_from("ceiling", ceiling, &laws[4])
-    law_from("available", available, &laws[5])
     cdef Py_ssize_t n = x_a.shape[0] - 1
-    a0 = np.empty(n)
-    a1 = np.empty(n)
-    b0 = np.empty(n)
-    b1 = np.empty(n)
-    vlim = np.empty(n)
-    scale = np.empty(n)
-    if n == 0:
-        return a0, a1, b0, b1, vlim, scale
-    cdef const double[::1] xv = x_a
-    cdef double[::1] a0v = a0, a1v = a1, b0v = b0, b1v = b1, vv = vlim, sv = scale
-    with nogil:
-        interval_loop(n, &xv[0], laws, g, &a0v[0], &a1v[0], &b0v[0], &b1v[0], &vv[0], &sv[0])
-    return a0, a1, b0, b1, vlim, scale
+    results = tuple(np.empty(n) for _ in range(6))
+    cdef Held held
+    held.count = 0
+    cdef Law laws[6]
+    cdef double* outs[6]
+    cdef const double* xp
+    cdef Py_ssize_t size
+    cdef int k
+    try:
+        law_from(&held, "gradient", gradient, &laws[0])
+        law_from(&held, "curve", curve, &laws[1])
+        law_from(&held, "tunnel", tunnel, &laws[2])
+        law_from(&held, "tunnel_v2", tunnel_v2, &laws[3])
+        law_from(&held, "ceiling", ceiling, &laws[4])
+        law_from(&held, "available", available, &laws[5])
+        if n == 0:
+            return results
+        xp = <const double*>hold(&held, "x", x_a, False, False, &size)
+        for k in range(6):
+            outs[k] = <double*>hold(&held, "result", results[k], False, True, &size)
+        with nogil:
+            interval_loop(n, xp, laws, g, outs[0], outs[1], outs[2], outs[3], outs[4], outs[5])
+    finally:
+        release(&held)
+    return results
 
 
 def piecewise_value_at(tuple law, double s):
     """``piecewise_value`` of a law ``(x, left, right, steps)`` at s [m] (for tests)."""
     cdef Law f
-    law_from("law", law, &f)
-    return piecewise_value(&f, s)
+    cdef Held held
+    held.count = 0
+    try:
+        law_from(&held, "law", law, &f)
+        return piecewise_value(&f, s)
+    finally:
+        release(&held)
 
 
 def curve_value_at(double v, tuple curve):
