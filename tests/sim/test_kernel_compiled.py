@@ -211,7 +211,30 @@ def test_bad_input_is_refused_naming_what_is_wrong():
         _kernel_c.fastest_segment(*args, np.zeros(3), case.curves, case.tk, case.bk, *out, 0)
     with pytest.raises(ValueError, match="need one length n for the intervals"):
         _kernel_c.fastest_segment(tr.x[:-1], *args[1:], case.P.copy(), case.curves, case.tk, case.bk, *out, 0)
-    with pytest.raises(ValueError, match="need int8"):
+    with pytest.raises(ValueError, match="track a0: need a C-contiguous 1-D array of float64"):
+        _kernel_c.fastest_segment(
+            tr.x, tr.a0.astype(np.float32), *args[2:], case.P.copy(), case.curves, case.tk, case.bk, *out, 0
+        )
+    with pytest.raises(ValueError, match="track b1: need a C-contiguous 1-D array of float64, got ndarray"):
+        _kernel_c.fastest_segment(
+            *args[:4],
+            np.repeat(tr.b1, 2)[::2],
+            *args[5:],
+            case.P.copy(),
+            case.curves,
+            case.tk,
+            case.bk,
+            *out,
+            0,
+        )
+    with pytest.raises(ValueError, match="out_m: need a C-contiguous writable 1-D array of int8"):
+        _kernel_c.fastest_segment(
+            *args, case.P.copy(), case.curves, case.tk, case.bk, *out[:3], np.zeros(4), 0
+        )
+    with pytest.raises(ValueError, match=r"\(n,\) and \(n, 4\)"):
+        bad = (*case.curves[:5], np.zeros((len(case.curves[4]), 3)), *case.curves[6:])
+        _kernel_c.fastest_segment(*args, case.P.copy(), bad, case.tk, case.bk, *out, 0)
+    with pytest.raises(ValueError, match="trace regimes m: need a C-contiguous 1-D array of int8"):
         case.kinks(
             _kernel_c.insert_kink_points, np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(2), case.P.copy()
         )

@@ -5,6 +5,7 @@ integrators (all C, no Python objects, nogil). The structs hold pointers into ar
 keeps alive for the length of the call."""
 
 from libc.math cimport ceil, fabs
+from libc.stdint cimport int64_t
 
 from trainsim.sim._forces cimport Curves, P_MASS, P_R0, P_R1, P_R2, search_left, search_right
 
@@ -177,7 +178,7 @@ cdef double find_curve_meeting(
 ) noexcept nogil
 cdef void braking_ceiling_mixed_c(
     const Track* tr, Py_ssize_t i0, Py_ssize_t i1, const Ctx* c, const Kinks* bk, const Kinks* rk,
-    const long* modes, long mode_all, double* Cr, double* Cl, double* US,
+    const int64_t* modes, long mode_all, double* Cr, double* Cl, double* US,
 ) noexcept nogil
 cdef long fastest_segment_c(
     const Track* tr, Py_ssize_t i0, Py_ssize_t i1, double t0, const Ctx* c, const Kinks* tk,

@@ -20,7 +20,16 @@ the speed, ``(fmax - need_u) / (need_end - need_u)``, reached only when the resi
 is the same and above the traction by at most 1e-12 relative.
 """
 
+from cpython.buffer cimport (
+    PyBUF_C_CONTIGUOUS,
+    PyBUF_FORMAT,
+    PyBUF_WRITABLE,
+    PyBuffer_Release,
+    PyObject_GetBuffer,
+)
+from cpython.mem cimport PyMem_Free, PyMem_Malloc
 from libc.math cimport INFINITY, isfinite, sqrt
+from libc.stdint cimport int64_t
 
 import numpy as np
 
@@ -36,7 +45,7 @@ from trainsim.sim._forces cimport (
     P_TRACTION_SCALE,
     REGEN,
     TRACTION,
-    curves_from,
+    Curve,
     effort,
     effort_branch,
     speed_domain_steps,
@@ -316,7 +325,9 @@ cdef double find_curve_meeting(
         if f_hi == f_lo:
             break
         x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
-        f = step_energy_c(E, u, x - u, TRACTION, line, c, tk) - step_energy_c(Er, w, x - w, BRAKE, line, c, bk)
+        f = step_energy_c(E, u, x - u, TRACTION, line, c, tk) - step_energy_c(
+            Er, w, x - w, BRAKE, line, c, bk
+        )
         if (f > 0.0) == (f_hi > 0.0):
             hi = x
             f_hi = f
@@ -339,7 +350,7 @@ cdef double find_curve_meeting(
 
 cdef void braking_ceiling_mixed_c(
     const Track* tr, Py_ssize_t i0, Py_ssize_t i1, const Ctx* c, const Kinks* bk, const Kinks* rk,
-    const long* modes, long mode_all, double* Cr, double* Cl, double* US,
+    const int64_t* modes, long mode_all, double* Cr, double* Cl, double* US,
 ) noexcept nogil:
     """Backward pass from standstill at x[i1] to x[i0] (``kernel.braking_ceiling_mixed``; with
     ``modes`` NULL every interval's mode is ``mode_all``, as ``kernel.braking_ceiling``). Writes
@@ -482,312 +493,6 @@ cdef long fastest_segment_c(
     return STATUS_OK
 
 
-# ----------------------------------------------------------------------------------- Python entry points
-
-
-cdef const double* _data(const double[::1] a) noexcept:
-    """First element's address, or NULL for an empty array (never read then)."""
-    return &a[0] if a.shape[0] > 0 else NULL
-
-
-cdef Track _track(
-    const double[::1] x, const double[::1] a0, const double[::1] a1, const double[::1] b0,
-    const double[::1] b1, const double[::1] vlim, const double[::1] tscale, Py_ssize_t need,
-) except *:
-    """The compiled track's arrays as a Track; raises unless x has one more point than the interval
-    arrays and they hold at least ``need`` intervals."""
-    cdef Py_ssize_t n = a0.shape[0]
-    if (
-        a1.shape[0] != n or b0.shape[0] != n or b1.shape[0] != n or tscale.shape[0] != n
-        or (vlim is not None and vlim.shape[0] != n) or x.shape[0] != n + 1
-    ):
-        raise ValueError(
-            f"track arrays of lengths x {x.shape[0]}, a0 {n}, a1 {a1.shape[0]}, b0 {b0.shape[0]}, "
-            f"b1 {b1.shape[0]}, tscale {tscale.shape[0]}"
-            + (f", vlim {vlim.shape[0]}" if vlim is not None else "")
-            + ": need one length n for the intervals and n + 1 for x"
-        )
-    if n < need:
-        raise ValueError(f"the track has {n} intervals, the call needs {need}")
-    cdef Track tr
-    tr.x = &x[0]
-    tr.a0 = _data(a0)
-    tr.a1 = _data(a1)
-    tr.b0 = _data(b0)
-    tr.b1 = _data(b1)
-    tr.vlim = _data(vlim) if vlim is not None else NULL
-    tr.tscale = _data(tscale)
-    tr.n = n
-    return tr
-
-
-cdef int _check_params(const double[::1] P) except -1:
-    if P.shape[0] != N_PARAMS:
-        raise ValueError(f"parameter vector P of length {P.shape[0]}: need {N_PARAMS} (trainsim.sim.codes)")
-    return 0
-
-
-cdef Line _line(object line) except *:
-    cdef Line out
-    if len(line) != 4:
-        raise ValueError(f"line laws of length {len(line)}: need (a0, a1, b0, b1)")
-    out.a0, out.a1, out.b0, out.b1 = line
-    return out
-
-
-cdef Kinks _kinks(const double[::1] k):
-    cdef Kinks out
-    out.v = _data(k)
-    out.n = k.shape[0]
-    return out
-
-
-def fastest_segment(
-    const double[::1] x,
-    const double[::1] a0,
-    const double[::1] a1,
-    const double[::1] b0,
-    const double[::1] b1,
-    const double[::1] vlim,
-    const double[::1] tscale,
-    Py_ssize_t i0,
-    Py_ssize_t i1,
-    double t0,
-    double[::1] P,
-    tuple curves,
-    const double[::1] tk,
-    const double[::1] bk,
-    double[::1] out_s,
-    double[::1] out_v,
-    double[::1] out_t,
-    signed char[::1] out_m,
-    Py_ssize_t n,
-):
-    """Fastest run from standstill at x[i0] to standstill at x[i1] [m], starting at time t0 [s];
-    appends points to the out arrays (float64, regimes int8) from index n. Returns
-    ``(new n, status, position of a stall [m])`` as ``trainsim.sim.kernel.fastest_segment``. Writes
-    P[P_TRACTION_SCALE] as that does."""
-    cdef Track tr = _track(x, a0, a1, b0, b1, vlim, tscale, i1)
-    _check_params(P)
-    if not 0 <= i0 <= i1:
-        raise ValueError(f"segment from interval {i0} to {i1}: need 0 <= i0 <= i1")
-    cdef Py_ssize_t cap = out_s.shape[0]
-    if out_v.shape[0] != cap or out_t.shape[0] != cap or out_m.shape[0] != cap:
-        raise ValueError("the out arrays s, v, t, m must have one length")
-    if not 0 <= n <= cap:
-        raise ValueError(f"start index n = {n} outside the out arrays (length {cap})")
-    cdef Curves cv
-    curves_from(curves, &cv)
-    cdef Ctx c
-    c.P = &P[0]
-    c.curves = &cv
-    cdef Kinks ktk = _kinks(tk), kbk = _kinks(bk)
-    cdef Out o
-    o.s = &out_s[0] if cap > 0 else NULL
-    o.v = &out_v[0] if cap > 0 else NULL
-    o.t = &out_t[0] if cap > 0 else NULL
-    o.m = &out_m[0] if cap > 0 else NULL
-    o.n = n
-    o.cap = cap
-    o.overflow = False
-    cdef Py_ssize_t m_int = i1 - i0
-    scratch = np.empty(3 * m_int + 1)
-    cdef double[::1] sc = scratch
-    cdef double stall_at = 0.0
-    cdef long status
-    with nogil:
-        status = fastest_segment_c(
-            &tr, i0, i1, t0, &c, &ktk, &kbk, &o, &sc[0], &sc[m_int], &sc[2 * m_int], &stall_at
-        )
-    if o.overflow:
-        raise ValueError(f"the out arrays (length {cap}) are too short for the segment's trace")
-    return o.n, status, stall_at
-
-
-def braking_ceiling_mixed(
-    const double[::1] x,
-    const double[::1] a0,
-    const double[::1] a1,
-    const double[::1] b0,
-    const double[::1] b1,
-    const double[::1] vlim,
-    Py_ssize_t i0,
-    Py_ssize_t i1,
-    double[::1] P,
-    tuple curves,
-    const double[::1] bk,
-    const double[::1] rk,
-    const long[::1] modes,
-):
-    """``(Cr, Cl, US)`` of the backward pass from standstill at x[i1] to x[i0], each interval in its
-    mode ``modes[i]`` (BRAKE or REGEN), as ``trainsim.sim.kernel.braking_ceiling_mixed``."""
-    cdef Track tr = _track(x, a0, a1, b0, b1, vlim, a0, i1)
-    _check_params(P)
-    if not 0 <= i0 <= i1:
-        raise ValueError(f"intervals from {i0} to {i1}: need 0 <= i0 <= i1")
-    if modes.shape[0] < i1:
-        raise ValueError(f"modes of length {modes.shape[0]}: need one per interval up to {i1}")
-    return _braking_ceiling(&tr, i0, i1, P, curves, bk, rk, &modes[0] if i1 > 0 else NULL, BRAKE)
-
-
-def braking_ceiling(
-    const double[::1] x,
-    const double[::1] a0,
-    const double[::1] a1,
-    const double[::1] b0,
-    const double[::1] b1,
-    const double[::1] vlim,
-    Py_ssize_t i0,
-    Py_ssize_t i1,
-    double[::1] P,
-    tuple curves,
-    const double[::1] bk,
-    long mode=BRAKE,
-):
-    """``(Cr, Cl, US)`` of the backward pass in one ``mode`` (BRAKE or REGEN) with ``bk`` that
-    curve's kinks, as ``trainsim.sim.kernel.braking_ceiling``."""
-    cdef Track tr = _track(x, a0, a1, b0, b1, vlim, a0, i1)
-    _check_params(P)
-    if not 0 <= i0 <= i1:
-        raise ValueError(f"intervals from {i0} to {i1}: need 0 <= i0 <= i1")
-    return _braking_ceiling(&tr, i0, i1, P, curves, bk, bk, NULL, mode)
-
-
-cdef tuple _braking_ceiling(
-    const Track* tr, Py_ssize_t i0, Py_ssize_t i1, double[::1] P, tuple curves, const double[::1] bk,
-    const double[::1] rk, const long* modes, long mode,
-):
-    cdef Curves cv
-    curves_from(curves, &cv)
-    cdef Ctx c
-    c.P = &P[0]
-    c.curves = &cv
-    cdef Kinks kb = _kinks(bk), kr = _kinks(rk)
-    cdef Py_ssize_t m_int = i1 - i0
-    Cr = np.empty(m_int)
-    Cl = np.empty(m_int)
-    US = np.empty(m_int)
-    cdef double[::1] cr = Cr, cl = Cl, us = US
-    if m_int > 0:
-        with nogil:
-            braking_ceiling_mixed_c(tr, i0, i1, &c, &kb, &kr, modes, mode, &cr[0], &cl[0], &us[0])
-    return Cr, Cl, US
-
-
-cdef Ctx _ctx(double[::1] P, Curves* cv, tuple curves) except *:
-    _check_params(P)
-    curves_from(curves, cv)
-    cdef Ctx c
-    c.P = &P[0]
-    c.curves = cv
-    return c
-
-
-def acceleration_of(long mode, double E, double u, object line, double[::1] P, tuple curves, double vref=-1.0):
-    """``trainsim.sim.kernel.acceleration`` [m/s^2] through the compiled function."""
-    cdef Curves cv
-    cdef Ctx c = _ctx(P, &cv, curves)
-    cdef Line ln = _line(line)
-    return acceleration(mode, E, u, &ln, &c, vref)
-
-
-def rk4_energy_time_of(
-    double E, double u, double h, long mode, object line, double[::1] P, tuple curves, double vref=-1.0
-):
-    """``trainsim.sim.kernel.rk4_energy_time``: (E [m^2/s^2], elapsed time [s])."""
-    cdef Curves cv
-    cdef Ctx c = _ctx(P, &cv, curves)
-    cdef Line ln = _line(line)
-    cdef ET r = rk4_energy_time(E, u, h, mode, &ln, &c, vref)
-    return r.E, r.dt
-
-
-def rk4_energy_of(double E, double u, double h, long mode, object line, double[::1] P, tuple curves, double vref=-1.0):
-    """``trainsim.sim.kernel.rk4_energy``: E [m^2/s^2] after the step."""
-    cdef Curves cv
-    cdef Ctx c = _ctx(P, &cv, curves)
-    cdef Line ln = _line(line)
-    return rk4_energy(E, u, h, mode, &ln, &c, vref)
-
-
-def distance_to_speed_of(double E, double u, double Et, long mode, object line, double[::1] P, tuple curves):
-    """``trainsim.sim.kernel.distance_to_speed`` [m]."""
-    cdef Curves cv
-    cdef Ctx c = _ctx(P, &cv, curves)
-    cdef Line ln = _line(line)
-    return distance_to_speed(E, u, Et, mode, &ln, &c)
-
-
-def step_energy_time(
-    double E, double u, double h, long mode, object line, double[::1] P, tuple curves,
-    const double[::1] kinks,
-):
-    """(E [m^2/s^2], elapsed time [s]) after a kink-aware step h [m], as
-    ``trainsim.sim.kernel.step_energy_time``."""
-    cdef Curves cv
-    cdef Ctx c = _ctx(P, &cv, curves)
-    cdef Line ln = _line(line)
-    cdef Kinks k = _kinks(kinks)
-    cdef ET r = step_energy_time_c(E, u, h, mode, &ln, &c, &k)
-    return r.E, r.dt
-
-
-def step_energy(
-    double E, double u, double h, long mode, object line, double[::1] P, tuple curves,
-    const double[::1] kinks,
-):
-    """E [m^2/s^2] after a kink-aware step h [m], as ``trainsim.sim.kernel.step_energy``."""
-    cdef Curves cv
-    cdef Ctx c = _ctx(P, &cv, curves)
-    cdef Line ln = _line(line)
-    cdef Kinks k = _kinks(kinks)
-    return step_energy_c(E, u, h, mode, &ln, &c, &k)
-
-
-def find_speed_crossing_split(
-    double E, double u, double H, double target_E, long mode, object line, double[::1] P, tuple curves,
-    const double[::1] kinks,
-):
-    """Signed distance [m] where E reaches target_E, as ``trainsim.sim.kernel.find_speed_crossing_split``."""
-    cdef Curves cv
-    cdef Ctx c = _ctx(P, &cv, curves)
-    cdef Line ln = _line(line)
-    cdef Kinks k = _kinks(kinks)
-    return find_speed_crossing_split_c(E, u, H, target_E, mode, &ln, &c, &k)
-
-
-def find_curve_meeting_of(
-    double E, double u, double Er, double w, object line, double[::1] P, tuple curves,
-    const double[::1] tk, const double[::1] bk,
-):
-    """``trainsim.sim.kernel.find_curve_meeting`` [m]."""
-    cdef Curves cv
-    cdef Ctx c = _ctx(P, &cv, curves)
-    cdef Line ln = _line(line)
-    cdef Kinks kt = _kinks(tk), kb = _kinks(bk)
-    return find_curve_meeting(E, u, Er, w, &ln, &c, &kt, &kb)
-
-
-def kinks_between_of(double v0, double v1, const double[::1] kinks):
-    """``trainsim.sim.kernel._kinks_between``."""
-    cdef Kinks k = _kinks(kinks)
-    return kinks_between(v0, v1, &k)
-
-
-def compiled_constants():
-    """The tolerances and step settings compiled into this module (checked by a test against
-    ``trainsim.sim.codes`` and ``trainsim.sim.kernel``)."""
-    return {
-        "SPEED_TOLERANCE": SPEED_TOLERANCE,
-        "POSITION_TOLERANCE": POSITION_TOLERANCE,
-        "LENGTH_SCALE_FRACTION": LENGTH_SCALE_FRACTION,
-        "MAX_SUBSTEPS": MAX_SUBSTEPS,
-        "TIME_SUBSTEPS": TIME_SUBSTEPS,
-        "STATUS_OK": STATUS_OK,
-        "STATUS_STALLED": STATUS_STALLED,
-    }
-
-
 cdef Py_ssize_t insert_kink_points_c(
     const Track* tr, const Ctx* c, const Kinks* tk, const Kinks* bk, const double* s, const double* v,
     const double* t, const signed char* m, Py_ssize_t n, Out* o,
@@ -845,64 +550,374 @@ cdef Py_ssize_t insert_kink_points_c(
     return o.n
 
 
-def insert_kink_points(
-    const double[::1] x,
-    const double[::1] a0,
-    const double[::1] a1,
-    const double[::1] b0,
-    const double[::1] b1,
-    const double[::1] tscale,
-    double[::1] P,
-    tuple curves,
-    const double[::1] tk,
-    const double[::1] bk,
-    const double[::1] s,
-    const double[::1] v,
-    const double[::1] t,
-    m,
+# ----------------------------------------------------------------------------------- Python entry points
+# The arrays are read through the buffer protocol once per call (a typed memoryview per argument cost
+# about 1 us each, twice numba's whole dispatch): pointer and shape checked, the buffer released at
+# once. The pointers stay valid for the call because the caller holds the arrays and numpy frees an
+# array's data only with the array.
+
+cdef struct Arr:
+    void* data
+    Py_ssize_t n  # length (rows of a 2-D array)
+    Py_ssize_t cols  # columns of a 2-D array, 1 for a 1-D one
+
+
+cdef Arr _array(object a, str what, char kind, int ndim=1, bint writable=False) except *:
+    """Data pointer and shape of a C-contiguous array of float64 (``kind`` 'd'), int8 ('b') or int64
+    ('q'), or a ValueError naming ``what`` and what is allowed."""
+    cdef Py_buffer view
+    cdef int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT
+    if writable:
+        flags |= PyBUF_WRITABLE
+    cdef Py_ssize_t size = 1 if kind == c'b' else 8
+    cdef str need = (
+        f"a C-contiguous {'writable ' if writable else ''}{ndim}-D array of "
+        + ("float64" if kind == c'd' else "int8" if kind == c'b' else "int64")
+    )
+    try:
+        PyObject_GetBuffer(a, &view, flags)
+    except Exception as e:
+        raise ValueError(f"{what}: need {need}, got {type(a).__name__} ({e})") from None
+    cdef char f
+    cdef bint ok
+    cdef Arr out
+    try:
+        f = view.format[0] if view.format != NULL else c'B'
+        if f == c'@' or f == c'=' or f == c'<':
+            f = view.format[1]
+        ok = (
+            view.ndim == ndim
+            and view.itemsize == size
+            and (f == kind or (kind == c'q' and f == c'l'))
+            and (ndim == 1 or view.shape[1] > 0)
+        )
+        if not ok:
+            raise ValueError(
+                f"{what}: need {need}, got {view.ndim}-D of format "
+                f"{view.format.decode() if view.format else '?'} and item size {view.itemsize}"
+            )
+        out.data = view.buf
+        out.n = view.shape[0]
+        out.cols = view.shape[1] if ndim == 2 else 1
+    finally:
+        PyBuffer_Release(&view)
+    return out
+
+
+cdef int _curves(object curves, Curves* out) except -1:
+    """Fill ``out`` from the kernel's 12-tuple ``(ts, tc, tf, tp, bs, bc, bf, bp, rs, rc, rf, rp)``
+    (as ``_forces.curves_from``, with the cheaper array access above)."""
+    if len(curves) != 12:
+        raise ValueError(
+            f"effort curves of length {len(curves)}: need the 12-tuple of three (starts, coefs, fcap, pcap)"
+        )
+    cdef Curve* k
+    cdef Arr st, co
+    cdef int q
+    for q in range(3):
+        k = &out.traction if q == 0 else &out.brake if q == 1 else &out.regen
+        st = _array(curves[4 * q], "effort curve starts", c'd')
+        co = _array(curves[4 * q + 1], "effort curve coefficients", c'd', 2)
+        if st.n == 0 or co.n != st.n or co.cols != 4:
+            raise ValueError(
+                f"effort curve arrays of shapes ({st.n},) and ({co.n}, {co.cols}): "
+                "need (n,) and (n, 4), n >= 1"
+            )
+        k.starts = <const double*>st.data
+        k.coefs = <const double*>co.data
+        k.n = st.n
+        k.fcap = curves[4 * q + 2]
+        k.pcap = curves[4 * q + 3]
+    return 0
+
+
+cdef Track _track(x, a0, a1, b0, b1, vlim, tscale, Py_ssize_t need) except *:
+    """The compiled track's arrays as a Track (``vlim`` may be None); raises unless x has one more
+    point than the interval arrays and they hold at least ``need`` intervals."""
+    cdef Arr ax = _array(x, "track x", c'd'), aa0 = _array(a0, "track a0", c'd')
+    cdef Arr aa1 = _array(a1, "track a1", c'd'), ab0 = _array(b0, "track b0", c'd')
+    cdef Arr ab1 = _array(b1, "track b1", c'd'), ats = _array(tscale, "track traction_scale", c'd')
+    cdef Arr avl
+    avl.data = NULL
+    avl.n = aa0.n
+    if vlim is not None:
+        avl = _array(vlim, "track vlim", c'd')
+    cdef Py_ssize_t n = aa0.n
+    if aa1.n != n or ab0.n != n or ab1.n != n or ats.n != n or avl.n != n or ax.n != n + 1:
+        raise ValueError(
+            f"track arrays of lengths x {ax.n}, a0 {n}, a1 {aa1.n}, b0 {ab0.n}, b1 {ab1.n}, "
+            f"traction_scale {ats.n}, vlim {avl.n}: need one length n for the intervals and n + 1 for x"
+        )
+    if n < need:
+        raise ValueError(f"the track has {n} intervals, the call needs {need}")
+    cdef Track tr
+    tr.x = <const double*>ax.data
+    tr.a0 = <const double*>aa0.data
+    tr.a1 = <const double*>aa1.data
+    tr.b0 = <const double*>ab0.data
+    tr.b1 = <const double*>ab1.data
+    tr.vlim = <const double*>avl.data
+    tr.tscale = <const double*>ats.data
+    tr.n = n
+    return tr
+
+
+cdef int _ctx(object P, object curves, Curves* cv, Ctx* c) except -1:
+    """The parameter vector (written: P_TRACTION_SCALE) and the curves as a Ctx."""
+    cdef Arr ap = _array(P, "parameter vector P", c'd', 1, True)
+    if ap.n != N_PARAMS:
+        raise ValueError(f"parameter vector P of length {ap.n}: need {N_PARAMS} (trainsim.sim.codes)")
+    _curves(curves, cv)
+    c.P = <double*>ap.data
+    c.curves = cv
+    return 0
+
+
+cdef Line _line(object line) except *:
+    cdef Line out
+    if len(line) != 4:
+        raise ValueError(f"line laws of length {len(line)}: need (a0, a1, b0, b1)")
+    out.a0, out.a1, out.b0, out.b1 = line
+    return out
+
+
+cdef Kinks _kinks(object k, str what="kink speeds") except *:
+    cdef Arr a = _array(k, what, c'd')
+    cdef Kinks out
+    out.v = <const double*>a.data
+    out.n = a.n
+    return out
+
+
+def fastest_segment(
+    x, a0, a1, b0, b1, vlim, tscale, Py_ssize_t i0, Py_ssize_t i1, double t0, P, curves, tk, bk,
+    out_s, out_v, out_t, out_m, Py_ssize_t n,
 ):
+    """Fastest run from standstill at x[i0] to standstill at x[i1] [m], starting at time t0 [s];
+    appends points to the out arrays (float64, regimes int8) from index n. Returns
+    ``(new n, status, position of a stall [m])`` as ``trainsim.sim.kernel.fastest_segment``. Writes
+    P[P_TRACTION_SCALE] as that does."""
+    cdef Track tr = _track(x, a0, a1, b0, b1, vlim, tscale, i1)
+    cdef Curves cv
+    cdef Ctx c
+    _ctx(P, curves, &cv, &c)
+    if not 0 <= i0 <= i1:
+        raise ValueError(f"segment from interval {i0} to {i1}: need 0 <= i0 <= i1")
+    cdef Arr os_ = _array(out_s, "out_s", c'd', 1, True), ov = _array(out_v, "out_v", c'd', 1, True)
+    cdef Arr ot = _array(out_t, "out_t", c'd', 1, True), om = _array(out_m, "out_m", c'b', 1, True)
+    cdef Py_ssize_t cap = os_.n
+    if ov.n != cap or ot.n != cap or om.n != cap:
+        raise ValueError(
+            f"the out arrays s, v, t, m of lengths {cap}, {ov.n}, {ot.n}, {om.n}: need one length"
+        )
+    if not 0 <= n <= cap:
+        raise ValueError(f"start index n = {n} outside the out arrays (length {cap})")
+    cdef Kinks ktk = _kinks(tk, "traction kinks tk"), kbk = _kinks(bk, "braking kinks bk")
+    cdef Out o
+    o.s = <double*>os_.data
+    o.v = <double*>ov.data
+    o.t = <double*>ot.data
+    o.m = <signed char*>om.data
+    o.n = n
+    o.cap = cap
+    o.overflow = False
+    cdef Py_ssize_t m_int = i1 - i0
+    cdef double* sc = <double*>PyMem_Malloc((3 * m_int + 1) * sizeof(double))
+    if sc == NULL:
+        raise MemoryError()
+    cdef double stall_at = 0.0
+    cdef long status
+    try:
+        with nogil:
+            status = fastest_segment_c(
+                &tr, i0, i1, t0, &c, &ktk, &kbk, &o, sc, sc + m_int, sc + 2 * m_int, &stall_at
+            )
+    finally:
+        PyMem_Free(sc)
+    if o.overflow:
+        raise ValueError(f"the out arrays (length {cap}) are too short for the segment's trace")
+    return o.n, status, stall_at
+
+
+cdef tuple _braking_ceiling(
+    const Track* tr, Py_ssize_t i0, Py_ssize_t i1, object P, object curves, object bk, object rk,
+    const int64_t* modes, long mode,
+):
+    cdef Curves cv
+    cdef Ctx c
+    _ctx(P, curves, &cv, &c)
+    if not 0 <= i0 <= i1:
+        raise ValueError(f"intervals from {i0} to {i1}: need 0 <= i0 <= i1")
+    cdef Kinks kb = _kinks(bk, "braking kinks bk"), kr = _kinks(rk, "regenerative kinks rk")
+    cdef Py_ssize_t m_int = i1 - i0
+    Cr = np.empty(m_int)
+    Cl = np.empty(m_int)
+    US = np.empty(m_int)
+    cdef double* pr = <double*>_array(Cr, "Cr", c'd', 1, True).data
+    cdef double* pl = <double*>_array(Cl, "Cl", c'd', 1, True).data
+    cdef double* pu = <double*>_array(US, "US", c'd', 1, True).data
+    if m_int > 0:
+        with nogil:
+            braking_ceiling_mixed_c(tr, i0, i1, &c, &kb, &kr, modes, mode, pr, pl, pu)
+    return Cr, Cl, US
+
+
+def braking_ceiling_mixed(x, a0, a1, b0, b1, vlim, Py_ssize_t i0, Py_ssize_t i1, P, curves, bk, rk, modes):
+    """``(Cr, Cl, US)`` of the backward pass from standstill at x[i1] to x[i0], each interval in its
+    mode ``modes[i]`` (int64, BRAKE or REGEN), as ``trainsim.sim.kernel.braking_ceiling_mixed``."""
+    cdef Track tr = _track(x, a0, a1, b0, b1, vlim, a0, i1)
+    cdef Arr am = _array(modes, "modes", c'q')
+    if am.n < i1:
+        raise ValueError(f"modes of length {am.n}: need one per interval up to {i1}")
+    return _braking_ceiling(&tr, i0, i1, P, curves, bk, rk, <const int64_t*>am.data, BRAKE)
+
+
+def braking_ceiling(x, a0, a1, b0, b1, vlim, Py_ssize_t i0, Py_ssize_t i1, P, curves, bk, long mode=BRAKE):
+    """``(Cr, Cl, US)`` of the backward pass in one ``mode`` (BRAKE or REGEN) with ``bk`` that
+    curve's kinks, as ``trainsim.sim.kernel.braking_ceiling``."""
+    cdef Track tr = _track(x, a0, a1, b0, b1, vlim, a0, i1)
+    return _braking_ceiling(&tr, i0, i1, P, curves, bk, bk, NULL, mode)
+
+
+def insert_kink_points(x, a0, a1, b0, b1, tscale, P, curves, tk, bk, s, v, t, m):
     """The trace (s [m], v [m/s], t [s], regime m as int8) with a point added wherever a traction or
     braking stretch crosses a kink of its effort curve, as ``trainsim.sim.kernel.insert_kink_points``
     (new arrays; writes P[P_TRACTION_SCALE] as that does)."""
     cdef Track tr = _track(x, a0, a1, b0, b1, None, tscale, 1)
-    _check_params(P)
-    if np.asarray(m).dtype != np.int8:
-        raise ValueError(f"regime codes of dtype {np.asarray(m).dtype}: need int8")
-    cdef const signed char[::1] mm = m
-    cdef Py_ssize_t n = s.shape[0]
-    if v.shape[0] != n or t.shape[0] != n or mm.shape[0] != n:
-        raise ValueError(
-            f"trace arrays of lengths s {n}, v {v.shape[0]}, t {t.shape[0]}, m {mm.shape[0]}: need one length"
-        )
     cdef Curves cv
-    curves_from(curves, &cv)
     cdef Ctx c
-    c.P = &P[0]
-    c.curves = &cv
-    cdef Kinks ktk = _kinks(tk), kbk = _kinks(bk)
+    _ctx(P, curves, &cv, &c)
+    cdef Arr as_ = _array(s, "trace s", c'd'), av = _array(v, "trace v", c'd')
+    cdef Arr at = _array(t, "trace t", c'd'), am = _array(m, "trace regimes m", c'b')
+    cdef Py_ssize_t n = as_.n
+    if av.n != n or at.n != n or am.n != n:
+        raise ValueError(f"trace arrays of lengths s {n}, v {av.n}, t {at.n}, m {am.n}: need one length")
+    cdef const double* ps = <const double*>as_.data
+    cdef const double* pv = <const double*>av.data
+    cdef const double* pt = <const double*>at.data
+    cdef const signed char* pm = <const signed char*>am.data
+    cdef Kinks ktk = _kinks(tk, "traction kinks tk"), kbk = _kinks(bk, "braking kinks bk")
     cdef Py_ssize_t extra = 0, k
     with nogil:
         for k in range(n - 1):
-            if mm[k] == TRACTION:
-                extra += kinks_between(v[k], v[k + 1], &ktk)
-            elif mm[k] == BRAKE:
-                extra += kinks_between(v[k], v[k + 1], &kbk)
+            if pm[k] == TRACTION:
+                extra += kinks_between(pv[k], pv[k + 1], &ktk)
+            elif pm[k] == BRAKE:
+                extra += kinks_between(pv[k], pv[k + 1], &kbk)
     out_s = np.empty(n + extra)
     out_v = np.empty(n + extra)
     out_t = np.empty(n + extra)
     out_m = np.empty(n + extra, dtype=np.int8)
-    cdef double[::1] os_ = out_s, ov = out_v, ot = out_t
-    cdef signed char[::1] om = out_m
     cdef Out o
+    o.s = <double*>_array(out_s, "out_s", c'd', 1, True).data
+    o.v = <double*>_array(out_v, "out_v", c'd', 1, True).data
+    o.t = <double*>_array(out_t, "out_t", c'd', 1, True).data
+    o.m = <signed char*>_array(out_m, "out_m", c'b', 1, True).data
     o.n = 0
     o.cap = n + extra
     o.overflow = False
     cdef Py_ssize_t j = 0
-    if n > 0:
-        o.s = &os_[0]
-        o.v = &ov[0]
-        o.t = &ot[0]
-        o.m = &om[0]
-        with nogil:
-            j = insert_kink_points_c(&tr, &c, &ktk, &kbk, &s[0], &v[0], &t[0], &mm[0], n, &o)
+    with nogil:
+        j = insert_kink_points_c(&tr, &c, &ktk, &kbk, ps, pv, pt, pm, n, &o)
     return out_s[:j], out_v[:j], out_t[:j], out_m[:j]
+
+
+def acceleration_of(long mode, double E, double u, line, P, curves, double vref=-1.0):
+    """``trainsim.sim.kernel.acceleration`` [m/s^2] through the compiled function."""
+    cdef Curves cv
+    cdef Ctx c
+    _ctx(P, curves, &cv, &c)
+    cdef Line ln = _line(line)
+    return acceleration(mode, E, u, &ln, &c, vref)
+
+
+def rk4_energy_of(double E, double u, double h, long mode, line, P, curves, double vref=-1.0):
+    """``trainsim.sim.kernel.rk4_energy``: E [m^2/s^2] after the step."""
+    cdef Curves cv
+    cdef Ctx c
+    _ctx(P, curves, &cv, &c)
+    cdef Line ln = _line(line)
+    return rk4_energy(E, u, h, mode, &ln, &c, vref)
+
+
+def rk4_energy_time_of(double E, double u, double h, long mode, line, P, curves, double vref=-1.0):
+    """``trainsim.sim.kernel.rk4_energy_time``: (E [m^2/s^2], elapsed time [s])."""
+    cdef Curves cv
+    cdef Ctx c
+    _ctx(P, curves, &cv, &c)
+    cdef Line ln = _line(line)
+    cdef ET r = rk4_energy_time(E, u, h, mode, &ln, &c, vref)
+    return r.E, r.dt
+
+
+def distance_to_speed_of(double E, double u, double Et, long mode, line, P, curves):
+    """``trainsim.sim.kernel.distance_to_speed`` [m]."""
+    cdef Curves cv
+    cdef Ctx c
+    _ctx(P, curves, &cv, &c)
+    cdef Line ln = _line(line)
+    return distance_to_speed(E, u, Et, mode, &ln, &c)
+
+
+def step_energy_time(double E, double u, double h, long mode, line, P, curves, kinks):
+    """(E [m^2/s^2], elapsed time [s]) after a kink-aware step h [m], as
+    ``trainsim.sim.kernel.step_energy_time``."""
+    cdef Curves cv
+    cdef Ctx c
+    _ctx(P, curves, &cv, &c)
+    cdef Line ln = _line(line)
+    cdef Kinks k = _kinks(kinks)
+    cdef ET r = step_energy_time_c(E, u, h, mode, &ln, &c, &k)
+    return r.E, r.dt
+
+
+def step_energy(double E, double u, double h, long mode, line, P, curves, kinks):
+    """E [m^2/s^2] after a kink-aware step h [m], as ``trainsim.sim.kernel.step_energy``."""
+    cdef Curves cv
+    cdef Ctx c
+    _ctx(P, curves, &cv, &c)
+    cdef Line ln = _line(line)
+    cdef Kinks k = _kinks(kinks)
+    return step_energy_c(E, u, h, mode, &ln, &c, &k)
+
+
+def find_speed_crossing_split(
+    double E, double u, double H, double target_E, long mode, line, P, curves, kinks
+):
+    """Signed distance [m] where E reaches target_E, as ``trainsim.sim.kernel.find_speed_crossing_split``."""
+    cdef Curves cv
+    cdef Ctx c
+    _ctx(P, curves, &cv, &c)
+    cdef Line ln = _line(line)
+    cdef Kinks k = _kinks(kinks)
+    return find_speed_crossing_split_c(E, u, H, target_E, mode, &ln, &c, &k)
+
+
+def find_curve_meeting_of(double E, double u, double Er, double w, line, P, curves, tk, bk):
+    """``trainsim.sim.kernel.find_curve_meeting`` [m]."""
+    cdef Curves cv
+    cdef Ctx c
+    _ctx(P, curves, &cv, &c)
+    cdef Line ln = _line(line)
+    cdef Kinks kt = _kinks(tk, "traction kinks tk"), kb = _kinks(bk, "braking kinks bk")
+    return find_curve_meeting(E, u, Er, w, &ln, &c, &kt, &kb)
+
+
+def kinks_between_of(double v0, double v1, kinks):
+    """``trainsim.sim.kernel._kinks_between``."""
+    cdef Kinks k = _kinks(kinks)
+    return kinks_between(v0, v1, &k)
+
+
+def compiled_constants():
+    """The tolerances and step settings compiled into this module (checked by a test against
+    ``trainsim.sim.codes`` and ``trainsim.sim.kernel``)."""
+    return {
+        "SPEED_TOLERANCE": SPEED_TOLERANCE,
+        "POSITION_TOLERANCE": POSITION_TOLERANCE,
+        "LENGTH_SCALE_FRACTION": LENGTH_SCALE_FRACTION,
+        "MAX_SUBSTEPS": MAX_SUBSTEPS,
+        "TIME_SUBSTEPS": TIME_SUBSTEPS,
+        "STATUS_OK": STATUS_OK,
+        "STATUS_STALLED": STATUS_STALLED,
+    }
