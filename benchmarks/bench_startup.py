@@ -1,28 +1,39 @@
 """Start-up of trainsim as a user meets it, whole processes, against `python -c "import numpy"`.
 
-Run: python benchmarks/bench_startup.py [--repeat N] [--cold] [--as-is]
+Run: python benchmarks/bench_startup.py [--repeat N] [--no-cold] [--as-is]
 
-Each figure is the median wall time of N whole processes (after one warm-up), and the median of its
-ratios to the baseline `python -c "import numpy"` timed in the same run, pair by pair (the order of
-each pair swapped every round; the machine is shared and noisy: quote the ratios); then the same in
-CPU time of the child process (user + system, from getrusage), the figure that a loaded machine does
-not inflate. Targets (issue 14): `trainsim --help` <= 0.15 s, `import trainsim` <= 0.25 s,
-`trainsim run` of the metro example <= 0.6 s or <= 3x the baseline; with --cold, the first run after a
-fresh install (empty numba cache) <= 5 s.
+Every start-up figure of issue 14's table, each as the median wall time of N whole processes (after one
+warm-up) and the median of its ratios to the baseline `python -c "import numpy"` timed in the same run,
+pair by pair (the order of each pair swapped every round; the machine is shared and noisy: quote the
+ratios); then the same in CPU time of the child process (user + system, from getrusage), the figure
+that a loaded machine inflates least. Targets (issue 14): `trainsim --help` <= 0.15 s, `import
+trainsim` <= 0.25 s, a warm `trainsim run` of the metro example <= 0.6 s or <= 3x the baseline, the
+first `trainsim run` after a fresh install <= 5 s.
 
-Two reference rows say what part of a run no change inside trainsim can remove while its kernels are
-numba dispatchers: `import numba`, and "numba floor", a process that imports numba and calls one
-trivial ``njit(cache=True)`` function loaded from its cache. Loading the first cached function makes
-numba load its whole lowering library (numba.core.cpu.CPUContext.load_additional_registries: every
-numba.np / numba.cpython implementation module, and through numba.np.arraymath's BLAS check
-scipy.linalg), whatever the function uses. "run above the floor" is the run's median minus that floor.
+Rows:
+
+* ``trainsim --help``, ``import trainsim``;
+* ``trainsim run`` of the metro, warm: as printed (no files), ``--out DIR --no-plots`` (trace.csv and
+  summary.json) and ``--out DIR`` (the same and five PNG plots);
+* the first ``trainsim run`` after an install: an empty ``NUMBA_CACHE_DIR`` and a fresh, empty
+  bytecode prefix for every sample, so that nothing any earlier process cached is reused (every module,
+  numpy's and pydantic's too, is compiled to bytecode again: harsher than an install, which writes
+  bytecode); its ratio is to the warm baseline of the same round;
+* two reference rows: ``import numba``, and the *numba floor*, a process that imports numba and calls
+  one trivial ``njit(cache=True)`` function loaded from its cache: the least any process running a numba
+  kernel pays (loading the first cached function makes numba load its whole lowering library, and
+  through numba.np.arraymath's BLAS check scipy.linalg). The commands that still run numba kernels
+  (optimize, operate, power, multi-point runs) pay at least this.
+
+The last line says whether a warm ``trainsim run`` of the metro loaded numba at all (it should not:
+its kernels are compiled at install).
 
 Bytecode: a warm machine has compiled bytecode (``pip install`` writes it for every module). With
 PYTHONDONTWRITEBYTECODE set (as in some containers) an editable install recompiles every trainsim module
 from source at each start while numpy's bytecode was compiled at its install, which is unfair to
-trainsim. The child processes therefore run with bytecode written to and read from a temporary
+trainsim. The warm child processes therefore run with bytecode written to and read from a temporary
 PYTHONPYCACHEPREFIX (the work tree is left untouched), the baseline alike; --as-is keeps the caller's
-environment instead.
+environment instead (the first-run row keeps its fresh prefix).
 """
 
 from __future__ import annotations
@@ -56,8 +67,19 @@ def one(x):
     return x + 1.0
 """
 
+#: prints whether a warm `trainsim run` of the metro imported numba (the last line of stdout)
+NUMBA_PROBE = """
+import runpy, sys
+sys.argv = ["trainsim", "run", sys.argv[1]]
+try:
+    runpy.run_module("trainsim", run_name="__main__", alter_sys=True)
+except SystemExit:
+    pass
+print("numba" in sys.modules)
+"""
+
 RUN = "trainsim run metro (warm)"
-FLOOR = "numba floor (1 cached fn)"
+FIRST = "first trainsim run (install)"
 
 
 def timed(cmd: Sequence[str], env: dict[str, str] | None = None) -> tuple[float, float]:
@@ -72,7 +94,7 @@ def timed(cmd: Sequence[str], env: dict[str, str] | None = None) -> tuple[float,
 
 
 def child_env(work: Path, as_is: bool) -> dict[str, str]:
-    """The environment of every timed process (see the module docstring on bytecode)."""
+    """The environment of every warm process (see the module docstring on bytecode)."""
     env = dict(os.environ)
     if not as_is:
         env.pop("PYTHONDONTWRITEBYTECODE", None)
@@ -81,30 +103,45 @@ def child_env(work: Path, as_is: bool) -> dict[str, str]:
 
 
 def cases(work: Path) -> dict[str, tuple[list[str], float | None]]:
-    """name -> (command, target [s] or None for a reference row)."""
+    """name -> (command, target [s] or None) of the warm rows."""
     (work / "floor").mkdir()
     (work / "floor" / "floor_mod.py").write_text(FLOOR_MODULE)
     floor = f"import sys; sys.path.insert(0, {str(work / 'floor')!r}); import floor_mod; floor_mod.one(1.0)"
+    trainsim = [sys.executable, "-m", "trainsim"]
     return {
-        "trainsim --help": ([sys.executable, "-m", "trainsim", "--help"], 0.15),
+        "trainsim --help": ([*trainsim, "--help"], 0.15),
         "import trainsim": ([sys.executable, "-c", "import trainsim"], 0.25),
-        RUN: ([sys.executable, "-m", "trainsim", "run", str(METRO)], 0.6),
+        RUN: ([*trainsim, "run", str(METRO)], 0.6),
+        "run --out --no-plots (warm)": (
+            [*trainsim, "run", str(METRO), "--out", str(work / "out_csv"), "--no-plots"],
+            None,
+        ),
+        "run --out, 5 plots (warm)": ([*trainsim, "run", str(METRO), "--out", str(work / "out_png")], None),
         "import numba (reference)": ([sys.executable, "-c", "import numba"], None),
-        FLOOR: ([sys.executable, "-c", floor], None),
+        "numba floor (1 cached fn)": ([sys.executable, "-c", floor], None),
     }
 
 
+def first_run_env(work: Path, k: int) -> dict[str, str]:
+    """A first run after an install: nothing cached by numba, no bytecode (a fresh prefix per sample)."""
+    env = dict(os.environ)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    env["PYTHONPYCACHEPREFIX"] = str(work / f"first-pycache-{k}")
+    env["NUMBA_CACHE_DIR"] = str(work / f"first-numba-{k}")
+    return env
+
+
 def paired(
-    cmd: list[str], repeat: int, env: dict[str, str]
+    cmd: list[str], repeat: int, env: dict[str, str], case_env: dict[str, str] | None = None
 ) -> tuple[list[float], list[float], list[float], list[float]]:
     """(case wall, baseline wall, case CPU, baseline CPU) [s], ``repeat`` pairs, order swapped each round."""
     out: tuple[list[float], list[float], list[float], list[float]] = ([], [], [], [])
     for k in range(repeat):
         if k % 2:
             b, bc = timed(BASELINE, env)
-            t, c = timed(cmd, env)
+            t, c = timed(cmd, case_env or env)
         else:
-            t, c = timed(cmd, env)
+            t, c = timed(cmd, case_env or env)
             b, bc = timed(BASELINE, env)
         for series, value in zip(out, (t, b, c, bc), strict=True):
             series.append(value)
@@ -116,10 +153,21 @@ def ratio(a: list[float], b: list[float]) -> float:
     return statistics.median(x / max(y, 1e-6) for x, y in zip(a, b, strict=True))
 
 
+def row(
+    name: str, t: list[float], b: list[float], c: list[float], bc: list[float], target: float | None
+) -> str:
+    return (
+        f"{name:32s} {statistics.median(t):9.3f} {statistics.median(b):10.3f} {ratio(t, b):7.2f} "
+        f"{statistics.median(c):7.3f} {statistics.median(bc):8.3f} {ratio(c, bc):9.2f} "
+        f"{'' if target is None else f'{target:9.2f}'}"
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=7)
-    parser.add_argument("--cold", action="store_true", help="also time a first run with an empty numba cache")
+    parser.add_argument("--no-cold", action="store_true", help="skip the first run after an install")
+    parser.add_argument("--cold", action="store_true", help="(the default; kept for older command lines)")
     parser.add_argument(
         "--as-is", action="store_true", help="keep the environment's bytecode settings (see the docstring)"
     )
@@ -146,47 +194,20 @@ def main(argv: Sequence[str] | None = None) -> None:
             f"{'figure':32s} {'median s':>9s} {'baseline s':>10s} {'ratio':>7s} {'CPU s':>7s} {'base CPU':>8s} "
             f"{'CPU ratio':>9s} {'target s':>9s}"
         )
-        medians: dict[str, tuple[float, float, float, float]] = {}
         for name, (cmd, target) in table.items():
-            t, b, c, bc = paired(cmd, args.repeat, env)
-            medians[name] = (
-                statistics.median(t),
-                statistics.median(b),
-                statistics.median(c),
-                statistics.median(bc),
-            )
-            print(
-                f"{name:32s} {medians[name][0]:9.3f} {medians[name][1]:10.3f} {ratio(t, b):7.2f} "
-                f"{medians[name][2]:7.3f} {medians[name][3]:8.3f} {ratio(c, bc):9.2f} "
-                f"{'' if target is None else f'{target:9.2f}'}"
-            )
-        run_t, run_b, run_c, run_bc = medians[RUN]
-        floor_t, floor_b, floor_c, floor_bc = medians[FLOOR]
-        # medians, not pairs: the run and the floor were timed in different rounds
-        print(
-            f"{'run above the numba floor':32s} {run_t - floor_t:9.3f} {'':10s} "
-            f"{(run_t - floor_t) / ((run_b + floor_b) / 2):7.2f} {run_c - floor_c:7.3f} {'':8s} "
-            f"{(run_c - floor_c) / max((run_bc + floor_bc) / 2, 1e-6):9.2f}"
+            print(row(name, *paired(cmd, args.repeat, env), target), flush=True)
+        if not args.no_cold:
+            series: tuple[list[float], list[float], list[float], list[float]] = ([], [], [], [])
+            for k in range(args.repeat):
+                one = paired(table[RUN][0], 1, env, first_run_env(work, k))
+                for s, v in zip(series, one, strict=True):
+                    s += v
+            print(row(FIRST, *series, 5.0))
+        probe = subprocess.run(
+            [sys.executable, "-c", NUMBA_PROBE, str(METRO)], capture_output=True, text=True, env=env, cwd=ROOT
         )
-        if args.cold:
-            cmd = table[RUN][0]
-            times, ratios, cpus, cpu_ratios = [], [], [], []
-            for _ in range(max(1, args.repeat // 3)):
-                cache = tempfile.mkdtemp(prefix="trainsim-numba-")
-                try:
-                    t, c = timed(cmd, env={**env, "NUMBA_CACHE_DIR": cache})
-                    b, bc = timed(BASELINE, env)
-                finally:
-                    shutil.rmtree(cache, ignore_errors=True)
-                times.append(t)
-                ratios.append(t / b)
-                cpus.append(c)
-                cpu_ratios.append(c / max(bc, 1e-6))
-            print(
-                f"{'trainsim run metro (cold cache)':32s} {statistics.median(times):9.3f} {'':10s} "
-                f"{statistics.median(ratios):7.1f} {statistics.median(cpus):7.3f} {'':8s} "
-                f"{statistics.median(cpu_ratios):9.1f} {5.0:9.2f}"
-            )
+        loaded = probe.stdout.strip().splitlines()[-1] if probe.stdout.strip() else "?"
+        print(f"a warm trainsim run of the metro loads numba: {'yes' if loaded == 'True' else 'no'}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
     print(f"machine at the end: {_timing.machine()}")

@@ -127,7 +127,7 @@ def test_probe_sees_a_heavy_import():
 def test_run_without_out_writes_no_plot_and_loads_no_plotting_or_tables():
     code, modules = imported("run", str(METRO))
     assert code == 0
-    assert "numba" in modules  # the run itself happened
+    assert "trainsim.sim._kernel_c" in modules  # the run itself happened
     assert_not_imported(modules, ("matplotlib", "pandas", "casadi"), "run", str(METRO))
 
 
@@ -140,6 +140,21 @@ def test_run_with_out_and_no_plots_loads_no_matplotlib(tmp_path):
     assert_not_imported(
         modules, ("matplotlib", "pandas"), "run", str(METRO), "--out", str(tmp_path), "--no-plots"
     )
+
+
+#: what the fastest run no longer needs since its kernels are compiled at install (issue 14): numba
+#: alone costs 7x a numpy process per start, scipy.linalg came with it
+NUMBA = ("numba", "llvmlite", "scipy")
+
+
+@pytest.mark.skipif(not METRO.exists(), reason="examples/metro_b not present")
+@pytest.mark.parametrize("plots", ["--no-plots", "--plots"])
+def test_a_fastest_run_loads_no_numba(tmp_path, plots):
+    args = ("run", str(METRO), "--out", str(tmp_path), plots)
+    code, modules = imported(*args)
+    assert code == 0
+    assert (tmp_path / "summary.json").exists() and "trainsim.sim._kernel_c" in modules
+    assert_not_imported(modules, NUMBA, *args)
 
 
 @pytest.mark.skipif(not METRO.exists(), reason="examples/metro_b not present")
@@ -295,3 +310,8 @@ def listening_at_work(args: list[str], work: str, monkeypatch: pytest.MonkeyPatc
 @pytest.mark.parametrize("name", list(NUMBA_COMMANDS))
 def test_a_command_running_numba_kernels_listens_for_a_compile_before_its_work(name, monkeypatch):
     assert listening_at_work(*NUMBA_COMMANDS[name], monkeypatch) == [True]
+
+
+def test_a_fastest_run_does_not_listen_for_numba(monkeypatch):
+    # compiled at install: installing the listener would import numba for nothing
+    assert listening_at_work(["run", str(METRO)], "trainsim.sim.fastest.run_scenario", monkeypatch) == [False]

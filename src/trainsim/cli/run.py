@@ -18,6 +18,7 @@ from trainsim.cli.context import (
     exit_for_status,
     load_scenario,
     notice_first_compile,
+    readers,
     user_errors,
 )
 
@@ -60,6 +61,7 @@ def run(
     no_plots = not plots
     with user_errors():
         if scenario is not None and train is None and route is None and scenario.is_file():
+            readers()
             from trainsim.io.trainsim_yaml import read_yaml
 
             data = read_yaml(scenario)
@@ -75,7 +77,9 @@ def run(
             scn = dataclasses.replace(scn, settings=dataclasses.replace(scn.settings, max_step_m=step))
         import trainsim
 
-        notice_first_compile()
+        if scn.strategy != "fastest":
+            # a driving strategy runs the optimizer's numba kernels; the fastest run is compiled at install
+            notice_first_compile()
         result = trainsim.run(scn)
         written: list[Path] = []
         if out is not None:
