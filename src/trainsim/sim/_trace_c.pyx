@@ -62,6 +62,7 @@ cdef enum:
 
 #: The order of the laws ``run_arrays`` takes in its ``laws`` tuple.
 RUN_LAWS = ("gradient", "curve", "tunnel", "tunnel_v2", "availability", "voltage", "ceiling")
+_RUN_LAW_LABELS = tuple(f"law {name}" for name in RUN_LAWS)
 
 
 cdef struct Law:
@@ -388,9 +389,10 @@ cdef bint is_format(const char* f, bint integer) noexcept:
     return (f[0] == c'l' or f[0] == c'q') if integer else f[0] == c'd'
 
 
-cdef void* hold(Held* held, str what, object a, bint integer, bint writable, Py_ssize_t* n) except? NULL:
+cdef void* hold(Held* held, str what, str part, object a, bint integer, bint writable, Py_ssize_t* n) except? NULL:
     """Data pointer of ``a``, a C-contiguous buffer of 8-byte floats (integers with ``integer``), and
-    its element count in ``n``; the buffer is held in ``held`` until ``release``."""
+    its element count in ``n``, -1 unless it is 1-D; the buffer is held in ``held`` until ``release``.
+    An error names ``what`` and ``part`` (joined only then: this runs some thirty times a call)."""
     if held.count >= MAX_HELD:
         raise RuntimeError(f"internal: more than {MAX_HELD} arrays held")
     cdef Py_buffer* view = &held.views[held.count]
@@ -398,12 +400,12 @@ cdef void* hold(Held* held, str what, object a, bint integer, bint writable, Py_
     try:
         PyObject_GetBuffer(a, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (PyBUF_WRITABLE if writable else 0))
     except (TypeError, ValueError, BufferError) as err:
-        raise ValueError(f"{what}: need a C-contiguous {kind} array ({err})") from None
+        raise ValueError(f"{what}{part}: need a C-contiguous {kind} array ({err})") from None
     held.count += 1
     if view.itemsize != 8 or not is_format(view.format, integer):
         fmt = view.format.decode("ascii", "replace") if view.format != NULL else "B"
-        raise ValueError(f"{what}: need a C-contiguous {kind} array, got items of format {fmt!r}")
-    n[0] = view.len // 8
+        raise ValueError(f"{what}{part}: need a C-contiguous {kind} array, got items of format {fmt!r}")
+    n[0] = view.len // 8 if view.ndim == 1 else -1
     return view.buf
 
 
@@ -422,15 +424,15 @@ cdef int law_from(Held* held, str name, object arrays, Law* out) except -1:
     """Fill ``out`` from ``(x, left, right, steps)``, C-contiguous float64 arrays as
     ``profile._law_arrays`` makes them."""
     if not isinstance(arrays, tuple) or len(arrays) != 4:
-        raise ValueError(f"law {name}: need a tuple (x, left, right, steps), got {type(arrays).__name__}")
+        raise ValueError(f"{name}: need a tuple (x, left, right, steps), got {type(arrays).__name__}")
     x, left, right, steps = arrays
     cdef Py_ssize_t nx, nl, nr
-    out.x = <const double*>hold(held, f"law {name}: x", x, False, False, &nx)
-    out.left = <const double*>hold(held, f"law {name}: left", left, False, False, &nl)
-    out.right = <const double*>hold(held, f"law {name}: right", right, False, False, &nr)
-    if np.ndim(x) != 1 or np.ndim(left) != 1 or np.ndim(right) != 1 or nl < 1 or nr != nl or nx != nl + 1:
+    out.x = <const double*>hold(held, name, ": x", x, False, False, &nx)
+    out.left = <const double*>hold(held, name, ": left", left, False, False, &nl)
+    out.right = <const double*>hold(held, name, ": right", right, False, False, &nr)
+    if nl < 1 or nr != nl or nx != nl + 1:
         raise ValueError(
-            f"law {name}: arrays of shapes {np.shape(x)}, {np.shape(left)}, {np.shape(right)}: "
+            f"{name}: arrays of shapes {np.shape(x)}, {np.shape(left)}, {np.shape(right)}: "
             "need n + 1 breakpoints and n left and right values, n >= 1"
         )
     out.n = nl
@@ -533,22 +535,22 @@ def run_arrays(
     cdef double* pp
     cdef double* ppp
     try:
-        law_from(&held, RUN_LAWS[0], laws[0], &L.grad)
-        law_from(&held, RUN_LAWS[1], laws[1], &L.curve)
-        law_from(&held, RUN_LAWS[2], laws[2], &L.tun)
-        law_from(&held, RUN_LAWS[3], laws[3], &L.tun2)
-        law_from(&held, RUN_LAWS[4], laws[4], &L.avail)
-        law_from(&held, RUN_LAWS[5], laws[5], &L.volt)
-        law_from(&held, RUN_LAWS[6], laws[6], &L.ceil)
-        sp = <const double*>hold(&held, "s", s_a, False, False, &size)
-        vp = <const double*>hold(&held, "v", v_a, False, False, &size)
-        rp = <const int64_t*>hold(&held, "regime", regime_a, True, False, &size)
-        lp = <const double*>hold(&held, "level", level_a, False, False, &size)
-        srp = <const double*>hold(&held, "s_right", s_right_a, False, False, &size)
+        law_from(&held, _RUN_LAW_LABELS[0], laws[0], &L.grad)
+        law_from(&held, _RUN_LAW_LABELS[1], laws[1], &L.curve)
+        law_from(&held, _RUN_LAW_LABELS[2], laws[2], &L.tun)
+        law_from(&held, _RUN_LAW_LABELS[3], laws[3], &L.tun2)
+        law_from(&held, _RUN_LAW_LABELS[4], laws[4], &L.avail)
+        law_from(&held, _RUN_LAW_LABELS[5], laws[5], &L.volt)
+        law_from(&held, _RUN_LAW_LABELS[6], laws[6], &L.ceil)
+        sp = <const double*>hold(&held, "s", "", s_a, False, False, &size)
+        vp = <const double*>hold(&held, "v", "", v_a, False, False, &size)
+        rp = <const int64_t*>hold(&held, "regime", "", regime_a, True, False, &size)
+        lp = <const double*>hold(&held, "level", "", level_a, False, False, &size)
+        srp = <const double*>hold(&held, "s_right", "", s_right_a, False, False, &size)
         if with_trace:
-            rows = <double*>hold(&held, "rows", out, False, True, &size)
-        pp = <double*>hold(&held, "peak", peak, False, True, &size)
-        ppp = <double*>hold(&held, "paper peak", peak_paper, False, True, &size)
+            rows = <double*>hold(&held, "rows", "", out, False, True, &size)
+        pp = <double*>hold(&held, "peak", "", peak, False, True, &size)
+        ppp = <double*>hold(&held, "paper peak", "", peak_paper, False, True, &size)
         with nogil:
             run_loop(n, sp, vp, rp, lp, srp, &L, &tr, with_trace, rows, pp, ppp)
     finally:
@@ -577,17 +579,17 @@ def interval_laws(x, tuple gradient, tuple curve, tuple tunnel, tuple tunnel_v2,
     cdef Py_ssize_t size
     cdef int k
     try:
-        law_from(&held, "gradient", gradient, &laws[0])
-        law_from(&held, "curve", curve, &laws[1])
-        law_from(&held, "tunnel", tunnel, &laws[2])
-        law_from(&held, "tunnel_v2", tunnel_v2, &laws[3])
-        law_from(&held, "ceiling", ceiling, &laws[4])
-        law_from(&held, "available", available, &laws[5])
+        law_from(&held, "law gradient", gradient, &laws[0])
+        law_from(&held, "law curve", curve, &laws[1])
+        law_from(&held, "law tunnel", tunnel, &laws[2])
+        law_from(&held, "law tunnel_v2", tunnel_v2, &laws[3])
+        law_from(&held, "law ceiling", ceiling, &laws[4])
+        law_from(&held, "law available", available, &laws[5])
         if n == 0:
             return results
-        xp = <const double*>hold(&held, "x", x_a, False, False, &size)
+        xp = <const double*>hold(&held, "x", "", x_a, False, False, &size)
         for k in range(6):
-            outs[k] = <double*>hold(&held, "result", results[k], False, True, &size)
+            outs[k] = <double*>hold(&held, "result", "", results[k], False, True, &size)
         with nogil:
             interval_loop(n, xp, laws, g, outs[0], outs[1], outs[2], outs[3], outs[4], outs[5])
     finally:
