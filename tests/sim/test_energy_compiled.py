@@ -404,7 +404,7 @@ def test_bad_arguments_are_refused_with_what_is_allowed():
         call(a5=laws[:6])
     with pytest.raises(ValueError, match="laws g1 has 1 values, needs 2"):
         call(a5=(laws[0], laws[1][:1], *laws[2:]))
-    with pytest.raises(ValueError, match="lx must be sorted increasing"):
+    with pytest.raises(ValueError, match="lx must be at least 2 breakpoints sorted increasing"):
         call(a4=LX[::-1])
     with pytest.raises(ValueError, match="inertial mass"):
         call(a6=np.zeros(codes.N_PARAMS))
@@ -416,5 +416,13 @@ def test_bad_arguments_are_refused_with_what_is_allowed():
         call(a0=np.zeros(0), a1=np.zeros(0), a2=np.zeros(0, int), a3=np.zeros(0))
     with pytest.raises(ValueError, match="s must be 1-d"):
         call(a0=np.zeros((3, 1)))
+    with pytest.raises(ValueError, match="regime must be an array of integers, got <U1"):
+        call(a2=np.array(["a", "b", "c"]))
+    # arrays of another dtype or layout are converted: the same works
+    converted = call(
+        a0=list(s), a1=v.astype(np.float32), a2=regime.astype(np.int8), a3=np.repeat(np.ones(3), 2)[::2]
+    )
+    for got, want in zip(converted, call(), strict=True):
+        np.testing.assert_array_equal(got, want)
     works, v_end, off = call(a0=np.zeros(1), a1=np.zeros(1), a2=np.zeros(1, int), a3=np.ones(1))
     assert works.shape == (0, 6) and v_end.shape == (0,) and off.dtype == np.bool_

@@ -5,12 +5,13 @@ association of the floating-point operations of the numba functions it replaced,
 are the same bits (plain IEEE arithmetic: no fast-math, no fused multiply-add).
 
 The loops run on C scalars and pointers into the caller's arrays, without the GIL; ``stretch_works``
-checks and converts its arguments once.
+checks its arguments once (converting only arrays of another dtype or layout).
 """
 
 import numpy as np
 
 from libc.math cimport INFINITY, ceil, fabs, sqrt
+from cpython.buffer cimport PyBUF_C_CONTIGUOUS, PyBUF_FORMAT, PyBUF_WRITABLE, PyBuffer_Release, PyObject_GetBuffer
 from libc.stdint cimport int64_t
 
 from trainsim.sim._forces cimport (
@@ -508,25 +509,164 @@ cdef void all_stretches(
         v_end[k] = ve
 
 
-def _vector(name, a, dtype=np.float64, Py_ssize_t size=-1, Py_ssize_t min_size=0, sorted_=False):
-    """``a`` as a C-contiguous 1-d array of ``dtype``, or a ValueError naming ``name`` and what is allowed."""
+# ---- entry point: arguments checked once, then the loops above ----
+
+# Arrays are read through the buffer protocol rather than typed memoryviews: the same pointers without
+# the memoryview support code Cython would generate into this module (most of its C source and compile
+# time) and with less work per call. Every buffer a call takes is held until the call returns.
+cdef enum:
+    MAX_HELD = 24  # 5 point arrays + 7 laws + P + 3 kink arrays + 3 outputs = 19
+
+
+cdef struct Held:
+    Py_buffer views[MAX_HELD]
+    int count
+
+
+cdef void release(Held* held) noexcept:
+    cdef int k
+    for k in range(held.count):
+        PyBuffer_Release(&held.views[k])
+    held.count = 0
+
+
+cdef bint is_format(const char* f, bint integer) noexcept:
+    """A native 8-byte float64 (``d``) or, with ``integer``, int64 (``l`` or ``q``) buffer format."""
+    if f == NULL:
+        return False
+    if f[0] == c'@' or f[0] == c'=':
+        f += 1
+    if f[0] == 0 or f[1] != 0:
+        return False
+    return (f[0] == c'l' or f[0] == c'q') if integer else f[0] == c'd'
+
+
+def _converted(str name, object a, bint integer):
+    """``a`` as a C-contiguous 1-d array of float64 (int64 with ``integer``), or a ValueError naming
+    ``name`` and what is allowed (the slow path, for anything the buffer protocol does not give as is)."""
+    dtype = np.int64 if integer else np.float64
+    arr = np.asarray(a)
+    allowed = "iub" if integer else "iubf"
+    if arr.dtype.kind not in allowed:
+        kinds = "integers" if integer else "real numbers"
+        raise ValueError(f"stretch_works: {name} must be an array of {kinds}, got {arr.dtype}")
+    if arr.ndim != 1:
+        raise ValueError(f"stretch_works: {name} must be 1-d, got shape {arr.shape}")
+    return np.ascontiguousarray(arr, dtype=dtype)
+
+
+cdef void* hold(Held* held, list keep, str name, object a, bint integer, bint output, Py_ssize_t* n) except NULL:
+    """Data pointer of ``a`` as a C-contiguous 1-d float64 (int64 with ``integer``) array, converted
+    first when it is not one (the converted array kept alive in ``keep``), its length in ``n``; the
+    buffer is held in ``held`` until ``release``. ``output``: an array made here, written to."""
+    if held.count >= MAX_HELD:
+        raise RuntimeError(f"internal: more than {MAX_HELD} arrays held")
+    cdef Py_buffer* view = &held.views[held.count]
+    cdef int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (PyBUF_WRITABLE if output else 0)
+    cdef bint taken = False
     try:
-        out = np.ascontiguousarray(a, dtype=dtype)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"stretch_works: {name} must be a 1-d array of {np.dtype(dtype).name}: {exc}") from None
-    if out.ndim != 1:
-        raise ValueError(f"stretch_works: {name} must be 1-d, got shape {out.shape}")
-    if size >= 0 and out.shape[0] != size:
-        raise ValueError(f"stretch_works: {name} has {out.shape[0]} values, needs {size}")
-    if out.shape[0] < min_size:
-        raise ValueError(f"stretch_works: {name} has {out.shape[0]} values, needs at least {min_size}")
-    if sorted_ and out.shape[0] > 1 and not np.all(out[1:] >= out[: out.shape[0] - 1]):
-        raise ValueError(f"stretch_works: {name} must be sorted increasing")
-    return out
+        PyObject_GetBuffer(a, view, flags)
+        taken = True
+    except (TypeError, ValueError, BufferError):
+        pass
+    if taken and not output and (view.ndim != 1 or view.itemsize != 8 or not is_format(view.format, integer)):
+        PyBuffer_Release(view)
+        taken = False
+    if not taken:
+        # another dtype or shape: converted (or refused) on the slow path
+        a = _converted(name, a, integer)
+        keep.append(a)
+        PyObject_GetBuffer(a, view, flags)
+    held.count += 1
+    n[0] = view.shape[0] if view.ndim == 1 else view.len // view.itemsize
+    # an empty buffer may carry any pointer: never dereferenced (its length is 0), but kept non-NULL
+    return view.buf if view.buf != NULL else <void*>view
 
 
-cdef inline const double* _ptr(const double[::1] a) noexcept:
-    return &a[0] if a.shape[0] > 0 else NULL
+cdef bint is_sorted(const double* a, Py_ssize_t n) noexcept nogil:
+    """Whether a[0] <= a[1] <= ... (no NaN)."""
+    cdef Py_ssize_t i
+    for i in range(1, n):
+        if not a[i] >= a[i - 1]:
+            return False
+    return True
+
+
+LAW_NAMES = ("laws g0", "laws g1", "laws c0", "laws c1", "laws k0", "laws k1", "laws available")
+KINK_NAMES = ("tk", "bk", "rk")
+
+
+cdef object _stretch_works(Held* held, list keep, s, v, regime, level, lx, laws, P, curves, tk, bk, rk):
+    cdef Py_ssize_t n_points, n_other, n_x, n_law, n_P, i
+    cdef const double* s_p = <const double*>hold(held, keep, "s", s, False, False, &n_points)
+    if n_points < 1:
+        raise ValueError("stretch_works: s has 0 values, needs at least 1")
+    cdef const double* v_p = <const double*>hold(held, keep, "v", v, False, False, &n_other)
+    if n_other != n_points:
+        raise ValueError(f"stretch_works: v has {n_other} values, needs {n_points} (one per point of s)")
+    cdef const int64_t* regime_p = <const int64_t*>hold(held, keep, "regime", regime, True, False, &n_other)
+    if n_other != n_points:
+        raise ValueError(f"stretch_works: regime has {n_other} values, needs {n_points} (one per point of s)")
+    cdef const double* level_p = <const double*>hold(held, keep, "level", level, False, False, &n_other)
+    if n_other != n_points:
+        raise ValueError(f"stretch_works: level has {n_other} values, needs {n_points} (one per point of s)")
+    for i in range(n_points - 1):
+        if regime_p[i] < TRACTION or regime_p[i] > FOLLOW:
+            raise ValueError(
+                f"stretch_works: regime codes must be {TRACTION}..{FOLLOW} (trainsim.sim.codes), "
+                f"got {regime_p[i]} at point {i}"
+            )
+
+    cdef Line line
+    line.x = <const double*>hold(held, keep, "lx", lx, False, False, &n_x)
+    if n_x < 2 or not is_sorted(line.x, n_x):
+        raise ValueError(f"stretch_works: lx must be at least 2 breakpoints sorted increasing, got {n_x}")
+    line.n_x = n_x
+    line.n_pieces = n_x - 1
+    if not isinstance(laws, tuple) or len(laws) != 7:
+        raise ValueError("stretch_works: laws must be the tuple (g0, g1, c0, c1, k0, k1, available)")
+    cdef const double** law_p[7]
+    law_p[:] = [&line.g0, &line.g1, &line.c0, &line.c1, &line.k0, &line.k1, &line.avail]
+    for i in range(7):
+        law_p[i][0] = <const double*>hold(held, keep, LAW_NAMES[i], laws[i], False, False, &n_law)
+        if n_law != line.n_pieces:
+            raise ValueError(
+                f"stretch_works: {LAW_NAMES[i]} has {n_law} values, needs {line.n_pieces} (one per piece of lx)"
+            )
+
+    cdef const double* P_p = <const double*>hold(held, keep, "P", P, False, False, &n_P)
+    if n_P < N_PARAMS:
+        raise ValueError(f"stretch_works: P has {n_P} values, needs {N_PARAMS} (trainsim.sim.codes)")
+    if not P_p[P_INERTIAL_MASS] > 0.0:
+        raise ValueError(
+            f"stretch_works: the inertial mass P[{P_INERTIAL_MASS}] must be > 0 kg, got {P_p[P_INERTIAL_MASS]}"
+        )
+    if not isinstance(curves, tuple) or len(curves) != 12:
+        raise ValueError(
+            "stretch_works: curves must be the 12-tuple (ts, tc, tf, tp, bs, bc, bf, bp, rs, rc, rf, rp)"
+        )
+    cdef Curves c
+    curves_from(curves, &c)
+    cdef Kinks kinks[3]
+    for i, a in enumerate((tk, bk, rk)):
+        kinks[i].v = <const double*>hold(held, keep, KINK_NAMES[i], a, False, False, &kinks[i].n)
+        if not is_sorted(kinks[i].v, kinks[i].n):
+            raise ValueError(f"stretch_works: {KINK_NAMES[i]} must be sorted increasing")
+
+    cdef Py_ssize_t n = n_points - 1
+    W = np.zeros((n, N_WORKS))
+    v_end = np.empty(n)
+    off = np.zeros(n, dtype=np.bool_)
+    if n == 0:
+        return W, v_end, off
+    cdef double* W_p = <double*>hold(held, keep, "works", W, False, True, &n_other)
+    cdef double* v_end_p = <double*>hold(held, keep, "end speeds", v_end, False, True, &n_other)
+    cdef unsigned char* off_p = <unsigned char*>hold(held, keep, "off", off, False, True, &n_other)
+    with nogil:
+        all_stretches(
+            n, s_p, v_p, regime_p, level_p, &line, P_p, &c, &kinks[0], &kinks[1], &kinks[2], W_p, v_end_p, off_p
+        )
+    return W, v_end, off
 
 
 def stretch_works(s, v, regime, level, lx, laws, P, curves, tk, bk, rk):
@@ -540,68 +680,15 @@ def stretch_works(s, v, regime, level, lx, laws, P, curves, tk, bk, rk):
     (g0, g1, c0, c1, k0, k1, available) (see ``energy.LineLaws``); ``P`` the kernel's parameter
     vector; ``curves`` the 12-tuple of the traction, service braking and regenerative curves;
     ``tk``, ``bk``, ``rk`` the sorted kink speeds [m/s] in traction, service braking and regenerative
-    braking. Returns (works (n - 1, 6) float64, end speeds (n - 1,) float64, off (n - 1,) bool)."""
-    s_a = _vector("s", s, min_size=1)
-    cdef Py_ssize_t n_points = s_a.shape[0]
-    v_a = _vector("v", v, size=n_points)
-    regime_a = _vector("regime", regime, dtype=np.int64, size=n_points)
-    level_a = _vector("level", level, size=n_points)
-    if n_points > 1 and not (np.all(regime_a >= TRACTION) and np.all(regime_a <= FOLLOW)):
-        raise ValueError(f"stretch_works: regime codes must be {TRACTION}..{FOLLOW} (trainsim.sim.codes)")
-    lx_a = _vector("lx", lx, min_size=2, sorted_=True)
-    cdef Py_ssize_t n_pieces = lx_a.shape[0] - 1
-    if len(laws) != 7:
-        raise ValueError(f"stretch_works: laws must be (g0, g1, c0, c1, k0, k1, available), got {len(laws)} arrays")
-    names = ("g0", "g1", "c0", "c1", "k0", "k1", "available")
-    law_a = [_vector(f"laws {nm}", a, size=n_pieces) for nm, a in zip(names, laws)]
-    P_a = _vector("P", P, min_size=N_PARAMS)
-    if not P_a[P_INERTIAL_MASS] > 0.0:
-        raise ValueError(f"stretch_works: the inertial mass P[{P_INERTIAL_MASS}] must be > 0 kg, got {P_a[P_INERTIAL_MASS]}")
-    if len(curves) != 12:
-        raise ValueError(f"stretch_works: curves must be the 12-tuple (ts, tc, tf, tp, bs, bc, bf, bp, rs, rc, rf, rp), got {len(curves)} items")
-    cdef Curves c
-    curves_from(curves, &c)
-    kink_a = [_vector(nm, a, sorted_=True) for nm, a in (("tk", tk), ("bk", bk), ("rk", rk))]
-
-    cdef const double[::1] s_v = s_a, v_v = v_a, level_v = level_a, lx_v = lx_a, P_v = P_a
-    cdef const int64_t[::1] regime_v = regime_a
-    cdef const double[::1] g0 = law_a[0], g1 = law_a[1], c0 = law_a[2], c1 = law_a[3]
-    cdef const double[::1] k0 = law_a[4], k1 = law_a[5], avail = law_a[6]
-    cdef const double[::1] tk_v = kink_a[0], bk_v = kink_a[1], rk_v = kink_a[2]
-    cdef Line line
-    line.x = &lx_v[0]
-    line.n_x = lx_v.shape[0]
-    line.g0 = &g0[0]
-    line.g1 = &g1[0]
-    line.c0 = &c0[0]
-    line.c1 = &c1[0]
-    line.k0 = &k0[0]
-    line.k1 = &k1[0]
-    line.avail = &avail[0]
-    line.n_pieces = n_pieces
-    cdef Kinks tks, bks, rks
-    tks.v = _ptr(tk_v)
-    tks.n = tk_v.shape[0]
-    bks.v = _ptr(bk_v)
-    bks.n = bk_v.shape[0]
-    rks.v = _ptr(rk_v)
-    rks.n = rk_v.shape[0]
-
-    cdef Py_ssize_t n = n_points - 1
-    W = np.zeros((n, N_WORKS))
-    v_end = np.empty(n)
-    off = np.zeros(n, dtype=np.bool_)
-    if n == 0:
-        return W, v_end, off
-    cdef double[:, ::1] W_v = W
-    cdef double[::1] v_end_v = v_end
-    cdef unsigned char[::1] off_v = off.view(np.uint8)
-    with nogil:
-        all_stretches(
-            n, &s_v[0], &v_v[0], &regime_v[0], &level_v[0], &line, &P_v[0], &c, &tks, &bks, &rks,
-            &W_v[0, 0], &v_end_v[0], &off_v[0],
-        )
-    return W, v_end, off
+    braking. 1-d float64 (int64 for ``regime``) C-contiguous arrays are read in place, others
+    converted. Returns (works (n - 1, 6) float64, end speeds (n - 1,) float64, off (n - 1,) bool)."""
+    cdef Held held
+    held.count = 0
+    keep = []
+    try:
+        return _stretch_works(&held, keep, s, v, regime, level, lx, laws, P, curves, tk, bk, rk)
+    finally:
+        release(&held)
 
 
 def integration_settings():
