@@ -11,7 +11,7 @@ Four tables:
    100 km line compiled by numba, about 0.7 ms on a quiet 2-core Xeon; see there why), in wall time and
    in CPU time (on a machine loaded beyond its cores the CPU-time ratio is the trustworthy one).
 2. stages (CPU time): one run split into what ``trainsim.sim.fastest.run_fastest`` calls:
-   compile_track, the numba segment kernel (summed over the stops), kink-point insertion, result
+   compile_track, the segment kernel (sim/_kernel_c, summed over the stops), kink-point insertion, result
    building, and inside the latter the exact energy integration (``run_works``). The run's own
    functions are timed where the run calls them (each is wrapped by a timer for the instrumented runs
    only; nothing in src/ is edited), so the split follows any change of the pipeline; "other" is the
@@ -61,8 +61,8 @@ CONVERGED = 1e-6
 STAGES = (
     ("trainsim.sim.fastest", "compile_track", "compile_track"),
     ("trainsim.sim.fastest", "braking_surplus", "brake check"),
-    ("trainsim.sim.kernel", "fastest_segment", "kernel"),
-    ("trainsim.sim.kernel", "insert_kink_points", "kinks"),
+    ("trainsim.sim._kernel_c", "fastest_segment", "kernel"),
+    ("trainsim.sim._kernel_c", "insert_kink_points", "kinks"),
     ("trainsim.sim.fastest", "build_result", "result"),
     ("trainsim.sim.result", "run_works", "(energy)"),
 )
