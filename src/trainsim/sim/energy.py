@@ -46,9 +46,12 @@ __all__ = [
 # integrates. The settings below are compiled into it; tests/sim/test_energy_compiled.py checks that
 # the two agree.
 
-#: Longest RK4 sub-step of the work integration [m]. 2 m keeps the quadrature error of every
-#: example below 1e-10 relative (the motion's length scale v^2/a is hundreds of metres at speed;
-#: near standstill the simulation's points are graded down to 5 mm anyway).
+#: Longest RK4 sub-step of the work integration [m] (the motion's length scale v^2/a is hundreds of
+#: metres at speed; near standstill ``LENGTH_SCALE_FRACTION`` takes over). Against scipy's DOP853 at
+#: rtol 1e-13, the works of stretches 20 m long agree to 5e-9 of their largest work, whole motions
+#: to 2e-9 (tests/sim/test_energy_compiled.py). The number of sub-steps is set at a piece's start:
+#: a piece much longer than the length scale at its end (a long braking stretch recorded as one)
+#: integrates 1/v-like forces less accurately (5e-7 of the regenerative work over 380 m, 24 -> 6 m/s).
 MAX_SUBSTEP_M = 10.0
 
 #: Longest sub-step as a share of the motion's length scale v^2 / |a| [-], shortest sub-step [m] and
