@@ -100,10 +100,14 @@ class LineLaws:
 def line_laws(profile: LineResistanceProfile, available: PiecewiseLinear, lo: float, hi: float) -> LineLaws:
     """The line-resistance laws of ``profile`` on [lo, hi] as per-piece linear laws per unit mass,
     with the breakpoints of every law (and of the traction availability)."""
-    pts = {lo, hi}
-    for f in (profile.gradient, profile.curve, profile.tunnel, profile.tunnel_v2, available):
-        pts.update(float(p) for p in f.x if lo < p < hi)
-    x = np.array(sorted(pts))
+    inner = np.concatenate(
+        [
+            np.asarray(f.x, dtype=float)
+            for f in (profile.gradient, profile.curve, profile.tunnel, profile.tunnel_v2, available)
+        ]
+    )
+    # the set of breakpoints, sorted (np.unique: the same values as a set of floats, in one call)
+    x = np.unique(np.concatenate([[lo, hi], inner[(inner > lo) & (inner < hi)]]))
     x = x[np.concatenate([[True], np.diff(x) > 1e-9])]
     if len(x) < 2:
         x = np.array([lo, max(hi, lo + 1.0)])

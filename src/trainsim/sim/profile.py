@@ -70,6 +70,10 @@ def step_function(
 ) -> PiecewiseLinear:
     """A piecewise constant function on [lo, hi] that is ``values[k]`` on ``[starts[k], ends[k])``
     and 0 elsewhere (the sections do not overlap)."""
+    if not len(starts):
+        # no section (a route without curves or tunnels): 0 on [lo, hi], without the look-ups
+        x = np.unique(np.clip(np.array([lo, hi], dtype=float), lo, hi))
+        return PiecewiseLinear(x, np.zeros(len(x) - 1), np.zeros(len(x) - 1))
     a = np.asarray(starts, dtype=float)
     b = np.asarray(ends, dtype=float)
     val_in = np.broadcast_to(np.asarray(values, dtype=float), a.shape)
@@ -113,21 +117,25 @@ def speed_ceiling(route: Route, train: Train) -> PiecewiseLinear:
     the train's rear has cleared it, and the train's maximum speed."""
     lo, hi = route.start_m, route.end_m
     L = train.length_m
-    pts = {lo, hi}
-    for lim in route.speed_limits:
-        for p in (lim.start_m, lim.end_m, lim.end_m + L):
-            if lo < p < hi:
-                pts.add(p)
-    x = np.array(sorted(pts))
+    limits = route.speed_limits
+    starts = np.array([lim.start_m for lim in limits], dtype=float)
+    ends = np.array([lim.end_m for lim in limits], dtype=float)
+    cleared = ends + L
+    # the set of breakpoints, sorted (np.unique: the same values as a set of floats, in one call
+    # instead of a Python loop over the limits)
+    inner = np.concatenate([starts, ends, cleared])
+    x = np.unique(np.concatenate([[lo, hi], inner[(inner > lo) & (inner < hi)]]))
     mid = 0.5 * (x[:-1] + x[1:])
     ceiling = np.full(len(mid), train.max_speed_mps)
-    limits = route.speed_limits
     # a limit on [a, b) binds head positions in [a, b + L): the rear leaves it at b + L; mid is
     # increasing, so the covered pieces are one slice (all slices found in one call)
-    j0 = np.searchsorted(mid, np.array([lim.start_m for lim in limits], dtype=float), side="left").tolist()
-    j1 = np.searchsorted(mid, np.array([lim.end_m + L for lim in limits], dtype=float), side="left").tolist()
-    for lim, a, b in zip(limits, j0, j1, strict=True):
-        np.minimum(ceiling[a:b], lim.limit_mps, out=ceiling[a:b])
+    j0 = np.searchsorted(mid, starts, side="left")
+    j1 = np.searchsorted(mid, cleared, side="left")
+    # every (piece, limit) pair of those slices at once: the minimum is exact, so its order is free
+    counts = np.maximum(j1 - j0, 0)
+    within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    values = np.array([lim.limit_mps for lim in limits], dtype=float)
+    np.minimum.at(ceiling, np.repeat(j0, counts) + within, np.repeat(values, counts))
     return PiecewiseLinear(x, ceiling.copy(), ceiling.copy())
 
 
