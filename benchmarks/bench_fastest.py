@@ -9,19 +9,19 @@ Four tables:
 1. time: median and best wall time per run at the case's own step, and the median of the per-pair
    ratios to the baseline timed alternately with it (``_timing.rk4_line``: one plain fixed-step RK4 of a
    100 km line compiled by numba, about 0.7 ms on a quiet 2-core Xeon; see there why), in wall time and
-   in CPU time (on a machine loaded beyond its cores the CPU-time ratio is the trustworthy one).
+   in CPU time (on a machine loaded beyond its cores the CPU-time ratio is the trustworthy one), with
+   the trace and without it (``run_fastest(..., trace=False)``, batch mode; CPU time and its ratio).
 2. stages (CPU time): one run split into what ``trainsim.sim.fastest.run_fastest`` calls:
-   compile_track, the segment kernel (sim/_kernel_c, summed over the stops), kink-point insertion, result
+   compile_route, the brake check, the segment kernel (sim/_kernel_c, summed over the stops), kink-point insertion, result
    building, and inside the latter the exact energy integration (``run_works``). The run's own
    functions are timed where the run calls them (each is wrapped by a timer for the instrumented runs
    only; nothing in src/ is edited), so the split follows any change of the pipeline; "other" is the
-   rest (Python glue, parameter packing). "no trace" estimates a run that returns totals only: the
-   whole run minus result building plus the energy integration (trainsim has no such mode yet; this is
-   its floor with today's stages).
+   rest (Python glue, parameter packing). Each case is split with the trace and without it.
 3. convergence: running time and net energy at steps h = 40 m ... 0.625 m and the relative change
    from h to h/2.
 4. the converged run: the coarsest h from which every further halving changes both by <= 1e-6, timed
-   again (paired): the "full trace, converged to 1e-6" figure of issue 14, then issue 14's two run
+   again (paired), with and without trace: the "full trace, converged to 1e-6" figure of issue 14,
+   then issue 14's two run
    targets for freight x realworld (<= 2 ms with trace, <= 0.5 ms without) read as multiples of the
    baseline.
 
@@ -59,7 +59,7 @@ CONVERGED = 1e-6
 
 #: What run_fastest calls, as (module, attribute, label); a stage missing in this version is skipped.
 STAGES = (
-    ("trainsim.sim.fastest", "compile_track", "compile_track"),
+    ("trainsim.sim.fastest", "compile_route", "compile_route"),
     ("trainsim.sim.fastest", "braking_surplus", "brake check"),
     ("trainsim.sim._kernel_c", "fastest_segment", "kernel"),
     ("trainsim.sim._kernel_c", "insert_kink_points", "kinks"),
@@ -120,18 +120,17 @@ def instrumented(acc: dict[str, float]):
             setattr(module, attr, fn)
 
 
-def stage_split(train, route, settings, repeat: int) -> dict[str, float]:
+def stage_split(train, route, settings, repeat: int, trace: bool = True) -> dict[str, float]:
     """Median CPU time of each stage and of the whole instrumented run [s]."""
     samples: dict[str, list[float]] = defaultdict(list)
     for _ in range(repeat):
         acc: dict[str, float] = defaultdict(float)
         with instrumented(acc):
             t0 = time.process_time()
-            run_fastest(train, route, settings)
+            run_fastest(train, route, settings, trace=trace)
             acc["total"] = time.process_time() - t0
-        stages = ("compile_track", "brake check", "kernel", "kinks", "result")
+        stages = ("compile_route", "brake check", "kernel", "kinks", "result")
         acc["other"] = acc["total"] - sum(acc[k] for k in stages)
-        acc["no trace"] = acc["total"] - acc["result"] + acc["(energy)"]
         for k, x in acc.items():
             samples[k].append(x)
     return {k: statistics.median(x) for k, x in samples.items()}
@@ -173,27 +172,32 @@ def main(argv: list[str] | None = None) -> None:
     print("\n1. wall time per fastest run at the case's step (paired with the baseline)")
     print(
         f"{'case':46s} {'km':>6s} {'step m':>6s} {'points':>7s} {'median ms':>9s} {'best ms':>8s} "
-        f"{'x base':>7s} {'cpu ms':>7s} {'cpu x base':>10s}"
+        f"{'x base':>7s} {'cpu ms':>7s} {'cpu x base':>10s} {'no trace cpu ms':>15s} {'cpu x base':>10s}"
     )
     for name, train, route, settings in selected:
         result = run_fastest(train, route, settings)
         p = _timing.paired(lambda t=train, r=route, s=settings: run_fastest(t, r, s), repeat)
+        q = _timing.paired(lambda t=train, r=route, s=settings: run_fastest(t, r, s, trace=False), repeat)
         print(
             f"{name:46s} {route.length_m / 1e3:6.1f} {settings.max_step_m:6g} {len(result.trace):7d} "
-            f"{p.median * 1e3:9.2f} {p.best * 1e3:8.2f} {p.ratio:7.2f} {p.cpu * 1e3:7.2f} {p.ratio_cpu:10.2f}"
+            f"{p.median * 1e3:9.2f} {p.best * 1e3:8.2f} {p.ratio:7.2f} {p.cpu * 1e3:7.2f} {p.ratio_cpu:10.2f} "
+            f"{q.cpu * 1e3:15.2f} {q.ratio_cpu:10.2f}"
         )
 
     print("\n2. where one run goes (median CPU ms of instrumented runs; (energy) is part of result)")
-    labels = ("compile_track", "brake check", "kernel", "kinks", "result", "(energy)", "other", "total", "no trace")
-    print(f"{'case':46s} " + " ".join(f"{x:>13s}" for x in labels))
+    labels = ("compile_route", "brake check", "kernel", "kinks", "result", "(energy)", "other", "total")
+    print(f"{'case':46s} {'trace':>5s} " + " ".join(f"{x:>13s}" for x in labels))
     for name, train, route, settings in selected:
-        split = stage_split(train, route, settings, repeat)
-        total = split["total"]
-        cells = []
-        for x in labels:
-            ms = split.get(x, math.nan) * 1e3
-            cells.append(f"{ms:6.2f}" + ("       " if x == "total" else f" ({split.get(x, 0) / total:4.0%})"))
-        print(f"{name:46s} " + " ".join(f"{c:>13s}" for c in cells))
+        for trace in (True, False):
+            split = stage_split(train, route, settings, repeat, trace)
+            total = split["total"]
+            cells = []
+            for x in labels:
+                ms = split.get(x, math.nan) * 1e3
+                cells.append(
+                    f"{ms:6.2f}" + ("       " if x == "total" else f" ({split.get(x, 0) / total:4.0%})")
+                )
+            print(f"{name:46s} {'yes' if trace else 'no':>5s} " + " ".join(f"{c:>13s}" for c in cells))
 
     print(f"\n3. convergence: change from h to h/2 (converged: both <= {CONVERGED:g})")
     print(
@@ -222,7 +226,7 @@ def main(argv: list[str] | None = None) -> None:
     print("\n4. converged run: the coarsest step converged to 1e-6, timed (paired)")
     print(
         f"{'case':46s} {'h m':>6s} {'median ms':>9s} {'best ms':>8s} {'x base':>7s} {'cpu ms':>7s} "
-        f"{'cpu x base':>10s} {'no trace cpu ms':>15s}"
+        f"{'cpu x base':>10s} {'no trace cpu ms':>15s} {'cpu x base':>10s}"
     )
     targets = []
     for name, train, route, _settings in selected:
@@ -232,20 +236,20 @@ def main(argv: list[str] | None = None) -> None:
             continue
         s = RunSettings(max_step_m=h)
         p = _timing.paired(lambda t=train, r=route, s=s: run_fastest(t, r, s), repeat)
-        split = stage_split(train, route, s, repeat)
+        q = _timing.paired(lambda t=train, r=route, s=s: run_fastest(t, r, s, trace=False), repeat)
         print(
             f"{name:46s} {h:6g} {p.median * 1e3:9.2f} {p.best * 1e3:8.2f} {p.ratio:7.2f} "
-            f"{p.cpu * 1e3:7.2f} {p.ratio_cpu:10.2f} {split['no trace'] * 1e3:15.2f}"
+            f"{p.cpu * 1e3:7.2f} {p.ratio_cpu:10.2f} {q.cpu * 1e3:15.2f} {q.ratio_cpu:10.2f}"
         )
         if name.endswith("realworld mass_point"):
-            targets.append((p, split["no trace"]))
-    for p, no_trace in targets:
+            targets.append((p, q))
+    for p, q in targets:
         # issue 14's targets are absolute times of a quiet machine: read them as multiples of the baseline
         print(
             f"\nissue 14, freight x realworld: with trace, converged: {p.ratio_cpu:.1f} x baseline (CPU) = "
             f"{p.ratio_cpu * base.cpu * 1e3:.2f} ms at the baseline's {base.cpu * 1e3:.3f} ms; target 2 ms = "
-            f"{2e-3 / base.cpu:.1f} x. Without trace (floor of today's stages): {no_trace / base.cpu:.1f} x = "
-            f"{no_trace * 1e3:.2f} ms; target 0.5 ms = {0.5e-3 / base.cpu:.2f} x."
+            f"{2e-3 / base.cpu:.1f} x. Without trace (run_fastest(..., trace=False)): {q.ratio_cpu:.1f} x = "
+            f"{q.ratio_cpu * base.cpu * 1e3:.2f} ms; target 0.5 ms = {0.5e-3 / base.cpu:.2f} x."
         )
     print(f"\nmachine at the end: {_timing.machine()}")
 
