@@ -1,16 +1,26 @@
-"""Chunks sized by the predicted and measured cost of each run; a killed worker loses one run."""
+"""Chunks sized by the predicted and measured cost of each run, longest first; a killed worker loses
+one run; the order of computation changes nothing in the results."""
 
 from __future__ import annotations
 
 import multiprocessing
 import os
 import signal
+import time
 
 import pytest
 from batchcases import MIXED, REPO, metro_study
 
-from trainsim.batch import load_study, study_from_dict
-from trainsim.batch.runner import CHUNK_TARGET_S, PREDICTED_RUN_S, _chunks, _Cost, run_work
+from trainsim.batch import load_study, read_results, run_study, study_from_dict
+from trainsim.batch.runner import (
+    CHUNK_TARGET_S,
+    PREDICTED_RUN_S,
+    _chunks,
+    _Cost,
+    longest_first,
+    plan_chunks,
+    run_work,
+)
 
 HEAVY = REPO / "examples" / "studies" / "heavy_haul_couplers.yaml"
 
@@ -79,13 +89,14 @@ def test_equal_costs_keep_the_run_order():
 
 
 def test_a_killed_worker_loses_only_the_run_it_was_computing(tmp_path, monkeypatch):
-    """Two workers, two chunks of 9 runs. The first worker is killed (SIGKILL) at the start of its
-    fifth run: the four runs it sent are kept, the run being computed and the other four of its chunk
+    """Two workers, two chunks of 9 runs of at least SEND_INTERVAL_S each (so that every run is sent
+    on its own). The first worker is killed (SIGKILL) at the start of its fifth run: the four runs it
+    sent are kept, the run being computed and the other four of its chunk
     are computed by a new worker, and the other worker's chunk is not disturbed. Every run is
     computed once, the killed one twice."""
     from trainsim.batch import executors
     from trainsim.batch.executors import _Processes
-    from trainsim.batch.worker import Payload, WorkerState
+    from trainsim.batch.worker import SEND_INTERVAL_S, Payload, WorkerState
 
     log = tmp_path / "computed.log"
     marker = tmp_path / "killed"
@@ -98,6 +109,7 @@ def test_a_killed_worker_loses_only_the_run_it_was_computing(tmp_path, monkeypat
         if task[0] == victim and not marker.exists():
             marker.touch()
             os.kill(os.getpid(), signal.SIGKILL)
+        time.sleep(SEND_INTERVAL_S)
         return original(self, task)
 
     # forked workers inherit the patched method
@@ -117,3 +129,81 @@ def test_a_killed_worker_loses_only_the_run_it_was_computing(tmp_path, monkeypat
     counts = [int(x) for x in log.read_text().split()]
     assert sorted(counts) == sorted([*range(18), victim])  # computed once each, the killed run twice
     assert {i for i, _ in ex.measured} == set(range(18))
+
+
+def _makespan(chunk_costs: list[float], workers: int) -> float:
+    """Wall time of chunks handed in order to the next idle worker (the processes executor)."""
+    free = [0.0] * workers
+    for c in chunk_costs:
+        k = free.index(min(free))
+        free[k] += c
+    return max(free)
+
+
+def test_plan_of_twelve_equal_expensive_runs_splits_them_evenly():
+    """heavy_haul_couplers: 12 runs of 3 s on 2 workers, one per chunk in run order (x2.0), where the
+    chunking by count gave [10, 2] (x1.2)."""
+    costs = [3.0] * 12
+    plan = plan_chunks(costs, 2)
+    assert plan == [[k] for k in range(12)]
+    serial = sum(costs)
+    assert serial / _makespan([sum(costs[k] for k in c) for c in plan], 2) == pytest.approx(2.0)
+    assert serial / _makespan([30.0, 6.0], 2) == pytest.approx(1.2)
+
+
+def test_plan_of_mixed_costs_is_longest_first_and_cut_at_the_target():
+    """Expensive runs first and alone, then runs of 0.4 and 0.3 s that cannot share a chunk, then the
+    cheap runs up to CHUNK_TARGET_S (0.5 s) per chunk; the two workers end within 0.05 s of each other,
+    where 10 runs per chunk in run order leave one worker idle for 3.7 s."""
+    assert CHUNK_TARGET_S == 0.5
+    costs = [0.1] * 20 + [0.3, 2.0, 0.4, 1.0]
+    plan = plan_chunks(costs, 2)
+    assert plan[:4] == [[21], [23], [22], [20, 0, 1]]  # 2.0, 1.0, 0.4, 0.3 + 0.1 + 0.1
+    assert plan[4:] == [list(range(k, min(k + 5, 20))) for k in range(2, 20, 5)]  # 5, 5, 5, 3 runs of 0.1 s
+    chunk_costs = [sum(costs[k] for k in c) for c in plan]
+    assert max(chunk_costs[3:]) <= CHUNK_TARGET_S + 1e-12
+    # the workers end at 2.9 and 2.8 s: 0.05 s above the lower bound sum / 2 = 2.85 s
+    assert _makespan(chunk_costs, 2) == pytest.approx(2.9)
+    by_count = [sum(costs[k : k + 10]) for k in range(0, 24, 10)]  # 1.0, 1.0, 3.7: ends at 1.0 and 4.7 s
+    assert _makespan(by_count, 2) == pytest.approx(4.7)
+
+
+def test_plan_of_cheap_runs_is_guided():
+    """4000 runs of 2 ms: chunks of 200 (the most, 0.4 s) shrinking towards the end; order unchanged."""
+    plan = plan_chunks([0.002] * 4000, 2)
+    sizes = [len(c) for c in plan]
+    assert sizes[0] == 200 and sizes[-1] == 10 and sizes == sorted(sizes, reverse=True)
+    assert [k for c in plan for k in c] == list(range(4000))
+    assert longest_first([]) == [] and longest_first([1.0, 1.0]) == [0, 1]
+
+
+def test_results_do_not_depend_on_the_order_of_computation(tmp_path):
+    """Runs with different stop patterns are computed longest predicted first on two processes: the
+    rows are those of the serial study in run order, bit for bit, and a resumed study completes them."""
+    study = study_from_dict(
+        metro_study(
+            axes=[
+                {"field": "stops", "values": [["S1", "S4"], ["S1", "S2", "S3", "S4"], ["S1", "S3", "S4"]]},
+                {"field": "train.formation[*].load_t", "values": [0, 6, 12, 18]},
+            ]
+        ),
+        "stops.yaml",
+    )
+    expansion = study.expand()
+    cost = _Cost(expansion, tuple(e.data for e in study.entries))
+    order = cost.order(list(range(12)))
+    assert order != list(range(12)) and sorted(order) == list(range(12))
+    assert [len(expansion.values["stops"][i]) for i in order] == [4] * 4 + [3] * 4 + [2] * 4
+    serial = run_study(study, None, executor="serial").table()
+    assert serial.column("run_index").to_pylist() == list(range(12))
+    out = tmp_path / "out"
+    first = run_study(study, out, executor="processes", workers=2)
+    assert first.computed == 12 and len(first.worker_cpu_s) == 2 and min(first.worker_cpu_s) > 0
+    assert read_results(out, as_table=True).equals(serial)
+    # resume: drop the written parts but one and run again
+    parts = sorted((out / "results").glob("part-*.parquet"))
+    for p in parts[1:]:
+        p.unlink()
+    again = run_study(study, out, executor="processes", workers=2)
+    assert again.already_done > 0 and again.already_done + again.computed == 12
+    assert read_results(out, as_table=True).equals(serial)

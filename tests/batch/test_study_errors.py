@@ -31,7 +31,11 @@ def test_a_file_name_too_long_for_the_system_is_an_input_error(write_study, fiel
 
 
 def test_a_value_refused_by_the_model_names_the_study_file_and_the_run(write_study):
-    data = {**HEADER, "base": str(METRO / "scenario.yaml"), "runs": [{"name": "late", "dwell_s": {"S3": 1e308}}]}
+    data = {
+        **HEADER,
+        "base": str(METRO / "scenario.yaml"),
+        "runs": [{"name": "late", "dwell_s": {"S3": 1e308}}],
+    }
     path = write_study(data)
     with pytest.raises(InputError) as info:
         load_study(path)

@@ -9,14 +9,16 @@ executor gives the same results.
 * ``serial``: in this process, chunk after chunk (debugging, tiny studies, the reference).
 * ``processes``: ``workers`` independent processes (forked, see :func:`_pool_context`), each with its
   own pipe; each process receives the payload once and loads the compiled kernel before its first
-  chunk, computes one chunk at a time and sends every run's row back as soon as it is computed.
+  chunk, computes one chunk at a time and sends the rows of its runs back as they are computed (at
+  least every :data:`~trainsim.batch.worker.SEND_INTERVAL_S`).
 * ``dask``: a ``distributed`` cluster: the scheduler at ``scheduler`` (an address or a
   ``distributed.Client``), or Dask's configured ``scheduler-address``, or else a local cluster of
   ``workers`` processes. The payload is scattered to every worker once.
 
 Lost workers (see docs/BATCH.md, "When workers or the cluster are lost"): when a worker process
 dies, the rows it sent are kept and the rest of its chunk is computed by the others (a new process
-takes its place): a kill loses the one run it was computing; a run is computed again at most
+takes its place): a kill loses the run it was computing and at most
+:data:`~trainsim.batch.worker.SEND_INTERVAL_S` of runs not yet sent; a run is computed again at most
 :data:`MAX_RESUBMITS` times. On Dask the scheduler itself reassigns the tasks of a lost worker (the
 chunk is computed again: chunks hold about :data:`~trainsim.batch.runner.CHUNK_TARGET_S` of work),
 and a chunk that killed ``allowed-failures`` workers is submitted again by us. When nothing can
@@ -41,7 +43,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from trainsim.batch.expand import RunTask
-from trainsim.batch.worker import Payload, run_chunk, serve_process
+from trainsim.batch.worker import Payload, run_chunk, serve_process, single_threaded_env
 from trainsim.errors import TrainsimError
 
 __all__ = [
@@ -108,6 +110,7 @@ class _Serial:
     def __init__(self, payload: Payload) -> None:
         self.payload = payload
         self.measured: list[tuple[int, float]] = []  # (run index, CPU s) of each run
+        self.worker_cpu_s = [0.0]  # CPU time of the runs [s]
 
     def start(self) -> None:
         pass
@@ -119,6 +122,7 @@ class _Serial:
                 c0 = time.process_time()
                 rows.extend(run_chunk(self.payload, [task]))
                 self.measured.append((task[0], time.process_time() - c0))
+                self.worker_cpu_s[0] += self.measured[-1][1]
             yield rows
 
     def close(self) -> None:
@@ -150,14 +154,15 @@ class _Worker:
     conn: Any
     chunk: list[RunTask] | None = None
     rows: Rows = field(default_factory=list)
+    cpu_s: float = 0.0  # CPU time of the runs it sent [s]
 
 
 class _Processes:
     """A pool of independent worker processes, each fed one chunk at a time through its own pipe.
 
-    Every run's row comes back as soon as it is computed (:func:`~trainsim.batch.worker.serve_process`),
-    so a worker killed in the middle of a chunk loses only the run it was computing: the rows it sent
-    are kept, that run and the rest of its chunk go to the other workers, and a new process takes its
+    Rows come back as runs are computed, at least every :data:`~trainsim.batch.worker.SEND_INTERVAL_S`
+    (:func:`~trainsim.batch.worker.serve_process`), so a worker killed in the middle of a chunk loses
+    only the run it was computing and the few runs not yet sent: the rows it sent are kept, that run and the rest of its chunk go to the other workers, and a new process takes its
     place. The other workers are not disturbed (a ``ProcessPoolExecutor`` whose process dies breaks:
     every chunk in flight on every worker is lost). A run that killed its worker more than
     :data:`MAX_RESUBMITS` times stops the study (ClusterLostError, resumable).
@@ -172,6 +177,7 @@ class _Processes:
         self.attempts: dict[int, int] = {}  # run index -> times its worker died while computing it
         self.retry: list[list[RunTask]] = []
         self.measured: list[tuple[int, float]] = []  # (run index, CPU s) of the runs received
+        self.worker_cpu_s: list[float] = []  # CPU time of the runs of each process that ended [s]
 
     @property
     def processes(self) -> list[int]:
@@ -181,7 +187,20 @@ class _Processes:
     def _spawn(self) -> _Worker:
         parent, child = self.ctx.Pipe(duplex=True)
         process = self.ctx.Process(target=serve_process, args=(self.payload, child), daemon=True)
-        process.start()
+        # one thread per numerical library in the worker: a spawned worker (or the fork server) reads
+        # these when it loads numpy; a forked one has no BLAS or OpenMP threads until it calls them,
+        # which the runs do not. Set only while starting, so that this process keeps its settings.
+        env = single_threaded_env()
+        saved = {k: os.environ.get(k) for k in env}
+        os.environ.update(env)
+        try:
+            process.start()
+        finally:
+            for k, v in saved.items():
+                if v is None:
+                    os.environ.pop(k, None)
+                else:
+                    os.environ[k] = v
         child.close()  # only the worker holds its end: a dead worker's pipe reads as closed
         return _Worker(process, parent)
 
@@ -199,11 +218,13 @@ class _Processes:
         assert w.chunk is not None
         while w.conn.poll():
             try:
-                index, row, cpu_s = w.conn.recv()
+                batch = w.conn.recv()
             except (EOFError, OSError):
                 break
-            w.rows.append((index, row))
-            self.measured.append((index, cpu_s))
+            for index, row, cpu_s in batch:
+                w.rows.append((index, row))
+                self.measured.append((index, cpu_s))
+                w.cpu_s += cpu_s
         return len(w.rows) == len(w.chunk)
 
     def _replace(self, w: _Worker) -> Rows:
@@ -224,6 +245,7 @@ class _Processes:
         with contextlib.suppress(OSError):
             w.conn.close()
         w.process.join(timeout=1.0)
+        self.worker_cpu_s.append(w.cpu_s)
         self.restarts += 1
         self.pool[self.pool.index(w)] = self._spawn()
         return rows
@@ -263,6 +285,7 @@ class _Processes:
                         yield rows
 
     def close(self) -> None:
+        self.worker_cpu_s.extend(w.cpu_s for w in self.pool)
         for w in self.pool:
             if w.chunk is None and w.process.is_alive():
                 with contextlib.suppress(OSError):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import re
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -17,7 +17,7 @@ from trainsim.batch.study import Study, load_study
 from trainsim.batch.worker import Payload
 from trainsim.errors import InputError
 
-__all__ = ["StudyOutcome", "auto_chunk_size", "run_study"]
+__all__ = ["StudyOutcome", "auto_chunk_size", "longest_first", "plan_chunks", "run_study"]
 
 
 @dataclass
@@ -35,7 +35,11 @@ class StudyOutcome:
         elapsed_s: wall time of the computation (after the study was read and expanded) [s].
         chunks: chunks computed; chunk_size: runs per chunk (the largest, when automatic);
         chunk_sizes: runs of each chunk computed, in the order they completed;
-        executor, workers: where.
+        executor, workers: where;
+        worker_cpu_s: CPU time of the runs each worker computed [s] (serial and processes executors;
+            a process that died and the one that replaced it count as two; start-up, pipes and the
+            writing are not in it): how evenly the chunks shared the work, whatever else the machine
+            was doing.
     """
 
     study: str
@@ -51,6 +55,7 @@ class StudyOutcome:
     executor: str
     workers: int
     chunk_sizes: tuple[int, ...] = ()
+    worker_cpu_s: tuple[float, ...] = ()
     _table: Any = field(default=None, repr=False)
 
     @property
@@ -235,18 +240,54 @@ class _Cost:
         the workers finish together. Otherwise, and among equal costs, in run order."""
         if len(todo) > MAX_ORDERED_RUNS or not self.entries:
             return todo
-        works = [self.seconds(i) for i in todo]
-        if max(works) <= min(works) * 1.0000001:
-            return todo
-        return [i for _, i in sorted(zip(works, todo, strict=True), key=lambda p: -p[0])]
+        return [todo[k] for k in longest_first([self.seconds(i) for i in todo])]
+
+
+def longest_first(costs_s: Sequence[float]) -> list[int]:
+    """Positions of ``costs_s`` ordered longest first, equal costs in their order; the given order
+    when every cost is the same (within 1e-7 relative)."""
+    if not costs_s or max(costs_s) <= min(costs_s) * 1.0000001:
+        return list(range(len(costs_s)))
+    return sorted(range(len(costs_s)), key=lambda k: -costs_s[k])
+
+
+def _take(run_s: Callable[[int], float], todo: Sequence[int], k: int, limit: int) -> int:
+    """Runs of the chunk starting at ``todo[k]``: at least one, at most ``limit``, adding runs while
+    their predicted cost ``run_s(run)`` stays within :data:`CHUNK_TARGET_S`."""
+    n, total = 0, 0.0
+    while k + n < len(todo) and n < limit:
+        total += run_s(todo[k + n])
+        if n and total > CHUNK_TARGET_S:
+            break
+        n += 1
+    return n
+
+
+def plan_chunks(costs_s: Sequence[float], workers: int) -> list[list[int]]:
+    """The chunks :func:`run_study` forms for runs of the given predicted costs [s] on ``workers``
+    workers, as lists of positions in ``costs_s``: longest first (:func:`longest_first`), each chunk
+    at most :data:`CHUNK_TARGET_S` of work or a single run, at most the guided size of
+    :func:`auto_chunk_size`. Handed to the next idle worker in this order, this is longest-processing-
+    time-first list scheduling: the expensive runs start first, alone, and the cheap ones fill the
+    gaps at the end, so that the workers finish together and a killed worker loses little.
+
+    (The study itself reads the costs again before each chunk, as measured runs come in; this is the
+    plan when the predictions hold.)
+    """
+    order = longest_first(costs_s)
+    chunks, k = [], 0
+    while k < len(order):
+        n = _take(costs_s.__getitem__, order, k, auto_chunk_size(len(order) - k, workers, 0.0))
+        chunks.append(order[k : k + n])
+        k += n
+    return chunks
 
 
 def _chunks(
     expansion: Expansion, todo: list[int], size: int | None, workers: int, cost: _Cost | None = None
 ) -> Iterator[list[RunTask]]:
-    """The runs ``todo`` in chunks: of ``size`` runs, or else sized by their predicted cost (at most
-    :data:`CHUNK_TARGET_S` of work, at most the guided size of :func:`auto_chunk_size`), the costs
-    read again before each chunk as measured runs come in."""
+    """The runs ``todo`` in chunks: of ``size`` runs, or else sized by their predicted cost as
+    :func:`plan_chunks` does, the costs read again before each chunk as measured runs come in."""
     k = 0
     while k < len(todo):
         if size:
@@ -254,13 +295,7 @@ def _chunks(
         elif cost is None:
             n = auto_chunk_size(len(todo) - k, workers)
         else:
-            limit = auto_chunk_size(len(todo) - k, workers, 0.0)
-            n, total = 0, 0.0
-            while k + n < len(todo) and n < limit:
-                total += cost.seconds(todo[k + n])
-                if n and total > CHUNK_TARGET_S:
-                    break
-                n += 1
+            n = _take(cost.seconds, todo, k, auto_chunk_size(len(todo) - k, workers, 0.0))
         yield [expansion.task(i) for i in todo[k : k + n]]
         k += n
 
@@ -374,6 +409,7 @@ def run_study(
     already = len(expansion) - len(todo)
     computed = failed = stalled = chunks = 0
     sizes: list[int] = []
+    worker_cpu: tuple[float, ...] = ()
     t0 = time.perf_counter()
     if todo:
         with executor_for(
@@ -400,6 +436,7 @@ def run_study(
                     bar.advance(len(rows), n_failed)
             finally:
                 bar.close()
+        worker_cpu = tuple(getattr(ex, "worker_cpu_s", ()))  # complete once the executor is closed
     elapsed = time.perf_counter() - t0
     return StudyOutcome(
         study=study.name,
@@ -415,5 +452,6 @@ def run_study(
         executor=executor,
         workers=n_workers,
         chunk_sizes=tuple(sizes),
+        worker_cpu_s=worker_cpu,
         _table=sink.table() if isinstance(sink, MemorySink) else None,
     )

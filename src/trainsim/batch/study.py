@@ -825,8 +825,13 @@ class Study:
         return hashlib.sha256(_canonical(blob).encode()).hexdigest()[:32]
 
     def expand(self) -> Expansion:
-        """Every run of the study with its parameters and run id."""
-        return expand(self)
+        """Every run of the study with its parameters and run id (computed once per study: the run ids
+        cost about 0.2 ms per run, as much as a tenth of a fast run, and a study is read-only once
+        built). The expansion is shared by every caller: do not modify it."""
+        cached = self.__dict__.get("_expansion")
+        if cached is None:
+            cached = self.__dict__["_expansion"] = expand(self)
+        return cached
 
 
 def _at(exc: InputError, file: str, field: str) -> InputError:
