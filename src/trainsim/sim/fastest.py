@@ -27,6 +27,8 @@ def drop_empty_stretches(s, v, t, regime):
     """Remove points that start a stretch of no length and no duration (a regime switch found twice
     by root finding), so that no point shows the forces of a regime the train is never in."""
     empty = (np.diff(s) < EMPTY_STRETCH) & (np.diff(t) < EMPTY_STRETCH) & (regime[:-1] != DWELL)
+    if not empty.any():
+        return s, v, t, regime  # the usual case: no copies
     keep = np.concatenate([~empty, [True]])
     return s[keep], v[keep], t[keep], regime[keep]
 

@@ -45,9 +45,10 @@ def regenerative_arrays(train: Train) -> tuple:
 def kink_speeds(starts: np.ndarray, coefs: np.ndarray, force_cap: float, power_cap: float) -> np.ndarray:
     """Speeds where an effort curve is not smooth: interval starts and where the power cap takes
     over from the force cap [m/s]."""
-    kinks = list(starts[1:])
+    kinks = np.asarray(starts, dtype=float)[1:]
     if np.isfinite(power_cap):
         # the power cap takes over at P / F_cap, and is itself held constant below 1 mm/s
         takeover = power_cap / force_cap if np.isfinite(force_cap) and force_cap > 0 else 0.0
-        kinks.append(max(takeover, POWER_CAP_MIN_SPEED_MPS))
-    return np.array(sorted(k for k in kinks if k > 0), dtype=float)
+        kinks = np.append(kinks, max(takeover, POWER_CAP_MIN_SPEED_MPS))
+    # np.sort of the positive ones: the values of sorted() over a list (NaN fails k > 0 in both)
+    return np.sort(kinks[kinks > 0])

@@ -10,7 +10,6 @@ both ways of applying line resistance share one representation.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from itertools import pairwise
 
 import numpy as np
 
@@ -324,7 +323,8 @@ def compile_route(route: Route, train: Train, stops_m: list[float], max_step_m: 
     # uniform subdivision of every coarse interval, vectorised; grading only next to stops
     widths = np.diff(coarse)
     counts = np.maximum(np.ceil(widths / max_step_m - 1e-9).astype(np.int64), 1)
-    graded = np.array([a in stop_set or b in stop_set for a, b in pairwise(coarse.tolist())])
+    at_stop = np.isin(coarse, np.asarray(stops_m, dtype=float))  # equality, as ``in stop_set``
+    graded = at_stop[:-1] | at_stop[1:]
     counts[graded] = 1
     starts = np.repeat(coarse[:-1], counts)
     within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
