@@ -153,6 +153,45 @@ def test_piecewise_value_is_piecewise_linear_call():
         np.testing.assert_array_equal(got, f(s))
 
 
+def test_sequential_lookup_is_the_bisection_in_any_order():
+    """The loops look laws up with a hint from the last position (issue 14): whatever the order of the
+    positions (increasing with repeats, decreasing, jumping far, NaN, beyond the ends) every value is
+    the bisection's and PiecewiseLinear's; a law whose breakpoints are not ordered (a NaN among them)
+    is never walked."""
+    rng = np.random.default_rng(14)
+    x = np.unique(np.concatenate([[0.0, 5000.0], rng.uniform(0.0, 5000.0, 300)]))
+    left, right = rng.normal(size=len(x) - 1), rng.normal(size=len(x) - 1)
+    ramp = PiecewiseLinear(x, left, right)
+    step = PiecewiseLinear(x, left, left.copy())
+    fine = np.sort(rng.uniform(-100.0, 5100.0, 3000))
+    orders = {
+        "increasing, the grid's and the breakpoints themselves": np.sort(
+            np.concatenate([fine, x, x, x + 1e-9])
+        ),
+        "decreasing": fine[::-1],
+        "random": rng.permutation(fine),
+        "jumps and NaN": np.array([10.0, 4999.0, 1.0, np.nan, 2500.0, 2500.0, -1.0, 6000.0, 0.0, 5000.0]),
+    }
+    for f in (ramp, step):
+        arrays = res._law_arrays(f)
+        for name, s in orders.items():
+            got = _trace_c.piecewise_values_seq(arrays, s)
+            bisection = np.array([_trace_c.piecewise_value_at(arrays, q) for q in s])
+            np.testing.assert_array_equal(got, bisection, err_msg=name)
+            np.testing.assert_array_equal(got, f(s), err_msg=name)
+    unordered = (
+        np.array([0.0, np.nan, 10.0, 20.0]),
+        np.array([1.0, 2.0, 3.0]),
+        np.array([1.0, 2.0, 3.0]),
+        True,
+    )
+    s = np.linspace(-1.0, 21.0, 45)
+    np.testing.assert_array_equal(
+        _trace_c.piecewise_values_seq(unordered, s),
+        np.array([_trace_c.piecewise_value_at(unordered, q) for q in s]),
+    )
+
+
 def _numpy_laws(route, train, x, profile, ceiling, available):
     """The per-interval laws as compile_track computed them with numpy before they were compiled."""
     left, right = x[:-1], x[1:]

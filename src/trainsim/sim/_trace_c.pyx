@@ -71,6 +71,8 @@ cdef struct Law:
     const double* right  # value at x[k + 1] from the left, n of them
     Py_ssize_t n  # pieces
     bint steps  # piecewise constant: left == right on every piece
+    bint ordered  # x[k] <= x[k + 1] for every k (so no NaN): ``piecewise_value_seq`` may walk
+    Py_ssize_t hint  # search_right's answer for the last position looked up by piecewise_value_seq
 
 
 cdef struct Mech:
@@ -135,7 +137,41 @@ cdef inline double piecewise_value(const Law* f, double s) noexcept nogil:
     values beyond the ends; NaN at NaN)."""
     if s != s:
         return NAN
-    cdef Py_ssize_t k = search_right(f.x, f.n + 1, s) - 1
+    return value_in_piece(f, search_right(f.x, f.n + 1, s) - 1, s)
+
+
+cdef inline Py_ssize_t search_right_from(const double* a, Py_ssize_t n, double s, Py_ssize_t* hint) noexcept nogil:
+    """``search_right(a, n, s)`` on an ordered array without NaN, started from ``*hint`` (its answer
+    for an earlier position, updated): the run's and the grid's positions increase, so the answer
+    is usually the hint or a step beyond it, found without the bisection's log2(n) compares. The
+    same index whatever the hint: a hint past s, or more than a few steps short of it, bisects."""
+    cdef Py_ssize_t k = hint[0]
+    cdef int steps = 0
+    if k > n or (k > 0 and not (a[k - 1] <= s)):
+        k = search_right(a, n, s)
+    else:
+        # a[:k] <= s (ordered): the answer is the first index from k on with a[index] > s
+        while k < n and a[k] <= s:
+            k += 1
+            steps += 1
+            if steps == 8:
+                k = search_right(a, n, s)
+                break
+    hint[0] = k
+    return k
+
+
+cdef inline double piecewise_value_seq(Law* f, double s) noexcept nogil:
+    """``piecewise_value`` for positions looked up in (mostly) increasing order: the same value."""
+    if s != s:
+        return NAN
+    if not f.ordered:
+        return value_in_piece(f, search_right(f.x, f.n + 1, s) - 1, s)
+    return value_in_piece(f, search_right_from(f.x, f.n + 1, s, &f.hint) - 1, s)
+
+
+cdef inline double value_in_piece(const Law* f, Py_ssize_t k, double s) noexcept nogil:
+    """The law's value at s [m] on piece k (clamped to the pieces, so the end values beyond the ends)."""
     if k < 0:
         k = 0
     if k > f.n - 1:
@@ -209,7 +245,7 @@ cdef void run_loop(
     const int64_t* regime,
     const double* level,
     const double* s_right,
-    const RunLaws* L,
+    RunLaws* L,
     const Train* tr,
     bint with_trace,
     double* out,
@@ -233,16 +269,16 @@ cdef void run_loop(
         sr = s_right[i]
         r = regime[i]
         running = (c0 + c1 * vi + c2 * vi * vi) * (1.0 if vi > 0.0 else 0.0)
-        grad = weight * piecewise_value(&L.grad, sr)
-        curve = weight * piecewise_value(&L.curve, sr)
-        tunnel = weight * (piecewise_value(&L.tun, sr) + piecewise_value(&L.tun2, sr) * vi * vi)
+        grad = weight * piecewise_value_seq(&L.grad, sr)
+        curve = weight * piecewise_value_seq(&L.curve, sr)
+        tunnel = weight * (piecewise_value_seq(&L.tun, sr) + piecewise_value_seq(&L.tun2, sr) * vi * vi)
         line = grad + curve + tunnel
         inertia = 0.0
         if i < n - 1:
             ds = s[i + 1] - s[i]
             acc_stretch = (v[i + 1] * v[i + 1] - vi * vi) / (2.0 * ds) if ds > 0.0 else 0.0
             inertia = m_inertial * acc_stretch
-        avail = piecewise_value(&L.avail, sr)
+        avail = piecewise_value_seq(&L.avail, sr)
         regime_forces(r, vi, running, line, level[i], avail, inertia, tr, &ft, &fb)
         cap = curve_value(vi, &tr.regen) if mech.has_regen else 0.0
         fr = nmin(fb, cap)
@@ -252,7 +288,7 @@ cdef void run_loop(
         current = NAN
         paper_current = NAN
         if e.is_elec:
-            u = piecewise_value(&L.volt, sr)
+            u = piecewise_value_seq(&L.volt, sr)
             safe = u if u > 0.0 else 1.0
             current = el_power / (safe * pf) if u > 0.0 else 0.0
             paper_current = paper_power / (safe * pf) if u > 0.0 else 0.0
@@ -266,18 +302,18 @@ cdef void run_loop(
                 mid = 0.5 * (s[i] + s[i + 1])
                 vm = sqrt(0.5 * (v0 * v0 + v1 * v1))
                 line_mid = (
-                    weight * piecewise_value(&L.grad, mid)
-                    + weight * piecewise_value(&L.curve, mid)
-                    + weight * (piecewise_value(&L.tun, mid) + piecewise_value(&L.tun2, mid) * vm * vm)
+                    weight * piecewise_value_seq(&L.grad, mid)
+                    + weight * piecewise_value_seq(&L.curve, mid)
+                    + weight * (piecewise_value_seq(&L.tun, mid) + piecewise_value_seq(&L.tun2, mid) * vm * vm)
                 )
-                avail_mid = piecewise_value(&L.avail, mid)
+                avail_mid = piecewise_value_seq(&L.avail, mid)
                 run0 = c0 + c1 * v0 + c2 * v0 * v0
                 run1 = c0 + c1 * v1 + c2 * v1 * v1
                 regime_forces(r, v0, run0, line_mid, level[i], avail_mid, inertia, tr, &f0t, &f0b)
                 regime_forces(r, v1, run1, line_mid, level[i], avail_mid, inertia, tr, &f1t, &f1b)
                 rg0 = nmin(f0b, curve_value(v0, &tr.regen)) if mech.has_regen else 0.0
                 rg1 = nmin(f1b, curve_value(v1, &tr.regen)) if mech.has_regen else 0.0
-                u_mid = piecewise_value(&L.volt, mid)
+                u_mid = piecewise_value_seq(&L.volt, mid)
                 safe_mid = u_mid if u_mid > 0.0 else 1.0
                 end_power = nmax(f0t * v0 / eta_t - rg0 * v0 * eta_r, f1t * v1 / eta_t - rg1 * v1 * eta_r)
                 if u_mid > 0.0:
@@ -301,7 +337,7 @@ cdef void run_loop(
             out[6 * n + i] = grad
             out[7 * n + i] = curve
             out[8 * n + i] = tunnel
-            out[9 * n + i] = piecewise_value(&L.ceil, sr)
+            out[9 * n + i] = piecewise_value_seq(&L.ceil, sr)
             out[10 * n + i] = ft * vi
             out[11 * n + i] = el_power
             out[12 * n + i] = current
@@ -309,12 +345,12 @@ cdef void run_loop(
             out[14 * n + i] = paper_current
 
 
-cdef inline void inside_law(const Law* f, double lo, double hi, double span, double eps, double* f0_out,
+cdef inline void inside_law(Law* f, double lo, double hi, double span, double eps, double* f0_out,
                             double* slope_out) noexcept nogil:
     """(value at the interval's start, slope) of the line through a law's values at lo and hi,
     just inside an interval that starts eps before lo and whose inside is ``span`` long."""
-    cdef double f0 = piecewise_value(f, lo)
-    cdef double slope = (piecewise_value(f, hi) - f0) / span
+    cdef double f0 = piecewise_value_seq(f, lo)
+    cdef double slope = (piecewise_value_seq(f, hi) - f0) / span
     f0_out[0] = f0 - slope * eps
     slope_out[0] = slope
 
@@ -322,7 +358,7 @@ cdef inline void inside_law(const Law* f, double lo, double hi, double span, dou
 cdef void interval_loop(
     Py_ssize_t n,
     const double* x,
-    const Law* laws,  # gradient, curve, tunnel, tunnel_v2, ceiling, available
+    Law* laws,  # gradient, curve, tunnel, tunnel_v2, ceiling, available
     double g,
     double* a0,
     double* a1,
@@ -352,8 +388,8 @@ cdef void interval_loop(
         b0[i] = g * k0
         b1[i] = g * k1
         mid = 0.5 * (left + right)
-        vlim[i] = piecewise_value(&laws[4], mid)
-        scale[i] = piecewise_value(&laws[5], mid)
+        vlim[i] = piecewise_value_seq(&laws[4], mid)
+        scale[i] = piecewise_value_seq(&laws[5], mid)
 
 
 # ---- entry points: arguments checked once, then the loops above ----
@@ -437,6 +473,13 @@ cdef int law_from(Held* held, str name, object arrays, Law* out) except -1:
         )
     out.n = nl
     out.steps = bool(steps)
+    out.hint = 0
+    out.ordered = True
+    cdef Py_ssize_t k
+    for k in range(nx - 1):
+        if not (out.x[k] <= out.x[k + 1]):
+            out.ordered = False
+            break
     return 0
 
 
@@ -607,6 +650,26 @@ def piecewise_value_at(tuple law, double s):
         return piecewise_value(&f, s)
     finally:
         release(&held)
+
+
+def piecewise_values_seq(tuple law, s):
+    """``piecewise_value_seq`` of a law ``(x, left, right, steps)`` at each of the positions s [m],
+    looked up in the given order with one hint, as the loops do (for tests)."""
+    cdef Law f
+    cdef Held held
+    held.count = 0
+    s_a = np.ascontiguousarray(s, dtype=np.float64)
+    out = np.empty(s_a.shape[0])
+    cdef double[::1] sv = s_a
+    cdef double[::1] ov = out
+    cdef Py_ssize_t i
+    try:
+        law_from(&held, "law", law, &f)
+        for i in range(sv.shape[0]):
+            ov[i] = piecewise_value_seq(&f, sv[i])
+    finally:
+        release(&held)
+    return out
 
 
 def curve_value_at(double v, tuple curve):
