@@ -73,6 +73,9 @@ RAGGED_SAMPLES = 3
 JUMP_MARGIN = 1e-3
 #: ... and closes the bracket with two runs this fraction of COAST_POINT_TOLERANCE_M either side of it [-].
 JUMP_AIM_FRACTION = 0.25
+#: Within this distance of the predicted jump [m] (as long as no prediction overshot), the runs go
+#: right beside it at once (the interpolation is then accurate to far below the tolerance).
+JUMP_CLOSE_M = 1e-4
 #: First half-width of the bracket around the previous holding speed's final coasting point [m].
 WARM_COAST_STEP_M = 20.0
 #: Largest step of the adjoint-driven phase [m].
@@ -1250,7 +1253,9 @@ class SectionSolver:
         below = None  # a coasting point after which the run stops short, with its residual
         if guess is not None and floor < guess < self.s1:
             # warm start: the outer solve moves V a little at a time and the coasting point with
-            # it, so the bracket grows outwards from the previous one
+            # it, so the bracket grows outwards from the previous one (on hilly lines the outcome
+            # jumps at several coasting points: a bracket grown from the guess alone, issue 16, found
+            # others than this one and moved a line's split of its supplement by 6 s)
             width = WARM_COAST_STEP_M
             while True:
                 hi = min(guess + width, self.s1)
@@ -1303,11 +1308,12 @@ class SectionSolver:
                 # a little short of it, the next run stays short and the next prediction is
                 # closer; within COAST_POINT_TOLERANCE_M two runs either side close the bracket.
                 eps = JUMP_AIM_FRACTION * COAST_POINT_TOLERANCE_M
-                aim = jump - max(margin * (jump - lo), eps)
+                close = jump - lo < JUMP_CLOSE_M and margin <= JUMP_MARGIN
+                aim = jump - (eps if close else max(margin * (jump - lo), eps))
                 if aim - lo < eps:
                     aim = jump + eps  # (the jump lies within eps of lo)
                 else:
-                    queued = [jump + eps] if jump - lo < 1e3 * COAST_POINT_TOLERANCE_M else []
+                    queued = [jump + eps] if close or jump - lo < 1e3 * COAST_POINT_TOLERANCE_M else []
                 if lo < aim < hi:
                     mid, aimed = aim, True
             r_mid, points = residual(mid)
