@@ -8,7 +8,9 @@ Run: python benchmarks/bench_optimize.py [--out table.csv] [--tracks NAME ...] [
      python benchmarks/bench_optimize.py --speed [--max-km 35] [--tracks ...] [--trains ...]
 ``--speed`` times the optimal strategy alone at +10 % (no reference): a fresh solver per section,
 numba compiled beforehand, wall and CPU time against the RK4 baseline of ``_timing`` timed around
-each solve, summarised per length class (docs/OPTIMIZATION.md, Speed).
+each solve, and the kernel runs per solve (final-phase runs, ``pmp_kernel.final_phase_modes``, and
+holding speeds tried, ``SectionSolver.plan``: deterministic, unlike the times), summarised per length
+class (docs/OPTIMIZATION.md, Speed).
 Prints one line per case and a summary; energies are net electrical energy without auxiliaries;
 gaps are (x - reference) / |reference| and the certified gap (optimal - lower bound) / |lower bound|
 (net-regenerating descents have negative energies).
@@ -91,10 +93,31 @@ def _timed(fn) -> tuple[float, float]:
     return time.perf_counter() - t0, time.process_time() - c0
 
 
+def _counted() -> dict[str, int]:
+    """Counts final-phase runs and holding speeds tried (the work of a solve, whatever the load)."""
+    from trainsim.optimize import pmp_kernel
+
+    count = {"runs": 0, "plans": 0}
+    final_phase, plan = pmp_kernel.final_phase_modes, SectionSolver.plan
+
+    def counted_final_phase(*a):
+        count["runs"] += 1
+        return final_phase(*a)
+
+    def counted_plan(self, holding_speed_mps):
+        count["plans"] += 1
+        return plan(self, holding_speed_mps)
+
+    pmp_kernel.final_phase_modes = counted_final_phase  # (optimal.py calls it through the module)
+    SectionSolver.plan = counted_plan
+    return count
+
+
 def speed(args) -> None:
     """Per-section times of the optimal strategy at +10 % with the baseline around each solve."""
     print(machine(), flush=True)
     rows = []
+    count = _counted()
     warm = True
     for track, train_name, train, route, sections in cases(args):
         for s0, s1 in sections:
@@ -111,13 +134,14 @@ def speed(args) -> None:
                 solver = SectionSolver(train, route, s0, s1)
                 solver.solve(solver.fastest_time_s * 1.1)
 
+            count["runs"] = count["plans"] = 0
             wall, cpu = _timed(run)
             base1 = _timed(rk4_line)
             base_wall, base_cpu = min(base0[0], base1[0]), max(min(base0[1], base1[1]), 1e-6)
-            rows.append((s1 - s0, wall, cpu, cpu / base_cpu))
+            rows.append((s1 - s0, wall, cpu, cpu / base_cpu, count["runs"], count["plans"]))
             print(f"{track[:26]:26s} {train_name[:12]:12s} {s0:7.0f}-{s1:7.0f} wall {wall * 1e3:8.1f} ms "
-                  f"cpu {cpu * 1e3:8.1f} ms  baseline {base_wall * 1e3:5.2f} ms  cpu ratio {cpu / base_cpu:7.0f}",
-                  flush=True)  # fmt: skip
+                  f"cpu {cpu * 1e3:8.1f} ms  baseline {base_wall * 1e3:5.2f} ms  cpu ratio {cpu / base_cpu:7.0f}  "
+                  f"final-phase runs {count['runs']:5d}, holding speeds {count['plans']:3d}", flush=True)  # fmt: skip
     lower = 0.0
     for label, upper, target_ms in SPEED_CLASSES:
         g = [r for r in rows if lower < r[0] <= upper]
@@ -128,7 +152,8 @@ def speed(args) -> None:
         print(f"{label}: {len(g)} sections, wall median {statistics.median(wall):.0f} ms, max {max(wall):.0f} ms "
               f"({sum(w <= target_ms for w in wall)}/{len(g)} within {target_ms:.0f} ms); CPU median "
               f"{statistics.median(r[2] * 1e3 for r in g):.0f} ms; CPU / baseline median "
-              f"{statistics.median(r[3] for r in g):.0f}, max {max(r[3] for r in g):.0f}")  # fmt: skip
+              f"{statistics.median(r[3] for r in g):.0f}, max {max(r[3] for r in g):.0f}; final-phase runs median "
+              f"{statistics.median(r[4] for r in g):.0f}, holding speeds median {statistics.median(r[5] for r in g):.0f}")  # fmt: skip
     print(machine())
 
 
