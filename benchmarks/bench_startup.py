@@ -18,7 +18,8 @@ Rows:
 * the first ``trainsim run`` after an install: an empty ``NUMBA_CACHE_DIR`` and a fresh, empty
   bytecode prefix for every sample, so that nothing any earlier process cached is reused (every module,
   numpy's and pydantic's too, is compiled to bytecode again: harsher than an install, which writes
-  bytecode); its ratio is to the warm baseline of the same round;
+  bytecode); its ratio is to the warm baseline of the same round; and the same with only numba's
+  cache empty (bytecode as after ``pip install``, which writes it): what a run compiles at run time;
 * two reference rows: ``import numba``, and the *numba floor*, a process that imports numba and calls
   one trivial ``njit(cache=True)`` function loaded from its cache: the least any process running a numba
   kernel pays (loading the first cached function makes numba load its whole lowering library, and
@@ -80,6 +81,7 @@ print("numba" in sys.modules)
 
 RUN = "trainsim run metro (warm)"
 FIRST = "first trainsim run (install)"
+EMPTY_NUMBA = "run, empty numba cache only"
 
 
 def timed(cmd: Sequence[str], env: dict[str, str] | None = None) -> tuple[float, float]:
@@ -122,12 +124,14 @@ def cases(work: Path) -> dict[str, tuple[list[str], float | None]]:
     }
 
 
-def first_run_env(work: Path, k: int) -> dict[str, str]:
-    """A first run after an install: nothing cached by numba, no bytecode (a fresh prefix per sample)."""
-    env = dict(os.environ)
-    env.pop("PYTHONDONTWRITEBYTECODE", None)
-    env["PYTHONPYCACHEPREFIX"] = str(work / f"first-pycache-{k}")
-    env["NUMBA_CACHE_DIR"] = str(work / f"first-numba-{k}")
+def first_run_env(work: Path, k: int, warm: dict[str, str] | None = None) -> dict[str, str]:
+    """A first run after an install: nothing cached by numba, no bytecode (a fresh prefix per sample);
+    with ``warm``, that environment's bytecode and only numba's cache empty."""
+    env = dict(os.environ) if warm is None else dict(warm)
+    if warm is None:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = str(work / f"first-pycache-{k}")
+    env["NUMBA_CACHE_DIR"] = str(work / f"first-numba-{k}{'' if warm is None else '-warm'}")
     return env
 
 
@@ -197,12 +201,13 @@ def main(argv: Sequence[str] | None = None) -> None:
         for name, (cmd, target) in table.items():
             print(row(name, *paired(cmd, args.repeat, env), target), flush=True)
         if not args.no_cold:
-            series: tuple[list[float], list[float], list[float], list[float]] = ([], [], [], [])
-            for k in range(args.repeat):
-                one = paired(table[RUN][0], 1, env, first_run_env(work, k))
-                for s, v in zip(series, one, strict=True):
-                    s += v
-            print(row(FIRST, *series, 5.0))
+            for name, warm in ((FIRST, None), (EMPTY_NUMBA, env)):
+                series: tuple[list[float], list[float], list[float], list[float]] = ([], [], [], [])
+                for k in range(args.repeat):
+                    one = paired(table[RUN][0], 1, env, first_run_env(work, k, warm))
+                    for s, v in zip(series, one, strict=True):
+                        s += v
+                print(row(name, *series, 5.0), flush=True)
         probe = subprocess.run(
             [sys.executable, "-c", NUMBA_PROBE, str(METRO)], capture_output=True, text=True, env=env, cwd=ROOT
         )

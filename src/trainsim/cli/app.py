@@ -10,7 +10,6 @@ A new command: write ``def name(...)`` with typer annotations in ``trainsim/cli/
 
 from __future__ import annotations
 
-import gc
 import importlib
 from typing import Annotated, Any, NamedTuple
 
@@ -129,9 +128,4 @@ def _main(
 
 def main() -> None:
     """Entry point of ``trainsim`` and ``python -m trainsim``."""
-    # Start-up creates some 10^5 objects that live to the end (modules, typer's and pydantic's
-    # schemas); at CPython's default young-generation threshold (700) the collector scans them in about
-    # 100 collections, 9 % of the CPU of a whole `trainsim run` of the metro. A larger threshold
-    # collects the same cycles, later.
-    gc.set_threshold(50_000, 20, 10)
     app(prog_name="trainsim")
