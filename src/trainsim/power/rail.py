@@ -24,6 +24,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
 
+from trainsim.power._rail_c import segment_leakage_total_a
+
 __all__ = [
     "leaky_rail_pi",
     "rail_profile_v",
@@ -108,7 +110,7 @@ def segment_leakage_a(
 
 
 @njit(cache=True)
-def segment_leakage_total_a(va_v, vb_v, length_m, r_ohm_per_m, g_s_per_m) -> float:
+def _numba_segment_leakage_total_a(va_v, vb_v, length_m, r_ohm_per_m, g_s_per_m) -> float:
     """The sum over segments of :func:`segment_leakage_a` [A], segment by segment in a compiled loop
     (the same formulas and branches; once per time step on a hundred segments, where the numpy
     form's temporaries cost more than its arithmetic)."""

@@ -30,6 +30,7 @@ from numba import njit
 from scipy.sparse.linalg import splu
 
 from trainsim.errors import InputError
+from trainsim.power import _solver_c
 from trainsim.power.limits import (
     regen_acceptance,
     regen_acceptance_slope,
@@ -75,6 +76,22 @@ POSITION_RESOLUTION_M = 0.1
 #: Kirchhoff residual accepted as converged, as a share of the substations' total short-circuit
 #: current sum(E / R_i) (about 1e-5 A on a metro line): round-off of G V is well below it.
 CURRENT_TOLERANCE_SHARE = 1e-10
+
+
+# The compiled parts (power/_solver_c.pyx, Cython; numba until issue 14), under the names the solver
+# and its tests have always used.
+_assemble_dc_kernel = _solver_c.assemble_dc_kernel
+_diode_forward_scalar = _solver_c.diode_forward_scalar
+_diode_forward_slope_scalar = _solver_c.diode_forward_slope_scalar
+_dc_load_residual = _solver_c.dc_load_residual
+_dc_residual_full = _solver_c.dc_residual_full
+_stamp_dense = _solver_c.stamp_dense
+_relabel = _solver_c.relabel
+_half_bandwidth = _solver_c.half_bandwidth
+_band_solve = _solver_c.band_solve
+_newton_dc_dense = _solver_c.newton_dc_dense
+_newton_dc_core = _solver_c.newton_dc_core
+_stamp_pattern = _solver_c.stamp_pattern
 
 
 @dataclass
@@ -242,7 +259,7 @@ class _Sources:
 
 
 @njit(cache=True)
-def _assemble_dc_kernel(
+def _numba_assemble_dc_kernel(
     n_fixed, track, xt, fp, fp_start, cid, rid, gs, ge, g_start, r_contact, r_rail, g_rail, leak_s, ideal,
     small,
 ):  # fmt: skip
@@ -566,7 +583,7 @@ def _diode_forward_slope(x: np.ndarray, delta: float) -> np.ndarray:
 
 
 @njit(cache=True)
-def _diode_forward_scalar(x, delta):
+def _numba_diode_forward_scalar(x, delta):
     """:func:`_diode_forward` of one value, for the compiled Newton (the same operations, so the
     same doubles)."""
     if x >= delta:
@@ -577,7 +594,7 @@ def _diode_forward_scalar(x, delta):
 
 
 @njit(cache=True)
-def _diode_forward_slope_scalar(x, delta):
+def _numba_diode_forward_slope_scalar(x, delta):
     """:func:`_diode_forward_slope` of one value, for the compiled Newton."""
     if x >= delta:
         return 1.0
@@ -587,7 +604,7 @@ def _diode_forward_slope_scalar(x, delta):
 
 
 @njit(cache=True, error_model="numpy")
-def _dc_load_residual(
+def _numba_dc_load_residual(
     v, tc, tr, tc_bins, tr_bins, rows0, cols0, w0, rows1, cols1, w1, j_src,
     traction_w, auxiliary_w, regen_w, u_floor, min1_v, full_v, regen_full_v, regen_zero_v,
 ):  # fmt: skip
@@ -640,7 +657,7 @@ DENSE_NEWTON_MAX_NODES = 400
 
 
 @njit(cache=True, error_model="numpy")
-def _dc_residual_full(
+def _numba_dc_residual_full(
     v, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w, regen_w,
     u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share,
 ):  # fmt: skip
@@ -681,7 +698,7 @@ def _dc_residual_full(
         va = v[dp_[k]] if dp_[k] >= 0 else 0.0
         vb = v[dn_[k]] if dn_[k] >= 0 else 0.0
         x = de[k] - (va - vb)
-        forward = _diode_forward_scalar(x, delta)
+        forward = _numba_diode_forward_scalar(x, delta)
         i = (forward + reverse_share * (x - forward)) * dy[k]
         f[dn_[k] if dn_[k] >= 0 else n] += i
         f[dp_[k] if dp_[k] >= 0 else n] -= i
@@ -689,7 +706,7 @@ def _dc_residual_full(
 
 
 @njit(cache=True)
-def _stamp_dense(jac, a, b, y):
+def _numba_stamp_dense(jac, a, b, y):
     """Adds the two-terminal admittances y between nodes a and b (-1 earth) to the dense matrix."""
     for k in range(len(a)):
         if a[k] >= 0:
@@ -702,7 +719,7 @@ def _stamp_dense(jac, a, b, y):
 
 
 @njit(cache=True)
-def _relabel(nodes, place):
+def _numba_relabel(nodes, place):
     """``place[nodes]`` with earth (-1) kept."""
     out = np.empty(len(nodes), np.int64)
     for k in range(len(nodes)):
@@ -711,7 +728,7 @@ def _relabel(nodes, place):
 
 
 @njit(cache=True)
-def _half_bandwidth(pairs):
+def _numba_half_bandwidth(pairs):
     """Largest |a - b| over the two-terminal elements (both ends nodes) of the (a, b) pairs."""
     w = 0
     for a, b in pairs:
@@ -722,7 +739,7 @@ def _half_bandwidth(pairs):
 
 
 @njit(cache=True)
-def _band_solve(mat, rhs, w):
+def _numba_band_solve(mat, rhs, w):
     """Solution of mat x = rhs for a matrix whose entries vanish more than w off the diagonal:
     Gaussian elimination with partial pivoting (LAPACK gbsv's algorithm, on full storage: a row
     swap widens the upper band to 2 w), O(n w^2). Overwrites mat and rhs; returns (x, singular)."""
@@ -756,7 +773,7 @@ def _band_solve(mat, rhs, w):
 
 
 @njit(cache=True, error_model="numpy")
-def _newton_dc_dense(
+def _numba_newton_dc_dense(
     v0, place, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w,
     regen_w, u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share, keep_curtailed,
     max_iterations, tol, ftol, max_step,
@@ -772,14 +789,19 @@ def _newton_dc_dense(
     for i in range(n):
         v[place[i]] = v0[i]
     a, b, sp_on, sn_on = (
-        _relabel(a, place),
-        _relabel(b, place),
-        _relabel(sp_on, place),
-        _relabel(sn_on, place),
+        _numba_relabel(a, place),
+        _numba_relabel(b, place),
+        _numba_relabel(sp_on, place),
+        _numba_relabel(sn_on, place),
     )
-    dp_, dn_, tc, tr = _relabel(dp_, place), _relabel(dn_, place), _relabel(tc, place), _relabel(tr, place)
-    w = _half_bandwidth(((a, b), (sp_on, sn_on), (dp_, dn_), (tc, tr)))
-    v, its, converged, singular = _newton_dc_core(
+    dp_, dn_, tc, tr = (
+        _numba_relabel(dp_, place),
+        _numba_relabel(dn_, place),
+        _numba_relabel(tc, place),
+        _numba_relabel(tr, place),
+    )
+    w = _numba_half_bandwidth(((a, b), (sp_on, sn_on), (dp_, dn_), (tc, tr)))
+    v, its, converged, singular = _numba_newton_dc_core(
         v, w, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w,
         regen_w, u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share, keep_curtailed,
         max_iterations, tol, ftol, max_step,
@@ -791,7 +813,7 @@ def _newton_dc_dense(
 
 
 @njit(cache=True, error_model="numpy")
-def _newton_dc_core(
+def _numba_newton_dc_core(
     v, w, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w, regen_w,
     u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share, keep_curtailed,
     max_iterations, tol, ftol, max_step,
@@ -800,11 +822,11 @@ def _newton_dc_core(
     n = len(v)
     args = (a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w,
             regen_w, u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share)  # fmt: skip
-    f, uu, p = _dc_residual_full(v, *args)
+    f, uu, p = _numba_dc_residual_full(v, *args)
     norm = np.max(np.abs(f)) if n else 0.0
     g0 = np.zeros((n, n))
-    _stamp_dense(g0, a, b, y)
-    _stamp_dense(g0, sp_on, sn_on, ys_on)
+    _numba_stamp_dense(g0, a, b, y)
+    _numba_stamp_dense(g0, sp_on, sn_on, ys_on)
     m = len(tc)
     t_ramp = full_v - min1_v
     r_ramp = regen_zero_v - regen_full_v
@@ -824,13 +846,13 @@ def _newton_dc_core(
             va = v[dp_[k]] if dp_[k] >= 0 else 0.0
             vb = v[dn_[k]] if dn_[k] >= 0 else 0.0
             x = de[k] - (va - vb)
-            slope = _diode_forward_slope_scalar(x, delta)
+            slope = _numba_diode_forward_slope_scalar(x, delta)
             gd[k] = dy[k] * (slope + reverse_share * (1.0 - slope))
         jac = g0.copy()
-        _stamp_dense(jac, tc, tr, di)
-        _stamp_dense(jac, dp_, dn_, gd)
+        _numba_stamp_dense(jac, tc, tr, di)
+        _numba_stamp_dense(jac, dp_, dn_, gd)
         # a singular Jacobian: the caller falls back on the sparse path and its error
-        x, singular = _band_solve(jac, f.copy(), w)
+        x, singular = _numba_band_solve(jac, f.copy(), w)
         if singular or not np.all(np.isfinite(x)):
             return v, it, False, True
         dv = -x
@@ -865,7 +887,7 @@ def _newton_dc_core(
         v_try, f_try, uu_try, p_try = v, f, uu, p
         for _ in range(12):
             v_try = v + lam * dv
-            f_try, uu_try, p_try = _dc_residual_full(v_try, *args)
+            f_try, uu_try, p_try = _numba_dc_residual_full(v_try, *args)
             if np.sqrt(np.sum(f_try * f_try)) <= (1.0 - 1e-4 * lam) * l2 or lam * step < tol:
                 accepted = True
                 break
@@ -875,7 +897,7 @@ def _newton_dc_core(
             if stalls % 3 == 0:
                 lam = 1.0
                 v_try = v + dv
-                f_try, uu_try, p_try = _dc_residual_full(v_try, *args)
+                f_try, uu_try, p_try = _numba_dc_residual_full(v_try, *args)
         norm_try = np.max(np.abs(f_try)) if n else 0.0
         v, f, uu, p, norm = v_try, f_try, uu_try, p_try, norm_try
         if lam * step < tol and norm < max(ftol, 1e3 * ftol * lam):
@@ -902,7 +924,7 @@ def _injection(n: int, nodes: np.ndarray, values: np.ndarray, dtype) -> np.ndarr
 
 
 @njit(cache=True)
-def _stamp_pattern(a, b, starts, n):
+def _numba_stamp_pattern(a, b, starts, n):
     """The COO entries of the two-terminal stamps of parts ``a[starts[k]:starts[k + 1]]`` -
     ``b[...]`` (node ids, -1 earth) and their places in the CSC pattern.
 
