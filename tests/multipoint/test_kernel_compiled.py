@@ -69,19 +69,19 @@ def both(monkeypatch):
 
         return call
 
-    monkeypatch.setattr(simulate, "mpk", _KernelProxy(paired))
+    monkeypatch.setattr(simulate, "_mp_c", _KernelProxy(paired))
     return seen
 
 
 class _KernelProxy:
-    """``kernel`` with ``run`` and ``record`` paired."""
+    """The compiled kernel with ``run`` and ``record`` paired with numba's."""
 
     def __init__(self, paired):
         self.run = paired("run", mpk.run, mpc.run)
         self.record = paired("record", mpk.record, mpc.record)
 
     def __getattr__(self, name):
-        return getattr(mpk, name)
+        return getattr(mpc, name)
 
 
 def test_fastest_run_with_stops_slack_delay_and_step_control_is_the_numba_run(both):

@@ -324,7 +324,7 @@ cdef inline double ramp_integral(double z, double eps) noexcept nogil:
 
 
 cdef CouplerForce coupler_force_c(double delta, double rate, const double* cp) noexcept nogil:
-    """Tension of a coupling (kernel.coupler_force)."""
+    """Tension of a coupling ."""
     cdef double kd = cp[C_KD], kb = cp[C_KB], cd = cp[C_CD], cb = cp[C_CB]
     cdef double hs = cp[C_HALF_SLACK], td = cp[C_TD], tb = cp[C_TB], ks = cp[C_KS], eps = cp[C_EPS]
     cdef double zd = delta - hs
@@ -347,7 +347,7 @@ cdef CouplerForce coupler_force_c(double delta, double rate, const double* cp) n
     cdef double vf, th, size
     cdef CouplerForce r
     if mu > 0.0:
-        # wedge friction of the draft gears (kernel.coupler_force)
+        # wedge friction of the draft gears 
         vf = cp[C_VF]
         th = c_tanh(rate / vf)
         size = sqrt(spring * spring + 1.0) - 1.0
@@ -362,7 +362,7 @@ cdef CouplerForce coupler_force_c(double delta, double rate, const double* cp) n
 
 
 cdef double coupler_energy_c(double delta, const double* cp) noexcept nogil:
-    """Potential energy stored in a coupling's springs [J] (kernel.coupler_energy)."""
+    """Potential energy stored in a coupling's springs [J]."""
     cdef double kd = cp[C_KD], kb = cp[C_KB]
     cdef double hs = cp[C_HALF_SLACK], td = cp[C_TD], tb = cp[C_TB], ks = cp[C_KS], eps = cp[C_EPS]
     cdef double zd = delta - hs
@@ -377,8 +377,10 @@ cdef double coupler_energy_c(double delta, const double* cp) noexcept nogil:
 
 # ============================================================================ effort curves, profiles
 cdef Effort effort_slope(double v, Py_ssize_t c, const Bank* bank, double vsel) noexcept nogil:
-    """Force and slope of curve ``c`` at speed v >= 0, in the interval of ``vsel`` if >= 0
-    (kernel.effort_slope)."""
+    """Force [N] and slope d F / d v [N s/m] of curve ``c`` of the bank at speed v >= 0 [m/s] (the law
+    of ``trainsim.sim.kernel.effort``). The law's interval is the one of speed ``vsel`` if >= 0: within
+    a step the integrator keeps the interval of the step's start, since a law may jump where two
+    intervals meet and Newton's method finds no root on a jump."""
     cdef int64_t lo = bank.coff[c]
     cdef int64_t hi = bank.coff[c + 1]
     cdef int64_t j = lo
@@ -413,8 +415,7 @@ cdef Effort effort_slope(double v, Py_ssize_t c, const Bank* bank, double vsel) 
 
 
 cdef Line profile_at(Py_ssize_t p, double s, const Prof* prof, int64_t* cache, Py_ssize_t i) noexcept nogil:
-    """Line-resistance profile ``p`` at position s; ``cache[i]`` keeps vehicle i's last piece
-    (kernel.profile_at)."""
+    """Line-resistance profile ``p`` at position s; ``cache[i]`` keeps vehicle i's last piece."""
     cdef int64_t lo = prof.poff[p]
     cdef int64_t hi = prof.poff[p + 1]
     cdef int64_t j = cache[i]
@@ -448,7 +449,7 @@ cdef Line profile_at(Py_ssize_t p, double s, const Prof* prof, int64_t* cache, P
 
 
 cdef inline double step_value(double s, const Steps* st) noexcept nogil:
-    """Value of a piecewise constant function at s (kernel.step_value)."""
+    """Value of a piecewise constant function at s."""
     cdef Py_ssize_t k = search_right(st.x, st.nx, s) - 1
     if k < 0:
         k = 0
@@ -458,7 +459,7 @@ cdef inline double step_value(double s, const Steps* st) noexcept nogil:
 
 
 cdef double linear_value(double s, const Ceiling* ce) noexcept nogil:
-    """A ``PiecewiseLinear`` at s, the value from the right at a breakpoint (kernel.linear_value)."""
+    """A ``PiecewiseLinear`` at s, the value from the right at a breakpoint."""
     cdef Py_ssize_t k = search_right(ce.x, ce.nleft + 1, s) - 1
     if k < 0:
         k = 0
@@ -478,7 +479,23 @@ cdef void vehicle_forces_c(
     const Model* md, const double* xm, const double* w, const double* v0, const double* bm,
     double* out, double* D, bint detail, double* parts,
 ) noexcept nogil:
-    """External force on every vehicle and minus its derivative (kernel.vehicle_forces)."""
+    """External force on every vehicle [N] at midpoint positions ``xm`` and speeds ``w`` into ``out``,
+    minus its derivative with respect to the vehicle's own speed into ``D``; with ``detail`` the
+    parts (traction, electric brake, friction brake, running, gradient, curve, tunnel) into
+    ``parts`` (n x 7), signed so that part x displacement is the work done by (traction) or against
+    (the others) the train.
+
+    ``v0`` are the speeds at the start of the step: the effort laws keep the interval of ``v0``, and
+    the direction factor tanh(v / v_eps) of the dry-friction forces (running, curve and tunnel
+    resistance, brakes) is taken at the end-of-step speed ``2 w - v0``. That part of the scheme is
+    backward Euler, which damps the stiff friction law near standstill (the midpoint rule alone would
+    let a held vehicle's speed flip sign from step to step); the kinetic-energy change of a step is
+    still exactly the work of the applied forces over the step's displacement ``h w``.
+
+    Braking with the blend flag: the command's full level is the service braking force (share
+    ``S_BRAKE_FRACTION`` of the service curve) met by the electric brake first and by the friction
+    brakes for the rest; in the regenerative-braking regime (``CMD[K_REGIME] == REGEN``) it is the
+    larger of that and the electric brake's curve, as the single-point model's REGEN regime brakes."""
     cdef const double* SP = md.SP
     cdef const double* VP
     cdef const double* trac = md.trac
@@ -586,7 +603,7 @@ cdef void vehicle_forces_c(
 cdef inline void coupler_forces_c(
     const Model* md, const double* xm, const double* w, double* Ts, double* Td, double* K, double* C
 ) noexcept nogil:
-    """Spring and damper tension of every coupling and their derivatives (kernel.coupler_forces)."""
+    """Spring and damper tension of every coupling and their derivatives."""
     cdef Py_ssize_t k
     cdef double delta, rate
     cdef CouplerForce f
@@ -624,8 +641,10 @@ cdef void thomas_c(
 cdef int implicit_step_c(
     const Model* md, const double* x0, const double* v0, double h, double* w, const double* bm, Work* ws
 ) noexcept nogil:
-    """Newton iterations of the implicit midpoint step (kernel.implicit_step): the number of
-    iterations, -1 without convergence."""
+    """Solve the implicit midpoint step of length h from (x0, v0) for the midpoint speeds ``w`` (given
+    as the initial guess): the number of Newton iterations, -1 without convergence. On return the work
+    arrays hold the forces of the last iteration, whose speeds differ from the solution by less than
+    the tolerance (the energy accounting uses them: its error is of the order of the Newton residual)."""
     cdef Py_ssize_t n = md.n
     cdef double tol = md.SP[S_NEWTON_TOL]
     cdef double veps = md.SP[S_VEPS]
@@ -690,7 +709,7 @@ cdef double history_value(double t, const double* hist, Py_ssize_t nh) noexcept 
 
 # ============================================================================ controller
 cdef double reference_speed(double s, const Ref* ref) noexcept nogil:
-    """Reference speed at head position s [m/s] (kernel.reference_speed)."""
+    """Reference speed at head position s [m/s]."""
     cdef Py_ssize_t n = ref.n
     if s <= ref.s[0]:
         return sqrt(pmax(ref.v2[0], 0.0))
@@ -705,7 +724,7 @@ cdef double reference_speed(double s, const Ref* ref) noexcept nogil:
 
 
 cdef double reference_acceleration(double s, const Ref* ref) noexcept nogil:
-    """Acceleration of the reference at head position s [m/s^2] (kernel.reference_acceleration)."""
+    """Acceleration of the reference at head position s [m/s^2]."""
     cdef Py_ssize_t n = ref.n
     if s < ref.s[0] or s >= ref.s[n - 1]:
         return 0.0
@@ -717,7 +736,7 @@ cdef double reference_acceleration(double s, const Ref* ref) noexcept nogil:
 
 
 cdef int reference_regime(double s, const Ref* ref) noexcept nogil:
-    """Regime of the reference stretch containing head position s (kernel.reference_regime)."""
+    """Regime of the reference stretch containing head position s."""
     cdef Py_ssize_t n = ref.n
     if s >= ref.s[n - 1]:
         return ref.m[n - 2] if n > 1 else ref.m[0]
@@ -732,7 +751,14 @@ cdef int reference_regime(double s, const Ref* ref) noexcept nogil:
 cdef Command control_c(
     const Model* md, const double* x, const double* v, const Ref* ref, const Ceiling* ceiling
 ) noexcept nogil:
-    """Command in [-1, 1], regime and mean speed that follow the reference (kernel.control)."""
+    """Command in [-1, 1], regime and mean speed that follow the reference profile.
+
+    The regime is the reference's at the head (braking when the reference brakes one mean brake delay
+    ahead). The controller asks for the force that holds the present mean speed (from the vehicles'
+    own resistances) plus the force that closes the speed error in ``S_TAU`` seconds, as a command:
+    traction (up to full) towards the speed ceiling (or the reference speed), cruising at the
+    reference speed, coasting unless above the ceiling, full service braking eased when below the
+    braking curve."""
     cdef const double* SP = md.SP
     cdef const double* VP
     cdef Py_ssize_t n = md.n
@@ -836,8 +862,9 @@ cdef Command control_c(
 cdef double force_error(
     const double* Tend, Py_ssize_t nc, const double* tmem, const double* tmem_t, int nmem, double t1
 ) noexcept nogil:
-    """Largest deviation of the step-end coupler forces from their quadratic extrapolation [N]
-    (kernel.force_error); ``tmem`` is 3 x nc."""
+    """Largest deviation of the coupler forces at the end of a step (time t1) from their quadratic
+    extrapolation through the ends of the three previous steps [N] (``tmem`` is 3 x nc): a third
+    difference (about h^3 d3T/dt3), small while the forces vary smoothly, large at impacts."""
     if nmem < 3:
         return 0.0
     cdef double ta = tmem_t[0], tb = tmem_t[1], tc = tmem_t[2]
@@ -868,7 +895,7 @@ cdef Py_ssize_t record_c(
     const Model* md, Py_ssize_t nrec, double t, const double* x, const double* v, const double* a_last,
     const double* parts, double* acc, Records* rec,
 ) noexcept nogil:
-    """Store the state at time t as record ``nrec`` (kernel.record)."""
+    """Store the state at time t as record ``nrec``."""
     cdef Py_ssize_t n = md.n
     cdef Py_ssize_t i, k, j
     cdef double mtot = 0.0, mom = 0.0, kinetic = 0.0, mi, spring = 0.0, delta
@@ -948,7 +975,13 @@ cdef int run_c(
     double* hist, Py_ssize_t hist_cap, Py_ssize_t* nh_io, double* acc, Records* rec, Py_ssize_t* nrec_io,
     double* ext, Py_ssize_t n_ext, double route_end, Work* ws, Loop* lp,
 ) noexcept nogil:
-    """Integrate until ``t_end`` or an event (kernel.run); returns the status."""
+    """Integrate until ``t_end`` or an event (mode 0: fixed commands in CMD / trac / elec; mode 1:
+    follow the reference and stop at its end); returns the status.
+
+    Step size: at most ``S_STEP``; with a force tolerance ``S_FORCE_TOL`` > 0 a step whose coupler
+    forces leave their extrapolation (``force_error``) by more than the tolerance is repeated shorter,
+    and the next step is sized for the tolerance (third-order law), down to ``S_STEP_MIN``. A step
+    whose Newton iterations do not converge is halved."""
     cdef Py_ssize_t n = md.n
     cdef Py_ssize_t nc = rec.nc
     cdef const double* SP = md.SP
@@ -1379,8 +1412,9 @@ def thomas(diag, off, rhs, out, cprime) -> None:
 
 def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pcache, out, D, bint detail, parts) -> None:
     """External force on every vehicle [N] into ``out`` and minus its derivative with respect to the
-    vehicle's own speed into ``D``, with ``detail`` the parts into ``parts`` (n x 7): see
-    ``kernel.vehicle_forces``."""
+    vehicle's own speed into ``D``, with ``detail`` the parts into ``parts`` (n x 7), at midpoint
+    positions ``xm`` and speeds ``w`` of a step from speeds ``v0``, brake levels ``bm`` (see
+    ``vehicle_forces_c``)."""
     cdef Held held
     held.count = 0
     cdef Model md
@@ -1411,7 +1445,8 @@ def vehicle_forces(xm, w, v0, VP, SP, CMD, trac, elec, bm, bank, prof, avail, pc
 
 
 def record(nrec, t, x, v, a_last, VP, CP, CMD, parts, acc, rec_t, rec_x, rec_v, rec_a, rec_T, rec_agg) -> int:
-    """Store the state at time t as record ``nrec`` (``kernel.record``); returns ``nrec + 1``."""
+    """Store the state at time t as record ``nrec`` (positions, speeds, accelerations, coupler forces
+    and the aggregated columns ``kernel.R_*``, the forces from ``parts``); returns ``nrec + 1``."""
     cdef Held held
     held.count = 0
     cdef Model md
@@ -1465,8 +1500,13 @@ def run(
     mode, t_end, state, VP, CP, SP, CMD, trac, elec, bank, prof, avail, ref, ceiling, hist, nh, acc,
     rec_t, rec_x, rec_v, rec_a, rec_T, rec_agg, nrec, ext, route_end,
 ) -> tuple:
-    """Integrate until ``t_end`` (``kernel.run``: mode 0 fixed commands, mode 1 follow ``ref``);
-    returns ``(status, nh, nrec)``."""
+    """Integrate until ``t_end`` (mode 0: fixed commands in CMD / trac / elec; mode 1: follow the
+    reference ``ref`` = (positions, squared speeds, regimes int8, stop position) and stop at its end).
+    ``state`` = (x, v, b, t, a, next_record_time, pcache, tmem, tmem_t): positions, speeds, brake
+    levels, time (array of 1), last accelerations, next record time (array of 1), profile cache,
+    coupler forces at the ends of the last three steps and their times; all updated in place, as are
+    CMD, trac, elec, hist, acc, the records and ext. Returns ``(status, nh, nrec)`` (``kernel.ST_*``;
+    ``ST_RECORD_FULL`` / ``ST_HISTORY_FULL``: grow that buffer and call again)."""
     cdef Held held
     held.count = 0
     cdef Model md
