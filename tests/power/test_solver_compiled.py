@@ -7,6 +7,8 @@ against the numpy form; errors name the argument; importing the solver loads no 
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -231,3 +233,11 @@ def test_bad_input_names_the_argument():
             np.array([0, 1], I64), np.array([-1, -1], I64), np.empty(0), np.empty(0), np.array([0, 0], I64),
             np.array([0.0]), np.array([0.0]), np.array([0.0]), 1e-9, True, 1e-9,
         )  # fmt: skip
+
+
+def test_the_solver_loads_no_numba():
+    code = "import sys, trainsim.power.solver, trainsim.power.rail; print('numba' in sys.modules)"
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    assert out.stdout.strip() == "False"

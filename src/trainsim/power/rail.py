@@ -21,7 +21,6 @@ the same current comes back elsewhere.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from numpy.typing import ArrayLike
 
 from trainsim.power._rail_c import segment_leakage_total_a
@@ -107,37 +106,6 @@ def segment_leakage_a(
         first = np.where(lin_c, first_lin, first_hyp)
         positive[c] = np.where(va_c > 0, first, total[c] - first)
     return (g * np.maximum(positive, 0.0)).reshape(shape)
-
-
-@njit(cache=True)
-def _numba_segment_leakage_total_a(va_v, vb_v, length_m, r_ohm_per_m, g_s_per_m) -> float:
-    """The sum over segments of :func:`segment_leakage_a` [A], segment by segment in a compiled loop
-    (the same formulas and branches; once per time step on a hundred segments, where the numpy
-    form's temporaries cost more than its arithmetic)."""
-    total_a = 0.0
-    for k in range(len(va_v)):
-        va, vb, length, r, g = va_v[k], vb_v[k], length_m[k], r_ohm_per_m[k], g_s_per_m[k]
-        alpha = np.sqrt(r * g)
-        al = alpha * length
-        lin = al < 1e-4
-        a_safe = 1.0 if lin else alpha
-        total = (va + vb) * length / 2 if lin else (va + vb) * np.tanh(al / 2) / a_safe
-        positive = total if va + vb > 0 else 0.0
-        if va * vb < 0:
-            sh, ch = np.sinh(al), np.cosh(al)
-            if lin:
-                x0 = length * va / (va - vb)
-                first = va * x0 / 2
-            else:
-                q = min(max(va * sh / (va * ch - vb), -1 + 1e-16), 1 - 1e-16)
-                x0 = np.arctanh(q) / a_safe
-                half = np.sinh(alpha * x0 / 2)
-                first = (va * 2 * np.sinh(alpha * (2 * length - x0) / 2) * half + vb * 2 * half * half) / (
-                    a_safe * sh
-                )
-            positive = first if va > 0 else total - first
-        total_a += g * max(positive, 0.0)
-    return total_a
 
 
 def train_substation_rail_potential_v(

@@ -26,11 +26,24 @@ from itertools import pairwise
 
 import numpy as np
 import scipy.sparse as sp
-from numba import njit
 from scipy.sparse.linalg import splu
 
 from trainsim.errors import InputError
-from trainsim.power import _solver_c
+
+# the compiled parts (Cython, power/_solver_c.pyx); those marked noqa are not used here but kept under the
+# names of the numba functions they replaced, where the tests find them
+from trainsim.power._solver_c import assemble_dc_kernel as _assemble_dc_kernel
+from trainsim.power._solver_c import band_solve as _band_solve  # noqa: F401
+from trainsim.power._solver_c import dc_load_residual as _dc_load_residual
+from trainsim.power._solver_c import dc_residual_full as _dc_residual_full  # noqa: F401
+from trainsim.power._solver_c import diode_forward_scalar as _diode_forward_scalar  # noqa: F401
+from trainsim.power._solver_c import diode_forward_slope_scalar as _diode_forward_slope_scalar  # noqa: F401
+from trainsim.power._solver_c import half_bandwidth as _half_bandwidth  # noqa: F401
+from trainsim.power._solver_c import newton_dc_core as _newton_dc_core  # noqa: F401
+from trainsim.power._solver_c import newton_dc_dense as _newton_dc_dense
+from trainsim.power._solver_c import relabel as _relabel  # noqa: F401
+from trainsim.power._solver_c import stamp_dense as _stamp_dense  # noqa: F401
+from trainsim.power._solver_c import stamp_pattern as _stamp_pattern
 from trainsim.power.limits import (
     regen_acceptance,
     regen_acceptance_slope,
@@ -76,22 +89,6 @@ POSITION_RESOLUTION_M = 0.1
 #: Kirchhoff residual accepted as converged, as a share of the substations' total short-circuit
 #: current sum(E / R_i) (about 1e-5 A on a metro line): round-off of G V is well below it.
 CURRENT_TOLERANCE_SHARE = 1e-10
-
-
-# The compiled parts (power/_solver_c.pyx, Cython; numba until issue 14), under the names the solver
-# and its tests have always used.
-_assemble_dc_kernel = _solver_c.assemble_dc_kernel
-_diode_forward_scalar = _solver_c.diode_forward_scalar
-_diode_forward_slope_scalar = _solver_c.diode_forward_slope_scalar
-_dc_load_residual = _solver_c.dc_load_residual
-_dc_residual_full = _solver_c.dc_residual_full
-_stamp_dense = _solver_c.stamp_dense
-_relabel = _solver_c.relabel
-_half_bandwidth = _solver_c.half_bandwidth
-_band_solve = _solver_c.band_solve
-_newton_dc_dense = _solver_c.newton_dc_dense
-_newton_dc_core = _solver_c.newton_dc_core
-_stamp_pattern = _solver_c.stamp_pattern
 
 
 @dataclass
@@ -256,130 +253,6 @@ class _Sources:
                 x[j] = curve[2] * i
                 dxdu[j] = curve[2] * slope
         return x, dxdu
-
-
-@njit(cache=True)
-def _numba_assemble_dc_kernel(
-    n_fixed, track, xt, fp, fp_start, cid, rid, gs, ge, g_start, r_contact, r_rail, g_rail, leak_s, ideal,
-    small,
-):  # fmt: skip
-    """:func:`assemble`'s nodes and branches of a DC network, compiled: per track the fixed points and
-    the trains' (rounded) positions merged in order (np.unique's sorted distinct values and inverse),
-    new contact (and rail) node ids in that order, then the branches in the numpy form's order
-    (contact segments not cut by a gap, contact-to-return leakage at every node, the rails' exact
-    pi-equivalents and their shunts). Returns (a, b, y, train_c, train_r, rail, leaky a, leaky b,
-    leaky length, leaky r, leaky g, next_id, each node's chainage) before earthed nodes and
-    renumbering."""
-    n_tracks = len(fp_start) - 1
-    m = len(track)
-    train_c = np.empty(m, np.int64)
-    train_r = np.empty(m, np.int64)
-    # upper bounds of the branch counts
-    total = len(fp) + m
-    cap = 4 * total
-    a = np.empty(cap, np.int64)
-    b = np.empty(cap, np.int64)
-    y = np.empty(cap)
-    rail = np.empty(total, np.int64)
-    la = np.empty(total, np.int64)
-    lb = np.empty(total, np.int64)
-    ll = np.empty(total)
-    lr = np.empty(total)
-    lg = np.empty(total)
-    nb = 0
-    nr = 0
-    nl = 0
-    next_id = n_fixed
-    node_pos = np.full(n_fixed + 2 * m, np.nan)
-    for ti in range(n_tracks):
-        f0, f1 = fp_start[ti], fp_start[ti + 1]
-        nf = f1 - f0
-        sel = np.flatnonzero(track == ti)
-        vals = np.empty(nf + len(sel))
-        vals[:nf] = fp[f0:f1]
-        for j in range(len(sel)):
-            vals[nf + j] = xt[sel[j]]
-        order = np.argsort(vals, kind="mergesort")
-        inv = np.empty(len(vals), np.int64)
-        uniq = np.empty(len(vals))
-        nu = -1
-        for j in range(len(vals)):
-            vj = vals[order[j]]
-            if nu < 0 or vj != uniq[nu]:
-                nu += 1
-                uniq[nu] = vj
-            inv[order[j]] = nu
-        nu += 1
-        uniq = uniq[:nu]
-        cu = np.empty(nu, np.int64)
-        ru = np.empty(nu, np.int64)
-        is_new = np.ones(nu, np.bool_)
-        for j in range(nf):
-            is_new[inv[j]] = False
-            cu[inv[j]] = cid[f0 + j]
-            ru[inv[j]] = rid[f0 + j]
-        for j in range(nu):
-            if is_new[j]:
-                cu[j] = next_id
-                next_id += 1
-        for j in range(nu):
-            if is_new[j]:
-                if ideal:
-                    ru[j] = -1
-                else:
-                    ru[j] = next_id
-                    next_id += 1
-        if not ideal:
-            for j in range(nu):
-                rail[nr] = ru[j]
-                nr += 1
-        for j in range(len(sel)):
-            train_c[sel[j]] = cu[inv[nf + j]]
-            train_r[sel[j]] = ru[inv[nf + j]]
-        for j in range(nu):
-            node_pos[cu[j]] = uniq[j]
-            if ru[j] >= 0:
-                node_pos[ru[j]] = uniq[j]
-        for j in range(nu - 1):
-            x0, x1 = uniq[j], uniq[j + 1]
-            cut = False
-            for q in range(g_start[ti], g_start[ti + 1]):
-                # a section insulator (zero-length gap) cuts the segments that reach it from below
-                hit = (x0 < ge[q] and x1 > gs[q]) if ge[q] > gs[q] else (x0 < gs[q] and x1 >= gs[q])
-                cut = cut or hit
-            if not cut:
-                a[nb], b[nb], y[nb] = cu[j], cu[j + 1], 1.0 / (r_contact[ti] * (x1 - x0))
-                nb += 1
-        for j in range(nu):
-            a[nb], b[nb], y[nb] = cu[j], ru[j], leak_s
-            nb += 1
-        if not ideal:
-            r, g = r_rail[ti], g_rail[ti]
-            alpha = np.sqrt(r * g)
-            longest = 0.0
-            for j in range(nu - 1):
-                longest = max(longest, uniq[j + 1] - uniq[j])
-            linear = alpha * longest < small
-            shunt = np.zeros(nu)
-            for j in range(nu - 1):
-                dx = uniq[j + 1] - uniq[j]
-                if linear:
-                    ys, yh = 1.0 / (r * dx), g * dx / 2
-                else:
-                    ys, yh = alpha / (r * np.sinh(alpha * dx)), alpha / r * np.tanh(alpha * dx / 2)
-                a[nb], b[nb], y[nb] = ru[j], ru[j + 1], ys
-                nb += 1
-                shunt[j] += yh
-                shunt[j + 1] += yh
-                if g > 0:
-                    la[nl], lb[nl], ll[nl], lr[nl], lg[nl] = ru[j], ru[j + 1], dx, r, g
-                    nl += 1
-            if g > 0:
-                for j in range(nu):
-                    a[nb], b[nb], y[nb] = ru[j], -1, shunt[j]
-                    nb += 1
-    return (a[:nb].copy(), b[:nb].copy(), y[:nb].copy(), train_c, train_r, rail[:nr].copy(), la[:nl].copy(),
-            lb[:nl].copy(), ll[:nl].copy(), lr[:nl].copy(), lg[:nl].copy(), next_id, node_pos[:next_id].copy())  # fmt: skip
 
 
 def assemble(net: Network, track: np.ndarray, position_m: np.ndarray) -> _Assembly:
@@ -582,327 +455,11 @@ def _diode_forward_slope(x: np.ndarray, delta: float) -> np.ndarray:
     return np.where(x >= delta, 1.0, np.where(x <= -delta, 0.0, (x + delta) / (2.0 * delta)))
 
 
-@njit(cache=True)
-def _numba_diode_forward_scalar(x, delta):
-    """:func:`_diode_forward` of one value, for the compiled Newton (the same operations, so the
-    same doubles)."""
-    if x >= delta:
-        return x
-    if x <= -delta:
-        return 0.0
-    return (x + delta) ** 2 / (4.0 * delta)
-
-
-@njit(cache=True)
-def _numba_diode_forward_slope_scalar(x, delta):
-    """:func:`_diode_forward_slope` of one value, for the compiled Newton."""
-    if x >= delta:
-        return 1.0
-    if x <= -delta:
-        return 0.0
-    return (x + delta) / (2.0 * delta)
-
-
-@njit(cache=True, error_model="numpy")
-def _numba_dc_load_residual(
-    v, tc, tr, tc_bins, tr_bins, rows0, cols0, w0, rows1, cols1, w1, j_src,
-    traction_w, auxiliary_w, regen_w, u_floor, min1_v, full_v, regen_full_v, regen_zero_v,
-):  # fmt: skip
-    """The DC residual of the lines, the linear sources and the trains (constant-power loads on the
-    EN 50388 / EN 50163 ramps), and each train's voltage uu (floored) and power p: the operations of
-    the numpy form (gathers, clips, bincounts in input order, then ((L + S) - J) + A - B), one by
-    one in the same order, so the same doubles bit for bit, without its dozens of array temporaries
-    per call (the network of a metro line has about a hundred nodes: the calls cost more than the
-    arithmetic)."""
-    n = len(j_src)
-    m = len(tc)
-    uu = np.empty(m)
-    p = np.empty(m)
-    ramp = full_v - min1_v
-    regen_ramp = regen_zero_v - regen_full_v
-    inj = np.zeros(n + 1)
-    out = np.zeros(n + 1)
-    for k in range(m):
-        vc = v[tc[k]] if tc[k] >= 0 else 0.0
-        vr = v[tr[k]] if tr[k] >= 0 else 0.0
-        u = vc - vr
-        u = u if u >= u_floor else u_floor
-        a = (u - min1_v) / ramp
-        a = min(max(a, 0.0), 1.0)
-        r = (regen_zero_v - u) / regen_ramp
-        r = min(max(r, 0.0), 1.0)
-        uu[k] = u
-        p[k] = traction_w[k] * a + auxiliary_w[k] - regen_w[k] * r
-    lines = np.zeros(n)
-    for k in range(len(rows0)):
-        lines[rows0[k]] += w0[k] * v[cols0[k]]
-    subs = np.zeros(n)
-    for k in range(len(rows1)):
-        subs[rows1[k]] += w1[k] * v[cols1[k]]
-    for k in range(m):
-        inj[tc_bins[k]] += p[k] / uu[k]
-    for k in range(m):
-        out[tr_bins[k]] += p[k] / uu[k]
-    f = np.empty(n)
-    for i in range(n):
-        f[i] = (((lines[i] + subs[i]) - j_src[i]) + inj[i]) - out[i]
-    return f, uu, p
-
-
 #: Above this many unknowns the compiled Newton gives way to the sparse one: it keeps the band of its
 #: Jacobian in full n x n storage (copied every iteration), cheap next to SuperLU's per-call ordering
 #: and bookkeeping at a metro line's hundred nodes (the 20 km benchmark line: 86 nodes, half-bandwidth
 #: about 6) and still at a few hundred.
 DENSE_NEWTON_MAX_NODES = 400
-
-
-@njit(cache=True, error_model="numpy")
-def _numba_dc_residual_full(
-    v, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w, regen_w,
-    u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share,
-):  # fmt: skip
-    """The DC residual G V + I_trains(V) + I_diodes(V) - J of :func:`_newton_dc` (without wayside
-    storage or regulation curves), each train's floored voltage uu and power p."""
-    n = len(v)
-    f = np.zeros(n + 1)  # slot n: earth, dropped
-    for k in range(len(a)):
-        va = v[a[k]] if a[k] >= 0 else 0.0
-        vb = v[b[k]] if b[k] >= 0 else 0.0
-        i = y[k] * (va - vb)
-        f[a[k] if a[k] >= 0 else n] += i
-        f[b[k] if b[k] >= 0 else n] -= i
-    for k in range(len(sp_on)):
-        va = v[sp_on[k]] if sp_on[k] >= 0 else 0.0
-        vb = v[sn_on[k]] if sn_on[k] >= 0 else 0.0
-        i = ys_on[k] * (va - vb) - ys_on[k] * e_on[k]
-        f[sp_on[k] if sp_on[k] >= 0 else n] += i
-        f[sn_on[k] if sn_on[k] >= 0 else n] -= i
-    m = len(tc)
-    uu = np.empty(m)
-    p = np.empty(m)
-    ramp = full_v - min1_v
-    regen_ramp = regen_zero_v - regen_full_v
-    for k in range(m):
-        vc = v[tc[k]] if tc[k] >= 0 else 0.0
-        vr = v[tr[k]] if tr[k] >= 0 else 0.0
-        u = vc - vr
-        u = u if u >= u_floor else u_floor
-        sa = min(max((u - min1_v) / ramp, 0.0), 1.0)
-        sr = min(max((regen_zero_v - u) / regen_ramp, 0.0), 1.0)
-        uu[k] = u
-        p[k] = traction_w[k] * sa + auxiliary_w[k] - regen_w[k] * sr
-        i = p[k] / u
-        f[tc[k] if tc[k] >= 0 else n] += i
-        f[tr[k] if tr[k] >= 0 else n] -= i
-    for k in range(len(dp_)):
-        va = v[dp_[k]] if dp_[k] >= 0 else 0.0
-        vb = v[dn_[k]] if dn_[k] >= 0 else 0.0
-        x = de[k] - (va - vb)
-        forward = _numba_diode_forward_scalar(x, delta)
-        i = (forward + reverse_share * (x - forward)) * dy[k]
-        f[dn_[k] if dn_[k] >= 0 else n] += i
-        f[dp_[k] if dp_[k] >= 0 else n] -= i
-    return f[:n].copy(), uu, p
-
-
-@njit(cache=True)
-def _numba_stamp_dense(jac, a, b, y):
-    """Adds the two-terminal admittances y between nodes a and b (-1 earth) to the dense matrix."""
-    for k in range(len(a)):
-        if a[k] >= 0:
-            jac[a[k], a[k]] += y[k]
-        if b[k] >= 0:
-            jac[b[k], b[k]] += y[k]
-        if a[k] >= 0 and b[k] >= 0:
-            jac[a[k], b[k]] -= y[k]
-            jac[b[k], a[k]] -= y[k]
-
-
-@njit(cache=True)
-def _numba_relabel(nodes, place):
-    """``place[nodes]`` with earth (-1) kept."""
-    out = np.empty(len(nodes), np.int64)
-    for k in range(len(nodes)):
-        out[k] = place[nodes[k]] if nodes[k] >= 0 else -1
-    return out
-
-
-@njit(cache=True)
-def _numba_half_bandwidth(pairs):
-    """Largest |a - b| over the two-terminal elements (both ends nodes) of the (a, b) pairs."""
-    w = 0
-    for a, b in pairs:
-        for k in range(len(a)):
-            if a[k] >= 0 and b[k] >= 0:
-                w = max(w, abs(a[k] - b[k]))
-    return w
-
-
-@njit(cache=True)
-def _numba_band_solve(mat, rhs, w):
-    """Solution of mat x = rhs for a matrix whose entries vanish more than w off the diagonal:
-    Gaussian elimination with partial pivoting (LAPACK gbsv's algorithm, on full storage: a row
-    swap widens the upper band to 2 w), O(n w^2). Overwrites mat and rhs; returns (x, singular)."""
-    n = len(rhs)
-    for k in range(n):
-        last = min(n - 1, k + w)
-        p = k
-        for i in range(k + 1, last + 1):
-            if abs(mat[i, k]) > abs(mat[p, k]):
-                p = i
-        if mat[p, k] == 0.0 or not np.isfinite(mat[p, k]):
-            return rhs, True
-        right = min(n - 1, k + 2 * w)
-        if p != k:
-            for j in range(k, right + 1):
-                mat[k, j], mat[p, j] = mat[p, j], mat[k, j]
-            rhs[k], rhs[p] = rhs[p], rhs[k]
-        for i in range(k + 1, last + 1):
-            factor = mat[i, k] / mat[k, k]
-            if factor != 0.0:
-                for j in range(k + 1, right + 1):
-                    mat[i, j] -= factor * mat[k, j]
-                rhs[i] -= factor * rhs[k]
-    x = np.empty(n)
-    for k in range(n - 1, -1, -1):
-        acc = rhs[k]
-        for j in range(k + 1, min(n - 1, k + 2 * w) + 1):
-            acc -= mat[k, j] * x[j]
-        x[k] = acc / mat[k, k]
-    return x, False
-
-
-@njit(cache=True, error_model="numpy")
-def _numba_newton_dc_dense(
-    v0, place, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w,
-    regen_w, u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share, keep_curtailed,
-    max_iterations, tol, ftol, max_step,
-):  # fmt: skip
-    """:func:`_newton_dc` compiled, for networks without wayside storage or regulation curves: the
-    same iteration (step limit, fraction to the boundary of regeneration, backtracking with the
-    occasional full step, the same stopping rules), with the unknowns renumbered by ``place``
-    (along the line) so that the Jacobian is a band, solved by :func:`_band_solve`. The residual
-    sums the same terms in the same order whatever the numbering. Returns (V, iterations,
-    converged, singular)."""
-    n = len(v0)
-    v = np.empty(n)
-    for i in range(n):
-        v[place[i]] = v0[i]
-    a, b, sp_on, sn_on = (
-        _numba_relabel(a, place),
-        _numba_relabel(b, place),
-        _numba_relabel(sp_on, place),
-        _numba_relabel(sn_on, place),
-    )
-    dp_, dn_, tc, tr = (
-        _numba_relabel(dp_, place),
-        _numba_relabel(dn_, place),
-        _numba_relabel(tc, place),
-        _numba_relabel(tr, place),
-    )
-    w = _numba_half_bandwidth(((a, b), (sp_on, sn_on), (dp_, dn_), (tc, tr)))
-    v, its, converged, singular = _numba_newton_dc_core(
-        v, w, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w,
-        regen_w, u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share, keep_curtailed,
-        max_iterations, tol, ftol, max_step,
-    )  # fmt: skip
-    out = np.empty(n)
-    for i in range(n):
-        out[i] = v[place[i]]
-    return out, its, converged, singular
-
-
-@njit(cache=True, error_model="numpy")
-def _numba_newton_dc_core(
-    v, w, a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w, regen_w,
-    u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share, keep_curtailed,
-    max_iterations, tol, ftol, max_step,
-):  # fmt: skip
-    """The iteration of :func:`_newton_dc_dense` on unknowns whose Jacobian has half-bandwidth w."""
-    n = len(v)
-    args = (a, b, y, sp_on, sn_on, ys_on, e_on, dp_, dn_, de, dy, tc, tr, traction_w, auxiliary_w,
-            regen_w, u_floor, min1_v, full_v, regen_full_v, regen_zero_v, delta, reverse_share)  # fmt: skip
-    f, uu, p = _numba_dc_residual_full(v, *args)
-    norm = np.max(np.abs(f)) if n else 0.0
-    g0 = np.zeros((n, n))
-    _numba_stamp_dense(g0, a, b, y)
-    _numba_stamp_dense(g0, sp_on, sn_on, ys_on)
-    m = len(tc)
-    t_ramp = full_v - min1_v
-    r_ramp = regen_zero_v - regen_full_v
-    di = np.empty(m)
-    gd = np.empty(len(dp_))
-    stalls = 0
-    for it in range(1, max_iterations + 1):
-        if norm < ftol:
-            return v, it - 1, True, False
-        for k in range(m):
-            u = uu[k]
-            sa = 1.0 / t_ramp if (u > min1_v and u < full_v) else 0.0
-            sr = -1.0 / r_ramp if (u > regen_full_v and u < regen_zero_v) else 0.0
-            dpk = traction_w[k] * sa - regen_w[k] * sr
-            di[k] = dpk / u - p[k] / (u * u) if u > u_floor else 0.0
-        for k in range(len(dp_)):
-            va = v[dp_[k]] if dp_[k] >= 0 else 0.0
-            vb = v[dn_[k]] if dn_[k] >= 0 else 0.0
-            x = de[k] - (va - vb)
-            slope = _numba_diode_forward_slope_scalar(x, delta)
-            gd[k] = dy[k] * (slope + reverse_share * (1.0 - slope))
-        jac = g0.copy()
-        _numba_stamp_dense(jac, tc, tr, di)
-        _numba_stamp_dense(jac, dp_, dn_, gd)
-        # a singular Jacobian: the caller falls back on the sparse path and its error
-        x, singular = _numba_band_solve(jac, f.copy(), w)
-        if singular or not np.all(np.isfinite(x)):
-            return v, it, False, True
-        dv = -x
-        step = np.max(np.abs(dv))
-        if step > max_step:
-            # (``step`` stays the unlimited one in the stopping tests, as in the sparse path)
-            dv *= max_step / step
-        du = np.empty(m)
-        for k in range(m):
-            dc = dv[tc[k]] if tc[k] >= 0 else 0.0
-            dr = dv[tr[k]] if tr[k] >= 0 else 0.0
-            du[k] = dc - dr
-        room = np.inf
-        for k in range(m):
-            if regen_w[k] > 0 and du[k] > 0 and uu[k] < regen_zero_v:
-                room = min(room, 0.9 * (regen_zero_v - uu[k]) / du[k])
-        if room < 1.0:
-            dv *= room
-            step *= room
-            du *= room
-        if keep_curtailed:
-            room = np.inf
-            for k in range(m):
-                if regen_w[k] > 0 and du[k] < 0 and uu[k] > regen_full_v:
-                    room = min(room, 0.9 * (uu[k] - regen_full_v) / -du[k])
-            if room < 1.0:
-                dv *= room
-                step *= room
-        lam = 1.0
-        l2 = np.sqrt(np.sum(f * f))
-        accepted = False
-        v_try, f_try, uu_try, p_try = v, f, uu, p
-        for _ in range(12):
-            v_try = v + lam * dv
-            f_try, uu_try, p_try = _numba_dc_residual_full(v_try, *args)
-            if np.sqrt(np.sum(f_try * f_try)) <= (1.0 - 1e-4 * lam) * l2 or lam * step < tol:
-                accepted = True
-                break
-            lam *= 0.5
-        if not accepted:
-            stalls += 1
-            if stalls % 3 == 0:
-                lam = 1.0
-                v_try = v + dv
-                f_try, uu_try, p_try = _numba_dc_residual_full(v_try, *args)
-        norm_try = np.max(np.abs(f_try)) if n else 0.0
-        v, f, uu, p, norm = v_try, f_try, uu_try, p_try, norm_try
-        if lam * step < tol and norm < max(ftol, 1e3 * ftol * lam):
-            return v, it, True, False
-    return v, max_iterations, norm < ftol, False
 
 
 def _potential(v: np.ndarray, nodes: np.ndarray) -> np.ndarray:
@@ -921,64 +478,6 @@ def _injection(n: int, nodes: np.ndarray, values: np.ndarray, dtype) -> np.ndarr
             nodes[ok], weights=vals.imag, minlength=n
         )
     return np.bincount(nodes[ok], weights=np.asarray(values, dtype=float)[ok], minlength=n)
-
-
-@njit(cache=True)
-def _numba_stamp_pattern(a, b, starts, n):
-    """The COO entries of the two-terminal stamps of parts ``a[starts[k]:starts[k + 1]]`` -
-    ``b[...]`` (node ids, -1 earth) and their places in the CSC pattern.
-
-    Per part, in this order: ``a`` to itself where ``a`` is a node, ``b`` to itself where ``b`` is,
-    then ``a`` to ``b`` and ``b`` to ``a`` where both are (sign -1); ``take`` is the element index
-    within its part. Returns (rows, cols, take, sign, bounds, uniq, inv): ``bounds`` the parts'
-    ranges in the entries, ``uniq`` the sorted distinct keys ``col * n + row``, ``inv`` each
-    entry's index in ``uniq`` (what ``np.unique(key, return_inverse=True)`` gives: the inverse does
-    not depend on how equal keys are ordered by the sort)."""
-    n_parts = len(starts) - 1
-    total = 0
-    for i in range(starts[n_parts]):
-        if a[i] >= 0:
-            total += 1
-        if b[i] >= 0:
-            total += 1
-        if a[i] >= 0 and b[i] >= 0:
-            total += 2
-    rows = np.empty(total, np.int64)
-    cols = np.empty(total, np.int64)
-    take = np.empty(total, np.int64)
-    sign = np.empty(total)
-    bounds = np.empty(n_parts + 1, np.int64)
-    pos = 0
-    for k in range(n_parts):
-        bounds[k] = pos
-        lo, hi = starts[k], starts[k + 1]
-        for group in range(4):
-            for i in range(lo, hi):
-                if group == 0 and a[i] >= 0:
-                    rows[pos], cols[pos], sign[pos] = a[i], a[i], 1.0
-                elif group == 1 and b[i] >= 0:
-                    rows[pos], cols[pos], sign[pos] = b[i], b[i], 1.0
-                elif group == 2 and a[i] >= 0 and b[i] >= 0:
-                    rows[pos], cols[pos], sign[pos] = a[i], b[i], -1.0
-                elif group == 3 and a[i] >= 0 and b[i] >= 0:
-                    rows[pos], cols[pos], sign[pos] = b[i], a[i], -1.0
-                else:
-                    continue
-                take[pos] = i - lo
-                pos += 1
-    bounds[n_parts] = pos
-    key = cols * n + rows
-    order = np.argsort(key)
-    inv = np.empty(total, np.int64)
-    uniq = np.empty(total, np.int64)
-    m = -1
-    for j in range(total):
-        kj = key[order[j]]
-        if m < 0 or kj != uniq[m]:
-            m += 1
-            uniq[m] = kj
-        inv[order[j]] = m
-    return rows, cols, take, sign, bounds, uniq[: m + 1].copy(), inv
 
 
 class _Pattern:
