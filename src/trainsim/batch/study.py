@@ -826,7 +826,7 @@ class Study:
 
     def expand(self) -> Expansion:
         """Every run of the study with its parameters and run id (computed once per study: the run ids
-        cost about 0.2 ms per run, as much as a tenth of a fast run, and a study is read-only once
+        cost 0.1-0.25 ms per metro run, a few per cent of the run, and a study is read-only once
         built). The expansion is shared by every caller: do not modify it."""
         cached = self.__dict__.get("_expansion")
         if cached is None:
