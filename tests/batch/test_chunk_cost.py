@@ -190,6 +190,7 @@ def test_results_do_not_depend_on_the_order_of_computation(tmp_path):
         "stops.yaml",
     )
     expansion = study.expand()
+    assert study.expand() is expansion  # expanded once: run_study does not compute the run ids again
     cost = _Cost(expansion, tuple(e.data for e in study.entries))
     order = cost.order(list(range(12)))
     assert order != list(range(12)) and sorted(order) == list(range(12))
