@@ -29,7 +29,6 @@ from trainsim.errors import InputError
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
-from trainsim.multipoint import _mp_c
 from trainsim.multipoint import kernel as mpk
 from trainsim.multipoint.model import MultiPointSettings, MultiPointTrain, build_multipoint_train
 from trainsim.multipoint.result import MultiPointResult, build_multipoint_result
@@ -346,7 +345,7 @@ class _Runner:
         self.CMD[mpk.K_COMMAND] = command
         # the forces of a state between runs of the kernel are not known; they are recorded as zero
         parts = np.zeros((len(self.x), 7))
-        self.nrec = _mp_c.record(
+        self.nrec = mpk.record(
             self.nrec, self.t[0], self.x, self.v, self.a, self.c.VP, self.c.CP, self.CMD, parts, self.acc,
             self.rec_t, self.rec_x, self.rec_v, self.rec_a, self.rec_T, self.rec_agg,
         )  # fmt: skip
@@ -365,7 +364,7 @@ class _Runner:
                 state = (
                     self.x, self.v, self.b, self.t, self.a, self.next_rec, self.pcache, self.tmem, self.tmem_t
                 )  # fmt: skip
-                status, self.nh, self.nrec = _mp_c.run(
+                status, self.nh, self.nrec = mpk.run(
                     mode, t_end, state, c.VP, c.CP, c.SP, self.CMD, self.trac, self.elec, c.bank, c.prof,
                     c.avail, ref, c.ceiling_arrays, self.hist, self.nh, self.acc, self.rec_t, self.rec_x,
                     self.rec_v, self.rec_a, self.rec_T, self.rec_agg, self.nrec, self.ext,
@@ -669,7 +668,7 @@ class MultiPointSession:
         out = np.empty(self.mp.n_vehicles - 1)
         for k in range(len(out)):
             delta = r.x[k] - c.VP[k, mpk.V_LENGTH] - r.x[k + 1]
-            s, d, _, _ = _mp_c.coupler_force(delta, r.v[k] - r.v[k + 1], c.CP[k])
+            s, d, _, _ = mpk.coupler_force(delta, r.v[k] - r.v[k + 1], c.CP[k])
             out[k] = s + d
         return out
 
