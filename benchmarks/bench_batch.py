@@ -32,11 +32,15 @@ median of ``--repeat`` repetitions is printed.
 
 Wall time on a machine shared with other work says little. Beside it, each case prints the share of the
 cores other processes used meanwhile (all CPU time in /proc/stat less this benchmark's own) and an
-**idle-core estimate** from CPU times, which the load barely changes: the CPU time of each worker's runs
+**idle-core estimate** from CPU times, which the load changes less than the wall time (but still: CPU
+time per run on a loaded machine carries the slowdown of shared caches and cores, and the cases of one
+repetition can differ by 20 %; repeat): the CPU time of each worker's runs
 (``StudyOutcome.worker_cpu_s``) scaled up by the workers' whole CPU time (start-up, pipes) and the
 starting process's CPU time (expansion of the chunks, Parquet writing), as
 max(busiest worker, starting process, all of it / cores). It is what the study would take on idle
-cores when nothing but the CPU limits it; the speed-ups are quoted from both.
+cores when nothing but the CPU limits it; the speed-ups are quoted from both. For the multi-point
+study the **balance** of the workers' runs, sum / (workers x largest), is the chunking's own figure,
+whatever the CPU time per run (1 = the workers did equal work).
 
 ``--quick`` (a smoke test, about a minute on a quiet machine): 400 metro runs, the multi-point study
 with 20 wagons, 100 trains, 1 repetition. ``--dask`` adds the metro study on a local Dask cluster
@@ -203,6 +207,13 @@ class Sample:
     sizes: tuple[int, ...]
 
     @property
+    def balance(self) -> float:
+        """How evenly the workers' runs shared the CPU work: sum / (workers x largest) (1 = evenly);
+        the speed-up the chunking allows whatever the CPU time per run, over the number of workers."""
+        w = self.worker_runs_cpu
+        return sum(w) / (len(w) * max(w)) if w and max(w) > 0 else float("nan")
+
+    @property
     def idle(self) -> float:
         """Idle-core estimate of the wall time [s] (module docstring)."""
         runs_cpu = sum(self.worker_runs_cpu)
@@ -336,7 +347,10 @@ def multipoint(quick: bool, repeat: int) -> None:
     for name, samples in rows.items():
         cpu = ", ".join(f"{c:.1f}" for c in samples[-1].worker_runs_cpu)
         sizes = ",".join(str(x) for x in samples[-1].sizes)
-        print(f"  {name:36s} chunks {sizes}; CPU s of each worker's runs: {cpu}")
+        print(
+            f"  {name:36s} chunks {sizes}; CPU s of each worker's runs: {cpu} "
+            f"(balance {med(samples, 'balance'):.0%})"
+        )
     one = rows["1 worker (baseline)"]
     for name in ("2 workers, cost-sized chunks", "2 workers, chunks of 10"):
         print(
