@@ -39,6 +39,21 @@ def test_effort_and_its_branches_equal_the_numba_kernel_bit_for_bit(seed):
             assert got == want or (np.isnan(got) and np.isnan(want)), (v, vref, got, want)
 
 
+@pytest.mark.parametrize("seed", range(20))
+def test_a_branch_chosen_once_gives_effort_branch_at_every_speed(seed):
+    """sim/_energy_c chooses each curve's branch once per piece (``branch_at``) and evaluates it at
+    every RK4 stage (``effort_on``): the same bits as choosing it at each (``effort_branch``), for
+    every reference speed, NaN and no reference (-1) included."""
+    rng = np.random.default_rng(100 + seed)
+    curve = _random_curve(rng, int(rng.integers(1, 12)))
+    speeds = np.concatenate(([0.0, 1e-4, POWER_CAP_MIN_SPEED_MPS], curve[0], rng.uniform(0.0, 60.0, 100)))
+    for vref in (-1.0, 0.0, 1e-4, np.nan, *curve[0], *rng.uniform(0.0, 60.0, 10)):
+        got = _forces.effort_on_at(speeds, vref, curve)
+        for v, g in zip(speeds, got, strict=True):
+            want = _forces.effort_branch_at(v, vref, curve)
+            assert g == want or (np.isnan(g) and np.isnan(want)), (v, vref, g, want)
+
+
 def test_a_malformed_curve_is_refused_with_its_shapes():
     with pytest.raises(ValueError, match=r"\(n,\) and \(n, 4\)"):
         _forces.effort_at(1.0, (np.zeros(2), np.zeros((3, 4)), 1.0, 1.0))

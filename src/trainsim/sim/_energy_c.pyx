@@ -16,7 +16,7 @@ from libc.stdint cimport int64_t
 
 from trainsim.sim._forces cimport (
     BRAKE, COAST, CRUISE, DWELL, FOLLOW, N_PARAMS, P_BRAKE_FRACTION, P_DECEL, P_INERTIAL_MASS, P_MASS,
-    P_R0, P_R1, P_R2, REGEN, TRACTION, Curve, Curves, curves_from, effort, effort_branch, search_left,
+    P_R0, P_R1, P_R2, REGEN, TRACTION, Branch, Curve, Curves, branch_at, curves_from, effort, effort_on, search_left,
     search_right, speed_domain_steps, speed_of,
 )
 
@@ -89,35 +89,57 @@ cdef struct Kinks:
     Py_ssize_t n
 
 
-cdef inline void forces(
+cdef struct Branches:
+    Branch traction, brake, regen  # each curve's branch at the piece's reference speed
+    bint blend_at_ref  # service braking blended as at the reference speed (vref >= 0, no constant deceleration)
+    bint demand_limited  # ... and there the regenerative force is limited by the demand
+
+
+cdef inline void prepare(
+    int mode, double level, const double* P, const Curves* c, double vref, Branches* br
+) noexcept nogil:
+    """The branches ``forces_on`` evaluates along a piece of reference speed vref [m/s] (-1: the
+    curves themselves), chosen once per piece instead of at every stage (the same forces, bit for bit)."""
+    # a curve the mode does not evaluate gets no branch (-1: none chosen)
+    branch_at(vref if mode == TRACTION else -1.0, &c.traction, &br.traction)
+    branch_at(vref if mode == BRAKE else -1.0, &c.brake, &br.brake)
+    branch_at(vref if mode == BRAKE or mode == REGEN else -1.0, &c.regen, &br.regen)
+    br.blend_at_ref = vref >= 0.0 and mode == BRAKE and P[P_DECEL] == 0.0
+    br.demand_limited = False
+    cdef double demand_ref
+    if br.blend_at_ref:
+        # the blend's branch at the reference speed: regenerative force limited by the demand or not
+        demand_ref = level * P[P_BRAKE_FRACTION] * effort_on(vref, &br.brake, &c.brake)
+        br.demand_limited = demand_ref < effort_on(vref, &br.regen, &c.regen)
+
+
+cdef inline void forces_on(
     int mode, double E, double u, const Law* lw, double level, const double* P, const Curves* c,
-    double vref, double* out,
+    const Branches* br, double* out,
 ) noexcept nogil:
     """(acceleration [m/s^2], traction, braking, regenerative, running, gradient, curve+tunnel [N])
-    into ``out``, as ``energy._forces``."""
+    into ``out``, as ``energy._forces``, on the branches ``prepare`` chose."""
     cdef double v = speed_of(E)
     cdef double m = P[P_MASS]
     cdef double running = P[P_R0] + P[P_R1] * v + P[P_R2] * v * v
     cdef double grad = m * (lw.g0 + lw.g1 * u)
     cdef double ct = m * ((lw.c0 + lw.c1 * u) + (lw.k0 + lw.k1 * u) * v * v)
     cdef double res = running + grad + ct
-    cdef double ft = 0.0, fb = 0.0, fr = 0.0, need, cap, demand_ref
+    cdef double ft = 0.0, fb = 0.0, fr = 0.0, need, cap
     if mode == TRACTION:
-        ft = level * lw.avail * effort_branch(v, vref, &c.traction)
+        ft = level * lw.avail * effort_on(v, &br.traction, &c.traction)
     elif mode == BRAKE:
         if P[P_DECEL] > 0.0:
             need = P[P_INERTIAL_MASS] * P[P_DECEL] - res
             fb = level * need if need > 0.0 else 0.0
         else:
-            fb = level * P[P_BRAKE_FRACTION] * effort_branch(v, vref, &c.brake)
+            fb = level * P[P_BRAKE_FRACTION] * effort_on(v, &br.brake, &c.brake)
     elif mode == REGEN:
-        fb = effort_branch(v, vref, &c.regen)
+        fb = effort_on(v, &br.regen, &c.regen)
     if fb > 0.0:
-        cap = effort_branch(v, vref, &c.regen)
-        if vref >= 0.0 and mode == BRAKE and P[P_DECEL] == 0.0:
-            # the blend's branch at the reference speed: regenerative force limited by the demand or not
-            demand_ref = level * P[P_BRAKE_FRACTION] * effort_branch(vref, vref, &c.brake)
-            fr = fb if demand_ref < effort_branch(vref, vref, &c.regen) else cap
+        cap = effort_on(v, &br.regen, &c.regen)
+        if br.blend_at_ref:
+            fr = fb if br.demand_limited else cap
         else:
             fr = fb if fb < cap else cap
     out[0] = (ft - fb - res) / P[P_INERTIAL_MASS]
@@ -129,12 +151,31 @@ cdef inline void forces(
     out[6] = ct
 
 
+cdef inline void forces(
+    int mode, double E, double u, const Law* lw, double level, const double* P, const Curves* c,
+    double vref, double* out,
+) noexcept nogil:
+    """``forces_on`` with the branches at vref [m/s] chosen for this one evaluation."""
+    cdef Branches br
+    prepare(mode, level, P, c, vref, &br)
+    forces_on(mode, E, u, lw, level, P, c, &br, out)
+
+
+cdef inline double acceleration_on(
+    int mode, double E, double u, const Law* lw, double level, const double* P, const Curves* c,
+    const Branches* br,
+) noexcept nogil:
+    cdef double f[N_FORCES]
+    forces_on(mode, E, u, lw, level, P, c, br, f)
+    return f[F_ACC]
+
+
 cdef inline double acceleration(
     int mode, double E, double u, const Law* lw, double level, const double* P, const Curves* c, double vref
 ) noexcept nogil:
-    cdef double f[N_FORCES]
-    forces(mode, E, u, lw, level, P, c, vref, f)
-    return f[F_ACC]
+    cdef Branches br
+    prepare(mode, level, P, c, vref, &br)
+    return acceleration_on(mode, E, u, lw, level, P, c, &br)
 
 
 cdef inline double rk4_works(
@@ -151,14 +192,16 @@ cdef inline double rk4_works(
     cdef double E2, E3, E4
     cdef long i
     cdef int q
+    cdef Branches br
+    prepare(mode, level, P, c, vref, &br)
     for i in range(n):
-        forces(mode, E if E > 0.0 else 0.0, u, lw, level, P, c, vref, f1)
+        forces_on(mode, E if E > 0.0 else 0.0, u, lw, level, P, c, &br, f1)
         E2 = E + 0.5 * d * f1[0]
-        forces(mode, E2 if E2 > 0.0 else 0.0, u + 0.5 * d, lw, level, P, c, vref, f2)
+        forces_on(mode, E2 if E2 > 0.0 else 0.0, u + 0.5 * d, lw, level, P, c, &br, f2)
         E3 = E + 0.5 * d * f2[0]
-        forces(mode, E3 if E3 > 0.0 else 0.0, u + 0.5 * d, lw, level, P, c, vref, f3)
+        forces_on(mode, E3 if E3 > 0.0 else 0.0, u + 0.5 * d, lw, level, P, c, &br, f3)
         E4 = E + d * f3[0]
-        forces(mode, E4 if E4 > 0.0 else 0.0, u + d, lw, level, P, c, vref, f4)
+        forces_on(mode, E4 if E4 > 0.0 else 0.0, u + d, lw, level, P, c, &br, f4)
         for q in range(N_WORKS):
             W[q] += d / 6.0 * (f1[q + 1] + 2.0 * f2[q + 1] + 2.0 * f3[q + 1] + f4[q + 1])
         E = E + d / 6.0 * (f1[0] + 2.0 * f2[0] + 2.0 * f3[0] + f4[0])
@@ -174,11 +217,13 @@ cdef double distance_to_speed(
     cdef double v_from = speed_of(E)
     cdef double v_to = speed_of(Et)
     cdef double vref = 0.5 * (v_from + v_to)
+    cdef Branches br
+    prepare(mode, level, P, c, vref, &br)
     cdef long n = speed_domain_steps(
         v_from,
         v_to,
-        acceleration(mode, E, u, lw, level, P, c, vref),
-        acceleration(mode, Et, u, lw, level, P, c, vref),
+        acceleration_on(mode, E, u, lw, level, P, c, &br),
+        acceleration_on(mode, Et, u, lw, level, P, c, &br),
     )
     cdef double dv = (v_to - v_from) / n
     cdef double v = v_from, s = 0.0, sign = 0.0, vj, sj, a
@@ -196,7 +241,7 @@ cdef double distance_to_speed(
             else:
                 vj = v + 0.5 * dv
                 sj = s + 0.5 * dv * r[j - 1]
-            a = acceleration(mode, 0.5 * vj * vj, u + sj, lw, level, P, c, vref)
+            a = acceleration_on(mode, 0.5 * vj * vj, u + sj, lw, level, P, c, &br)
             if sign == 0.0:
                 sign = 1.0 if a > 0.0 else -1.0
             if a * sign <= 0.0:

@@ -133,6 +133,57 @@ cdef inline double effort_branch(double v, double vref, const Curve* k) noexcept
     return f if f > 0.0 else 0.0
 
 
+# Which smooth branch of a curve holds at a reference speed (``Branch.which``).
+cdef enum:
+    BRANCH_LAW = 0  # the interval's law (clipped at 0)
+    BRANCH_FCAP = 1  # the force cap
+    BRANCH_PCAP = 2  # the power cap
+    BRANCH_ZERO = 3  # no force at the reference speed
+    BRANCH_CURVE = 4  # no reference speed (vref < 0): the curve itself, ``effort``
+
+
+cdef struct Branch:
+    Py_ssize_t j  # the interval of the curve at the reference speed
+    int which  # BRANCH_*
+
+
+cdef inline void branch_at(double vref, const Curve* k, Branch* b) noexcept nogil:
+    """The branch ``effort_branch(v, vref, k)`` evaluates, chosen once: an integration along one
+    piece evaluates the same branch at every stage (``effort_on``), so it need not choose it again."""
+    b.j = 0
+    if vref < 0.0:
+        b.which = BRANCH_CURVE
+        return
+    cdef Py_ssize_t j = search_right(k.starts, k.n, vref) - 1
+    if j < 0:
+        j = 0
+    cdef double best = law(vref, j, k.coefs)
+    cdef int branch = BRANCH_LAW
+    if k.fcap < best:
+        best = k.fcap
+        branch = BRANCH_FCAP
+    cdef double vp = vref if vref > POWER_CAP_MIN_SPEED else POWER_CAP_MIN_SPEED
+    if k.pcap / vp < best:
+        best = k.pcap / vp
+        branch = BRANCH_PCAP
+    b.j = j
+    b.which = branch if best > 0.0 else BRANCH_ZERO
+
+
+cdef inline double effort_on(double v, const Branch* b, const Curve* k) noexcept nogil:
+    """``effort_branch(v, vref, k)`` [N] with the branch ``branch_at(vref, k, b)`` chose: the same bits."""
+    if b.which == BRANCH_CURVE:
+        return effort(v, k)
+    if b.which == BRANCH_ZERO:
+        return 0.0
+    if b.which == BRANCH_FCAP:
+        return k.fcap
+    if b.which == BRANCH_PCAP:
+        return k.pcap / (v if v > POWER_CAP_MIN_SPEED else POWER_CAP_MIN_SPEED)
+    cdef double f = law(v, b.j, k.coefs)
+    return f if f > 0.0 else 0.0
+
+
 cdef inline double speed_of(double E) noexcept nogil:
     """v = sqrt(2 E) [m/s], 0 at or below standstill."""
     return sqrt(2.0 * E) if E > 0.0 else 0.0

@@ -48,6 +48,16 @@ def effort_branch_at(double v, double vref, object arrays):
     return effort_branch(v, vref, &k)
 
 
+def effort_on_at(speeds, double vref, object arrays):
+    """``effort_on`` at each of the speeds [m/s] with the branch ``branch_at(vref)`` chose once, as the
+    energy integration evaluates a piece (for tests: it must equal ``effort_branch`` at each)."""
+    cdef Curve k
+    cdef Branch b
+    curve_from(arrays, &k)
+    branch_at(vref, &k, &b)
+    return [effort_on(v, &b, &k) for v in speeds]
+
+
 def compiled_codes():
     """The regime codes and parameter indices compiled into the extension (checked by a test
     against ``trainsim.sim.codes``)."""
