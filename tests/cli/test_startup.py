@@ -257,10 +257,6 @@ NUMBA_COMMANDS = {
         ["run", str(EXAMPLES / "power" / "metro_scenario_eco.yaml")],
         "trainsim.optimize.api.optimize",
     ),
-    "run (multi-point)": (
-        ["run", str(EXAMPLES / "heavy_haul" / "scenario_head.yaml")],
-        "trainsim.io.multipoint_spec.run_multipoint_scenario",
-    ),
     "power": (
         ["power", str(EXAMPLES / "power" / "metro_750v_reversible.yaml")],
         "trainsim.batch.power_timetable.run_power_file",
@@ -315,3 +311,10 @@ def test_a_command_running_numba_kernels_listens_for_a_compile_before_its_work(n
 def test_a_fastest_run_does_not_listen_for_numba(monkeypatch):
     # compiled at install: installing the listener would import numba for nothing
     assert listening_at_work(["run", str(METRO)], "trainsim.sim.fastest.run_scenario", monkeypatch) == [False]
+
+
+def test_a_multipoint_run_does_not_listen_for_numba(monkeypatch):
+    # the multi-point kernel is compiled at install too (multipoint/_mp_c.pyx, issue 14)
+    args = ["run", str(EXAMPLES / "heavy_haul" / "scenario_head.yaml")]
+    work = "trainsim.io.multipoint_spec.run_multipoint_scenario"
+    assert listening_at_work(args, work, monkeypatch) == [False]

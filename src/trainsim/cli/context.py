@@ -113,8 +113,8 @@ _first_compile_listener: object | None = None
 def notice_first_compile() -> None:
     """Print :data:`FIRST_COMPILE_NOTE` on stderr when numba starts compiling, once per process.
 
-    Called by the commands whose work still runs numba kernels (operate, power, optimize, multi-point
-    runs and driven runs); a fastest run is compiled ahead of time at install and must not call it,
+    Called by the commands whose work still runs numba kernels (operate, power, optimize and driven
+    runs); a fastest run and a multi-point run are compiled ahead of time at install and must not call it,
     since it imports numba. numba broadcasts a ``numba:compile`` event only when a kernel is missing
     from its cache (a cache hit is loaded without it), so the note is printed exactly when compiling
     happens: probing one kernel's cache file instead misses the kernels a command compiles only for

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from trainsim.cli.context import exit_for_status, notice_first_compile, require_input, user_errors
+from trainsim.cli.context import exit_for_status, require_input, user_errors
 from trainsim.errors import InputError
 
 if TYPE_CHECKING:
@@ -80,7 +80,7 @@ def run_and_report(scenario_path: Path, out: Path | None, as_json: bool, no_plot
             file=str(scenario_path),
             field="model",
         )
-    notice_first_compile()
+    # the multi-point kernel is compiled at install (multipoint/_mp_c.pyx): no numba, no first-compile note
     result = run_multipoint_scenario(scenario, spec, base_dir=scenario_path.parent)
     written = write_multipoint_outputs(result, out, plots=not no_plots) if out is not None else []
     summary = result.summary()
