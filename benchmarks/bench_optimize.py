@@ -7,8 +7,8 @@ Run: python benchmarks/bench_optimize.py [--out table.csv] [--tracks NAME ...] [
      [--extra-only] [--no-extra] [--no-lesov] [--no-bound]
      python benchmarks/bench_optimize.py --speed [--max-km 35] [--tracks ...] [--trains ...]
 ``--speed`` times the optimal strategy alone at +10 % (no reference): a fresh solver per section,
-numba compiled beforehand, wall and CPU time against the RK4 baseline of ``_timing`` timed around
-each solve, and the kernel runs per solve (final-phase runs, ``pmp_kernel.final_phase_modes``, and
+one solve beforehand, wall and CPU time against the RK4 baseline of ``_timing`` timed around
+each solve, and the kernel runs per solve (final-phase runs, ``_pmp_c.final_phase_modes``, and
 holding speeds tried, ``SectionSolver.plan``: deterministic, unlike the times), summarised per length
 class (docs/OPTIMIZATION.md, Speed).
 Prints one line per case and a summary; energies are net electrical energy without auxiliaries;
@@ -95,10 +95,10 @@ def _timed(fn) -> tuple[float, float]:
 
 def _counted() -> dict[str, int]:
     """Counts final-phase runs and holding speeds tried (the work of a solve, whatever the load)."""
-    from trainsim.optimize import pmp_kernel
+    from trainsim.optimize import _pmp_c
 
     count = {"runs": 0, "plans": 0}
-    final_phase, plan = pmp_kernel.final_phase_modes, SectionSolver.plan
+    final_phase, plan = _pmp_c.final_phase_modes, SectionSolver.plan
 
     def counted_final_phase(*a):
         count["runs"] += 1
@@ -108,7 +108,7 @@ def _counted() -> dict[str, int]:
         count["plans"] += 1
         return plan(self, holding_speed_mps)
 
-    pmp_kernel.final_phase_modes = counted_final_phase  # (optimal.py calls it through the module)
+    _pmp_c.final_phase_modes = counted_final_phase  # (optimal.py calls it through the module)
     SectionSolver.plan = counted_plan
     return count
 
@@ -123,7 +123,7 @@ def speed(args) -> None:
         for s0, s1 in sections:
             if s1 - s0 > args.max_km * 1e3:
                 continue
-            if warm:  # numba's compilation (or cache load) is not what is timed
+            if warm:  # first-call costs (imports, caches) are not what is timed
                 solver = SectionSolver(train, route, s0, s1)
                 solver.solve(solver.fastest_time_s * 1.1)
                 rk4_line()

@@ -1,5 +1,5 @@
 """Departure points ahead of steep descents located as roots of their switching condition
-(``SectionSolver._departure_root``, ``pmp_kernel.coast_excursion``'s residual; issue 13).
+(``SectionSolver._departure_root``, ``_pmp_c.coast_excursion``'s residual; issue 13).
 
 Before, golden section on energy + mu x time placed the freight example's departure ahead of its
 last descent at 31276.57 / 31276.92 / 31275.63 m at steps of 20 / 10 / 5 m."""
@@ -10,9 +10,8 @@ import numpy as np
 import pytest
 from optimize_freight_case import FREIGHT_V, freight_section_2
 
-from trainsim.optimize import pmp_kernel as pk
+from trainsim.optimize import _pmp_c as pk
 from trainsim.optimize.optimal import SectionSolver
-from trainsim.sim import kernel
 
 
 def _descent_departure(solver: SectionSolver) -> tuple[float, list]:
@@ -84,7 +83,7 @@ def test_held_adjoint_is_the_hamiltonian_switching_value():
         pytest.approx(solver.inv_eta_t)
     )
     descent, u = _hump_line(solver, 2500.0)
-    push = -kernel.resistance_force(v, u, descent, solver.P)
+    push = -pk.resistance_force(v, u, descent, solver.P)
     assert push > 0.0
     assert pk.held_adjoint(v, u, descent, solver.P, solver.curves, solver.inv_eta_t, solver.eta_r) == (
         pytest.approx(solver.eta_r)

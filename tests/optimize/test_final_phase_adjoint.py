@@ -1,7 +1,7 @@
 """The adjoint of the final phase integrated in sub-steps where the speed changes fast against the
-step (``pmp_kernel.phi_advance``; issue 13).
+step (``_pmp_c.phi_advance``; issue 13).
 
-Its slope carries mu / v^3 (``pmp_kernel.phi_slope``), which changes by a factor of 4 over a 20 m
+Its slope carries mu / v^3 (``_pmp_c.phi_slope``), which changes by a factor of 4 over a 20 m
 step braking to the stop at 3 m/s. With one RK4 step per grid step, the adjoint's zero, where
 the freight example's final regenerative braking meets the service braking curve, lay at
 3.33471 / 3.33415 / 3.33405 m/s at steps of 20 / 10 / 5 m (holding speed fixed), the coasting point
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from optimize_freight_case import FREIGHT_V, freight_section_2
 
-from trainsim.optimize import pmp_kernel as pk
+from trainsim.optimize import _pmp_c as pk
 from trainsim.optimize.optimal import SectionSolver, price_of_time_w
-from trainsim.sim import kernel
+from trainsim.sim import _kernel_c, codes
 
 
 def _regen_stretch(solver: SectionSolver, v0: float = 4.0):
@@ -26,10 +26,10 @@ def _regen_stretch(solver: SectionSolver, v0: float = 4.0):
     i = int(near[np.argmax(np.diff(tr.x)[near])])
     h = float(tr.x[i + 1] - tr.x[i])
     line = (tr.a0[i], tr.a1[i], tr.b0[i], tr.b1[i])
-    solver.P[kernel.P_TRACTION_SCALE] = tr.traction_scale[i]
+    solver.P[codes.P_TRACTION_SCALE] = tr.traction_scale[i]
     E0 = 0.5 * v0 * v0
-    E1 = kernel.step_energy(E0, 0.0, h, kernel.REGEN, line, solver.P, solver.curves, solver.rk)
-    Em = kernel.step_energy(E0, 0.0, 0.5 * h, kernel.REGEN, line, solver.P, solver.curves, solver.rk)
+    E1 = _kernel_c.step_energy(E0, 0.0, h, codes.REGEN, line, solver.P, solver.curves, solver.rk)
+    Em = _kernel_c.step_energy(E0, 0.0, 0.5 * h, codes.REGEN, line, solver.P, solver.curves, solver.rk)
     return E0, E1, Em, 0.0, h, line, price_of_time_w(solver.train, FREIGHT_V), i
 
 
@@ -42,9 +42,9 @@ def _reference_phi(
     E = E0
     for k in range(n):
         uk = u + k * d
-        args = (kernel.REGEN, line, solver.P, solver.curves, solver.rk)
-        Em = kernel.step_energy(E, uk, 0.5 * d, *args)
-        E1 = kernel.step_energy(E, uk, d, *args)
+        args = (codes.REGEN, line, solver.P, solver.curves, solver.rk)
+        Em = _kernel_c.step_energy(E, uk, 0.5 * d, *args)
+        E1 = _kernel_c.step_energy(E, uk, d, *args)
         phi = pk.phi_step(phi, E, E1, uk, d, line[2], line[3], solver.P, mu, Em)
         E = E1
     return phi
@@ -57,7 +57,7 @@ def test_the_adjoint_over_a_slow_braking_step_matches_a_fine_integration() -> No
     phi0 = solver.eta_r
     reference = _reference_phi(solver, phi0, E0, u, h, line, mu)
     advanced = pk.phi_advance(
-        phi0, E0, E1, u, h, kernel.REGEN, line, solver.P, solver.curves, solver.rk, mu, Em
+        phi0, E0, E1, u, h, codes.REGEN, line, solver.P, solver.curves, solver.rk, mu, Em
     )
     one_step = pk.phi_step(phi0, E0, E1, u, h, line[2], line[3], solver.P, mu, Em)
     change = abs(reference - phi0)
@@ -77,11 +77,11 @@ def test_at_cruising_speeds_the_adjoint_takes_one_step_as_before() -> None:
     h = float(tr.x[i + 1] - tr.x[i])
     mu = price_of_time_w(solver.train, FREIGHT_V)
     E0 = 0.5 * FREIGHT_V**2
-    E1 = kernel.step_energy(E0, 0.0, h, kernel.COAST, line, solver.P, solver.curves, solver.bk)
-    Em = kernel.step_energy(E0, 0.0, 0.5 * h, kernel.COAST, line, solver.P, solver.curves, solver.bk)
+    E1 = _kernel_c.step_energy(E0, 0.0, h, codes.COAST, line, solver.P, solver.curves, solver.bk)
+    Em = _kernel_c.step_energy(E0, 0.0, 0.5 * h, codes.COAST, line, solver.P, solver.curves, solver.bk)
     phi0 = solver.inv_eta_t
     advanced = pk.phi_advance(
-        phi0, E0, E1, 0.0, h, kernel.COAST, line, solver.P, solver.curves, solver.bk, mu, Em
+        phi0, E0, E1, 0.0, h, codes.COAST, line, solver.P, solver.curves, solver.bk, mu, Em
     )
     assert advanced == pk.phi_step(phi0, E0, E1, 0.0, h, line[2], line[3], solver.P, mu, Em)
 
@@ -93,7 +93,7 @@ def _final_phase(step_m: float) -> tuple[float, float]:
     plan = solver.plan(FREIGHT_V)
     s, v, t, m = plan.s, plan.v, plan.t, plan.regime
     start = int(np.searchsorted(s, plan.coast_start_m - 1e-9))
-    braking = np.flatnonzero((m[:-1] == kernel.BRAKE) & (s[:-1] > plan.coast_start_m))
+    braking = np.flatnonzero((m[:-1] == codes.BRAKE) & (s[:-1] > plan.coast_start_m))
     assert len(braking), "the final phase meets the service braking curve"
     return float(t[-1] - t[start]), float(v[braking[0]])
 

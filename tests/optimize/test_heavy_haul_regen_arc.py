@@ -17,7 +17,7 @@ import pytest
 
 import trainsim
 from trainsim.optimize.optimal import SectionSolver, regenerative_holding_speed
-from trainsim.sim import kernel
+from trainsim.sim import codes
 
 ROOT = Path(__file__).resolve().parents[2]
 #: Net energy [kWh] of the certified reference (docs/optimization_benchmark.md, section 0-26000 m).
@@ -56,9 +56,9 @@ def test_holds_w_on_the_descent_and_brakes_regeneratively_to_the_stop(runs) -> N
     plan = plans[0.3]
     W = regenerative_holding_speed(solver.train, plan.price_of_time_w, solver.eta_r)
     s, v, m = plan.s[:-1], plan.v[:-1], plan.regime[:-1]
-    held = (m == kernel.CRUISE) & (np.abs(v - W) < 1e-6 * W) & (s > 18790.0) & (s < 24000.0)
+    held = (m == codes.CRUISE) & (np.abs(v - W) < 1e-6 * W) & (s > 18790.0) & (s < 24000.0)
     assert held.any(), "no regenerative holding arc at W on the descent"
     # the service (friction) brakes only take the last metres, not a run from 65 km/h
-    braking = m == kernel.BRAKE
+    braking = m == codes.BRAKE
     assert braking.any() and v[braking].max() < 15.0 / 3.6
-    assert (m == kernel.REGEN).any()
+    assert (m == codes.REGEN).any()

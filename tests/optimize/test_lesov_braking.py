@@ -22,7 +22,7 @@ from trainsim.model.scenario import RunSettings
 from trainsim.optimize.api import OFF_REGIME_NOTE, optimize
 from trainsim.optimize.lesov import lesov_train
 from trainsim.optimize.timetable import line_supplement
-from trainsim.sim.kernel import BRAKE, DWELL, REGEN
+from trainsim.sim.codes import BRAKE, DWELL, REGEN
 from trainsim.sim.profile import line_resistance_profile
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "multipoint"))

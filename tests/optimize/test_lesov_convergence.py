@@ -1,7 +1,7 @@
 """Source 004's runs do not move with the step (issue 13): on every example, the energies and the
 running time change by less than 1e-6 when the step is halved (1.7e-3 on the metro before its
 switching points were located as events of the motion; 1.7e-6 of net energy on heavy_haul while the
-holding phase, ``pmp_kernel.holding_segment``, chose its regime by the sign of a force that sat on a
+holding phase, ``_pmp_c.holding_segment``, chose its regime by the sign of a force that sat on a
 bound to rounding at a descent's end and coasted to the next grid point), and every section meets its
 schedule to 1e-6 s."""
 

@@ -1,6 +1,6 @@
 """Source 004's steady running is held through the end of every descent (issue 13).
 
-The holding phase (``pmp_kernel.holding_segment``) chose its regime by the sign of the force needed
+The holding phase (``_pmp_c.holding_segment``) chose its regime by the sign of the force needed
 to hold the speed at the point where the previous hold ended. A braking hold on a descent ends where
 that force crosses 0, so there it is 0 to rounding: half the time the run coasted (or ran traction
 clamped to the held speed) from there to the next grid point. On the heavy-haul line's first section
@@ -18,10 +18,10 @@ import pytest
 
 import trainsim
 from trainsim.constants import KMH
+from trainsim.optimize import _pmp_c as pk
 from trainsim.optimize import lesov
-from trainsim.optimize import pmp_kernel as pk
 from trainsim.optimize.optimal import SectionSolver
-from trainsim.sim import kernel
+from trainsim.sim import _kernel_c, codes
 
 pytest.importorskip("numba")
 
@@ -49,10 +49,10 @@ def _phase_a(solver: SectionSolver, v_mps: float):
     """holding_segment as source 004 drives it: held and top speed both min(limit, V)."""
     tr = solver.track
     vhold = np.minimum(tr.vlim, v_mps)
-    Cr, _, US = kernel.braking_ceiling(
+    Cr, _, US = _kernel_c.braking_ceiling(
         tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vhold, solver.i0, solver.i1, solver.P, solver.curves, solver.bk
     )
-    modes = np.full(len(tr.a0), kernel.BRAKE, dtype=np.int64)
+    modes = np.full(len(tr.a0), codes.BRAKE, dtype=np.int64)
     out = [np.empty(solver.n_max) for _ in range(3)] + [np.empty(solver.n_max, dtype=np.int8)]
     n, status = pk.holding_segment(
         tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vhold, vhold, tr.traction_scale, solver.i0, solver.i1,
@@ -67,15 +67,15 @@ def _phase_a(solver: SectionSolver, v_mps: float):
 @pytest.mark.parametrize("v_kmh", STEADY_KMH)
 def test_the_held_speed_is_held_where_a_descent_ends(heavy_haul, v_kmh):
     s, v, m, vh = _phase_a(_solver(heavy_haul, 20.0), v_kmh * KMH)
-    assert np.any(m == kernel.CRUISE)
+    assert np.any(m == codes.CRUISE)
     steps = slice(0, len(s) - 1)
     # with held speed = top speed nothing calls for coasting
-    assert not np.any(m[steps] == kernel.COAST), s[steps][m[steps] == kernel.COAST]
+    assert not np.any(m[steps] == codes.COAST), s[steps][m[steps] == codes.COAST]
     # maximum traction from the held speed only where holding it needs more (a climb): the speed falls
-    at_hold = (m[steps] == kernel.TRACTION) & (np.abs(v[:-1] - vh[:-1]) <= 1e-9 * vh[:-1]) & (s[1:] > s[:-1])
+    at_hold = (m[steps] == codes.TRACTION) & (np.abs(v[:-1] - vh[:-1]) <= 1e-9 * vh[:-1]) & (s[1:] > s[:-1])
     assert np.all(v[1:][at_hold] < v[:-1][at_hold] - 1e-9), s[:-1][at_hold]
     # and every hold is at the held speed itself, not at a speed it drifted to by coasting
-    held = m[steps] == kernel.CRUISE
+    held = m[steps] == codes.CRUISE
     assert np.allclose(v[:-1][held], vh[:-1][held], rtol=1e-12, atol=0.0)
 
 

@@ -15,7 +15,7 @@ import trainsim
 from trainsim.constants import KMH
 from trainsim.model import GradientSection, Route, SpeedLimit, Station
 from trainsim.optimize.optimal import SectionSolver, _within_service, regenerative_holding_speed
-from trainsim.sim import kernel
+from trainsim.sim import codes
 
 ROOT = Path(__file__).resolve().parents[2]
 METRO = trainsim.load_scenario(ROOT / "examples" / "metro_b" / "scenario.yaml").train
@@ -45,7 +45,7 @@ def test_metro_with_regeneration_coasts_over_the_crest_as_the_reference():
     assert abs(plan.running_time_s - T) <= max(0.5, 5e-4 * T)
     # the train leaves its holding arc on the climb and coasts over the crest
     climb_end = (plan.s > 1800.0) & (plan.s < 2000.0)
-    assert np.all(plan.regime[climb_end] == kernel.COAST)
+    assert np.all(plan.regime[climb_end] == codes.COAST)
     at_crest = float(np.interp(2000.0, plan.s, plan.v))
     assert at_crest < plan.holding_speed_mps - 10 * KMH
     # on the descent it comes up to the regenerative holding speed W and brakes electrically only
@@ -54,8 +54,8 @@ def test_metro_with_regeneration_coasts_over_the_crest_as_the_reference():
     assert plan.v[descent].max() == pytest.approx(W, rel=1e-3)
     # (the service brake only in the last metres, where its curve to the stop lies below the
     # regenerative one: 150 kN under 5 km/h)
-    assert not np.any((plan.regime == kernel.BRAKE) & (plan.s < solver.s1 - 10.0))
-    assert np.any(plan.regime[descent] == kernel.REGEN)
+    assert not np.any((plan.regime == codes.BRAKE) & (plan.s < solver.s1 - 10.0))
+    assert np.any(plan.regime[descent] == codes.REGEN)
     energy = net_energy_j(solver, plan)
     assert energy == pytest.approx(reference_energy_j(solver, T), rel=5e-3)
     # holding V up to the crest instead (the strategy before the crest coast) costs more
@@ -118,7 +118,7 @@ def test_regenerative_holding_arc_is_labelled_and_counted_as_regeneration():
     train, route, settings = solver.train, solver.route, trainsim.RunSettings()
     plan = solver.solve(solver.fastest_time_s * 1.20)
     W = regenerative_holding_speed(train, plan.price_of_time_w, solver.eta_r)
-    held = (plan.regime[:-1] == kernel.CRUISE) & (plan.s[:-1] > 2000.0) & (np.abs(plan.v[:-1] - W) < 1e-6 * W)
+    held = (plan.regime[:-1] == codes.CRUISE) & (plan.s[:-1] > 2000.0) & (np.abs(plan.v[:-1] - W) < 1e-6 * W)
     idx = np.flatnonzero(held)
     assert len(idx) >= 2
     a, b = float(plan.s[idx[0]]), float(plan.s[idx[-1] + 1])

@@ -1,5 +1,5 @@
 """The final phase brakes to lower limits with the electric brake alone and to the stop with the
-service brake (``SectionSolver._final_phase_curves``, ``pmp_kernel.final_phase_modes``)."""
+service brake (``SectionSolver._final_phase_curves``, ``_pmp_c.final_phase_modes``)."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from test_optimal_structure import (
 )
 
 from trainsim.optimize.optimal import SectionSolver
-from trainsim.sim import kernel
+from trainsim.sim import codes
 
 pytestmark = pytest.mark.skipif(not TTOBENCH.exists(), reason="TTOBench data not found beside the checkout")
 
@@ -54,8 +54,8 @@ def test_final_curve_modes_regenerative_before_the_stop_curve():
     at_limit = np.flatnonzero(solver.US > 0.0)
     assert len(at_limit) > 0
     first_stop = int(at_limit[-1])
-    assert np.all(modes[first_stop:] == kernel.BRAKE)
-    assert np.all(modes[:first_stop] == kernel.REGEN)
+    assert np.all(modes[first_stop:] == codes.BRAKE)
+    assert np.all(modes[:first_stop] == codes.REGEN)
     np.testing.assert_array_equal(solver.Cr_final[first_stop:], solver.Cr[first_stop:])
     # the section has lower limits: their regenerative curves reach further back than the service ones
     lower = solver.Cr_final[:first_stop] < tr.vlim[solver.i0 : solver.i0 + first_stop] - 1e-9
@@ -68,6 +68,6 @@ def test_without_regeneration_the_final_phase_meets_the_service_curves():
     train = regen_train()
     plain = dataclasses.replace(train, braking=dataclasses.replace(train.braking, regenerative=None))
     solver = SectionSolver(plain, lower_limit_route(), 0.0, 10_000.0)
-    assert np.all(solver.final_curve_modes == kernel.BRAKE)
+    assert np.all(solver.final_curve_modes == codes.BRAKE)
     np.testing.assert_array_equal(solver.Cr_final, solver.Cr)
     np.testing.assert_array_equal(solver.US_final, solver.US)

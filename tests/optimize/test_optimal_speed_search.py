@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from trainsim.io.ttobench import read_ttobench_track, read_ttobench_train
+from trainsim.optimize import _pmp_c as pk
 from trainsim.optimize import optimal
-from trainsim.optimize import pmp_kernel as pk
 from trainsim.optimize.optimal import SectionSolver, regenerative_holding_speed
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "ttobench"

@@ -27,7 +27,7 @@ from trainsim.model import (
     Train,
 )
 from trainsim.optimize.optimal import SectionSolver
-from trainsim.sim import kernel
+from trainsim.sim import codes
 from trainsim.sim.profile import line_resistance_profile, speed_ceiling
 from trainsim.sim.result import build_result
 
@@ -113,8 +113,8 @@ def test_coasts_ahead_of_a_lower_limit():
     assert abs(plan.running_time_s - T) <= tolerance(T)
     # the stretch just before the 80 km/h limit: coasting, then (regenerative) braking onto it
     before = (plan.s > 4_000.0) & (plan.s < 5_000.0)
-    assert (plan.regime[before] == kernel.COAST).any()
-    assert not (plan.regime[before] == kernel.BRAKE).any()
+    assert (plan.regime[before] == codes.COAST).any()
+    assert not (plan.regime[before] == codes.BRAKE).any()
     assert np.all(
         plan.v[plan.s >= 5_000.0 - 1e-6][plan.s[plan.s >= 5_000.0 - 1e-6] < 6_000.0] <= 80 * KMH + 1e-6
     )
@@ -135,11 +135,11 @@ def test_leaves_the_holding_arc_ahead_of_a_steep_descent():
     # the train coasts well before the descent, runs faster than its holding speed on it and is
     # back on the holding arc after it
     before = (plan.s > 8_000.0) & (plan.s < 10_000.0)
-    assert (plan.regime[before] == kernel.COAST).all()
+    assert (plan.regime[before] == codes.COAST).all()
     on_descent = (plan.s > 10_000.0) & (plan.s < 12_000.0)
     assert plan.v[on_descent].max() > plan.holding_speed_mps
     after = (plan.s > 14_000.0) & (plan.s < 20_000.0)
-    assert (plan.regime[after] == kernel.CRUISE).all()
+    assert (plan.regime[after] == codes.CRUISE).all()
     energy = net_energy_j(solver, plan)
     # holding V up to the descent and letting the descent speed the train up costs 2 % more here
     solver.excursions = False

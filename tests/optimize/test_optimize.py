@@ -30,7 +30,7 @@ from trainsim.model import (
 from trainsim.optimize.api import energy_time_curve, optimize
 from trainsim.optimize.optimal import SectionSolver, key_equation_braking_speed
 from trainsim.optimize.timetable import SectionSchedule, Timetable, line_supplement
-from trainsim.sim import kernel
+from trainsim.sim import codes
 
 ROOT = Path(__file__).resolve().parents[2]
 TTOBENCH = ROOT.parent / "shared" / "data" / "ttobench"
@@ -107,10 +107,10 @@ def test_key_equation_on_level_track_without_regeneration():
     for supplement in (0.15, 0.25, 0.4):
         plan = solver.solve(solver.fastest_time_s * (1 + supplement))
         # the equation holds for a run that holds V (below the line limit) before coasting
-        cruising = plan.v[plan.regime == kernel.CRUISE]
+        cruising = plan.v[plan.regime == codes.CRUISE]
         assert len(cruising) and np.allclose(cruising, plan.holding_speed_mps)
         assert plan.holding_speed_mps < 160 * KMH
-        k = np.flatnonzero((plan.regime[:-1] == kernel.COAST) & (plan.regime[1:] == kernel.BRAKE))[0] + 1
+        k = np.flatnonzero((plan.regime[:-1] == codes.COAST) & (plan.regime[1:] == codes.BRAKE))[0] + 1
         W = key_equation_braking_speed(train, plan.holding_speed_mps)
         assert plan.v[k] == pytest.approx(W, abs=0.05)
 

@@ -11,7 +11,7 @@ import pytest
 import trainsim
 from trainsim.model.timetable import SectionSchedule, Timetable, TimingPoint
 from trainsim.optimize.api import optimize
-from trainsim.sim import kernel
+from trainsim.sim import codes
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +41,7 @@ def test_a_window_that_leaves_too_much_time_keeps_the_schedule(metro, latest_s) 
     run = res.run
     t, s, regime = run.trace.time_s, run.trace.position_m, run.trace.regime
     after = (s > 800.0 + 1.0) & (t < res.scheduled_running_time_s[0])
-    assert after.any() and not np.any(regime[after] == kernel.TRACTION)
+    assert after.any() and not np.any(regime[after] == codes.TRACTION)
     # the stretches held to the point pass it later than the optimum without the window, whose final
     # coast starts before it: that run is kept (it is the closest to the window)
     (q,) = free.timing_points

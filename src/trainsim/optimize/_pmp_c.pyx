@@ -73,7 +73,7 @@ from trainsim.sim._kernel_c cimport (
     acceleration,
     distance_to_speed,
     line_of,
-    resistance_force,
+    resistance_force as line_resistance,
     rk4_energy_time,
     step_energy_c,
     step_energy_time_c,
@@ -268,7 +268,7 @@ cdef double ceiling_at_c(
 
 cdef void point_forces_c(long mode, double v, double u, const Line* line, const Ctx* c, double* ft, double* fr) noexcept nogil:
     cdef const double* P = c.P
-    cdef double res = resistance_force(v, u, line, P)
+    cdef double res = line_resistance(v, u, line, P)
     cdef double regen_cap = effort(v, &c.curves.regen)
     cdef double f
     ft[0] = 0.0
@@ -302,7 +302,7 @@ cdef double cruise_regen_work(double v, double u, double h, const Line* line, co
 cdef double held_adjoint_c(
     double v, double u, const Line* line, const Ctx* c, double inv_eta_t, double eta_r
 ) noexcept nogil:
-    cdef double res = resistance_force(v, u, line, c.P)
+    cdef double res = line_resistance(v, u, line, c.P)
     if res >= 0.0:
         return inv_eta_t
     if eta_r <= 0.0:
@@ -312,8 +312,8 @@ cdef double held_adjoint_c(
 
 
 cdef double descent_end(double v, double u, double h, const Line* line, const double* P) noexcept nogil:
-    cdef double r0 = resistance_force(v, u, line, P)
-    cdef double r1 = resistance_force(v, u + h, line, P)
+    cdef double r0 = line_resistance(v, u, line, P)
+    cdef double r1 = line_resistance(v, u + h, line, P)
     cdef double hc
     if r0 < 0.0 <= r1:
         hc = h * (-r0) / (r1 - r0)
@@ -328,7 +328,7 @@ cdef CS capped_coast_step(
     cdef CS r
     cdef ET et
     cdef double E_cap, hc
-    if v >= cap - 1e-9 and resistance_force(v, u, line, c.P) < 0.0:
+    if v >= cap - 1e-9 and line_resistance(v, u, line, c.P) < 0.0:
         h = descent_end(v, u, h, line, c.P)
         r.mode, r.h, r.E1, r.dt = CRUISE, h, E, h / v
         return r
@@ -505,7 +505,7 @@ cdef FP final_phase_c(
                 r.n, r.status, r.pos, r.arc_start, r.arc_end = n, C_STOPPED_SHORT, x[i] + u, arc_start, arc_end
                 return r
             v = speed_of(E)
-            if on_w and (x[i] + u >= w_end - 1e-9 or resistance_force(W, u + 2e-9, &line, P) >= 0.0):
+            if on_w and (x[i] + u >= w_end - 1e-9 or line_resistance(W, u + 2e-9, &line, P) >= 0.0):
                 # the arc ends (where asked, or where holding W stops needing braking): the adjoint
                 # leaves eta_r upwards and the train coasts (below W it falls back to eta_r at once)
                 on_w = False
@@ -528,7 +528,7 @@ cdef FP final_phase_c(
                 mode = COAST
                 phi = inv_eta_t * (1.0 - 1e-9)
             at_limit = v >= vcap[i] - 1e-9
-            if at_limit and (mode == TRACTION or (mode == COAST and resistance_force(v, u, &line, P) < 0.0)):
+            if at_limit and (mode == TRACTION or (mode == COAST and line_resistance(v, u, &line, P) < 0.0)):
                 # the speed limit binds: hold it while the adjoint asks for traction, or while
                 # coasting would speed the train up (downhill)
                 mode = CRUISE
@@ -537,7 +537,7 @@ cdef FP final_phase_c(
                 h = min2(h, US[kk] - u)  # the braking curve part starts at US
             kinks = kinks_of(mode, tk, bk, rk)
             if mode == CRUISE:
-                if resistance_force(v, u, &line, P) < 0.0:
+                if line_resistance(v, u, &line, P) < 0.0:
                     h = descent_end(v, u, h, &line, P)
                 E1, dt = E, h / v
             else:
@@ -655,7 +655,7 @@ cdef FP final_phase_c(
             if (
                 W > 0.0 and force_mode < 0 and arc_start < 0.0 and phi > eta_r >= phi1 and has_regen
                 and vcap[i] > W and v1 >= W * (1.0 - C_W_ENTRY_FRACTION)
-                and resistance_force(W, u + h, &line, P) < 0.0
+                and line_resistance(W, u + h, &line, P) < 0.0
             ):
                 # the adjoint comes down to eta_r at W on a descent: the regenerative holding arc
                 # (below W by at most W_ENTRY_FRACTION the train coasts up to W first)
@@ -858,6 +858,17 @@ def point_forces(long mode, double v, double u, line, P, curves):
     cdef double ft, fr
     point_forces_c(mode, v, u, &ln, &c, &ft, &fr)
     return ft, fr
+
+
+def resistance_force(double v, double u, line, P):
+    """Running plus line resistance [N] at speed v [m/s] and offset u [m] into the interval of
+    ``line = (a0, a1, b0, b1)``, as the adjoint and the holding phases evaluate it (the sim kernel's
+    law, for tests and callers that check a run's forces)."""
+    cdef Arr ap = _array(P, "parameter vector P", c'd')
+    if ap.n != N_PARAMS:
+        raise ValueError(f"parameter vector P of length {ap.n}: need {N_PARAMS}")
+    cdef Line ln = _line(line)
+    return line_resistance(v, u, &ln, <const double*>ap.data)
 
 
 def need_ahead(double need_u, double need_e, double span):
@@ -1320,8 +1331,8 @@ cdef long holding_segment_c(
                 E = 0.5 * Cr[k] * Cr[k]
                 u = w
                 break
-            need_u = resistance_force(v, u, &line, P)
-            need_e = resistance_force(v, end, &line, P)
+            need_u = line_resistance(v, u, &line, P)
+            need_e = line_resistance(v, end, &line, P)
             # the regime is chosen by the force needed just ahead of u, not at u: where a hold ended
             # at u because that force crossed a bound (0 at a descent's end), it sits on the bound
             # to rounding and its sign at u said nothing (heavy_haul: 1.7e-6 of net energy on

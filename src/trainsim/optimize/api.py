@@ -34,7 +34,7 @@ from trainsim.optimize.constraints import DrivingConstraints, constrained_route,
 from trainsim.optimize.optimal import TIME_TOLERANCE_S, SectionPlan, SectionSolver
 from trainsim.optimize.timetable import Timetable
 from trainsim.optimize.windows import enforce_windows
-from trainsim.sim import kernel
+from trainsim.sim import codes
 from trainsim.sim.fastest import run_fastest, stops_of
 from trainsim.sim.profile import line_resistance_profile, speed_ceiling
 from trainsim.sim.result import RunResult, build_result
@@ -117,14 +117,14 @@ def switching_points(s: np.ndarray, v: np.ndarray, t: np.ndarray, regime: np.nda
     """Every point where the regime changes (dwell excluded)."""
     points = []
     for k in range(len(s)):
-        if regime[k] == kernel.DWELL:
+        if regime[k] == codes.DWELL:
             continue
         if k + 1 < len(s) and s[k + 1] - s[k] < 1e-6 and t[k + 1] - t[k] < 1e-6:
             continue  # a regime held for no distance and no time
         if k == 0 or regime[k] != regime[k - 1]:
             points.append(
                 SwitchingPoint(
-                    float(s[k]), float(v[k] / KMH), float(t[k]), kernel.REGIME_NAMES[int(regime[k])]
+                    float(s[k]), float(v[k] / KMH), float(t[k]), codes.REGIME_NAMES[int(regime[k])]
                 )
             )
     return points
@@ -487,8 +487,8 @@ def _run_reference(train, route, timetable, settings, fastest, constraints=None)
         if ref.status != "ok":
             warnings.append(f"reference optimum {sv.s0:.0f}-{sv.s1:.0f} m: IPOPT {ref.status}")
         t = np.concatenate([[0.0], np.cumsum(2 * np.diff(ref.s) / np.maximum(ref.v[:-1] + ref.v[1:], 1e-12))])
-        regime = np.full(len(ref.s), kernel.FOLLOW, dtype=np.int8)
-        regime[-1] = kernel.DWELL
+        regime = np.full(len(ref.s), codes.FOLLOW, dtype=np.int8)
+        regime[-1] = codes.DWELL
         plans.append(
             SectionPlan(
                 ref.s, ref.v, t, regime, float(t[-1]), np.nan, np.nan, np.nan, sv.fastest_time_s, True

@@ -38,9 +38,9 @@ from trainsim.constants import KMH
 from trainsim.model.route import Route, Station
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Braking, Train
-from trainsim.optimize import pmp_kernel as pk
+from trainsim.optimize import _pmp_c as pk
 from trainsim.optimize.optimal import ADJOINT_STEP_M, SectionPlan, SectionSolver
-from trainsim.sim import kernel
+from trainsim.sim import _kernel_c, codes
 from trainsim.sim.profile import line_resistance_profile
 
 RECUPERATION_SHARE = 0.8  #: f_ru = 0.8 f_u(V) (source 004)
@@ -292,19 +292,19 @@ def _speed_event(solver: SectionSolver, s, v, t, q: int, v_event: float) -> tupl
     tr = solver.track
     i, u = _locate(solver, float(s[q]))
     line = (tr.a0[i], tr.a1[i], tr.b0[i], tr.b1[i])
-    solver.P[kernel.P_TRACTION_SCALE] = tr.traction_scale[i]
+    solver.P[codes.P_TRACTION_SCALE] = tr.traction_scale[i]
     e0, e_event = 0.5 * float(v[q]) ** 2, 0.5 * v_event * v_event
     lo, hi = 0.0, float(s[q + 1] - s[q])
     for _ in range(80):
         mid = 0.5 * (lo + hi)
-        e1, _ = kernel.step_energy_time(e0, u, mid, kernel.REGEN, line, solver.P, solver.curves, solver.rk)
+        e1, _ = _kernel_c.step_energy_time(e0, u, mid, codes.REGEN, line, solver.P, solver.curves, solver.rk)
         if e1 > e_event:
             lo = mid
         else:
             hi = mid
         if hi - lo <= 1e-12 * max(1.0, hi):
             break
-    _, dt = kernel.step_energy_time(e0, u, hi, kernel.REGEN, line, solver.P, solver.curves, solver.rk)
+    _, dt = _kernel_c.step_energy_time(e0, u, hi, codes.REGEN, line, solver.P, solver.curves, solver.rk)
     return float(s[q]) + hi, float(t[q]) + dt
 
 
@@ -317,8 +317,8 @@ def _mechanical_to_stop(solver: SectionSolver, s_m: float, v_m: float, t_m: floa
     n, _, end = pk.final_phase(
         tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, tr.traction_scale, i, u, v_m, t_m, solver.i1,
         solver.P, solver.curves, solver.tk, solver.bk, solver.Cr, solver.US, 0.0, solver.inv_eta_t,
-        solver.eta_r, solver.has_regen, ADJOINT_STEP_M, *out, 0, kernel.BRAKE, np.inf, -1.0,
-        kernel.BRAKE, solver.bk, solver.rk,
+        solver.eta_r, solver.has_regen, ADJOINT_STEP_M, *out, 0, codes.BRAKE, np.inf, -1.0,
+        codes.BRAKE, solver.bk, solver.rk,
     )  # fmt: skip
     s, v, t, m = (a[:n] for a in out)
     if n and v[-1] > 0.0:
@@ -331,10 +331,10 @@ def _service_curve_speed(solver: SectionSolver, s_m: float) -> float:
     tr = solver.track
     i, u = _locate(solver, s_m)
     kk = i - (solver.i1 - len(solver.Cr))
-    solver.P[kernel.P_TRACTION_SCALE] = tr.traction_scale[i]
+    solver.P[codes.P_TRACTION_SCALE] = tr.traction_scale[i]
     line = (tr.a0[i], tr.a1[i], tr.b0[i], tr.b1[i])
     w = float(tr.x[i + 1] - tr.x[i])
-    return float(pk._curve_speed(u, w, solver.Cr[kk], kernel.BRAKE, line, solver.P, solver.curves, solver.bk))
+    return float(pk._curve_speed(u, w, solver.Cr[kk], codes.BRAKE, line, solver.P, solver.curves, solver.bk))
 
 
 def _final_braking(solver: SectionSolver, phase_a, s_r: float):
@@ -351,7 +351,7 @@ def _final_braking(solver: SectionSolver, phase_a, s_r: float):
     v_mech = MECHANICAL_BRAKING_SPEED_KMH * KMH
     after = np.flatnonzero(s >= s_r - 1e-12)
     for q in after[:-1]:
-        if m[q] != kernel.REGEN:
+        if m[q] != codes.REGEN:
             # the recuperative brake met the service braking curve above V_mech: it ends at the stop
             return points, (float(v[q]) - v_mech) if status == pk.HIT_CEILING else -v_mech
         if v[q] > v_mech >= v[q + 1]:
@@ -363,7 +363,7 @@ def _final_braking(solver: SectionSolver, phase_a, s_r: float):
                 np.concatenate([s[keep], [s_m], rest[0][1:]]),
                 np.concatenate([v[keep], [v_mech], rest[1][1:]]),
                 np.concatenate([t[keep], [t_m], rest[2][1:]]),
-                np.concatenate([m[keep], [kernel.BRAKE], rest[3][1:]]).astype(np.int8),
+                np.concatenate([m[keep], [codes.BRAKE], rest[3][1:]]).astype(np.int8),
             )
             return joined, residual
     return points, 0.0 if status == pk.HIT_CEILING else -v_mech
@@ -380,7 +380,7 @@ def _holds_labelled_as_holds(solver: SectionSolver, vhold: np.ndarray, points):
     tr = solver.track
     i = np.clip(np.searchsorted(tr.x, s[:-1], side="right") - 1, solver.i0, solver.i1 - 1)
     held = (
-        (m[:-1] == kernel.TRACTION)
+        (m[:-1] == codes.TRACTION)
         & (np.abs(v[1:] - v[:-1]) <= 1e-12 * np.maximum(v[:-1], 1.0))
         & (v[:-1] >= vhold[i] * (1.0 - 1e-9))
         & (s[1:] > s[:-1])
@@ -388,7 +388,7 @@ def _holds_labelled_as_holds(solver: SectionSolver, vhold: np.ndarray, points):
     if not held.any():
         return points
     m = m.copy()
-    m[:-1][held] = kernel.CRUISE
+    m[:-1][held] = codes.CRUISE
     return s, v, t, m
 
 
@@ -406,13 +406,13 @@ def _execute(solver: SectionSolver, sw: LesovSwitching) -> SectionPlan:
     tr = solver.track
     vhold = np.minimum(tr.vlim, v_ss)
     out = [np.empty(solver.n_max) for _ in range(3)] + [np.empty(solver.n_max, dtype=np.int8)]
-    modes = np.full(len(tr.a0), kernel.BRAKE, dtype=np.int64)
+    modes = np.full(len(tr.a0), codes.BRAKE, dtype=np.int64)
     # the braking curves must be those below the speed held, min(limit, V_ss), not below the limits
     # (solver.Cr): the holding phase leaves its speed where the ceiling it is given drops below the
     # limit, so with the limits' ceiling it held V_ss past the point where the curve to the stop (or to
     # a lower limit) crosses V_ss and joined the curve by a jump at the next grid point (0.51 m/s^2
     # against 0.30 of the service brake on the hilly test line)
-    Cr, _, US = kernel.braking_ceiling(
+    Cr, _, US = _kernel_c.braking_ceiling(
         tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vhold, solver.i0, solver.i1, solver.P, solver.curves, solver.bk
     )  # fmt: skip
     n, _ = pk.holding_segment(
@@ -457,7 +457,7 @@ def _execute(solver: SectionSolver, sw: LesovSwitching) -> SectionPlan:
     if v[-1] > 0.0 and solver.s1 - s[-1] <= STOP_TOLERANCE_M:
         # located to 1e-9 m, the run through the stop arrives at a speed of order 1e-4 m/s: at rest
         v[-1] = 0.0
-    m[-1] = kernel.DWELL
+    m[-1] = codes.DWELL
     return SectionPlan(s, v, t, m, float(t[-1]), v_ss, s_r, np.nan, solver.fastest_time_s, True)
 
 

@@ -4,7 +4,7 @@ Structure from the theory of optimal train control (Albrecht, Howlett, Pudney, V
 "The key principles of optimal train control", Parts 1 and 2, Transportation Research Part B 94):
 maximum traction, holding a speed V, coasting, regenerative braking, maximum braking. The holding
 speed V sets the price of time mu = V^2 R'(V) / eta_t (``price_of_time_w``); the final coasting
-and braking phase is driven by the adjoint (``pmp_kernel``) from the point where the train stops
+and braking phase is driven by the adjoint (``_pmp_c``) from the point where the train stops
 holding, found so that the train stops exactly at the next station; V is solved so that the
 section takes its scheduled time. Sections of a line that share mu share the marginal energy per
 second of running time, which makes a split of a line's supplement optimal.
@@ -30,8 +30,8 @@ from trainsim.model.effort import EffortCurve
 from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
-from trainsim.optimize import pmp_kernel as pk
-from trainsim.sim import kernel
+from trainsim.optimize import _pmp_c as pk
+from trainsim.sim import _kernel_c, codes
 from trainsim.sim.parameters import kernel_parameters, kink_speeds, regenerative_arrays
 from trainsim.sim.profile import compile_track
 
@@ -257,7 +257,7 @@ class SectionSolver:
         self.has_regen = has_regen and self.eta_r > 0.0
         tr = self.track
         self.i0, self.i1 = int(tr.stop_index[0]), int(tr.stop_index[-1])
-        self.Cr, _, self.US = kernel.braking_ceiling(
+        self.Cr, _, self.US = _kernel_c.braking_ceiling(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, self.i0, self.i1, P, self.curves, self.bk
         )
         self.n_max = 8 * len(tr.x) + int((s1 - s0) / pk.MIN_SWITCH_STEP_M) + 64
@@ -287,8 +287,8 @@ class SectionSolver:
         )
         if self.regen_final_approach:
             tr = self.track
-            modes = np.full(len(tr.a0), kernel.REGEN, dtype=np.int64)
-            self.Cr_regen, _, self.US_regen = kernel.braking_ceiling_mixed(
+            modes = np.full(len(tr.a0), codes.REGEN, dtype=np.int64)
+            self.Cr_regen, _, self.US_regen = _kernel_c.braking_ceiling_mixed(
                 tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, self.i0, self.i1, self.P, self.curves, self.bk,
                 self.rk, modes,
             )  # fmt: skip
@@ -329,14 +329,14 @@ class SectionSolver:
         braking curve to the stop (the intervals from the one where it leaves the limit on) and,
         for trains with regeneration, regenerative-only curves to the lower limits before it."""
         tr = self.track
-        modes = np.full(len(tr.a0), kernel.BRAKE, dtype=np.int64)
+        modes = np.full(len(tr.a0), codes.BRAKE, dtype=np.int64)
         if not self.has_regen:
             return self.Cr, self.US, modes[self.i0 : self.i1].copy()
         # the stop's service curve leaves the limit in the last interval with part of it at the limit
         plateau = np.flatnonzero(self.US > 0.0)
         first_stop = self.i0 + (int(plateau[-1]) if len(plateau) else 0)
-        modes[self.i0 : first_stop] = kernel.REGEN
-        Cr, _, US = kernel.braking_ceiling_mixed(
+        modes[self.i0 : first_stop] = codes.REGEN
+        Cr, _, US = _kernel_c.braking_ceiling_mixed(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, self.i0, self.i1, self.P, self.curves, self.bk,
             self.rk, modes,
         )  # fmt: skip
@@ -476,8 +476,8 @@ class SectionSolver:
         # the run returned brakes to the stop as phase A does, the final phase then replaces that)
         curves = (Cr, US, modes)
         modes = modes.copy()
-        modes[k0 : self.i1] = kernel.REGEN
-        Cr, _, US = kernel.braking_ceiling_mixed(
+        modes[k0 : self.i1] = codes.REGEN
+        Cr, _, US = _kernel_c.braking_ceiling_mixed(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, self.i0, self.i1, self.P, self.curves, self.bk, self.rk,
             modes,
         )  # fmt: skip
@@ -669,7 +669,7 @@ class SectionSolver:
     def _next_limit_braking(m, s, after: float):
         """(start, end) [m] of the first braking run after ``after`` that ends at a lower limit
         (not at the stop), or None."""
-        braking = (m == kernel.REGEN) | (m == kernel.BRAKE)
+        braking = (m == codes.REGEN) | (m == codes.BRAKE)
         idx = np.flatnonzero(braking[:-1] & (s[:-1] > after + 1e-6))
         if not len(idx):
             return None
@@ -734,18 +734,18 @@ class SectionSolver:
         (as the fastest run), regenerative braking only before lower limits where the train has it
         (the friction brakes would waste what the electric brake returns)."""
         tr = self.track
-        modes = np.full(len(tr.a0), kernel.BRAKE, dtype=np.int64)
+        modes = np.full(len(tr.a0), codes.BRAKE, dtype=np.int64)
         if self.has_regen:
-            _, _, US_s = kernel.braking_ceiling(
+            _, _, US_s = _kernel_c.braking_ceiling(
                 tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, self.i0, self.i1, self.P, self.curves, self.bk
             )
             # the final approach: the intervals after the last one that reaches the limit plateau
             plateau = np.flatnonzero(US_s > 0.0)
             last = self.i0 + (int(plateau[-1]) if len(plateau) else -1)
-            modes[self.i0 : last + 1] = kernel.REGEN
+            modes[self.i0 : last + 1] = codes.REGEN
             if self.regen_final_approach:
-                modes[self.i0 : self.i1] = kernel.REGEN
-        Cr, _, US = kernel.braking_ceiling_mixed(
+                modes[self.i0 : self.i1] = codes.REGEN
+        Cr, _, US = _kernel_c.braking_ceiling_mixed(
             tr.x,
             tr.a0,
             tr.a1,
@@ -777,7 +777,7 @@ class SectionSolver:
         """A run that cannot be driven (the train stalls): infinite time, so the holding speed
         search moves away from it."""
         s = np.array([self.s0, self.s1])
-        return s, np.array([0.0, 1.0]), np.array([0.0, np.inf]), np.array([0, kernel.DWELL], dtype=np.int8)
+        return s, np.array([0.0, 1.0]), np.array([0.0, np.inf]), np.array([0, codes.DWELL], dtype=np.int8)
 
     def _steep_descents(self, V: float, vhold: np.ndarray, vtop: np.ndarray) -> np.ndarray:
         """Intervals where holding the local holding speed (V, or the limit where lower) would need
@@ -786,7 +786,7 @@ class SectionSolver:
         coasting ahead of it saves that braking."""
         tr = self.track
         law = self.train.resistance_law
-        weight = self.P[kernel.P_WEIGHT]
+        weight = self.P[codes.P_WEIGHT]
         w = np.diff(tr.x)
         res_left = law(vhold) + weight * (tr.a0 + tr.b0 * vhold * vhold)
         res_right = law(vhold) + weight * (tr.a0 + tr.a1 * w + (tr.b0 + tr.b1 * w) * vhold * vhold)
@@ -825,7 +825,7 @@ class SectionSolver:
         the interval's start (a start snapped to the grid moved the departure with the step)."""
         tr = self.track
         law = self.train.resistance_law
-        weight = self.P[kernel.P_WEIGHT]
+        weight = self.P[codes.P_WEIGHT]
         r0 = law(v_hold) + weight * (tr.a0[i] + tr.b0[i] * v_hold * v_hold)
         slope = weight * (tr.a1[i] + tr.b1[i] * v_hold * v_hold)
         if r0 < 0.0 or slope >= 0.0:
@@ -837,12 +837,12 @@ class SectionSolver:
         """First position [m] from ``after`` where ``seg`` holds V (or ``after`` if it never does)."""
         s, v, _, m = seg
         tol = 1e-6 * max(V, 1.0)
-        holding = np.flatnonzero((s >= after - 1e-9) & (m == kernel.CRUISE) & (np.abs(v - V) <= tol))
+        holding = np.flatnonzero((s >= after - 1e-9) & (m == codes.CRUISE) & (np.abs(v - V) <= tol))
         if not len(holding):
             return after
         j = int(holding[0])
         # the hold may have started before this point: it then holds already at ``after``
-        if j > 0 and m[j - 1] == kernel.CRUISE and abs(v[j - 1] - V) <= tol and s[j - 1] <= after:
+        if j > 0 and m[j - 1] == codes.CRUISE and abs(v[j - 1] - V) <= tol and s[j - 1] <= after:
             return after
         return float(s[j])
 
@@ -855,7 +855,7 @@ class SectionSolver:
         inner = tr.x[(tr.x > a) & (tr.x < b)]
         s = np.concatenate([[a], inner, [b]])
         v = np.full(len(s), V)
-        m = np.full(len(s), kernel.CRUISE, dtype=np.int8)
+        m = np.full(len(s), codes.CRUISE, dtype=np.int8)
         cum = np.empty(len(s))
         pk.path_energy(
             s, v, m, tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.P, self.curves,
@@ -1037,11 +1037,11 @@ class SectionSolver:
         out_v = np.empty(self.n_max)
         out_t = np.empty(self.n_max)
         out_m = np.empty(self.n_max, dtype=np.int8)
-        n, status, _ = kernel.fastest_segment(
+        n, status, _ = _kernel_c.fastest_segment(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, tr.traction_scale, self.i0, self.i1, 0.0,
             self.P, self.curves, self.tk, self.bk, out_s, out_v, out_t, out_m, 0,
         )  # fmt: skip
-        if status != kernel.STATUS_OK:
+        if status != codes.STATUS_OK:
             return out_s[:n], np.append(out_v[: n - 1], 1.0), np.append(out_t[: n - 1], np.inf), out_m[:n]
         return out_s[:n], out_v[:n], out_t[:n], out_m[:n]
 
@@ -1058,7 +1058,7 @@ class SectionSolver:
     def _phase_b_forced(self, phase_a, s_c: float):
         """From s_c on phase A, maximum regenerative braking until the service braking curve to the
         stop (source 004's recuperative braking)."""
-        points, status, _ = self._phase_b(phase_a, s_c, 0.0, force_mode=kernel.REGEN)
+        points, status, _ = self._phase_b(phase_a, s_c, 0.0, force_mode=codes.REGEN)
         return points, status
 
     def _braking_arc_start(self, phase_a, j: int, s_c: float, v: float, v_hold: float) -> bool:
@@ -1067,7 +1067,7 @@ class SectionSolver:
         if not self.braking_arc_exits:
             return False
         s, _, _, m = phase_a
-        return bool(m[j] == kernel.CRUISE and v > v_hold * (1.0 + 1e-6) and s[min(j + 1, len(s) - 1)] > s_c)
+        return bool(m[j] == codes.CRUISE and v > v_hold * (1.0 + 1e-6) and s[min(j + 1, len(s) - 1)] > s_c)
 
     def _phase_b(
         self,
@@ -1330,7 +1330,7 @@ class SectionSolver:
         s_a, v_a, _, m_a = phase_a
         self._final_phase_on_braking_arc = bool(
             np.any(
-                (m_a[:-1] == kernel.CRUISE) & (v_a[:-1] > holding_speed_mps * (1.0 + 1e-6)) & (s_a[:-1] > lo)
+                (m_a[:-1] == codes.CRUISE) & (v_a[:-1] > holding_speed_mps * (1.0 + 1e-6)) & (s_a[:-1] > lo)
             )
         )
         if -STOP_TOLERANCE_M <= r_lo < 0.0:
@@ -1350,7 +1350,7 @@ class SectionSolver:
         # the stop point closes the section
         s, m = s.copy(), m.copy()
         s[-1] = self.s1
-        m[-1] = kernel.DWELL
+        m[-1] = codes.DWELL
         return SectionPlan(
             s, v, t, m, float(t[-1]), holding_speed_mps, coast_point, mu, self.fastest_time_s, True
         )
@@ -1500,7 +1500,7 @@ class SectionSolver:
         if running_time_s <= self.fastest_time_s + TIME_TOLERANCE_S and not self.stretches:
             s, v, t, m = self.fastest
             m = m.copy()
-            m[-1] = kernel.DWELL
+            m[-1] = codes.DWELL
             return SectionPlan(
                 s, v, t, m, self.fastest_time_s, np.inf, self.s1, np.inf, self.fastest_time_s,
                 running_time_s >= self.fastest_time_s - TIME_TOLERANCE_S,
@@ -1744,5 +1744,5 @@ class SectionSolver:
                 lo = mid
         s, v, t, m = best
         m = m.copy()
-        m[-1] = kernel.DWELL
+        m[-1] = codes.DWELL
         return SectionPlan(s, v, t, m, float(t[-1]), V, hi, mu, self.fastest_time_s, True)

@@ -6,7 +6,7 @@ as intents (traction, holding a speed, coasting, regenerative braking) that star
 Braking on the braking curves is not an intent: the speed ceiling (the limits and the braking
 curves to lower limits and to the stop, ``SectionSolver.Cr_final``) overrides every intent, and
 those arcs are *forced* (by a speed limit or by the stop). The program is driven forward with the
-solver's own integrator (``kernel.step_energy_time``), so the run follows the same train on the same
+solver's own integrator (``sim._kernel_c.step_energy_time``), so the run follows the same train on the same
 track:
 
 * traction (up to the speed of a holding arc that follows it);
@@ -38,7 +38,7 @@ from scipy.optimize import brentq
 from trainsim.constants import KMH, KWH
 from trainsim.optimize.constraints import DrivingConstraints
 from trainsim.optimize.optimal import SectionPlan, SectionSolver
-from trainsim.sim import kernel
+from trainsim.sim import _kernel_c, codes
 
 #: Speeds closer than this are the same speed [m/s] (holding, ceiling contact).
 SPEED_TOLERANCE_MPS = 1e-6
@@ -101,7 +101,7 @@ class _Driver:
         self.P = []
         for i in range(len(tr.a0)):
             p = sv.P.copy()
-            p[kernel.P_TRACTION_SCALE] = tr.traction_scale[i]
+            p[codes.P_TRACTION_SCALE] = tr.traction_scale[i]
             self.P.append(p)
         self.lines = [
             (float(tr.a0[i]), float(tr.a1[i]), float(tr.b0[i]), float(tr.b1[i])) for i in range(len(tr.a0))
@@ -109,7 +109,7 @@ class _Driver:
 
     def kinks(self, mode: int) -> np.ndarray:
         sv = self.sv
-        return {kernel.TRACTION: sv.tk, kernel.BRAKE: sv.bk, kernel.REGEN: sv.rk}.get(mode, _NO_KINKS)
+        return {codes.TRACTION: sv.tk, codes.BRAKE: sv.bk, codes.REGEN: sv.rk}.get(mode, _NO_KINKS)
 
     def ceiling_e(self, i: int, u: float) -> float:
         """Kinetic energy per unit mass of the speed ceiling at offset u of interval i [m^2/s^2]."""
@@ -120,25 +120,27 @@ class _Driver:
         mode = int(self.modes[k])
         Er = 0.5 * float(self.Cr[k]) ** 2
         return float(
-            kernel.step_energy(Er, w, u - w, mode, self.lines[i], self.P[i], self.sv.curves, self.kinks(mode))
+            _kernel_c.step_energy(
+                Er, w, u - w, mode, self.lines[i], self.P[i], self.sv.curves, self.kinks(mode)
+            )
         )
 
     def step(self, E: float, i: int, u: float, h: float, mode: int) -> tuple[float, float]:
         if h <= 0.0:
             return E, 0.0
-        E1, dt = kernel.step_energy_time(
+        E1, dt = _kernel_c.step_energy_time(
             E, u, h, mode, self.lines[i], self.P[i], self.sv.curves, self.kinks(mode)
         )
         return max(float(E1), 0.0), float(dt)
 
     def crossing(self, E: float, i: int, u: float, h: float, target_e: float, mode: int) -> float:
-        d = kernel.find_speed_crossing_split(
+        d = _kernel_c.find_speed_crossing_split(
             E, u, h, target_e, mode, self.lines[i], self.P[i], self.sv.curves, self.kinks(mode)
         )
         return float(min(max(d, 0.0), h))
 
     def accel(self, mode: int, E: float, i: int, u: float) -> float:
-        return float(kernel.acceleration(mode, E, u, self.lines[i], self.P[i], self.sv.curves))
+        return float(_kernel_c.acceleration_of(mode, E, u, self.lines[i], self.P[i], self.sv.curves))
 
     def drive(self, program: list[_Arc]):
         """(s, v, t, regime, kind, arc index) of the run, or None where it stalls."""
@@ -169,7 +171,7 @@ class _Driver:
             if on_limit:
                 end = min(ue, float(self.US[k]))
                 Ec = self.ceiling_e(i, u)
-                record(xi + end, Ec, (end - u) / max(np.sqrt(2.0 * Ec), 1e-12), kernel.CRUISE, kind, j)
+                record(xi + end, Ec, (end - u) / max(np.sqrt(2.0 * Ec), 1e-12), codes.CRUISE, kind, j)
                 return True
             mode = int(self.modes[k])
             E1, dt = self.step(self.ceiling_e(i, u), i, u, ue - u, mode)
@@ -202,11 +204,11 @@ class _Driver:
                         return None
                     continue
                 mode, target, kind = self._intent(arc, j, remotor, E, i, u)
-                if mode == kernel.CRUISE:
+                if mode == codes.CRUISE:
                     v = np.sqrt(2.0 * E)
                     end = self._holdable_until(E, i, u, ue)
                     if end <= u + 1e-9:  # the gradient: full effort until the speed is back
-                        mode = kernel.TRACTION if self.accel(kernel.TRACTION, E, i, u) < 0.0 else kernel.BRAKE
+                        mode = codes.TRACTION if self.accel(codes.TRACTION, E, i, u) < 0.0 else codes.BRAKE
                         kind = FORCED_GRADIENT
                         target = None
                     else:
@@ -216,11 +218,11 @@ class _Driver:
                             if not follow(i, u, ue, j):
                                 return None
                         else:
-                            record(xi + end, E, (end - u) / max(v, 1e-12), kernel.CRUISE, kind, j)
+                            record(xi + end, E, (end - u) / max(v, 1e-12), codes.CRUISE, kind, j)
                         continue
                 elif (
-                    mode == kernel.TRACTION
-                    and arc.regime == kernel.CRUISE
+                    mode == codes.TRACTION
+                    and arc.regime == codes.CRUISE
                     and k_out
                     and k_out[-1] == FORCED_GRADIENT
                 ):
@@ -261,7 +263,7 @@ class _Driver:
             np.asarray(s_out, dtype=float),
             v,
             np.asarray(t_out, dtype=float),
-            np.asarray([*m_out, kernel.DWELL], dtype=np.int8),
+            np.asarray([*m_out, codes.DWELL], dtype=np.int8),
             [*k_out, ""],
             [*j_out, -1],
         )
@@ -276,49 +278,47 @@ class _Driver:
     ) -> bool:
         """Whether the intent at a point on the ceiling would leave it upwards (or slower than its curve)."""
         if on_limit:
-            if arc.regime == kernel.TRACTION:
+            if arc.regime == codes.TRACTION:
                 return True
-            if arc.regime == kernel.CRUISE:
+            if arc.regime == codes.CRUISE:
                 return arc.hold_mps >= np.sqrt(2.0 * E) - SPEED_TOLERANCE_MPS
-            if arc.regime == kernel.COAST and remotor is not None:
+            if arc.regime == codes.COAST and remotor is not None:
                 return remotor >= np.sqrt(2.0 * E) - SPEED_TOLERANCE_MPS
-            return self.accel(arc.regime if arc.regime != kernel.CRUISE else kernel.COAST, E, i, u) >= 0.0
+            return self.accel(arc.regime if arc.regime != codes.CRUISE else codes.COAST, E, i, u) >= 0.0
         # on a braking curve: only braking at least as hard as the curve stays below it
-        return arc.regime != kernel.REGEN or int(self.modes[i - self.i0]) != kernel.REGEN
+        return arc.regime != codes.REGEN or int(self.modes[i - self.i0]) != codes.REGEN
 
     def _intent(self, arc: _Arc, j: int, remotor: dict[int, float], E: float, i: int, u: float):
         """(mode, target kinetic energy or None, kind) of an arc's intent at a point below the ceiling."""
         v = np.sqrt(2.0 * E)
         vc = self.rules.coast_min_speed_mps
-        if arc.regime == kernel.TRACTION:
+        if arc.regime == codes.TRACTION:
             cap = arc.hold_mps
             if np.isfinite(cap) and v >= cap - SPEED_TOLERANCE_MPS:
-                return kernel.CRUISE, None, ""
-            return kernel.TRACTION, (0.5 * cap * cap if np.isfinite(cap) else None), ""
-        if arc.regime == kernel.REGEN:
-            return kernel.REGEN, None, ""
+                return codes.CRUISE, None, ""
+            return codes.TRACTION, (0.5 * cap * cap if np.isfinite(cap) else None), ""
+        if arc.regime == codes.REGEN:
+            return codes.REGEN, None, ""
         hold, kind = arc.hold_mps, ""
-        if arc.regime == kernel.COAST:
+        if arc.regime == codes.COAST:
             if j in remotor:
                 hold, kind = remotor[j], REMOTOR
             elif vc > 0.0 and v <= vc + SPEED_TOLERANCE_MPS:
                 remotor[j] = hold = min(vc, v) if v < vc - SPEED_TOLERANCE_MPS else vc
                 kind = REMOTOR
             else:
-                return kernel.COAST, (0.5 * vc * vc if vc > 0.0 else None), ""
+                return codes.COAST, (0.5 * vc * vc if vc > 0.0 else None), ""
         if v < hold - SPEED_TOLERANCE_MPS:
-            return kernel.TRACTION, 0.5 * hold * hold, kind
+            return codes.TRACTION, 0.5 * hold * hold, kind
         if v > hold + SPEED_TOLERANCE_MPS:
-            return kernel.COAST, 0.5 * hold * hold, kind
-        return kernel.CRUISE, None, kind
+            return codes.COAST, 0.5 * hold * hold, kind
+        return codes.CRUISE, None, kind
 
     def _holdable_until(self, E: float, i: int, u: float, ue: float) -> float:
         """Up to where in [u, ue] the speed can be held (the resistance is linear in the offset)."""
 
         def ok(x: float) -> bool:
-            return (
-                self.accel(kernel.TRACTION, E, i, x) >= -1e-12 and self.accel(kernel.BRAKE, E, i, x) <= 1e-12
-            )
+            return self.accel(codes.TRACTION, E, i, x) >= -1e-12 and self.accel(codes.BRAKE, E, i, x) <= 1e-12
 
         if not ok(u):
             return u
@@ -345,15 +345,15 @@ def _program(plan: SectionPlan) -> list[_Arc]:
     """The intents of an optimal plan: its arcs, braking read as coasting under the ceiling."""
     out: list[_Arc] = []
     r, s, v, t = plan.regime, plan.s, plan.v, plan.t
-    codes = [kernel.COAST if int(m) in (kernel.BRAKE, kernel.FOLLOW) else int(m) for m in r[:-1]]
+    labels = [codes.COAST if int(m) in (codes.BRAKE, codes.FOLLOW) else int(m) for m in r[:-1]]
     k = 0
-    while k < len(codes):
+    while k < len(labels):
         q = k
-        while q + 1 < len(codes) and codes[q + 1] == codes[k]:
+        while q + 1 < len(labels) and labels[q + 1] == labels[k]:
             q += 1
         # labels held for no time are no arc (the optimal run switches through them)
-        if t[q + 1] - t[k] > LABEL_TIME_S and not (out and out[-1].regime == codes[k]):
-            out.append(_Arc(codes[k], float(s[k]), float(v[k]) if codes[k] == kernel.CRUISE else np.nan))
+        if t[q + 1] - t[k] > LABEL_TIME_S and not (out and out[-1].regime == labels[k]):
+            out.append(_Arc(labels[k], float(s[k]), float(v[k]) if labels[k] == codes.CRUISE else np.nan))
         k = q + 1
     out[0].start_m = float(s[0])
     return _capped(out)
@@ -362,8 +362,8 @@ def _program(plan: SectionPlan) -> list[_Arc]:
 def _capped(program: list[_Arc]) -> list[_Arc]:
     """Traction intents end at the speed of a holding intent right after them."""
     for a, b in zip(program, [*program[1:], None], strict=True):
-        if a.regime == kernel.TRACTION:
-            a.hold_mps = b.hold_mps if b is not None and b.regime == kernel.CRUISE else np.nan
+        if a.regime == codes.TRACTION:
+            a.hold_mps = b.hold_mps if b is not None and b.regime == codes.CRUISE else np.nan
     return program
 
 
@@ -391,7 +391,7 @@ class RegimeRules:
             for k, a in enumerate(program)
             if k == 0
             or a.regime != program[k - 1].regime
-            or (a.regime == kernel.CRUISE and abs(a.hold_mps - program[k - 1].hold_mps) > SPEED_TOLERANCE_MPS)
+            or (a.regime == codes.CRUISE and abs(a.hold_mps - program[k - 1].hold_mps) > SPEED_TOLERANCE_MPS)
         ]
         out = self.driver.drive(_capped(program))
         if out is None:
@@ -543,7 +543,7 @@ def apply_regime_rules(
                 # the running time jumps with V here (arcs merged one way or the other): move the start
                 # of the last coasting arc of the nearest runs instead
                 for r in sorted(candidates, key=lambda r: abs(r.plan.running_time_s - running_time_s))[:3]:
-                    for regime in (kernel.COAST, kernel.TRACTION):
+                    for regime in (codes.COAST, codes.TRACTION):
                         candidates += _shift_last(rr, r, running_time_s, plan, regime)
                 chosen = _pick(candidates, running_time_s)
     if chosen is None:
@@ -564,7 +564,7 @@ def apply_regime_rules(
                 else "no merge lengthens it"
             )
             notes.append(
-                f"regime rules: {kernel.REGIME_NAMES[regime]} {a:.0f}-{b:.0f} m lasts {dur:.1f} s, shorter than "
+                f"regime rules: {codes.REGIME_NAMES[regime]} {a:.0f}-{b:.0f} m lasts {dur:.1f} s, shorter than "
                 f"{rules.min_regime_time_s:g} s ({why})"
             )
     cost = chosen.energy_j - e_opt
@@ -605,7 +605,7 @@ def _shift_last(
         return []
     c = coast[-1]
     # a traction arc moves with the coasting arc after it (it keeps its length, about the minimum)
-    n = 2 if regime == kernel.TRACTION and c + 1 < len(p) and p[c + 1].regime == kernel.COAST else 1
+    n = 2 if regime == codes.TRACTION and c + 1 < len(p) and p[c + 1].regime == codes.COAST else 1
     width = p[c + n - 1].start_m - p[c].start_m
     lo = p[c - 1].start_m + 1e-3
     hi = (p[c + n].start_m if c + n < len(p) else rr.sv.s1) - 1e-3 - width

@@ -26,7 +26,7 @@ from scipy.optimize import brentq
 from trainsim.model.scenario import RunSettings
 from trainsim.model.timetable import TimingPoint
 from trainsim.optimize.optimal import SectionPlan, SectionSolver
-from trainsim.sim import kernel
+from trainsim.sim import codes
 
 #: A binding window is met to this [s] (far inside the 0.5 s a window is checked with).
 WINDOW_TIME_TOLERANCE_S = 1e-3
@@ -296,7 +296,7 @@ def _keep_schedule(ws: SectionSolver, running_time_s: float, binding, speeds: li
     ws.stretches = (*fixed, (w.position_m, V))
     s, v, t, m = ws._phase_a(big)
     m = m.copy()
-    m[-1] = kernel.DWELL
+    m[-1] = codes.DWELL
     plan = SectionPlan(s, v, t, m, float(t[-1]), big, ws.s1, np.inf, ws.fastest_time_s, True)
     passed = passing_time_s(plan, w.position_m)
     note = (
