@@ -10,7 +10,7 @@ from trainsim.model.scenario import RunSettings
 from trainsim.multipoint import MultiPointSettings, SpeedProfile, build_multipoint_train, follow_profile
 from trainsim.multipoint import kernel as mpk
 from trainsim.multipoint.simulate import _Compiled
-from trainsim.sim.kernel import BRAKE, CRUISE, DWELL, REGEN, TRACTION
+from trainsim.sim.codes import BRAKE, CRUISE, DWELL, REGEN, TRACTION
 
 KMH = 1 / 3.6
 

@@ -11,7 +11,7 @@ import pytest
 from trainsim.errors import InputError
 from trainsim.io import documents
 from trainsim.io import multipoint_spec as mps
-from trainsim.sim.kernel import REGIME_NAMES
+from trainsim.sim.codes import REGIME_NAMES
 
 GOOD = "position_m,speed_kmh,time_s,regime\n0,0,0,{a}\n100,36,20,{b}\n200,0,40,{c}\n"
 

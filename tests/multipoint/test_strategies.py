@@ -20,7 +20,7 @@ from trainsim.multipoint import (
     follow_profile,
     run_multipoint_fastest,
 )
-from trainsim.sim.kernel import DWELL
+from trainsim.sim.codes import DWELL
 
 
 @pytest.fixture(scope="module")
@@ -192,7 +192,7 @@ def test_follows_the_timetable_optimizers_energy_efficient_run(train, strategy):
 
 def test_follows_a_profile_prescribed_point_by_point(train):
     # the FOLLOW regime: the profile's own accelerations, not maximum effort
-    from trainsim.sim.kernel import FOLLOW
+    from trainsim.sim.codes import FOLLOW
 
     route = hilly_route(stop_at=None)
     ref = trainsim.run_fastest(train, route)

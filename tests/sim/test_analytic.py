@@ -12,8 +12,8 @@ from trainsim.constants import KMH
 from trainsim.constants import STANDARD_GRAVITY as G
 from trainsim.model import Quadratic
 from trainsim.model.scenario import RunSettings
+from trainsim.sim.codes import BRAKE, CRUISE, TRACTION
 from trainsim.sim.fastest import run_fastest
-from trainsim.sim.kernel import BRAKE, CRUISE, TRACTION
 
 REL = 1e-6  # closed-form cases are integrated exactly up to round-off and root-finding
 

@@ -12,7 +12,7 @@ from simcases import make_route, make_train
 import trainsim
 from trainsim.constants import KMH
 from trainsim.model import Braking, EffortCurve, GradientSection, Quadratic
-from trainsim.sim import kernel
+from trainsim.sim import codes
 from trainsim.sim.fastest import worst_braking_surplus
 from trainsim.sim.parameters import kernel_parameters
 
@@ -60,8 +60,8 @@ def test_a_narrow_dip_in_the_braking_table_is_brake_limited():
 
 def _dense_worst(P, curve: EffortCurve, q2_extra: float, v_max: float) -> float:
     v = np.linspace(0.0, v_max, 400_001)
-    running = P[kernel.P_R0] + P[kernel.P_R1] * v + P[kernel.P_R2] * v * v
-    return float(np.max(-(P[kernel.P_BRAKE_FRACTION] * curve(v) + running) - q2_extra * v * v))
+    running = P[codes.P_R0] + P[codes.P_R1] * v + P[codes.P_R2] * v * v
+    return float(np.max(-(P[codes.P_BRAKE_FRACTION] * curve(v) + running) - q2_extra * v * v))
 
 
 @pytest.mark.parametrize("seed", range(6))

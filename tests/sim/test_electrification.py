@@ -11,7 +11,7 @@ from simcases import make_route, make_train
 
 import trainsim
 from trainsim.model import Electrical, ElectrificationSection, Quadratic
-from trainsim.sim.kernel import TRACTION
+from trainsim.sim.codes import TRACTION
 
 
 def electric(train):

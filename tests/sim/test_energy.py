@@ -13,7 +13,7 @@ import trainsim
 from trainsim.constants import KMH, KWH
 from trainsim.constants import STANDARD_GRAVITY as G
 from trainsim.model import Braking, Curve, EffortCurve, Electrical, LineResistanceSettings, Tunnel
-from trainsim.sim.kernel import BRAKE
+from trainsim.sim.codes import BRAKE
 
 F, B, M_KG, RHO = 200e3, 300e3, 300e3, 1.1
 V = 100 * KMH

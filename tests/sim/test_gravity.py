@@ -39,7 +39,7 @@ def test_gradient_force_and_cruising_traction_use_the_route_gravity(g):
     route = dataclasses.replace(make_route(gradient_permille=8.0), gravity_mps2=g)
     tr = trainsim.run_fastest(train, route).trace
     assert np.allclose(tr.gradient_resistance_n, 300e3 * g * 8e-3, rtol=1e-12)
-    cruise = tr.regime == trainsim.sim.kernel.CRUISE
+    cruise = tr.regime == trainsim.sim.codes.CRUISE
     assert cruise.sum() > 10
     assert np.allclose(tr.traction_force_n[cruise], 300e3 * g * 8e-3, rtol=1e-12)
 

@@ -12,7 +12,7 @@ import pytest
 import trainsim
 from trainsim.constants import KMH
 from trainsim.io.loader import load_route, load_train
-from trainsim.sim.kernel import BRAKE
+from trainsim.sim.codes import BRAKE
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "trainruns"
 TRAINS = ["freight.yaml", "local.yaml", "longdistance.yaml"]
