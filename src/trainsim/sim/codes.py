@@ -1,6 +1,6 @@
-"""Codes and indices shared by every compiled kernel of the single-point model and its callers:
-regimes, the layout of the parameter vector P, tolerances and statuses. Free of numba, so that what
-only needs the codes does not load the numba kernels."""
+"""Codes and indices shared by the compiled kernels of the single-point model (``sim/_kernel_c.pyx``,
+``_energy_c``, ``_trace_c``, ``optimize/_pmp_c``) and their callers: regimes, the layout of the
+parameter vector P, tolerances, statuses and the integrators' settings."""
 
 from __future__ import annotations
 
@@ -36,3 +36,24 @@ POSITION_TOLERANCE = 1e-9
 
 STATUS_OK = 0
 STATUS_STALLED = 1
+
+# Settings of the compiled integrators (sim/_kernel_c.pyx, sim/_forces.pxd hold the same values; a test
+# checks that they agree).
+
+#: Longest RK4 step as a share of the motion's length scale 2E / |a| = v^2 / |a| [-] (within about
+#: that distance E(s) meets the square-root singularity of standstill), at most ``MAX_SUBSTEPS``
+#: sub-steps per step. Only slow, strongly braked or accelerated steps are divided: at 20 m/s and
+#: 1 m/s^2 the scale is 400 m.
+LENGTH_SCALE_FRACTION = 0.01
+MAX_SUBSTEPS = 64
+#: Sub-intervals of a step over which time is summed with the exact constant-acceleration formula.
+TIME_SUBSTEPS = 4
+#: Speed change covered by one RK4 step of a speed-domain integration [m/s], and the fewest steps.
+SPEED_DOMAIN_STEP = 0.05
+SPEED_DOMAIN_MIN_STEPS = 3
+#: Extra steps per unit of |ln(a_end / a_start)|: a force that changes steeply with speed (source
+#: 002's braking force, 150 to 335 kN between 5 and 6 km/h) puts a pole of ds/dv = v / a(v) close to
+#: the interval, where a nearly constant one (most tables) needs only the fewest steps.
+SPEED_DOMAIN_STEPS_PER_LOG = 12.0
+#: Most RK4 steps of one speed-domain integration.
+SPEED_DOMAIN_MAX_STEPS = 128
