@@ -1,8 +1,9 @@
 # cython: language_level=3
 """Shared declarations of the compiled (Cython) hot path of the fastest run: the effort curves as
-C structs and the force laws every integrator evaluates. The same formulas, in the same order of
-floating-point operations, as ``trainsim.sim.kernel`` (numba), so that both give the same bits:
-no ``-ffast-math``, no fused multiply-add (the default x86-64 target has none).
+C structs and the force laws every integrator evaluates (the integrators are in ``_kernel_c.pyx``).
+Ported bit for bit from the numba kernel (issue 14): the same formulas in the same order of
+floating-point operations, no ``-ffast-math``, no fused multiply-add (the default x86-64 target has
+none).
 
 An effort curve is read from the tuple ``(starts, coefs, fcap, pcap)`` of
 ``EffortCurve.as_arrays()``; the structs hold pointers into those arrays, which the caller keeps
@@ -11,7 +12,7 @@ alive for the length of the call (the Python entry points hold the tuples).
 
 from libc.math cimport INFINITY, ceil, fabs, log, sqrt
 
-# regimes, as trainsim.sim.kernel numbers them
+# regimes, as trainsim.sim.codes numbers them (checked by a test)
 cdef enum:
     TRACTION = 0
     CRUISE = 1
@@ -21,7 +22,7 @@ cdef enum:
     REGEN = 5
     FOLLOW = 6
 
-# indices into the parameter vector P (trainsim.sim.kernel.P_*)
+# indices into the parameter vector P (trainsim.sim.codes.P_*)
 cdef enum:
     P_INERTIAL_MASS = 0
     P_MASS = 1
@@ -84,7 +85,8 @@ cdef inline Py_ssize_t search_left(const double* a, Py_ssize_t n, double v) noex
 
 
 cdef inline double law(double v, Py_ssize_t j, const double* coefs) noexcept nogil:
-    """Interval j's law c0 + c1 v + c2 v^2 + ch / v [N] (``kernel._law``)."""
+    """Interval j's law c0 + c1 v + c2 v^2 + ch / v [N] of a compiled EffortCurve at speed v [m/s]
+    (inf at v = 0 when ch != 0)."""
     cdef const double* c = coefs + 4 * j
     cdef double f = c[0] + c[1] * v + c[2] * v * v
     if c[3] != 0.0:
@@ -93,7 +95,9 @@ cdef inline double law(double v, Py_ssize_t j, const double* coefs) noexcept nog
 
 
 cdef inline double effort(double v, const Curve* k) noexcept nogil:
-    """Maximum force [N] of a compiled EffortCurve at speed v [m/s] (``kernel.effort``)."""
+    """Maximum force [N] of a compiled EffortCurve at speed v [m/s]: the law of the interval of v,
+    capped by the force cap fcap [N] and the power cap pcap [W] (taken at v, at least
+    POWER_CAP_MIN_SPEED), never negative."""
     cdef Py_ssize_t j = search_right(k.starts, k.n, v) - 1
     if j < 0:
         j = 0
@@ -107,8 +111,14 @@ cdef inline double effort(double v, const Curve* k) noexcept nogil:
 
 
 cdef inline double effort_branch(double v, double vref, const Curve* k) noexcept nogil:
-    """Force [N] at speed v [m/s] on the smooth branch that holds at ``vref``; the curve itself
-    when ``vref < 0`` (``kernel.effort_branch``)."""
+    """Force [N] of a compiled EffortCurve at speed v [m/s] on the smooth branch that holds at the
+    reference speed ``vref`` (its interval, and whichever of law, force cap, power cap or zero binds
+    there), continued smoothly to v; with ``vref < 0`` the curve itself (``effort``).
+
+    An integration between two kinks evaluates its stages on the branch of the piece it integrates:
+    a stage that lands just beyond a kink (a table step such as source 002's braking force jumping
+    from 150 to 335 kN between 5 and 6 km/h, or a cap) must not see the next branch, and a piece
+    that starts exactly at a kink must see the branch it goes into."""
     if vref < 0.0:
         return effort(v, k)
     cdef Py_ssize_t j = search_right(k.starts, k.n, vref) - 1
@@ -189,7 +199,9 @@ cdef inline double speed_of(double E) noexcept nogil:
     return sqrt(2.0 * E) if E > 0.0 else 0.0
 
 
-# kernel.SPEED_DOMAIN_STEP [m/s], SPEED_DOMAIN_MIN_STEPS, SPEED_DOMAIN_STEPS_PER_LOG (checked by a test)
+# trainsim.sim.codes.SPEED_DOMAIN_STEP [m/s] (speed change covered by one RK4 step of a speed-domain
+# integration), SPEED_DOMAIN_MIN_STEPS (the fewest steps) and SPEED_DOMAIN_STEPS_PER_LOG (extra steps
+# per unit of |ln(a_end / a_start)|), checked by a test
 cdef extern from *:
     """
     static const double TRAINSIM_SPEED_DOMAIN_STEP = 0.05;
@@ -202,7 +214,12 @@ cdef extern from *:
 
 
 cdef inline long speed_domain_steps(double v_from, double v_to, double a_from, double a_to) noexcept nogil:
-    """RK4 steps of a speed-domain integration from v_from to v_to [m/s] (``kernel.speed_domain_steps``)."""
+    """RK4 steps for a speed-domain integration from v_from to v_to [m/s] with accelerations a_from,
+    a_to [m/s^2] at its ends: one per SPEED_DOMAIN_STEP of speed; when both have the same sign, at
+    most 8 of those plus SPEED_DOMAIN_STEPS_PER_LOG per unit of |ln(a_to / a_from)|, since a force
+    that changes steeply with speed (source 002's braking force, 150 to 335 kN between 5 and 6 km/h)
+    puts a pole of ds/dv = v / a(v) close to the interval, where a nearly constant one (most tables)
+    needs only the fewest steps. Between SPEED_DOMAIN_MIN_STEPS and 128 (SPEED_DOMAIN_MAX_STEPS)."""
     cdef double n = fabs(v_to - v_from) / SPEED_DOMAIN_STEP
     if a_from * a_to > 0.0:
         n = (n if n < 8.0 else 8.0) + SPEED_DOMAIN_STEPS_PER_LOG * fabs(log(a_to / a_from))

@@ -21,7 +21,8 @@ cdef int curve_from(object arrays, Curve* out) except -1:
 
 
 cdef int curves_from(object curves, Curves* out) except -1:
-    """Fill ``out`` from the kernel's 12-tuple ``(ts, tc, tf, tp, bs, bc, bf, bp, rs, rc, rf, rp)``."""
+    """Fill ``out`` from the 12-tuple ``(ts, tc, tf, tp, bs, bc, bf, bp, rs, rc, rf, rp)`` of the
+    traction, service braking and regenerative braking curves' ``as_arrays()``."""
     curve_from(curves[0:4], &out.traction)
     curve_from(curves[4:8], &out.brake)
     curve_from(curves[8:12], &out.regen)
@@ -35,14 +36,14 @@ def power_cap_min_speed():
 
 
 def effort_at(double v, object arrays):
-    """``kernel.effort`` through the compiled structs (for tests)."""
+    """``effort`` [N] at speed v [m/s] through the compiled structs (for tests)."""
     cdef Curve k
     curve_from(arrays, &k)
     return effort(v, &k)
 
 
 def effort_branch_at(double v, double vref, object arrays):
-    """``kernel.effort_branch`` through the compiled structs (for tests)."""
+    """``effort_branch`` [N] at speed v on the branch of ``vref`` through the compiled structs (for tests)."""
     cdef Curve k
     curve_from(arrays, &k)
     return effort_branch(v, vref, &k)
@@ -70,10 +71,11 @@ def compiled_codes():
 
 
 def speed_domain_steps_of(double v_from, double v_to, double a_from, double a_to):
-    """``kernel.speed_domain_steps`` through the compiled function (for tests)."""
+    """``speed_domain_steps`` through the compiled function (for tests)."""
     return speed_domain_steps(v_from, v_to, a_from, a_to)
 
 
 def speed_domain_settings():
-    """The speed-domain step settings compiled into the extension (checked against ``kernel``)."""
+    """The speed-domain step settings compiled into the extension (checked against
+    ``trainsim.sim.codes``)."""
     return SPEED_DOMAIN_STEP, SPEED_DOMAIN_MIN_STEPS, SPEED_DOMAIN_STEPS_PER_LOG

@@ -9,7 +9,7 @@ from libc.stdint cimport int64_t
 
 from trainsim.sim._forces cimport Curves, P_MASS, P_R0, P_R1, P_R2, search_left, search_right
 
-# trainsim.sim.codes / trainsim.sim.kernel constants (checked against them by a test)
+# trainsim.sim.codes constants (checked against them by a test)
 cdef extern from *:
     """
     static const double TRAINSIM_SPEED_TOLERANCE = 1e-7;
@@ -45,7 +45,7 @@ cdef struct Kinks:
 
 cdef struct Ctx:
     # what every integrator reads: the parameter vector P (P_TRACTION_SCALE is written per interval,
-    # in the caller's array, as the numba kernel does) and the effort curves
+    # in the caller's array, as the numba kernel did) and the effort curves
     double* P
     const Curves* curves
 
@@ -78,13 +78,20 @@ cdef struct ET:
 
 
 cdef inline double resistance_force(double v, double u, const Line* line, const double* P) noexcept nogil:
-    """Running plus line resistance [N] at speed v [m/s], offset u [m] (``kernel.resistance_force``)."""
+    """Running plus line resistance [N] at speed v [m/s] and offset u [m] into the interval of
+    ``line``: running resistance P[P_R0] + P[P_R1] v + P[P_R2] v^2 plus the mass P[P_MASS] times the
+    specific resistance a0 + a1 u [N/kg] and the v^2 coefficient b0 + b1 u [N s^2/(kg m^2)] (ratios of
+    the weight times the route's g)."""
     cdef double running = P[P_R0] + P[P_R1] * v + P[P_R2] * v * v
     return running + P[P_MASS] * ((line.a0 + line.a1 * u) + (line.b0 + line.b1 * u) * v * v)
 
 
 cdef inline long substeps(double E, double h, double a) noexcept nogil:
-    """RK4 sub-steps of a step h [m] from E with acceleration a [m/s^2] (``kernel._substeps``)."""
+    """Number of RK4 sub-steps for a step h [m] from E [m^2/s^2] with acceleration a [m/s^2] there:
+    each sub-step at most LENGTH_SCALE_FRACTION of the motion's length scale 2E / |a| = v^2 / |a|
+    (within about that distance E(s) meets the square-root singularity of standstill), at most
+    MAX_SUBSTEPS. Only slow, strongly braked or accelerated steps are divided: at 20 m/s and 1 m/s^2
+    the scale is 400 m."""
     a = fabs(a)
     if not (a > 0.0 and E > 0.0):
         return 1
@@ -95,8 +102,8 @@ cdef inline long substeps(double E, double h, double a) noexcept nogil:
 
 
 cdef inline double next_kink(double v0, bint rising, double v_far, const Kinks* kinks) noexcept nogil:
-    """The kink speed next to v0 in the direction of the change, strictly before v_far, or -1
-    (``kernel._next_kink``)."""
+    """The kink speed [m/s] closest to v0 in the direction of the speed change, strictly before
+    v_far, or -1 (kinks sorted increasing)."""
     cdef Py_ssize_t j
     if rising:
         j = search_right(kinks.v, kinks.n, v0)
@@ -110,7 +117,7 @@ cdef inline double next_kink(double v0, bint rising, double v_far, const Kinks* 
 
 
 cdef inline bint is_kink(double v, const Kinks* kinks) noexcept nogil:
-    """Whether v [m/s] is a kink speed to within SPEED_TOLERANCE (``kernel._is_kink``)."""
+    """Whether v [m/s] is one of the kink speeds (sorted), to within SPEED_TOLERANCE."""
     cdef Py_ssize_t j = search_left(kinks.v, kinks.n, v)
     if j < kinks.n and fabs(kinks.v[j] - v) <= SPEED_TOLERANCE:
         return True
@@ -118,8 +125,10 @@ cdef inline bint is_kink(double v, const Kinks* kinks) noexcept nogil:
 
 
 cdef inline Py_ssize_t kinks_between(double v0, double v1, const Kinks* kinks) noexcept nogil:
-    """Kink speeds strictly between v0 and v1 (``kernel._kinks_between``)."""
-    # min and max as numba evaluates them: the first argument unless the second is strictly beyond
+    """Number of kink speeds strictly between v0 and v1 (0, not -1, when v0 == v1 is a kink: that
+    miscount once sized the output of ``insert_kink_points`` too small, and the trace lost its last
+    points)."""
+    # min and max as numba evaluated them: the first argument unless the second is strictly beyond
     cdef double lo = v1 if v1 < v0 else v0
     cdef double hi = v1 if v1 > v0 else v0
     cdef Py_ssize_t n = search_left(kinks.v, kinks.n, hi) - search_right(kinks.v, kinks.n, lo)
@@ -137,7 +146,7 @@ cdef inline Line line_of(const Track* tr, Py_ssize_t i) noexcept nogil:
 
 cdef inline void push(Out* o, double s, double v, double t, long m) noexcept nogil:
     """Append a trace point; past the arrays' end nothing is written and the overflow is flagged
-    (the entry point raises: the numba kernel would have written past the arrays)."""
+    (the entry point raises; the numba kernel this was ported from wrote past the arrays)."""
     if o.n >= o.cap:
         o.overflow = True
         return

@@ -1,23 +1,48 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
-"""Compiled (Cython) fastest-run kernel: the port of ``trainsim.sim.kernel``'s ``fastest_segment``
-and ``insert_kink_points`` with every function they call, giving the same bits as the numba ones.
+"""Compiled (Cython) kernel of the fastest run: speed envelopes in the distance domain
+(``fastest_segment``, ``braking_ceiling(_mixed)``, ``insert_kink_points`` and the integrators they
+call, which the other compiled kernels cimport through ``_kernel_c.pxd``).
 
-State and method are those of ``trainsim.sim.kernel`` (see its docstrings, which this module does not
-repeat): E = v^2 / 2 [m^2/s^2] over head position s [m], RK4 in the distance domain with sub-steps,
-kinks of the effort curves located in the speed domain. Every floating-point operation keeps the
-numba code's order and association (``a * b * c`` is ``(a * b) * c``; numba unrolls ``x**3`` with a
-constant exponent into ``x * (x * x)``; ``min(a, b)`` is ``b if b < a else a``, ``max(a, b)`` is
-``b if b > a else a``, as numba evaluates Python's min and max), and the module is compiled without
-fast-math or contraction into fused multiply-adds (setup.py), so both give the same bits (tested in
-``tests/sim/test_kernel_compiled.py``).
+State: E = v^2 / 2 [m^2/s^2] over head position s [m], so that dE/ds = a is regular at standstill,
+and time t with dt/ds = 1/v. Each grid interval has linear line-resistance laws (``Line``) and a
+constant speed ceiling. The method (OSRD-style envelopes):
 
-The ``def`` entry points take and return what the numba functions do; they check shapes and dtypes
-once, then run in C on pointers, without the GIL and without reference counting.
+- a backward pass (``braking_ceiling_mixed_c``) builds the speed ceiling: the limits, and the
+  braking curves integrated backwards from every drop of the limit and from the stop;
+- a forward pass (``fastest_segment_c``) drives maximum traction under that ceiling, cruising at a
+  limit while the traction can hold it, and brakes along the ceiling's braking curves;
+- every event (a limit reached, the traction curve meeting a braking curve, a stall) is root-found
+  inside its interval rather than left at a grid point.
 
-One difference: numba raises ZeroDivisionError on a float division by zero, C gives inf or nan. The
-only unguarded division that could meet a zero is the cruise's end where the traction stops holding
-the speed, ``(fmax - need_u) / (need_end - need_u)``, reached only when the resistance at both ends
-is the same and above the traction by at most 1e-12 relative.
+The integrators: RK4 on dE/ds = a(E, s) in the distance domain, steps of at most one interval, slow
+or strongly accelerated steps divided into sub-steps (``substeps``: near standstill E(s) meets the
+square-root singularity of v); time from the cubic Hermite interpolant of E over each step
+(``rk4_energy_time_1``), since ds / v is singular at rest; event distances by RK4 on
+ds/dv = v / a in the speed domain (``distance_to_speed``: exact event location, no root finding). An
+effort curve has kinks (table steps such as source 002's braking force jumping from 150 to 335 kN
+between 5 and 6 km/h, the force and power caps): one RK4 step across a kink loses its accuracy, so
+the kink-aware steps (``step_energy_c``, ``step_energy_time_c``) locate each kink in the speed domain
+and restart there, and every piece between kinks evaluates the force on its own smooth branch
+(``effort_branch`` in ``_forces.pxd``). Regime codes, parameter indices, tolerances and these
+settings (LENGTH_SCALE_FRACTION, MAX_SUBSTEPS, TIME_SUBSTEPS, SPEED_DOMAIN_*) are those of
+``trainsim.sim.codes`` (the compiled values are checked against it by a test).
+
+Ported bit for bit from the numba kernel of the fastest run (issue 14, since removed): every
+floating-point operation keeps the numba code's order and association (``a * b * c`` is
+``(a * b) * c``; numba unrolled ``x**3`` with a constant exponent into ``x * (x * x)``;
+``min(a, b)`` is ``b if b < a else a``, ``max(a, b)`` is ``b if b > a else a``, as numba evaluated
+Python's min and max), and the module is compiled without fast-math or contraction into fused
+multiply-adds (setup.py). The figures of the examples are those of the numba kernel, bit for bit
+(``benchmarks/figures_snapshot.py``).
+
+The ``def`` entry points take Python objects (arrays, the ``line`` 4-tuple, the 12-tuple of effort
+curves, the parameter vector P); they check shapes and dtypes once, then run in C on pointers,
+without the GIL and without reference counting.
+
+A float division by zero gives inf or nan (numba raised ZeroDivisionError). The only unguarded
+division that could meet a zero is the cruise's end where the traction stops holding the speed,
+``(fmax - need_u) / (need_end - need_u)``, reached only when the resistance at both ends is the same
+and above the traction by at most 1e-12 relative.
 """
 
 from cpython.buffer cimport (
@@ -57,7 +82,13 @@ from trainsim.sim._forces cimport (
 cdef double acceleration(
     long mode, double E, double u, const Line* line, const Ctx* c, double vref
 ) noexcept nogil:
-    """dE/ds [m/s^2] in regime ``mode`` at maximum effort (``kernel.acceleration``)."""
+    """dE/ds = acceleration [m/s^2] in regime ``mode`` at maximum effort, at E [m^2/s^2] and offset
+    u [m] into the interval of ``line``: TRACTION with the traction curve times P[P_TRACTION_SCALE];
+    BRAKE with the service braking curve times P[P_BRAKE_FRACTION], or the constant deceleration
+    P[P_DECEL] [m/s^2] when that is > 0 (the resistance alone if it brakes harder); REGEN with the
+    regenerative braking curve; any other regime (coasting) with the resistance alone. Divided by the
+    inertial mass P[P_INERTIAL_MASS]. ``vref`` >= 0 selects the curves' smooth branch at that speed
+    (``effort_branch``), < 0 the curve itself."""
     cdef double v = sqrt(2.0 * E) if E > 0.0 else 0.0
     cdef const double* P = c.P
     cdef double res = resistance_force(v, u, line, P)
@@ -81,7 +112,7 @@ cdef double acceleration(
 cdef inline double rk4_energy_1(
     double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref, double k1
 ) noexcept nogil:
-    """One RK4 step of E over h [m] (``kernel._rk4_energy_1``)."""
+    """One RK4 step of E [m^2/s^2] over h [m] from offset u, with k1 the acceleration there."""
     cdef double k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, line, c, vref)
     cdef double k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, line, c, vref)
     cdef double k4 = acceleration(mode, E + h * k3, u + h, line, c, vref)
@@ -91,7 +122,8 @@ cdef inline double rk4_energy_1(
 cdef double rk4_energy(
     double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref
 ) noexcept nogil:
-    """E after a step h [m], negative backwards, not clipped at 0 (``kernel.rk4_energy``)."""
+    """E [m^2/s^2] after a step h [m] (negative: backwards) from offset u; not clipped at 0. Slow
+    steps are divided into sub-steps (``substeps``, LENGTH_SCALE_FRACTION)."""
     cdef double k1 = acceleration(mode, E, u, line, c, vref)
     cdef long n = substeps(E, h, k1)
     cdef double d = h / n
@@ -107,8 +139,12 @@ cdef double rk4_energy(
 cdef ET rk4_energy_time_1(
     double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref, double k1
 ) noexcept nogil:
-    """(E, elapsed time [s]) after one forward RK4 step h [m], the time from the cubic Hermite
-    interpolant of E (``kernel._rk4_energy_time_1``)."""
+    """(E [m^2/s^2], elapsed time [s]) after one forward RK4 step h [m] from offset u.
+
+    Time is the integral of ds / v, singular at standstill. E(s) over the step is taken as the
+    cubic Hermite interpolant of its end values and slopes (k1 and the acceleration at the end), and
+    on each of TIME_SUBSTEPS sub-intervals, where E is nearly linear, dt = 2 ds / (v_a + v_b), exact
+    for linear E (constant acceleration)."""
     cdef double k2 = acceleration(mode, E + 0.5 * h * k1, u + 0.5 * h, line, c, vref)
     cdef double k3 = acceleration(mode, E + 0.5 * h * k2, u + 0.5 * h, line, c, vref)
     cdef double k4 = acceleration(mode, E + h * k3, u + h, line, c, vref)
@@ -120,7 +156,7 @@ cdef ET rk4_energy_time_1(
     cdef long j
     for j in range(1, TIME_SUBSTEPS + 1):
         x = (<double>j) / (<double>TIME_SUBSTEPS)
-        # numba unrolls x**2 into x * x and x**3 into x * (x * x)
+        # x**2 as x * x and x**3 as x * (x * x), as numba unrolled them (same bits)
         x2 = x * x
         x3 = x * x2
         h00 = 2.0 * x3 - 3.0 * x2 + 1.0
@@ -143,7 +179,8 @@ cdef ET rk4_energy_time_1(
 cdef ET rk4_energy_time(
     double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref
 ) noexcept nogil:
-    """(E, elapsed time [s]) after a forward step h [m] with sub-steps (``kernel.rk4_energy_time``)."""
+    """(E [m^2/s^2], elapsed time [s]) after a forward step h [m] from offset u; slow steps are
+    divided into sub-steps (``substeps``, LENGTH_SCALE_FRACTION), each as ``rk4_energy_time_1``."""
     cdef double k1 = acceleration(mode, E, u, line, c, vref)
     cdef long n = substeps(E, h, k1)
     cdef double d = h / n
@@ -166,8 +203,12 @@ cdef ET rk4_energy_time(
 cdef double distance_to_speed(
     double E, double u, double Et, long mode, const Line* line, const Ctx* c
 ) noexcept nogil:
-    """Signed distance [m] along ``mode`` until E reaches Et, RK4 on ds/dv = v / a in the speed
-    domain; inf when Et is never reached (``kernel.distance_to_speed``)."""
+    """Signed distance [m] from (u, E) along ``mode`` until E reaches Et [m^2/s^2], integrating
+    ds/dv = v / a(v, s) by RK4 in the speed domain (exact event location, no root finding; regular
+    down to standstill, and exact for a constant force), in ``speed_domain_steps`` steps. The law must
+    be smooth between E and Et (no kink inside; it is evaluated on the branch of the speeds in
+    between, vref their mean). Returns inf when the acceleration vanishes or changes sign on the
+    way, i.e. Et is never reached."""
     cdef double v_from = sqrt(2.0 * E) if E > 0.0 else 0.0
     cdef double v_to = sqrt(2.0 * Et) if Et > 0.0 else 0.0
     cdef double vref = 0.5 * (v_from + v_to)
@@ -215,8 +256,13 @@ cdef double distance_to_speed(
 cdef ET step_energy_time_c(
     double E, double u, double h, long mode, const Line* line, const Ctx* c, const Kinks* kinks
 ) noexcept nogil:
-    """(E, elapsed time [s]) after a step h [m], restarted at every kink on the way
-    (``kernel.step_energy_time``)."""
+    """(E [m^2/s^2], elapsed time [s]) after a step h [m] from offset u, restarted at every kink
+    of the effort curve on the way: one RK4 step across a kink (e.g. source 002's braking force
+    jumping from 150 to 335 kN between 5 and 6 km/h) loses its accuracy, so the kink is located in
+    the speed domain (``distance_to_speed``) and the step split there. A kink just beyond the step's
+    end speed is looked for too (RK4 across it can land on either side), and a piece that starts at
+    a kink or ends at one is integrated again on its own branch (vref the mean of its end speeds).
+    At most 64 pieces."""
     cdef double remaining = h
     cdef double total_dt = 0.0
     cdef bint split = is_kink(sqrt(2.0 * E) if E > 0.0 else 0.0, kinks)
@@ -252,7 +298,8 @@ cdef ET step_energy_time_c(
 cdef double step_energy_c(
     double E, double u, double h, long mode, const Line* line, const Ctx* c, const Kinks* kinks
 ) noexcept nogil:
-    """E after a kink-aware step h [m], negative backwards (``kernel.step_energy``)."""
+    """E [m^2/s^2] after a kink-aware step h [m] (negative: backwards) from offset u; like
+    ``step_energy_time_c`` without the time, for the backward braking curves."""
     cdef double remaining = h
     cdef double E1 = E
     cdef bint split = is_kink(sqrt(2.0 * E) if E > 0.0 else 0.0, kinks)
@@ -284,8 +331,9 @@ cdef double find_speed_crossing_split_c(
     double E, double u, double H, double target_E, long mode, const Line* line, const Ctx* c,
     const Kinks* kinks,
 ) noexcept nogil:
-    """Signed distance in (0, H] where E reaches target_E along ``mode``, across kinks; H if it is
-    not reached (``kernel.find_speed_crossing_split``)."""
+    """Signed distance [m] in (0, H] (H may be negative) where E reaches target_E along ``mode``,
+    chaining speed-domain integrations (``distance_to_speed``) across the kinks in between; H if it
+    is not reached."""
     cdef double v_t = sqrt(2.0 * target_E) if target_E > 0.0 else 0.0
     cdef double v = sqrt(2.0 * E) if E > 0.0 else 0.0
     cdef bint rising = v_t > v
@@ -312,8 +360,9 @@ cdef double find_curve_meeting(
     double E, double u, double Er, double w, const Line* line, const Ctx* c, const Kinks* tk,
     const Kinks* bk,
 ) noexcept nogil:
-    """Offset in (u, w] where the traction curve from (u, E) meets the braking curve ending at
-    (w, Er), Illinois method (``kernel.find_curve_meeting``)."""
+    """Offset [m] in (u, w] where the traction curve from (u, E) meets the braking curve ending at
+    (w, Er) (Illinois method on their difference, both curves by kink-aware steps; to within
+    POSITION_TOLERANCE, at most 100 iterations)."""
     cdef double lo = u, hi = w
     cdef double f_lo = E - step_energy_c(Er, w, u - w, BRAKE, line, c, bk)
     cdef double f_hi = step_energy_c(E, u, w - u, TRACTION, line, c, tk) - Er
@@ -352,9 +401,13 @@ cdef void braking_ceiling_mixed_c(
     const Track* tr, Py_ssize_t i0, Py_ssize_t i1, const Ctx* c, const Kinks* bk, const Kinks* rk,
     const int64_t* modes, long mode_all, double* Cr, double* Cl, double* US,
 ) noexcept nogil:
-    """Backward pass from standstill at x[i1] to x[i0] (``kernel.braking_ceiling_mixed``; with
-    ``modes`` NULL every interval's mode is ``mode_all``, as ``kernel.braking_ceiling``). Writes
-    Cr, Cl, US for intervals k = i - i0."""
+    """Backward pass from standstill at x[i1] to x[i0]: the speed ceiling made of the limits and
+    the braking curves to every lower limit and to the stop. For interval k = i - i0 it is the limit
+    vlim[i] on offsets below US[k] [m] and the braking curve ending at (width, Cr[k]) above; Cl[k] is
+    its value at the interval's start [m/s]. Interval i brakes in mode ``modes[i]`` (BRAKE: service
+    braking, with the kinks ``bk``; REGEN: regenerative braking only, for energy-efficient approaches
+    to lower limits, with the kinks ``rk``); with ``modes`` NULL every interval's mode is
+    ``mode_all``. Writes Cr, Cl, US (i1 - i0 values each)."""
     cdef Py_ssize_t m_int = i1 - i0
     cdef double c_next = 0.0
     cdef Py_ssize_t k, i
@@ -401,9 +454,14 @@ cdef long fastest_segment_c(
     const Track* tr, Py_ssize_t i0, Py_ssize_t i1, double t0, const Ctx* c, const Kinks* tk,
     const Kinks* bk, Out* o, double* Cr, double* Cl, double* US, double* stall_at,
 ) noexcept nogil:
-    """Fastest run from standstill at x[i0] to standstill at x[i1], appended to ``o``; returns the
-    status, the stall position in ``stall_at`` (``kernel.fastest_segment``). Cr, Cl, US: scratch of
-    i1 - i0 values each."""
+    """Fastest run from standstill at x[i0] to standstill at x[i1] [m], starting at time t0 [s]:
+    the braking ceiling (``braking_ceiling_mixed_c``, service braking), then maximum traction
+    forwards under it, cruising at a limit as long as the traction can hold the speed, the meeting
+    with a braking curve root-found (``find_curve_meeting``), braking along the ceiling's curves. The
+    points (s, v, t, regime of the stretch that starts there) are appended to ``o``, ending with a
+    DWELL point at the stop. Returns STATUS_OK, or STATUS_STALLED with the stall position [m] in
+    ``stall_at`` (the traction cannot overcome the resistance). Writes P[P_TRACTION_SCALE] per
+    interval. Cr, Cl, US: scratch of i1 - i0 values each."""
     cdef Py_ssize_t m_int = i1 - i0
     cdef double* P = c.P
     braking_ceiling_mixed_c(tr, i0, i1, c, bk, bk, NULL, BRAKE, Cr, Cl, US)
@@ -498,7 +556,10 @@ cdef Py_ssize_t insert_kink_points_c(
     const double* t, const signed char* m, Py_ssize_t n, Out* o,
 ) noexcept nogil:
     """Copy the trace (s, v, t, m) of n points into ``o``, adding a point wherever a traction or
-    braking stretch crosses a kink of its effort curve (``kernel.insert_kink_points``)."""
+    braking stretch crosses a kink of its effort curve (located by ``distance_to_speed``, its time by
+    ``rk4_energy_time`` on the piece's branch), so that trapezoidal work integrals over the trace are
+    exact at kinks. ``o`` is sized by ``kinks_between``'s count, and never more points are added.
+    Writes P[P_TRACTION_SCALE]. Returns the points written."""
     cdef Py_ssize_t n_int = tr.n
     cdef Py_ssize_t k, i, ix, q, nk
     cdef const Kinks* kinks
@@ -519,8 +580,8 @@ cdef Py_ssize_t insert_kink_points_c(
         i = search_right(tr.x, n_int + 1, s[k]) - 1
         if i > n_int - 1:
             i = n_int - 1
-        # numba indexes -1 as the last element (a point before the grid's start): each array wraps
-        # by its own length
+        # index -1 is the last element, as numba indexed it (a point before the grid's start): each
+        # array wraps by its own length
         ix = i if i >= 0 else i + n_int + 1
         if i < 0:
             i += n_int
@@ -695,8 +756,8 @@ def fastest_segment(
 ):
     """Fastest run from standstill at x[i0] to standstill at x[i1] [m], starting at time t0 [s];
     appends points to the out arrays (float64, regimes int8) from index n. Returns
-    ``(new n, status, position of a stall [m])`` as ``trainsim.sim.kernel.fastest_segment``. Writes
-    P[P_TRACTION_SCALE] as that does."""
+    ``(new n, status, position of a stall [m])`` (STATUS_OK and 0.0, or STATUS_STALLED); see
+    ``fastest_segment_c``. Writes P[P_TRACTION_SCALE] per interval."""
     cdef Track tr = _track(x, a0, a1, b0, b1, vlim, tscale, i1)
     cdef Curves cv
     cdef Ctx c
@@ -764,7 +825,8 @@ cdef tuple _braking_ceiling(
 
 def braking_ceiling_mixed(x, a0, a1, b0, b1, vlim, Py_ssize_t i0, Py_ssize_t i1, P, curves, bk, rk, modes):
     """``(Cr, Cl, US)`` of the backward pass from standstill at x[i1] to x[i0], each interval in its
-    mode ``modes[i]`` (int64, BRAKE or REGEN), as ``trainsim.sim.kernel.braking_ceiling_mixed``."""
+    mode ``modes[i]`` (int64, BRAKE or REGEN), ``bk`` and ``rk`` the kinks of the service and of the
+    regenerative braking curve; see ``braking_ceiling_mixed_c`` for the result."""
     cdef Track tr = _track(x, a0, a1, b0, b1, vlim, a0, i1)
     cdef Arr am = _array(modes, "modes", c'q')
     if am.n < i1:
@@ -774,15 +836,15 @@ def braking_ceiling_mixed(x, a0, a1, b0, b1, vlim, Py_ssize_t i0, Py_ssize_t i1,
 
 def braking_ceiling(x, a0, a1, b0, b1, vlim, Py_ssize_t i0, Py_ssize_t i1, P, curves, bk, long mode=BRAKE):
     """``(Cr, Cl, US)`` of the backward pass in one ``mode`` (BRAKE or REGEN) with ``bk`` that
-    curve's kinks, as ``trainsim.sim.kernel.braking_ceiling``."""
+    curve's kinks; see ``braking_ceiling_mixed_c`` for the result."""
     cdef Track tr = _track(x, a0, a1, b0, b1, vlim, a0, i1)
     return _braking_ceiling(&tr, i0, i1, P, curves, bk, bk, NULL, mode)
 
 
 def insert_kink_points(x, a0, a1, b0, b1, tscale, P, curves, tk, bk, s, v, t, m):
     """The trace (s [m], v [m/s], t [s], regime m as int8) with a point added wherever a traction or
-    braking stretch crosses a kink of its effort curve, as ``trainsim.sim.kernel.insert_kink_points``
-    (new arrays; writes P[P_TRACTION_SCALE] as that does)."""
+    braking stretch crosses a kink of its effort curve, so that trapezoidal work integrals over the
+    trace are exact at kinks (new arrays; writes P[P_TRACTION_SCALE]); see ``insert_kink_points_c``."""
     cdef Track tr = _track(x, a0, a1, b0, b1, None, tscale, 1)
     cdef Curves cv
     cdef Ctx c
@@ -823,7 +885,7 @@ def insert_kink_points(x, a0, a1, b0, b1, tscale, P, curves, tk, bk, s, v, t, m)
 
 
 def acceleration_of(long mode, double E, double u, line, P, curves, double vref=-1.0):
-    """``trainsim.sim.kernel.acceleration`` [m/s^2] through the compiled function."""
+    """dE/ds [m/s^2] of the cdef ``acceleration`` (for the optimiser and tests)."""
     cdef Curves cv
     cdef Ctx c
     _ctx(P, curves, &cv, &c)
@@ -832,7 +894,7 @@ def acceleration_of(long mode, double E, double u, line, P, curves, double vref=
 
 
 def rk4_energy_of(double E, double u, double h, long mode, line, P, curves, double vref=-1.0):
-    """``trainsim.sim.kernel.rk4_energy``: E [m^2/s^2] after the step."""
+    """E [m^2/s^2] after the RK4 step of the cdef ``rk4_energy`` (for tests)."""
     cdef Curves cv
     cdef Ctx c
     _ctx(P, curves, &cv, &c)
@@ -841,7 +903,7 @@ def rk4_energy_of(double E, double u, double h, long mode, line, P, curves, doub
 
 
 def rk4_energy_time_of(double E, double u, double h, long mode, line, P, curves, double vref=-1.0):
-    """``trainsim.sim.kernel.rk4_energy_time``: (E [m^2/s^2], elapsed time [s])."""
+    """(E [m^2/s^2], elapsed time [s]) of the cdef ``rk4_energy_time`` (for tests)."""
     cdef Curves cv
     cdef Ctx c
     _ctx(P, curves, &cv, &c)
@@ -851,7 +913,7 @@ def rk4_energy_time_of(double E, double u, double h, long mode, line, P, curves,
 
 
 def distance_to_speed_of(double E, double u, double Et, long mode, line, P, curves):
-    """``trainsim.sim.kernel.distance_to_speed`` [m]."""
+    """Signed distance [m] of the cdef ``distance_to_speed`` (inf: never reached; for tests)."""
     cdef Curves cv
     cdef Ctx c
     _ctx(P, curves, &cv, &c)
@@ -860,8 +922,7 @@ def distance_to_speed_of(double E, double u, double Et, long mode, line, P, curv
 
 
 def step_energy_time(double E, double u, double h, long mode, line, P, curves, kinks):
-    """(E [m^2/s^2], elapsed time [s]) after a kink-aware step h [m], as
-    ``trainsim.sim.kernel.step_energy_time``."""
+    """(E [m^2/s^2], elapsed time [s]) after a kink-aware step h [m]; see ``step_energy_time_c``."""
     cdef Curves cv
     cdef Ctx c
     _ctx(P, curves, &cv, &c)
@@ -872,7 +933,7 @@ def step_energy_time(double E, double u, double h, long mode, line, P, curves, k
 
 
 def step_energy(double E, double u, double h, long mode, line, P, curves, kinks):
-    """E [m^2/s^2] after a kink-aware step h [m], as ``trainsim.sim.kernel.step_energy``."""
+    """E [m^2/s^2] after a kink-aware step h [m] (negative: backwards); see ``step_energy_c``."""
     cdef Curves cv
     cdef Ctx c
     _ctx(P, curves, &cv, &c)
@@ -884,7 +945,8 @@ def step_energy(double E, double u, double h, long mode, line, P, curves, kinks)
 def find_speed_crossing_split(
     double E, double u, double H, double target_E, long mode, line, P, curves, kinks
 ):
-    """Signed distance [m] where E reaches target_E, as ``trainsim.sim.kernel.find_speed_crossing_split``."""
+    """Signed distance [m] in (0, H] where E reaches target_E, H if it is not reached; see
+    ``find_speed_crossing_split_c``."""
     cdef Curves cv
     cdef Ctx c
     _ctx(P, curves, &cv, &c)
@@ -894,7 +956,7 @@ def find_speed_crossing_split(
 
 
 def find_curve_meeting_of(double E, double u, double Er, double w, line, P, curves, tk, bk):
-    """``trainsim.sim.kernel.find_curve_meeting`` [m]."""
+    """Offset [m] of the cdef ``find_curve_meeting`` (for tests)."""
     cdef Curves cv
     cdef Ctx c
     _ctx(P, curves, &cv, &c)
@@ -904,14 +966,14 @@ def find_curve_meeting_of(double E, double u, double Er, double w, line, P, curv
 
 
 def kinks_between_of(double v0, double v1, kinks):
-    """``trainsim.sim.kernel._kinks_between``."""
+    """Kink speeds strictly between v0 and v1 (``kinks_between`` of ``_kernel_c.pxd``; for tests)."""
     cdef Kinks k = _kinks(kinks)
     return kinks_between(v0, v1, &k)
 
 
 def compiled_constants():
     """The tolerances and step settings compiled into this module (checked by a test against
-    ``trainsim.sim.codes`` and ``trainsim.sim.kernel``)."""
+    ``trainsim.sim.codes``)."""
     return {
         "SPEED_TOLERANCE": SPEED_TOLERANCE,
         "POSITION_TOLERANCE": POSITION_TOLERANCE,
