@@ -378,7 +378,7 @@ cdef double coupler_energy_c(double delta, const double* cp) noexcept nogil:
 # ============================================================================ effort curves, profiles
 cdef Effort effort_slope(double v, Py_ssize_t c, const Bank* bank, double vsel) noexcept nogil:
     """Force [N] and slope d F / d v [N s/m] of curve ``c`` of the bank at speed v >= 0 [m/s] (the law
-    of ``trainsim.sim.kernel.effort``). The law's interval is the one of speed ``vsel`` if >= 0: within
+    of ``effort`` in ``sim/_forces.pxd``). The law's interval is the one of speed ``vsel`` if >= 0: within
     a step the integrator keeps the interval of the step's start, since a law may jump where two
     intervals meet and Newton's method finds no root on a jump."""
     cdef int64_t lo = bank.coff[c]

@@ -64,7 +64,7 @@ class SpeedProfile:
     Attributes:
         position_m: head positions, non-decreasing [m].
         speed_mps: speed at each position [m/s].
-        regime: regime of the stretch from each point to the next (``trainsim.sim.kernel`` codes
+        regime: regime of the stretch from each point to the next (``trainsim.sim.codes``
             TRACTION, CRUISE, COAST, BRAKE, DWELL; a DWELL point is the arrival at a stop); None: read
             from the speed (rising: traction, falling: braking, flat: cruising; arrivals where the speed
             is 0 after the start).

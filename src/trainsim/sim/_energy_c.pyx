@@ -1,8 +1,8 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
 """Work integrals of a run, exact between the events of the motion: the compiled (Cython) form of
 ``trainsim.sim.energy`` (see its docstring for the method). Every formula keeps the order and
-association of the floating-point operations of the numba functions it replaced, so that the works
-are the same bits (plain IEEE arithmetic: no fast-math, no fused multiply-add).
+association of the floating-point operations of the numba functions it was ported from (issue 14),
+so that the works are the same bits (plain IEEE arithmetic: no fast-math, no fused multiply-add).
 
 The loops run on C scalars and pointers into the caller's arrays, without the GIL; ``stretch_works``
 checks its arguments once (converting only arrays of another dtype or layout).
@@ -270,7 +270,7 @@ cdef inline long substeps(
 
 cdef inline double next_kink(double v0, bint rising, double v_far, const Kinks* kinks) noexcept nogil:
     """The kink speed closest to v0 in the direction of the speed change, strictly before v_far, or
-    -1 (``kernel._next_kink``)."""
+    -1 (as ``next_kink`` of ``_kernel_c.pxd``)."""
     cdef Py_ssize_t j
     if rising:
         j = search_right(kinks.v, kinks.n, v0)
