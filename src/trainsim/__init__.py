@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from trainsim.sim.result import EnergyFigures, RunResult, SectionSummary, Trace
 
 # Everything but the errors is imported on first use: `import trainsim` (and `trainsim --help`) must
-# not pay for numba, scipy, pandas or pydantic (issue 14's start-up budget).
+# not pay for scipy, pandas, pydantic or the compiled kernels (issue 14's start-up budget).
 _LAZY: dict[str, str] = {
     "RunSettings": "trainsim.model.scenario",
     "Scenario": "trainsim.model.scenario",

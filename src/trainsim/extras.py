@@ -1,6 +1,6 @@
 """Optional dependencies: which extra of ``pip install "trainsim[EXTRA]"`` brings which module.
 
-The core install (numpy, scipy, pandas, pydantic, PyYAML, matplotlib, numba, typer, rich, jsonschema)
+The core install (numpy, scipy, pandas, pydantic, PyYAML, matplotlib, typer, rich, jsonschema)
 runs, optimises and plots trainsim's own files and railtoolkit/TrainRuns.jl and TTOBench files; the rest
 is in extras, so that a light install stays light. A command that needs a missing extra says which one.
 """

@@ -87,7 +87,7 @@ class Cluster:
 
 @pytest.fixture(scope="module")
 def warm_cache():
-    """One run here first: numba writes its cache, which the workers then load instead of compiling."""
+    """One run here first, so that the workers start from imported modules and examples read once."""
     run_study(study_from_dict(metro_study(), "warm.yaml"), None, executor="serial")
 
 

@@ -13,15 +13,12 @@ pandas +0.4 s, scipy.linalg +0.3 s; numba with its first cached function 7x the 
 
 from __future__ import annotations
 
-import importlib
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
 
 REPO = Path(__file__).resolve().parents[2]
 METRO = REPO / "examples" / "metro_b" / "scenario.yaml"
@@ -205,116 +202,37 @@ def test_multipoint_table_bytes_equal_pandas_to_csv(tmp_path, number_format):
     assert ours == (tmp_path / "pandas.csv").read_bytes()
 
 
-# ---------------------------------------------------------------- the note of a first compile
-#: a numba module of two cached functions, the second calling the first (two compiles, one note)
-TINY_KERNELS = """
-from numba import njit
+# ---------------------------------------------------------------- no numba anywhere
+# Every kernel is compiled at install (Cython, setup.py): nothing is compiled at run time, so no
+# command pays numba's 0.5 s CPU per process or its minutes of compilation after an install.
 
 
-@njit(cache=True)
-def one(x):
-    return x + 1.0
+def test_no_module_of_trainsim_imports_numba():
+    import ast
+
+    found = []
+    for path in sorted((REPO / "src" / "trainsim").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module]
+            found += [f"{path.relative_to(REPO)}:{node.lineno}" for n in names if n.split(".")[0] == "numba"]
+    assert found == []
 
 
-@njit(cache=True)
-def two(x):
-    return one(x) * 2.0
-"""
+def test_numba_is_not_a_dependency_of_the_core_install():
+    import tomllib
 
-COMPILE_PROBE = (
-    "import sys; sys.path.insert(0, sys.argv[1]); "
-    "from trainsim.cli.context import notice_first_compile; notice_first_compile(); notice_first_compile(); "
-    "import tiny_kernels; tiny_kernels.two(1.0); tiny_kernels.one(2.0)"
-)
+    project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
+    assert not [d for d in project["dependencies"] if d.lower().startswith(("numba", "llvmlite"))]
 
 
-def test_a_numba_compile_is_noted_once_and_a_cache_hit_is_not(tmp_path):
-    # an empty NUMBA_CACHE_DIR stands for a fresh install: the user is told why the first use is slow
-    from trainsim.cli.context import FIRST_COMPILE_NOTE
-
-    (tmp_path / "mod").mkdir()
-    (tmp_path / "mod" / "tiny_kernels.py").write_text(TINY_KERNELS)
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
-    cmd = [sys.executable, "-c", COMPILE_PROBE, str(tmp_path / "mod")]
-    first = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=env)
-    assert first.returncode == 0, first.stderr
-    assert first.stderr.count(FIRST_COMPILE_NOTE) == 1
-    again = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=env)
-    assert again.returncode == 0, again.stderr
-    assert FIRST_COMPILE_NOTE not in again.stderr  # loaded from the cache: nothing compiled, nothing said
-
-
-class _StopError(Exception):
-    """Raised by a command's work, replaced in the test: the command is stopped before any kernel runs."""
-
-
-EXAMPLES = REPO / "examples"
-
-#: command line -> the function doing its numba work (replaced by a stand-in in the test)
-NUMBA_COMMANDS = {
-    "optimize": (["optimize", str(METRO), "--supplement", "10%"], "trainsim.optimize.api.optimize"),
-    "run (driving block)": (
-        ["run", str(EXAMPLES / "power" / "metro_scenario_eco.yaml")],
-        "trainsim.optimize.api.optimize",
-    ),
-    "power": (
-        ["power", str(EXAMPLES / "power" / "metro_750v_reversible.yaml")],
-        "trainsim.batch.power_timetable.run_power_file",
-    ),
-    "power --compare-driving": (
-        [
-            "power",
-            str(EXAMPLES / "power" / "metro_750v_reversible.yaml"),
-            "--compare-driving",
-            "fastest,optimal",
-        ],
-        "trainsim.io.power_compare.compare_driving",
-    ),
-    "operate": (
-        ["operate", str(EXAMPLES / "operations" / "metro_fixed_block.yaml")],
-        "trainsim.io.operation_run.run_operation_file",
-    ),
-}
-
-
-def listening_at_work(args: list[str], work: str, monkeypatch: pytest.MonkeyPatch) -> list[bool]:
-    """Whether the first-compile note listens when the command reaches ``work`` (replaced by a stand-in
-    that stops the command there), once per call of ``work``."""
-    from trainsim.cli import app, context
-
-    module, function = work.rsplit(".", 1)
-    seen: list[bool] = []
-
-    def stand_in(*_args, **_kwargs):
-        seen.append(context._first_compile_listener is not None)
-        raise _StopError
-
-    monkeypatch.setattr(importlib.import_module(module), function, stand_in)
-    monkeypatch.setattr(context, "_first_compile_listener", None)
-    try:
-        result = CliRunner().invoke(app, args)
-    finally:
-        listener = context._first_compile_listener
-        if listener is not None:  # no note from this test's listener in later tests
-            from numba.core import event
-
-            event.unregister("numba:compile", listener)
-    assert isinstance(result.exception, _StopError), result.output
-    return seen
-
-
-@pytest.mark.parametrize("name", list(NUMBA_COMMANDS))
-def test_a_command_running_numba_kernels_listens_for_a_compile_before_its_work(name, monkeypatch):
-    assert listening_at_work(*NUMBA_COMMANDS[name], monkeypatch) == [True]
-
-
-def test_a_fastest_run_does_not_listen_for_numba(monkeypatch):
-    # compiled at install: installing the listener would import numba for nothing
-    assert listening_at_work(["run", str(METRO)], "trainsim.sim.fastest.run_scenario", monkeypatch) == [False]
-
-
-def test_a_multipoint_run_does_not_listen_for_numba(monkeypatch):
-    # the multi-point kernel is compiled at install too (multipoint/_mp_c.pyx, issue 14)
-    args = ["run", str(EXAMPLES / "heavy_haul" / "scenario_head.yaml")]
-    work = "trainsim.io.multipoint_spec.run_multipoint_scenario"
-    assert listening_at_work(args, work, monkeypatch) == [False]
+@pytest.mark.skipif(not METRO.exists(), reason="examples/metro_b not present")
+def test_an_energy_efficient_run_loads_no_numba():
+    args = ("optimize", str(METRO), "--supplement", "10%")
+    code, modules = imported(*args)
+    assert code == 0
+    assert "trainsim.optimize._pmp_c" in modules
+    assert_not_imported(modules, ("numba", "llvmlite"), *args)

@@ -10,8 +10,6 @@ from trainsim.constants import KMH
 from trainsim.model import GradientSection, LineResistanceSettings, Route, SpeedLimit, Station
 from trainsim.optimize import lesov
 
-pytest.importorskip("numba")
-
 
 def _train():
     import trainsim

@@ -23,8 +23,6 @@ from trainsim.optimize import lesov
 from trainsim.optimize.optimal import SectionSolver
 from trainsim.sim import _kernel_c, codes
 
-pytest.importorskip("numba")
-
 ROOT = Path(__file__).resolve().parents[2]
 #: the line's first section: descents that end on grades that need traction to hold the speed
 SECTION_M = (0.0, 26_000.0)

@@ -18,8 +18,6 @@ from trainsim.optimize import lesov
 from trainsim.optimize.api import _solvers, optimize, proportional_targets
 from trainsim.optimize.timetable import line_supplement
 
-pytest.importorskip("numba")
-
 ROOT = Path(__file__).resolve().parents[2]
 #: an artificial jump of the running time [s], far above what counts as meeting the schedule
 JUMP_S = 1e-3

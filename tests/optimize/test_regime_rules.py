@@ -16,7 +16,7 @@ from trainsim.errors import InputError
 from trainsim.optimize.api import optimize
 from trainsim.optimize.constraints import DrivingConstraints
 from trainsim.optimize.timetable import SectionSchedule, Timetable
-from trainsim.sim import kernel
+from trainsim.sim import codes
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests" / "multipoint"))
@@ -43,7 +43,7 @@ def arcs(tr) -> list[tuple[int, float, float, float, float]]:
         q = k
         while q + 1 < len(r) - 1 and r[q + 1] == r[k]:
             q += 1
-        if r[k] != kernel.DWELL and t[q + 1] - t[k] > 1e-6:
+        if r[k] != codes.DWELL and t[q + 1] - t[k] > 1e-6:
             out.append(
                 (int(r[k]), float(s[k]), float(s[q + 1]), float(t[q + 1] - t[k]), float(v[k : q + 2].min()))
             )
@@ -75,12 +75,12 @@ def check(free, res, dc: DrivingConstraints, unmerged: bool = False) -> None:
     # gravity included: the net energy balance of the recorded motion closes
     assert abs(res.run.energy_balance["relative_error"]) < 1e-6
     for regime, a, b, dur, vmin in arcs(res.run.trace):
-        if dc.coast_min_speed_mps and regime == kernel.COAST:
+        if dc.coast_min_speed_mps and regime == codes.COAST:
             assert vmin >= dc.coast_min_speed_mps - 1e-6, (a, b, vmin / KMH)
         if dc.min_regime_time_s and dur < dc.min_regime_time_s - 1e-6:
             # only where a limit, the stop or a gradient forces it, and said in a note
             named = [n for n in res.notes if re.search(rf"\b{a:.0f}-{b:.0f} m lasts", n)]
-            assert named, (kernel.REGIME_NAMES[regime], a, b, dur, res.notes)
+            assert named, (codes.REGIME_NAMES[regime], a, b, dur, res.notes)
             assert "forced by the" in named[0] or (unmerged and "no merge lengthens it" in named[0]), named
 
 
@@ -93,13 +93,13 @@ def metro():
 def test_metro_coasts_only_above_the_speed(metro):
     train, route, free, tt = metro
     # the free optimum coasts down to about 64 km/h: 67 km/h binds
-    assert any(r == kernel.COAST and v < 66 * KMH for r, *_, v in arcs(free.run.trace))
+    assert any(r == codes.COAST and v < 66 * KMH for r, *_, v in arcs(free.run.trace))
     dc = DrivingConstraints(coast_min_speed_mps=67 * KMH)
     res = optimize(train, route, tt, constraints=dc)
     check(free, res, dc)
     assert res.run.energy_kwh.net > free.run.energy_kwh.net * (1.0 + 1e-4)
     # below the speed it holds it (the coast-remotor)
-    assert any(r == kernel.CRUISE and abs(v - 67 * KMH) < 1e-6 for r, *_, v in arcs(res.run.trace))
+    assert any(r == codes.CRUISE and abs(v - 67 * KMH) < 1e-6 for r, *_, v in arcs(res.run.trace))
 
 
 def test_rules_that_do_not_bind_leave_the_optimum_unchanged(metro):

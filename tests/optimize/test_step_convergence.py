@@ -10,7 +10,7 @@ Before the departure points ahead of descents were located as roots of their swi
 31276.92 / 31275.63 m at 20 / 10 / 5 m), and braking energy by 2.7e-5 (freight) and 1.7e-5 (heavy
 haul) on halving the step; now 31276.22017 m at every step (at a fixed holding speed). Before the
 final phase's adjoint was integrated in sub-steps where the speed changes fast against the step
-(``pmp_kernel.phi_advance``), the freight example's final regenerative braking met the service
+(``_pmp_c.phi_advance``), the freight example's final regenerative braking met the service
 braking curve at a speed that moved by 1.7e-4 with the step, and braking and regenerated energy by
 1.1e-6 and 3.6e-6."""
 
@@ -105,7 +105,7 @@ def test_optimal_figures_do_not_move_with_the_step_long_lines(name: str) -> None
 @pytest.mark.slow
 def test_optimal_figures_do_not_move_with_the_step_freight() -> None:
     # (20 -> 10 m: traction 2.9e-8, braking 6.5e-8, regenerated 6.3e-8, sections' times 9.3e-9;
-    # before the final phase's adjoint was sub-stepped at low speed, pmp_kernel.phi_advance: 5.6e-7,
+    # before the final phase's adjoint was sub-stepped at low speed, _pmp_c.phi_advance: 5.6e-7,
     # 1.1e-6, 3.6e-6 and 1.1e-7, the final phase ending 1.1 ms later at 10 m at a fixed holding speed)
     _check("freight_000/scenario.yaml")
 
@@ -118,7 +118,7 @@ def test_a_stretch_labelled_with_a_regime_it_does_not_drive_is_warned_about() ->
     import numpy as np
 
     from trainsim.optimize.api import OFF_REGIME_NOTE, _result, _solvers
-    from trainsim.sim import kernel
+    from trainsim.sim import codes
     from trainsim.sim.fastest import run_fastest
 
     scenario = trainsim.load_scenario(ROOT / "examples" / "loco_001" / "scenario.yaml")
@@ -130,7 +130,7 @@ def test_a_stretch_labelled_with_a_regime_it_does_not_drive_is_warned_about() ->
     )
     assert not honest.warnings and honest.summary()["status"] == "ok"
     regime = plan.regime.copy()
-    regime[np.flatnonzero(regime == kernel.CRUISE)[0]] = kernel.BRAKE
+    regime[np.flatnonzero(regime == codes.CRUISE)[0]] = codes.BRAKE
     bad = dataclasses.replace(plan, regime=regime)
     result = _result("optimal", train, route, settings, honest.fastest, [bad], [plan.running_time_s])
     assert result.run.energy_balance["off_regime_stretches"] >= 1.0

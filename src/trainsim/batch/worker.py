@@ -608,7 +608,7 @@ def init_process(payload: Payload) -> None:
     try:
         from trainsim.sim.fastest import run_fastest
 
-        run_fastest(*state.entry(0))  # warm-up: numba loads its cache on the first call
+        run_fastest(*state.entry(0))  # warm-up: the first run imports what every run of the chunk uses
     except Exception:  # a bad entry fails its runs, with their own error rows
         pass
 

@@ -100,55 +100,6 @@ def exit_for_status(status: str) -> None:
         raise typer.Exit(code=int(ExitCode.NOT_AS_ASKED))
 
 
-#: what a command tells the user when numba starts compiling (the first use after an install)
-FIRST_COMPILE_NOTE = (
-    "note: compiling trainsim's numerical kernels for this machine (first use after an install only; "
-    "this takes a minute or more, later runs load them from numba's cache)"
-)
-
-#: the listener of numba's compile events once a command installed it (one per process)
-_first_compile_listener: object | None = None
-
-
-def notice_first_compile() -> None:
-    """Print :data:`FIRST_COMPILE_NOTE` on stderr when numba starts compiling, once per process.
-
-    Called by the commands whose work still runs numba kernels (operate, power, optimize and driven
-    runs); a fastest run and a multi-point run are compiled ahead of time at install and must not call it,
-    since it imports numba. numba broadcasts a ``numba:compile`` event only when a kernel is missing
-    from its cache (a cache hit is loaded without it), so the note is printed exactly when compiling
-    happens: probing one kernel's cache file instead misses the kernels a command compiles only for
-    some inputs (an operation whose trains all drive fastest compiles none) and depends on numba's
-    private cache layout. Without numba's event API no note is printed: never fail a run over a note.
-    """
-    global _first_compile_listener
-    if _first_compile_listener is not None:
-        return
-    try:
-        from numba.core import event
-    except Exception:
-        return
-
-    class FirstCompile(event.Listener):
-        def __init__(self) -> None:
-            self.told = False
-
-        def on_start(self, ev: object) -> None:
-            if not self.told:
-                self.told = True
-                typer.echo(FIRST_COMPILE_NOTE, err=True)
-
-        def on_end(self, ev: object) -> None:
-            pass
-
-    try:
-        listener = FirstCompile()
-        event.register("numba:compile", listener)
-    except Exception:
-        return
-    _first_compile_listener = listener
-
-
 def require_file(path: Path, what: str) -> None:
     """An InputError unless ``path`` is an existing file."""
     if not path.exists():

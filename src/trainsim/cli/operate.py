@@ -15,7 +15,6 @@ from trainsim.cli.context import (
     echo_warnings,
     exit_for_status,
     fail,
-    notice_first_compile,
     require_file,
     user_errors,
 )
@@ -114,7 +113,6 @@ def operate(
         require_file(file, "operation file")
         from trainsim.io.operation_run import run_operation_file
 
-        notice_first_compile()
         strategies = None
         if compare_strategies is not None:
             strategies = [x.strip() for x in compare_strategies.split(",") if x.strip()]
@@ -154,7 +152,6 @@ def _network_day(
         from trainsim.batch.executors import ClusterLostError
         from trainsim.batch.network_day import run_network_day
 
-        notice_first_compile()
         try:
             summary = run_network_day(files, days, seed, scheduler, local_workers)
         except ClusterLostError as exc:

@@ -13,7 +13,6 @@ from trainsim.cli.context import (
     echo_warnings,
     exit_for_status,
     load_scenario,
-    notice_first_compile,
     require_file,
     user_errors,
 )
@@ -161,7 +160,6 @@ def optimize(
                 raise InputError(
                     "not a timetable", file=str(timetable), allowed="trainsim/timetable, TTOBench journey"
                 )
-        notice_first_compile()
         result = run_optimize(
             scn.train, route_used, tt, strategy=strategy, settings=scn.settings, constraints=constraints
         )

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from trainsim.cli.context import exit_for_status, notice_first_compile, require_file, user_errors
+from trainsim.cli.context import exit_for_status, require_file, user_errors
 
 __all__ = ["power"]
 
@@ -100,7 +100,6 @@ def _compare_driving(
                          value=supplement, allowed="with --compare-driving, e.g. fastest,optimal")  # fmt: skip
     names = parse_strategies(strategies)
     require_file(file, "power-supply file")
-    notice_first_compile()
     block, status = compare_driving(
         file, names, supplement, synchronise=synchronise, read_study=read_study_trains
     )
@@ -209,7 +208,6 @@ def power(
             exit_for_status(status)
             return
         require_file(file, "power-supply file")
-        notice_first_compile()
         # the batch layer's wrapper: it reads the batch studies of a timetable: block (the file layer
         # may not import the batch layer)
         from trainsim.batch.power_timetable import run_power_file

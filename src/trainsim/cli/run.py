@@ -17,7 +17,6 @@ from trainsim.cli.context import (
     echo_warnings,
     exit_for_status,
     load_scenario,
-    notice_first_compile,
     readers,
     user_errors,
 )
@@ -77,9 +76,6 @@ def run(
             scn = dataclasses.replace(scn, settings=dataclasses.replace(scn.settings, max_step_m=step))
         import trainsim
 
-        if scn.strategy != "fastest":
-            # a driving strategy runs the optimizer's numba kernels; the fastest run is compiled at install
-            notice_first_compile()
         result = trainsim.run(scn)
         written: list[Path] = []
         if out is not None:

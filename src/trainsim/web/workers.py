@@ -286,8 +286,8 @@ class WorkerPool:
         :class:`PoolBusyError`, :class:`ClientGoneError` or :class:`JobFailedError`.
         """
         if self._idle is None:
-            # the first start imports trainsim and compiles its kernels in the fork server: seconds
-            # with numba's cache, minutes without it; a request waits at most start_timeout_s
+            # the first start imports trainsim in the fork server (about a second; the kernels are
+            # compiled at install); a request waits at most start_timeout_s
             try:
                 await asyncio.wait_for(self.start(), timeout=self.start_timeout_s)
             except TimeoutError:
