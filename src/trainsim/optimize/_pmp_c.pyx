@@ -1352,6 +1352,14 @@ cdef long holding_segment_c(
                     stop_at = u + (end - u) * (hold_hi - need_u) / (need_e - need_u)
                 elif need_e < hold_lo:
                     stop_at = u + (end - u) * (hold_lo - need_u) / (need_e - need_u)
+                if in_curve and v > curve_speed(stop_at, w, Cr[k], brake_mode, &line, c, bkk) + 1e-9:
+                    # the braking curve falls below the held speed inside this interval: leave the
+                    # hold where they meet (held to the interval's end, the run went on above the
+                    # curve and was clamped to the lower limit past it: CH_Fribourg_Bern, the FLIRT
+                    # entered the 100 km/h limit at 5790 m at 101.8 km/h; issue 16)
+                    stop_at = held_speed_meets_curve(
+                        v, u, stop_at, w, Cr[k], brake_mode, &line, c, bkk, 1e-10
+                    )
                 if stop_at > u + 1e-9:
                     n = emit(o, n, x[i] + u, v, t, CRUISE)
                     t += (stop_at - u) / v

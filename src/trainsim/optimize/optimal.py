@@ -38,6 +38,9 @@ from trainsim.sim.profile import compile_track
 #: Shooting on the coasting point stops when its bracket is shorter than this [m]: the switching
 #: point is located exactly (to rounding at 50 km), so the run does not move with the step (issue 13).
 COAST_POINT_TOLERANCE_M = 1e-9
+#: Departures tried back from the latest one where a scan found none that saves, spaced
+#: geometrically from 1 m (``SectionSolver._near_end``).
+NEAR_END_POINTS = 24
 #: A run that comes to rest no farther than this before the stop stops there [m]: far below what
 #: moves an energy or a time by 1e-9, and within the energy integration's own tolerance.
 STOP_TOLERANCE_M = 1e-7
@@ -650,6 +653,10 @@ class SectionSolver:
                         dj = np.inf
             if not np.isfinite(dj) and forced is None:
                 best_p, dj = self._minimise(cost, p_floor, q)
+                # on an ascent coasting slows the train almost as fast as braking: the coasts that
+                # meet the curve start within tens of metres of q (CH_Fribourg_Bern, FLIRT, the
+                # 100 km/h limit at 19852 m: the scan's 250 m step missed them and the train braked)
+                best_p, dj = self._near_end(cost, p_floor, q, best_p, dj)
             if np.isfinite(dj):
                 self._departure_points[key] = best_p
             accepted = False
@@ -694,6 +701,23 @@ class SectionSolver:
         z = grid[min(k + 1, len(grid) - 1)]
         p, value = SectionSolver._golden(cost, a, z, tol_m)
         return (p, value) if value <= values[k] else (float(grid[k]), values[k])
+
+    @staticmethod
+    def _near_end(cost, lo: float, hi: float, p: float, value: float):
+        """(p, cost): where a scan of [lo, hi] found no point that saves (cost >= 0), points spaced
+        geometrically back from hi, refined by golden section around the best; the departures that
+        save may all lie closer to hi than the scan's step. ``p``, ``value`` otherwise."""
+        if value < 0.0 or not hi - lo > 2.0:
+            return p, value
+        near = hi - np.geomspace(1.0, hi - lo, NEAR_END_POINTS)
+        values = np.array([cost(x)[0] for x in near])
+        j = int(np.argmin(values))
+        if not values[j] < min(value, 0.0):
+            return p, value
+        a = float(near[j + 1]) if j + 1 < len(near) else lo
+        z = float(near[j - 1]) if j > 0 else hi
+        best, best_value = SectionSolver._golden(cost, a, z)
+        return (best, best_value) if best_value <= values[j] else (float(near[j]), float(values[j]))
 
     @staticmethod
     def _golden(cost, a: float, z: float, tol_m: float | None = None):
@@ -802,7 +826,10 @@ class SectionSolver:
         idx = np.flatnonzero(steep_down[self.i0 : self.i1]) + self.i0
         if not len(idx):
             return None
-        breaks = np.flatnonzero(np.diff(idx) > 1)
+        # a descent is split where its holding speed changes (a speed limit rises or falls on it):
+        # each part has one speed to leave and to rejoin (a departure under a lower limit that
+        # coasts on past the limit's end would rejoin that limit's speed, not the holding speed)
+        breaks = np.flatnonzero((np.diff(idx) > 1) | (np.diff(vhold[idx]) != 0.0))
         starts = idx[np.concatenate([[0], breaks + 1])]
         ends = idx[np.concatenate([breaks, [len(idx) - 1]])] + 1
         s, v = seg[0], seg[1]
@@ -933,6 +960,13 @@ class SectionSolver:
             # compare where both runs hold again: the run without the excursion may still be
             # coasting down from above V at q; the excursion then holds V up to where it is back
             back = self._back_at(seg, q, v_rejoin)
+            k_q, k_b = self._interval_of(q), self._interval_of(max(q, back))
+            if np.any(np.abs(np.minimum(tr.vlim[k_q : k_b + 1], V) - v_rejoin) > 1e-9 * v_rejoin):
+                # the excursion would rejoin (and hold up to where both runs hold again) a speed
+                # that is not the holding speed there: back up to a lower limit only after the
+                # limit has risen, or holding it up to a later limit of the same speed; the costs
+                # compared would not be those of the run spliced (issue 16, CH_Fribourg_Bern)
+                return np.inf, None
             corners[p] = back - q
             q_both = max(q, back)
             if q_both > horizon and self.short_excursions:
@@ -958,6 +992,10 @@ class SectionSolver:
         # no warm start here: on hilly lines the best departure ahead of a descent jumps between
         # distant local optima as V moves, and a window around the last one would miss them
         p, dj = self._minimise(cost, lo, a) if a - lo > 1.0 else (a, cost(a)[0])
+        # from a speed-limit arc the excursion must be back up to the limit before the descent
+        # ends: only departures within a few hundred metres of a do (CH_Fribourg_Bern, KISS at +5 %,
+        # 9680-9926 m, between two points of the scan: the train held 110 km/h braking downhill)
+        p, dj = self._near_end(cost, lo, a, p, dj)
         if np.isfinite(dj) and lo < p < a:
             # (the cost's scale: the energy of the run without the excursion and mu x its time)
             scale = abs(float(cum[-1])) + mu * float(seg[2][-1])
