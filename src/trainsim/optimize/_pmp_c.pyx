@@ -2,7 +2,7 @@
 """Compiled (Cython) part of the energy-optimal strategy: the final phase of a section driven by the
 adjoint of Pontryagin's principle, the holding phases, coasting excursions and the path energy.
 
-The port of the former numba module ``pmp_kernel`` (issue 14), giving the same bits: every
+Ported from the optimiser's numba kernel (issue 14; since removed), giving the same bits: every
 floating-point operation keeps the numba code's order and association, ``min(a, b)`` is
 ``b if b < a else a`` and ``max(a, b)`` is ``b if b > a else a`` as numba evaluates them, and the
 integrators are those of the compiled fastest-run kernel (``trainsim.sim._kernel_c``), cimported.
@@ -79,8 +79,8 @@ from trainsim.sim._kernel_c cimport (
     step_energy_time_c,
 )
 
-# the numba module's constants, kept under the same names (their meaning is in its docstrings, which
-# moved here with the functions)
+# outcomes and settings of the final phase (their meaning is in the docstrings of the functions that
+# use them)
 HIT_CEILING = 1
 STOPPED_SHORT = 2
 #: Below this speed [m/s] the adjoint is not integrated further (mu / v^2 is singular at rest and
@@ -430,8 +430,7 @@ cdef bint regen_arc_step(
     const double* Cr, const double* US, Py_ssize_t kk, const int64_t* curve_modes, PO* o, Py_ssize_t* n,
     long* status,
 ) noexcept nogil:
-    """One step of the regenerative holding arc (``_regen_arc_step`` of the numba module): True when
-    the run met the braking curve (u then holds the position [m] where it met it)."""
+    """One step of the regenerative holding arc: True when the run met the braking curve (u then holds the position [m] where it met it)."""
     cdef double uu = u[0], EE = E[0], tt = t[0], hm, Em, dtm, v1
     cdef double h = min2(min2(h_max, w - uu), w_end - tr.x[i] - uu)
     if US[kk] > uu:
@@ -473,7 +472,7 @@ cdef FP final_phase_c(
     Py_ssize_t n, long force_mode, double v_hold, double phi_start, const int64_t* curve_modes, double W,
     double w_end,
 ) noexcept nogil:
-    """``final_phase_modes`` of the numba module (see the Python entry point's docstring)."""
+    """The final phase with a regime per interval (see the Python entry point ``final_phase_modes``)."""
     cdef FP r
     r.zero_division = False
     cdef const double* x = tr.x
