@@ -430,7 +430,8 @@ cdef bint regen_arc_step(
     const double* Cr, const double* US, Py_ssize_t kk, const int64_t* curve_modes, PO* o, Py_ssize_t* n,
     long* status,
 ) noexcept nogil:
-    """One step of the regenerative holding arc: True when the run met the braking curve (u then holds the position [m] where it met it)."""
+    """One step of the regenerative holding arc: True when the run met the braking curve (u then
+    holds the position [m] where it met it)."""
     cdef double uu = u[0], EE = E[0], tt = t[0], hm, Em, dtm, v1
     cdef double h = min2(min2(h_max, w - uu), w_end - tr.x[i] - uu)
     if US[kk] > uu:
