@@ -41,7 +41,7 @@ def test_bench_fastest_quick(capsys):
     out = capsys.readouterr().out
     for heading in ("1. wall time", "2. where one run goes", "3. convergence", "4. converged run"):
         assert heading in out
-    assert "metro_b" in out and "compile_track" in out
+    assert "metro_b" in out and "compile_route" in out
 
 
 @pytest.mark.filterwarnings("ignore")
