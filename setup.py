@@ -8,8 +8,8 @@ from setuptools import Extension, setup
 
 SOURCES = sorted(Path("src").rglob("*.pyx"))
 
-# Plain IEEE arithmetic so that the compiled code gives the same bits as the numba kernels it
-# replaces: no -ffast-math, no contraction into fused multiply-adds.
+# Plain IEEE arithmetic, so that every build gives the same bits (those of the numba kernels the
+# modules were ported from, stop 25): no -ffast-math, no contraction into fused multiply-adds.
 COMPILE_ARGS = ["-O2", "-ffp-contract=off", "-fno-fast-math"]
 
 extensions = [
