@@ -16,12 +16,13 @@ once through the buffer protocol (C-contiguous, 8-byte floats, int64 indices, th
 int8), check its shape, then run in C on pointers without the GIL.
 """
 
-from cpython.buffer cimport PyBUF_C_CONTIGUOUS, PyBUF_FORMAT, PyBUF_WRITABLE, PyBuffer_Release, PyObject_GetBuffer
+from cpython.buffer cimport PyBUF_C_CONTIGUOUS, PyBUF_FORMAT, PyBUF_WRITABLE, PyObject_GetBuffer
 from libc.math cimport INFINITY, exp, fabs, isfinite, pow, sqrt, tanh as c_tanh
 from libc.stdint cimport int8_t, int64_t
 
 import numpy as np
 
+from trainsim._cbuffers cimport MAX_HELD, Held, is_format, pmax, pmin, release, search_right
 from trainsim.sim._forces cimport BRAKE, COAST, CRUISE, FOLLOW, REGEN, TRACTION
 
 # The column and status constants of trainsim.multipoint.kernel (a test checks they agree); the regime
@@ -251,30 +252,6 @@ cdef struct Command:
     double u
     int regime
     double vc
-
-
-cdef inline double pmin(double a, double b) noexcept nogil:
-    """Python's (and numba's) min(a, b): b if b < a else a."""
-    return b if b < a else a
-
-
-cdef inline double pmax(double a, double b) noexcept nogil:
-    """Python's (and numba's) max(a, b): b if b > a else a."""
-    return b if b > a else a
-
-
-cdef inline Py_ssize_t search_right(const double* a, Py_ssize_t n, double v) noexcept nogil:
-    """``np.searchsorted(a, v, side="right")`` on a sorted array without NaN (NaN v sorts last)."""
-    cdef Py_ssize_t lo = 0, hi = n, mid
-    if v != v:
-        return n
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if a[mid] <= v:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
 
 
 # ============================================================================ smoothed piecewise laws
@@ -1204,34 +1181,9 @@ cdef int run_c(
 # ============================================================================ reading the arrays
 # Arrays are read through the buffer protocol rather than typed memoryviews (as sim/_trace_c): the same
 # pointers without the memoryview support code. Every buffer a call takes is held until it returns.
-cdef enum:
-    MAX_HELD = 48  # run holds 9 state + 6 model + 5 bank + 3 profile + 2 availability + 3 reference
-                   # + 3 ceiling + history + accumulators + 6 records + extremes + work = 41
-
-
-cdef struct Held:
-    Py_buffer views[MAX_HELD]
-    int count
-
-
-cdef void release(Held* held) noexcept:
-    cdef int k
-    for k in range(held.count):
-        PyBuffer_Release(&held.views[k])
-    held.count = 0
-
-
-cdef bint is_format(const char* f, char kind) noexcept:
-    """A native buffer format of ``kind``: ``d`` float64, ``q`` int64 (``l`` or ``q``), ``b`` int8."""
-    if f == NULL:
-        return False
-    if f[0] == c'@' or f[0] == c'=':
-        f += 1
-    if f[0] == 0 or f[1] != 0:
-        return False
-    if kind == c'q':
-        return f[0] == c'l' or f[0] == c'q'
-    return f[0] == kind
+# (``Held``, ``release``, ``is_format``: trainsim/_cbuffers.pxd; run holds 9 state + 6 model + 5 bank
+# + 3 profile + 2 availability + 3 reference + 3 ceiling + history + accumulators + 6 records
+# + extremes + work = 41)
 
 
 cdef void* hold(

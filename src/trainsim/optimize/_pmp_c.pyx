@@ -32,13 +32,6 @@ switching point, ``g * h / (g + thr - phi)`` (zero when the adjoint did not move
 step); it is checked and raises ZeroDivisionError as numba did.
 """
 
-from cpython.buffer cimport (
-    PyBUF_C_CONTIGUOUS,
-    PyBUF_FORMAT,
-    PyBUF_WRITABLE,
-    PyBuffer_Release,
-    PyObject_GetBuffer,
-)
 from libc.math cimport INFINITY, NAN, ceil, fabs, isfinite, isnan, sqrt
 from libc.stdint cimport int64_t
 
@@ -62,14 +55,15 @@ from trainsim.sim._forces cimport (
     Curves,
     curves_from,
     effort,
-    search_right,
 )
+from trainsim._cbuffers cimport Arr, Kinks, _array, pmax as max2, pmin as min2, search_right
 from trainsim.sim._kernel_c cimport (
     ET,
     Ctx,
-    Kinks,
     Line,
     Track,
+    _kinks,
+    _line,
     acceleration,
     distance_to_speed,
     line_of,
@@ -160,14 +154,6 @@ cdef struct BP:
 
 
 # ---------------------------------------------------------------------------------------- helpers
-
-cdef inline double min2(double a, double b) noexcept nogil:
-    return b if b < a else a
-
-
-cdef inline double max2(double a, double b) noexcept nogil:
-    return b if b > a else a
-
 
 cdef inline double speed_of(double E) noexcept nogil:
     return sqrt(2.0 * E) if E > 0.0 else 0.0
@@ -676,43 +662,7 @@ cdef FP final_phase_c(
 
 # --------------------------------------------------------------------------------- entry points
 
-cdef struct Arr:
-    void* data
-    Py_ssize_t n
-
-
-cdef Arr _array(object a, str what, char kind, bint writable=False) except *:
-    """Data pointer and length of a C-contiguous 1-D array of float64 (``kind`` 'd'), int8 ('b') or
-    int64 ('q'), or a ValueError naming ``what`` and what is allowed (as ``sim._kernel_c``)."""
-    cdef Py_buffer view
-    cdef int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT
-    if writable:
-        flags |= PyBUF_WRITABLE
-    cdef Py_ssize_t size = 1 if kind == c'b' else 8
-    cdef str need = (
-        f"a C-contiguous {'writable ' if writable else ''}1-D array of "
-        + ("float64" if kind == c'd' else "int8" if kind == c'b' else "int64")
-    )
-    try:
-        PyObject_GetBuffer(a, &view, flags)
-    except Exception as e:
-        raise ValueError(f"{what}: need {need}, got {type(a).__name__} ({e})") from None
-    cdef char f
-    cdef Arr out
-    try:
-        f = view.format[0] if view.format != NULL else c'B'
-        if f == c'@' or f == c'=' or f == c'<':
-            f = view.format[1]
-        if not (view.ndim == 1 and view.itemsize == size and (f == kind or (kind == c'q' and f == c'l'))):
-            raise ValueError(
-                f"{what}: need {need}, got {view.ndim}-D of format "
-                f"{view.format.decode() if view.format else '?'} and item size {view.itemsize}"
-            )
-        out.data = view.buf
-        out.n = view.shape[0]
-    finally:
-        PyBuffer_Release(&view)
-    return out
+# (``Arr``, ``_array``: trainsim/_cbuffers.pxd, as ``sim._kernel_c``)
 
 
 cdef const double* _d(object a, str what, Py_ssize_t need, Py_ssize_t* n=NULL) except NULL:
@@ -742,7 +692,7 @@ cdef Track _track(x, a0, a1, b0, b1, vlim, tscale, Py_ssize_t need) except *:
 
 
 cdef int _ctx(object P, object curves, Curves* cv, Ctx* c) except -1:
-    cdef Arr ap = _array(P, "parameter vector P", c'd', True)
+    cdef Arr ap = _array(P, "parameter vector P", c'd', 1, True)
     if ap.n != N_PARAMS:
         raise ValueError(f"parameter vector P of length {ap.n}: need {N_PARAMS} (trainsim.sim.codes)")
     curves_from(curves, cv)
@@ -751,25 +701,9 @@ cdef int _ctx(object P, object curves, Curves* cv, Ctx* c) except -1:
     return 0
 
 
-cdef Kinks _kinks(object k, str what) except *:
-    cdef Arr a = _array(k, what, c'd')
-    cdef Kinks out
-    out.v = <const double*>a.data
-    out.n = a.n
-    return out
-
-
-cdef Line _line(object line) except *:
-    cdef Line out
-    if len(line) != 4:
-        raise ValueError(f"line laws of length {len(line)}: need (a0, a1, b0, b1)")
-    out.a0, out.a1, out.b0, out.b1 = line
-    return out
-
-
 cdef PO _out(out_s, out_v, out_t, out_m) except *:
-    cdef Arr os_ = _array(out_s, "out_s", c'd', True), ov = _array(out_v, "out_v", c'd', True)
-    cdef Arr ot = _array(out_t, "out_t", c'd', True), om = _array(out_m, "out_m", c'b', True)
+    cdef Arr os_ = _array(out_s, "out_s", c'd', 1, True), ov = _array(out_v, "out_v", c'd', 1, True)
+    cdef Arr ot = _array(out_t, "out_t", c'd', 1, True), om = _array(out_m, "out_m", c'b', 1, True)
     if ov.n != os_.n or ot.n != os_.n or om.n != os_.n:
         raise ValueError(f"the out arrays s, v, t, m of lengths {os_.n}, {ov.n}, {ot.n}, {om.n}: need one length")
     cdef PO o
@@ -1238,7 +1172,7 @@ def path_energy(s, v, m, x, a0, a1, b0, b1, tscale, P, curves, double inv_eta_t,
     cdef Ctx c
     _ctx(P, curves, &cv, &c)
     cdef Arr as_ = _array(s, "s", c'd'), av = _array(v, "v", c'd'), am = _array(m, "regimes m", c'b')
-    cdef Arr ao = _array(out, "out", c'd', True)
+    cdef Arr ao = _array(out, "out", c'd', 1, True)
     if as_.n < 1 or av.n != as_.n or am.n != as_.n or ao.n != as_.n:
         raise ValueError(f"s, v, m, out of lengths {as_.n}, {av.n}, {am.n}, {ao.n}: need one length >= 1")
     cdef Kinks ktk = _kinks(tk, "traction kinks tk"), kbk = _kinks(bk, "braking kinks bk")

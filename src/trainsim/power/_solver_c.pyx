@@ -21,25 +21,15 @@ call; the loops run on C pointers without the GIL.
 from libc.math cimport INFINITY, fabs, isfinite, sinh, sqrt, tanh
 from libc.stdint cimport int64_t
 from libc.string cimport memcpy, memset
-from cpython.buffer cimport PyBUF_C_CONTIGUOUS, PyBUF_FORMAT, PyBUF_WRITABLE, PyBuffer_Release, PyObject_GetBuffer
+from cpython.buffer cimport PyBUF_C_CONTIGUOUS, PyBUF_FORMAT, PyBUF_WRITABLE, PyObject_GetBuffer
 from cpython.mem cimport PyMem_Free, PyMem_Malloc
+
+from trainsim._cbuffers cimport MAX_HELD, Held, release
 
 import numpy as np
 
-cdef enum:
-    MAX_HELD = 48  # newton_dc_dense holds 19 inputs and 8 relabelled or output arrays
-
-
-cdef struct Held:
-    Py_buffer views[MAX_HELD]
-    int count
-
-
-cdef void release(Held* held) noexcept:
-    cdef int k
-    for k in range(held.count):
-        PyBuffer_Release(&held.views[k])
-    held.count = 0
+# (``Held``, ``release``: trainsim/_cbuffers.pxd; newton_dc_dense holds 19 inputs and 8 relabelled
+# or output arrays)
 
 
 cdef void* hold(Held* held, object a, bint writable) except NULL:

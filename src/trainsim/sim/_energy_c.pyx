@@ -16,9 +16,10 @@ from libc.stdint cimport int64_t
 
 from trainsim.sim._forces cimport (
     BRAKE, COAST, CRUISE, DWELL, FOLLOW, N_PARAMS, P_BRAKE_FRACTION, P_DECEL, P_INERTIAL_MASS, P_MASS,
-    P_R0, P_R1, P_R2, REGEN, TRACTION, Branch, Curve, Curves, branch_at, curves_from, effort, effort_on, search_left,
-    search_right, speed_domain_steps, speed_of,
+    P_R0, P_R1, P_R2, REGEN, TRACTION, Branch, Curve, Curves, branch_at, curves_from, effort, effort_on,
+    speed_domain_steps, speed_of,
 )
+from trainsim._cbuffers cimport MAX_HELD, Held, Kinks, is_format, next_kink, release, search_right
 
 # The integration settings of trainsim.sim.energy (documented there; a test checks that they agree).
 cdef extern from *:
@@ -82,11 +83,6 @@ cdef struct Line:
     const double* k1
     const double* avail
     Py_ssize_t n_pieces
-
-
-cdef struct Kinks:
-    const double* v  # sorted kink speeds [m/s]
-    Py_ssize_t n
 
 
 cdef struct Branches:
@@ -266,21 +262,6 @@ cdef inline long substeps(
     if n < 1:
         n = 1
     return n if n < MAX_SUBSTEPS else MAX_SUBSTEPS
-
-
-cdef inline double next_kink(double v0, bint rising, double v_far, const Kinks* kinks) noexcept nogil:
-    """The kink speed closest to v0 in the direction of the speed change, strictly before v_far, or
-    -1 (as ``next_kink`` of ``_kernel_c.pxd``)."""
-    cdef Py_ssize_t j
-    if rising:
-        j = search_right(kinks.v, kinks.n, v0)
-        if j < kinks.n and kinks.v[j] < v_far:
-            return kinks.v[j]
-    else:
-        j = search_left(kinks.v, kinks.n, v0) - 1
-        if j >= 0 and kinks.v[j] > v_far:
-            return kinks.v[j]
-    return -1.0
 
 
 cdef double dynamic_piece(
@@ -559,31 +540,7 @@ cdef void all_stretches(
 # Arrays are read through the buffer protocol rather than typed memoryviews: the same pointers without
 # the memoryview support code Cython would generate into this module (most of its C source and compile
 # time) and with less work per call. Every buffer a call takes is held until the call returns.
-cdef enum:
-    MAX_HELD = 24  # 5 point arrays + 7 laws + P + 3 kink arrays + 3 outputs = 19
-
-
-cdef struct Held:
-    Py_buffer views[MAX_HELD]
-    int count
-
-
-cdef void release(Held* held) noexcept:
-    cdef int k
-    for k in range(held.count):
-        PyBuffer_Release(&held.views[k])
-    held.count = 0
-
-
-cdef bint is_format(const char* f, bint integer) noexcept:
-    """A native 8-byte float64 (``d``) or, with ``integer``, int64 (``l`` or ``q``) buffer format."""
-    if f == NULL:
-        return False
-    if f[0] == c'@' or f[0] == c'=':
-        f += 1
-    if f[0] == 0 or f[1] != 0:
-        return False
-    return (f[0] == c'l' or f[0] == c'q') if integer else f[0] == c'd'
+# (``Held``, ``release``, ``is_format``: trainsim/_cbuffers.pxd)
 
 
 def _converted(str name, object a, bint integer):
@@ -614,7 +571,9 @@ cdef void* hold(Held* held, list keep, str name, object a, bint integer, bint ou
         taken = True
     except (TypeError, ValueError, BufferError):
         pass
-    if taken and not output and (view.ndim != 1 or view.itemsize != 8 or not is_format(view.format, integer)):
+    if taken and not output and (
+        view.ndim != 1 or view.itemsize != 8 or not is_format(view.format, c'q' if integer else c'd')
+    ):
         PyBuffer_Release(view)
         taken = False
     if not taken:

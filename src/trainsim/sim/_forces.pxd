@@ -12,6 +12,8 @@ alive for the length of the call (the Python entry points hold the tuples).
 
 from libc.math cimport INFINITY, ceil, fabs, log, sqrt
 
+from trainsim._cbuffers cimport search_left, search_right
+
 # regimes, as trainsim.sim.codes numbers them (checked by a test)
 cdef enum:
     TRACTION = 0
@@ -54,34 +56,6 @@ cdef struct Curves:
     Curve traction
     Curve brake
     Curve regen
-
-
-cdef inline Py_ssize_t search_right(const double* a, Py_ssize_t n, double v) noexcept nogil:
-    """``np.searchsorted(a, v, side="right")`` on a sorted array without NaN (NaN v sorts last)."""
-    cdef Py_ssize_t lo = 0, hi = n, mid
-    if v != v:
-        return n
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if a[mid] <= v:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
-
-
-cdef inline Py_ssize_t search_left(const double* a, Py_ssize_t n, double v) noexcept nogil:
-    """``np.searchsorted(a, v, side="left")`` on a sorted array without NaN (NaN v sorts last)."""
-    cdef Py_ssize_t lo = 0, hi = n, mid
-    if v != v:
-        return n
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if a[mid] < v:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
 
 
 cdef inline double law(double v, Py_ssize_t j, const double* coefs) noexcept nogil:

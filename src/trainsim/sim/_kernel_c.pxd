@@ -1,13 +1,14 @@
 # cython: language_level=3
 """Declarations of the compiled fastest-run kernel (``_kernel_c.pyx``), for the other compiled
 kernels that integrate the same single-point model: its structs, its small inline helpers and its
-integrators (all C, no Python objects, nogil). The structs hold pointers into arrays that the caller
-keeps alive for the length of the call."""
+integrators (all C, no Python objects, nogil), and the readers of the kink and line-law arguments.
+The structs hold pointers into arrays that the caller keeps alive for the length of the call."""
 
 from libc.math cimport ceil, fabs
 from libc.stdint cimport int64_t
 
-from trainsim.sim._forces cimport Curves, P_MASS, P_R0, P_R1, P_R2, search_left, search_right
+from trainsim._cbuffers cimport Arr, Kinks, _array, next_kink, search_left, search_right
+from trainsim.sim._forces cimport Curves, P_MASS, P_R0, P_R1, P_R2
 
 # trainsim.sim.codes constants (checked against them by a test)
 cdef extern from *:
@@ -36,11 +37,6 @@ cdef struct Line:
     double a1
     double b0
     double b1
-
-
-cdef struct Kinks:
-    const double* v  # kink speeds [m/s], increasing
-    Py_ssize_t n
 
 
 cdef struct Ctx:
@@ -99,21 +95,6 @@ cdef inline long substeps(double E, double h, double a) noexcept nogil:
     if n < 1:
         n = 1
     return n if n < MAX_SUBSTEPS else MAX_SUBSTEPS
-
-
-cdef inline double next_kink(double v0, bint rising, double v_far, const Kinks* kinks) noexcept nogil:
-    """The kink speed [m/s] closest to v0 in the direction of the speed change, strictly before
-    v_far, or -1 (kinks sorted increasing)."""
-    cdef Py_ssize_t j
-    if rising:
-        j = search_right(kinks.v, kinks.n, v0)
-        if j < kinks.n and kinks.v[j] < v_far:
-            return kinks.v[j]
-    else:
-        j = search_left(kinks.v, kinks.n, v0) - 1
-        if j >= 0 and kinks.v[j] > v_far:
-            return kinks.v[j]
-    return -1.0
 
 
 cdef inline bint is_kink(double v, const Kinks* kinks) noexcept nogil:
@@ -197,3 +178,21 @@ cdef Py_ssize_t insert_kink_points_c(
     const Track* tr, const Ctx* c, const Kinks* tk, const Kinks* bk, const double* s, const double* v,
     const double* t, const signed char* m, Py_ssize_t n, Out* o,
 ) noexcept nogil
+
+
+# ---- reading the arguments (Python objects; for the entry points of _kernel_c and optimize._pmp_c)
+
+cdef inline Kinks _kinks(object k, str what="kink speeds") except *:
+    cdef Arr a = _array(k, what, c'd')
+    cdef Kinks out
+    out.v = <const double*>a.data
+    out.n = a.n
+    return out
+
+
+cdef inline Line _line(object line) except *:
+    cdef Line out
+    if len(line) != 4:
+        raise ValueError(f"line laws of length {len(line)}: need (a0, a1, b0, b1)")
+    out.a0, out.a1, out.b0, out.b1 = line
+    return out

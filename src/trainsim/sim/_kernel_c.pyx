@@ -45,13 +45,6 @@ division that could meet a zero is the cruise's end where the traction stops hol
 and above the traction by at most 1e-12 relative.
 """
 
-from cpython.buffer cimport (
-    PyBUF_C_CONTIGUOUS,
-    PyBUF_FORMAT,
-    PyBUF_WRITABLE,
-    PyBuffer_Release,
-    PyObject_GetBuffer,
-)
 from cpython.mem cimport PyMem_Free, PyMem_Malloc
 from libc.math cimport INFINITY, isfinite, sqrt
 from libc.stdint cimport int64_t
@@ -617,52 +610,7 @@ cdef Py_ssize_t insert_kink_points_c(
 # once. The pointers stay valid for the call because the caller holds the arrays and numpy frees an
 # array's data only with the array.
 
-cdef struct Arr:
-    void* data
-    Py_ssize_t n  # length (rows of a 2-D array)
-    Py_ssize_t cols  # columns of a 2-D array, 1 for a 1-D one
-
-
-cdef Arr _array(object a, str what, char kind, int ndim=1, bint writable=False) except *:
-    """Data pointer and shape of a C-contiguous array of float64 (``kind`` 'd'), int8 ('b') or int64
-    ('q'), or a ValueError naming ``what`` and what is allowed."""
-    cdef Py_buffer view
-    cdef int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT
-    if writable:
-        flags |= PyBUF_WRITABLE
-    cdef Py_ssize_t size = 1 if kind == c'b' else 8
-    cdef str need = (
-        f"a C-contiguous {'writable ' if writable else ''}{ndim}-D array of "
-        + ("float64" if kind == c'd' else "int8" if kind == c'b' else "int64")
-    )
-    try:
-        PyObject_GetBuffer(a, &view, flags)
-    except Exception as e:
-        raise ValueError(f"{what}: need {need}, got {type(a).__name__} ({e})") from None
-    cdef char f
-    cdef bint ok
-    cdef Arr out
-    try:
-        f = view.format[0] if view.format != NULL else c'B'
-        if f == c'@' or f == c'=' or f == c'<':
-            f = view.format[1]
-        ok = (
-            view.ndim == ndim
-            and view.itemsize == size
-            and (f == kind or (kind == c'q' and f == c'l'))
-            and (ndim == 1 or view.shape[1] > 0)
-        )
-        if not ok:
-            raise ValueError(
-                f"{what}: need {need}, got {view.ndim}-D of format "
-                f"{view.format.decode() if view.format else '?'} and item size {view.itemsize}"
-            )
-        out.data = view.buf
-        out.n = view.shape[0]
-        out.cols = view.shape[1] if ndim == 2 else 1
-    finally:
-        PyBuffer_Release(&view)
-    return out
+# (``Arr``, ``_array``: trainsim/_cbuffers.pxd; ``_kinks``, ``_line``: _kernel_c.pxd)
 
 
 cdef int _curves(object curves, Curves* out) except -1:
@@ -732,22 +680,6 @@ cdef int _ctx(object P, object curves, Curves* cv, Ctx* c) except -1:
     c.P = <double*>ap.data
     c.curves = cv
     return 0
-
-
-cdef Line _line(object line) except *:
-    cdef Line out
-    if len(line) != 4:
-        raise ValueError(f"line laws of length {len(line)}: need (a0, a1, b0, b1)")
-    out.a0, out.a1, out.b0, out.b1 = line
-    return out
-
-
-cdef Kinks _kinks(object k, str what="kink speeds") except *:
-    cdef Arr a = _array(k, what, c'd')
-    cdef Kinks out
-    out.v = <const double*>a.data
-    out.n = a.n
-    return out
 
 
 def fastest_segment(

@@ -21,7 +21,7 @@ in them is reference-counted. The arrays belong to the caller, who holds them fo
 
 from libc.math cimport INFINITY, NAN, fabs, sqrt
 from libc.stdint cimport int64_t
-from cpython.buffer cimport PyBUF_C_CONTIGUOUS, PyBUF_FORMAT, PyBUF_WRITABLE, PyBuffer_Release, PyObject_GetBuffer
+from cpython.buffer cimport PyBUF_C_CONTIGUOUS, PyBUF_FORMAT, PyBUF_WRITABLE, PyObject_GetBuffer
 
 import numpy as np
 
@@ -35,8 +35,8 @@ from trainsim.sim._forces cimport (
     TRACTION,
     Curve,
     curve_from,
-    search_right,
 )
+from trainsim._cbuffers cimport MAX_HELD, Held, is_format, release, search_right
 
 #: The rows of ``run_arrays``'s point arrays: acceleration [m/s^2], forces [N], speed limit [m/s],
 #: powers [W], line currents [A] (the ``result.Trace`` fields of the same names).
@@ -398,31 +398,7 @@ cdef void interval_loop(
 # Arrays are read through the buffer protocol rather than typed memoryviews: the same pointers, without
 # the memoryview support code Cython would generate into this module (three quarters of its C source,
 # most of its compile time). Every buffer a call takes is held until the call returns.
-cdef enum:
-    MAX_HELD = 32  # run_arrays holds 5 run arrays + 7 laws x 3 + 3 outputs = 29
-
-
-cdef struct Held:
-    Py_buffer views[MAX_HELD]
-    int count
-
-
-cdef void release(Held* held) noexcept:
-    cdef int k
-    for k in range(held.count):
-        PyBuffer_Release(&held.views[k])
-    held.count = 0
-
-
-cdef bint is_format(const char* f, bint integer) noexcept:
-    """A native 8-byte float64 (``d``) or, with ``integer``, int64 (``l`` or ``q``) buffer format."""
-    if f == NULL:
-        return not integer  # no format given means unsigned bytes; never asked for here
-    if f[0] == c'@' or f[0] == c'=':
-        f += 1
-    if f[0] == 0 or f[1] != 0:
-        return False
-    return (f[0] == c'l' or f[0] == c'q') if integer else f[0] == c'd'
+# (``Held``, ``release``, ``is_format``: trainsim/_cbuffers.pxd)
 
 
 cdef void* hold(Held* held, str what, str part, object a, bint integer, bint writable, Py_ssize_t* n) except? NULL:
@@ -438,7 +414,10 @@ cdef void* hold(Held* held, str what, str part, object a, bint integer, bint wri
     except (TypeError, ValueError, BufferError) as err:
         raise ValueError(f"{what}{part}: need a C-contiguous {kind} array ({err})") from None
     held.count += 1
-    if view.itemsize != 8 or not is_format(view.format, integer):
+    # a buffer without a format (unsigned bytes; never given here) passes the format check for float64
+    if view.itemsize != 8 or not (
+        is_format(view.format, c'q' if integer else c'd') or (view.format == NULL and not integer)
+    ):
         fmt = view.format.decode("ascii", "replace") if view.format != NULL else "B"
         raise ValueError(f"{what}{part}: need a C-contiguous {kind} array, got items of format {fmt!r}")
     n[0] = view.len // 8 if view.ndim == 1 else -1
