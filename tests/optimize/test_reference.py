@@ -113,8 +113,25 @@ def test_time_limit_reports_the_last_iterate_and_says_so():
     train, route = small_train(), line(3000.0)
     T = SectionSolver(train, route, 0.0, 3000.0).fastest_time_s * 1.2
     ref = solve_reference(train, route, 0.0, 3000.0, T, intervals=2000, time_limit_s=0.2)
-    assert ref.status.startswith("time limit")
+    # the limit is CPU time (the machine's load does not change the result) and the status says so
+    assert ref.status.startswith("time limit (CPU time)"), ref.status
     assert np.all(ref.v >= 0.0) and np.all(np.isfinite(ref.v))
+    # IPOPT stops at the first iteration past the limit: its CPU time is counted, wall time kept too
+    assert 0.2 <= ref.solve_cpu_s < 5.0
+    assert np.isfinite(ref.solve_time_s) and ref.solve_time_s > 0.0
+
+
+@pytest.mark.slow
+def test_certified_reference_budget_is_cpu_time_and_reported_with_the_wall_time():
+    train, route = small_train(), line(3000.0)
+    T = SectionSolver(train, route, 0.0, 3000.0).fastest_time_s * 1.2
+    # a CPU budget too small for the first grid: its last iterate, and a status that names CPU time
+    ref = certified_reference(train, route, 0.0, 3000.0, T, intervals=2000, time_limit_s=0.3, bound=False)
+    assert ref.status != "ok"
+    assert "CPU time" in ref.status, ref.status
+    assert len(ref.mesh) == 1
+    assert ref.solve_cpu_s > 0.0
+    assert ref.solve_time_s > 0.0
 
 
 @pytest.mark.slow
