@@ -9,6 +9,17 @@ import sys
 
 import pandas as pd
 
+#: The judged gap's denominator is never below this fraction of the reference's traction energy [-]
+#: (the header of docs/optimization_benchmark.md argues it).
+TRACTION_FLOOR_FRACTION = 0.10
+
+
+def judged_denominator_kwh(reference_net_kwh: float, reference_traction_kwh: float) -> float:
+    """max(|net energy|, TRACTION_FLOOR_FRACTION x traction energy drawn) of the reference [kWh]: a
+    net energy near zero (a net-regenerating section) is the difference of two large flows, and a
+    relative gap on it measures nothing a planner pays for; elsewhere it is |net| unchanged."""
+    return max(abs(reference_net_kwh), TRACTION_FLOOR_FRACTION * reference_traction_kwh, 1e-3)
+
 
 def _pct(x: float) -> str:
     return "–" if pd.isna(x) else f"{x:.3f} %"
