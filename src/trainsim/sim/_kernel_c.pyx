@@ -69,6 +69,20 @@ from trainsim.sim._forces cimport (
     speed_domain_steps,
 )
 
+# Status of ``fastest_segment(..., grow=True)`` when its out arrays are full (trainsim.sim.codes)
+cdef enum:
+    STATUS_FULL = 2
+
+
+cdef struct StepKinks:
+    # the kinks where one kink-aware step split (at most 64 pieces): offset into the interval [m],
+    # speed [m/s], time since the step's start [s]
+    double u[64]
+    double v[64]
+    double dt[64]
+    int n
+
+
 # ---------------------------------------------------------------------------------------------- forces
 
 
@@ -256,6 +270,16 @@ cdef ET step_energy_time_c(
     end speed is looked for too (RK4 across it can land on either side), and a piece that starts at
     a kink or ends at one is integrated again on its own branch (vref the mean of its end speeds).
     At most 64 pieces."""
+    return step_energy_time_k(E, u, h, mode, line, c, kinks, NULL)
+
+
+cdef ET step_energy_time_k(
+    double E, double u, double h, long mode, const Line* line, const Ctx* c, const Kinks* kinks,
+    StepKinks* sk,
+) noexcept nogil:
+    """``step_energy_time_c``, recording in ``sk`` (unless NULL) the kinks where it split the step:
+    their offsets [m], speeds [m/s] and times since the step's start [s], in the order met (one pass:
+    the kink points of the trace come from here instead of being located a second time)."""
     cdef double remaining = h
     cdef double total_dt = 0.0
     cdef bint split = is_kink(sqrt(2.0 * E) if E > 0.0 else 0.0, kinks)
@@ -263,6 +287,8 @@ cdef ET step_energy_time_c(
     cdef double v0, v1, v_far, vk, hk
     cdef bint rising
     cdef int it
+    if sk != NULL:
+        sk.n = 0
     for it in range(64):
         r = rk4_energy_time(E, u, remaining, mode, line, c, -1.0)
         v0 = sqrt(2.0 * E) if E > 0.0 else 0.0
@@ -284,8 +310,29 @@ cdef ET step_energy_time_c(
         E = 0.5 * vk * vk
         u += hk
         remaining -= hk
+        if sk != NULL:
+            sk.u[sk.n] = u
+            sk.v[sk.n] = vk
+            sk.dt[sk.n] = total_dt
+            sk.n += 1
     r.dt = total_dt + r.dt
     return r
+
+
+cdef void push_step_kinks(
+    Out* o, const StepKinks* sk, double x0, double u0, double u1, double v0, double v1, double t0, long mode
+) noexcept nogil:
+    """Push the kink points ``sk`` of a step taken as the stretch from offset u0 to u1 [m] of the
+    interval starting at x0 [m], at speeds v0 to v1 [m/s] as recorded, starting at time t0 [s]: those
+    strictly inside the stretch in speed and in distance, up to the first that is not (the points
+    ``insert_kink_points_c`` would add to that stretch, located once)."""
+    cdef double lo = v1 if v1 < v0 else v0
+    cdef double hi = v1 if v1 > v0 else v0
+    cdef int q
+    for q in range(sk.n):
+        if not (lo < sk.v[q] < hi and u0 < sk.u[q] < u1):
+            break
+        push(o, x0 + sk.u[q], sk.v[q], t0 + sk.dt[q], mode)
 
 
 cdef double step_energy_c(
@@ -455,6 +502,16 @@ cdef long fastest_segment_c(
     DWELL point at the stop. Returns STATUS_OK, or STATUS_STALLED with the stall position [m] in
     ``stall_at`` (the traction cannot overcome the resistance). Writes P[P_TRACTION_SCALE] per
     interval. Cr, Cl, US: scratch of i1 - i0 values each."""
+    return fastest_segment_k(tr, i0, i1, t0, c, tk, bk, o, Cr, Cl, US, stall_at, False)
+
+
+cdef long fastest_segment_k(
+    const Track* tr, Py_ssize_t i0, Py_ssize_t i1, double t0, const Ctx* c, const Kinks* tk,
+    const Kinks* bk, Out* o, double* Cr, double* Cl, double* US, double* stall_at, bint kink_points,
+) noexcept nogil:
+    """``fastest_segment_c``; with ``kink_points``, also a point wherever a traction or braking
+    stretch crosses a kink of its effort curve, taken from the kink-aware steps that located it
+    (``step_energy_time_k``; the points ``insert_kink_points_c`` adds to the trace without them)."""
     cdef Py_ssize_t m_int = i1 - i0
     cdef double* P = c.P
     braking_ceiling_mixed_c(tr, i0, i1, c, bk, bk, NULL, BRAKE, Cr, Cl, US)
@@ -464,6 +521,10 @@ cdef long fastest_segment_c(
     cdef double w, vl_i, u, E, end, need_u, need_end, fmax, stop_at, h, v1, Er, Eb, xm, xi
     cdef Line line
     cdef ET r, rm
+    # kinks of the trial step (r) and of the step taken instead (rm); NULL: none recorded
+    cdef StepKinks ka, kb
+    cdef StepKinks* pa = &ka if kink_points else NULL
+    cdef StepKinks* pb = &kb if kink_points else NULL
     for k in range(m_int):
         i = i0 + k
         xi = tr.x[i]
@@ -494,10 +555,12 @@ cdef long fastest_segment_c(
                         u = stop_at
                         continue
                 # traction towards the end of this part
-                r = step_energy_time_c(E, u, end - u, TRACTION, &line, c, tk)
+                r = step_energy_time_k(E, u, end - u, TRACTION, &line, c, tk, pa)
                 if r.E <= 0.0:
                     h = find_speed_crossing_split_c(E, u, end - u, 0.0, TRACTION, &line, c, tk)
                     push(o, xi + u, v, t, TRACTION)
+                    if kink_points:
+                        stretch_kink_points(&line, c, tk, TRACTION, xi, u, v, 0.0, t, h, o)
                     push(o, xi + u + h, 0.0, t + (2.0 * h / v if v > 0 else 0.0), TRACTION)
                     stall_at[0] = xi + u + h
                     return STATUS_STALLED
@@ -505,11 +568,15 @@ cdef long fastest_segment_c(
                 push(o, xi + u, v, t, TRACTION)
                 if v1 > vl_i and v < vl_i:
                     h = find_speed_crossing_split_c(E, u, end - u, 0.5 * vl_i * vl_i, TRACTION, &line, c, tk)
-                    rm = step_energy_time_c(E, u, h, TRACTION, &line, c, tk)
+                    rm = step_energy_time_k(E, u, h, TRACTION, &line, c, tk, pb)
+                    if kink_points:
+                        push_step_kinks(o, pb, xi, u, u + h, v, vl_i, t, TRACTION)
                     t += rm.dt
                     u += h
                     v = vl_i
                 else:
+                    if kink_points:
+                        push_step_kinks(o, pa, xi, u, end, v, vl_i if vl_i < v1 else v1, t, TRACTION)
                     t += r.dt
                     u = end
                     v = vl_i if vl_i < v1 else v1
@@ -518,11 +585,15 @@ cdef long fastest_segment_c(
                 Er = 0.5 * Cr[k] * Cr[k]
                 Eb = step_energy_c(Er, w, u - w, BRAKE, &line, c, bk)
                 if Eb * (1.0 - 1e-9) - 1e-12 > E:
-                    r = step_energy_time_c(E, u, w - u, TRACTION, &line, c, tk)
+                    r = step_energy_time_k(E, u, w - u, TRACTION, &line, c, tk, pa)
                     push(o, xi + u, v, t, TRACTION)
                     if Er < r.E:
                         xm = find_curve_meeting(E, u, Er, w, &line, c, tk, bk)
-                        rm = step_energy_time_c(E, u, xm - u, TRACTION, &line, c, tk)
+                        rm = step_energy_time_k(E, u, xm - u, TRACTION, &line, c, tk, pb)
+                        if kink_points:
+                            push_step_kinks(
+                                o, pb, xi, u, xm, v, sqrt(2.0 * rm.E) if rm.E > 0 else 0.0, t, TRACTION
+                            )
                         t += rm.dt
                         u = xm
                         v = sqrt(2.0 * rm.E) if rm.E > 0 else 0.0
@@ -530,12 +601,16 @@ cdef long fastest_segment_c(
                     if r.E <= 0.0:
                         stall_at[0] = xi + u
                         return STATUS_STALLED
+                    if kink_points:
+                        push_step_kinks(o, pa, xi, u, w, v, sqrt(2.0 * r.E), t, TRACTION)
                     t += r.dt
                     u = w
                     v = sqrt(2.0 * r.E)
                 else:
                     push(o, xi + u, v, t, BRAKE)
-                    r = step_energy_time_c(0.5 * v * v, u, w - u, BRAKE, &line, c, bk)
+                    r = step_energy_time_k(0.5 * v * v, u, w - u, BRAKE, &line, c, bk, pa)
+                    if kink_points:
+                        push_step_kinks(o, pa, xi, u, w, v, Cr[k], t, BRAKE)
                     t += r.dt
                     u = w
                     v = Cr[k]
@@ -544,31 +619,57 @@ cdef long fastest_segment_c(
     return STATUS_OK
 
 
+cdef void stretch_kink_points(
+    const Line* line, const Ctx* c, const Kinks* kinks, long mode, double x0, double u, double v0,
+    double v1, double t0, double length, Out* o,
+) noexcept nogil:
+    """Push a point wherever the stretch in ``mode`` from offset u [m] of the interval starting at
+    x0 [m], at speed v0 and time t0, to speed v1 [m/s] after ``length`` [m] crosses a kink of its
+    effort curve: located by ``distance_to_speed``, its time by ``rk4_energy_time`` on the piece's
+    branch; at most ``kinks_between`` points."""
+    cdef Py_ssize_t nk = kinks_between(v0, v1, kinks)
+    cdef Py_ssize_t q
+    cdef double E = 0.5 * v0 * v0
+    cdef double time = t0, remaining = length, vc = v0, vk, hk
+    cdef bint rising = v1 > v0
+    cdef ET r
+    for q in range(nk):
+        vk = next_kink(vc, rising, v1, kinks)
+        if vk < 0.0:
+            break
+        hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, line, c)
+        if not (0.0 < hk < remaining):
+            break
+        r = rk4_energy_time(E, u, hk, mode, line, c, 0.5 * (vc + vk))
+        E = 0.5 * vk * vk
+        u += hk
+        remaining -= hk
+        time += r.dt
+        vc = vk
+        push(o, x0 + u, vk, time, mode)
+
+
 cdef Py_ssize_t insert_kink_points_c(
     const Track* tr, const Ctx* c, const Kinks* tk, const Kinks* bk, const double* s, const double* v,
     const double* t, const signed char* m, Py_ssize_t n, Out* o,
 ) noexcept nogil:
     """Copy the trace (s, v, t, m) of n points into ``o``, adding a point wherever a traction or
-    braking stretch crosses a kink of its effort curve (located by ``distance_to_speed``, its time by
-    ``rk4_energy_time`` on the piece's branch), so that trapezoidal work integrals over the trace are
-    exact at kinks. ``o`` is sized by ``kinks_between``'s count, and never more points are added.
-    Writes P[P_TRACTION_SCALE]. Returns the points written."""
+    braking stretch crosses a kink of its effort curve (``stretch_kink_points``), so that trapezoidal
+    work integrals over the trace are exact at kinks. ``o`` is sized by ``kinks_between``'s count,
+    and never more points are added. Writes P[P_TRACTION_SCALE]. Returns the points written.
+    (The fastest run has its kernel emit these points as it steps: ``fastest_segment_k``.)"""
     cdef Py_ssize_t n_int = tr.n
-    cdef Py_ssize_t k, i, ix, q, nk
+    cdef Py_ssize_t k, i, ix
     cdef const Kinks* kinks
     cdef long mode
     cdef Line line
-    cdef double u, E, time, remaining, vc, vk, hk
-    cdef bint rising
-    cdef ET r
     for k in range(n):
         push(o, s[k], v[k], t[k], m[k])
         mode = m[k]
         if k == n - 1 or (mode != TRACTION and mode != BRAKE):
             continue
         kinks = tk if mode == TRACTION else bk
-        nk = kinks_between(v[k], v[k + 1], kinks)
-        if nk == 0:
+        if kinks_between(v[k], v[k + 1], kinks) == 0:
             continue
         i = search_right(tr.x, n_int + 1, s[k]) - 1
         if i > n_int - 1:
@@ -580,27 +681,9 @@ cdef Py_ssize_t insert_kink_points_c(
             i += n_int
         c.P[P_TRACTION_SCALE] = tr.tscale[i]
         line = line_of(tr, i)
-        u = s[k] - tr.x[ix]
-        E = 0.5 * v[k] * v[k]
-        time = t[k]
-        remaining = s[k + 1] - s[k]
-        rising = v[k + 1] > v[k]
-        vc = v[k]
-        # never more points than counted (the output is sized by that count)
-        for q in range(nk):
-            vk = next_kink(vc, rising, v[k + 1], kinks)
-            if vk < 0.0:
-                break
-            hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, &line, c)
-            if not (0.0 < hk < remaining):
-                break
-            r = rk4_energy_time(E, u, hk, mode, &line, c, 0.5 * (vc + vk))
-            E = 0.5 * vk * vk
-            u += hk
-            remaining -= hk
-            time += r.dt
-            vc = vk
-            push(o, tr.x[ix] + u, vk, time, mode)
+        stretch_kink_points(
+            &line, c, kinks, mode, tr.x[ix], s[k] - tr.x[ix], v[k], v[k + 1], t[k], s[k + 1] - s[k], o
+        )
     return o.n
 
 
@@ -684,12 +767,17 @@ cdef int _ctx(object P, object curves, Curves* cv, Ctx* c) except -1:
 
 def fastest_segment(
     x, a0, a1, b0, b1, vlim, tscale, Py_ssize_t i0, Py_ssize_t i1, double t0, P, curves, tk, bk,
-    out_s, out_v, out_t, out_m, Py_ssize_t n,
+    out_s, out_v, out_t, out_m, Py_ssize_t n, *, bint kink_points=False, bint grow=False,
 ):
     """Fastest run from standstill at x[i0] to standstill at x[i1] [m], starting at time t0 [s];
     appends points to the out arrays (float64, regimes int8) from index n. Returns
     ``(new n, status, position of a stall [m])`` (STATUS_OK and 0.0, or STATUS_STALLED); see
-    ``fastest_segment_c``. Writes P[P_TRACTION_SCALE] per interval."""
+    ``fastest_segment_c``. Writes P[P_TRACTION_SCALE] per interval.
+
+    ``kink_points``: also a point wherever a traction or braking stretch crosses a kink of its effort
+    curve (what ``insert_kink_points`` adds afterwards, found here by the steps that locate the kinks
+    anyway). ``grow``: out arrays too short give ``(n, STATUS_FULL, nan)`` (n as given: nothing
+    past it is valid) for the caller to run the segment again with longer ones, instead of an error."""
     cdef Track tr = _track(x, a0, a1, b0, b1, vlim, tscale, i1)
     cdef Curves cv
     cdef Ctx c
@@ -722,11 +810,13 @@ def fastest_segment(
     cdef long status
     try:
         with nogil:
-            status = fastest_segment_c(
-                &tr, i0, i1, t0, &c, &ktk, &kbk, &o, sc, sc + m_int, sc + 2 * m_int, &stall_at
+            status = fastest_segment_k(
+                &tr, i0, i1, t0, &c, &ktk, &kbk, &o, sc, sc + m_int, sc + 2 * m_int, &stall_at, kink_points
             )
     finally:
         PyMem_Free(sc)
+    if o.overflow and grow:
+        return n, STATUS_FULL, float("nan")
     if o.overflow:
         raise ValueError(f"the out arrays (length {cap}) are too short for the segment's trace")
     return o.n, status, stall_at
@@ -914,4 +1004,5 @@ def compiled_constants():
         "TIME_SUBSTEPS": TIME_SUBSTEPS,
         "STATUS_OK": STATUS_OK,
         "STATUS_STALLED": STATUS_STALLED,
+        "STATUS_FULL": STATUS_FULL,
     }

@@ -36,6 +36,9 @@ POSITION_TOLERANCE = 1e-9
 
 STATUS_OK = 0
 STATUS_STALLED = 1
+#: ``_kernel_c.fastest_segment(..., grow=True)``: the out arrays are full, run the segment again with
+#: longer ones (never a run's status).
+STATUS_FULL = 2
 
 # Settings of the compiled integrators (sim/_kernel_c.pyx, sim/_forces.pxd hold the same values; a test
 # checks that they agree).

@@ -14,7 +14,17 @@ from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings, Scenario
 from trainsim.model.train import Train
 from trainsim.sim import _kernel_c
-from trainsim.sim.codes import DWELL, P_BRAKE_FRACTION, P_DECEL, P_MASS, P_R0, P_R1, P_R2, STATUS_OK
+from trainsim.sim.codes import (
+    DWELL,
+    P_BRAKE_FRACTION,
+    P_DECEL,
+    P_MASS,
+    P_R0,
+    P_R1,
+    P_R2,
+    STATUS_FULL,
+    STATUS_OK,
+)
 from trainsim.sim.parameters import kernel_parameters, kink_speeds, regenerative_arrays
 from trainsim.sim.profile import compile_route
 from trainsim.sim.result import RunResult, build_result
@@ -240,10 +250,18 @@ def run_fastest(
             i1 = j
             if i1 == i0:
                 break
-        n, status, stall_at_k = _kernel_c.fastest_segment(
-            track.x, track.a0, track.a1, track.b0, track.b1, track.vlim, track.traction_scale,
-            i0, i1, t, P, curves, tk, bk, out_s, out_v, out_t, out_m, n,
-        )  # fmt: skip
+        while True:
+            # the kernel places a point at every effort-curve kink it steps across (one pass)
+            n_next, status, stall_at_k = _kernel_c.fastest_segment(
+                track.x, track.a0, track.a1, track.b0, track.b1, track.vlim, track.traction_scale,
+                i0, i1, t, P, curves, tk, bk, out_s, out_v, out_t, out_m, n, kink_points=True, grow=True,
+            )  # fmt: skip
+            if status != STATUS_FULL:
+                break
+            out_s, out_v, out_t, out_m = (
+                np.concatenate([a, np.empty_like(a)]) for a in (out_s, out_v, out_t, out_m)
+            )
+        n = n_next
         if status != STATUS_OK:
             stall_at = stall_at_k
             break
@@ -257,11 +275,6 @@ def run_fastest(
         out_s[0], out_v[0], out_t[0], out_m[0] = stops[0], 0.0, 0.0, DWELL
         n = 1
     s, v, t, regime = drop_empty_stretches(out_s[:n], out_v[:n], out_t[:n], out_m[:n])
-    # a point at every effort-curve kink makes the trapezoidal work integrals exact there
-    s, v, t, regime = _kernel_c.insert_kink_points(
-        track.x, track.a0, track.a1, track.b0, track.b1, track.traction_scale,
-        P, curves, tk, bk, s, v, t, regime,
-    )  # fmt: skip
     return build_result(
         train=train,
         route=route,
