@@ -10,8 +10,9 @@ stretch the end powers of its regime at both of its ends with the line resistanc
 whose currents enter the running peaks. Every expression is written in the order numpy evaluates it
 (a + b * c + d * e * f is (a + (b * c)) + ((d * e) * f) in C as in Python), without contraction into
 fused multiply-adds or any fast-math licence, so that the arrays are the same bits; with
-``with_trace`` false only the peaks are stored, which is what a summary needs. ``interval_laws``
-evaluates the kernel grid's per-interval line laws the same way (``profile.compile_route``).
+``with_trace`` false only the peaks are stored, which is what a summary needs. ``kernel_grid`` builds
+the kernel grid of a run (``profile.compile_route``) from the laws' breakpoints and the stops and
+evaluates its per-interval line laws the same way (``interval_laws``, for a given grid).
 
 A line law is passed as ``(x, left, right, steps)``, the arrays of a ``profile.PiecewiseLinear`` and
 whether it is piecewise constant (``profile._law_arrays``); an effort curve as
@@ -19,7 +20,8 @@ whether it is piecewise constant (``profile._law_arrays``); an effort curve as
 in them is reference-counted. The arrays belong to the caller, who holds them for the whole call.
 """
 
-from libc.math cimport INFINITY, NAN, fabs, sqrt
+from libc.math cimport INFINITY, NAN, ceil, fabs, sqrt
+from libc.stdlib cimport free, malloc, qsort
 from libc.stdint cimport int64_t
 from cpython.buffer cimport PyBUF_C_CONTIGUOUS, PyBUF_FORMAT, PyBUF_WRITABLE, PyObject_GetBuffer
 
@@ -36,7 +38,7 @@ from trainsim.sim._forces cimport (
     Curve,
     curve_from,
 )
-from trainsim._cbuffers cimport MAX_HELD, Held, is_format, release, search_right
+from trainsim._cbuffers cimport MAX_HELD, Held, is_format, release, search_left, search_right
 
 #: The rows of ``run_arrays``'s point arrays: acceleration [m/s^2], forces [N], speed limit [m/s],
 #: powers [W], line currents [A] (the ``result.Trace`` fields of the same names).
@@ -63,6 +65,9 @@ cdef enum:
 #: The order of the laws ``run_arrays`` takes in its ``laws`` tuple.
 RUN_LAWS = ("gradient", "curve", "tunnel", "tunnel_v2", "availability", "voltage", "ceiling")
 _RUN_LAW_LABELS = tuple(f"law {name}" for name in RUN_LAWS)
+#: The order of the laws ``kernel_grid`` and ``interval_laws`` take.
+GRID_LAWS = ("gradient", "curve", "tunnel", "tunnel_v2", "ceiling", "available")
+_GRID_LAW_LABELS = tuple(f"law {name}" for name in GRID_LAWS)
 
 
 cdef struct Law:
@@ -617,6 +622,218 @@ def interval_laws(x, tuple gradient, tuple curve, tuple tunnel, tuple tunnel_v2,
     finally:
         release(&held)
     return results
+
+
+cdef int _compare_doubles(const void* a, const void* b) noexcept nogil:
+    cdef double x = (<const double*>a)[0], y = (<const double*>b)[0]
+    return (x > y) - (x < y)
+
+
+cdef Py_ssize_t sorted_unique(double* a, Py_ssize_t n) noexcept nogil:
+    """``np.unique`` in place on values without NaN: sorted (only when they are not already), equal
+    values kept once; returns the count kept."""
+    cdef Py_ssize_t i, m
+    for i in range(1, n):
+        if a[i] < a[i - 1]:
+            qsort(a, n, sizeof(double), _compare_doubles)
+            break
+    if n == 0:
+        return 0
+    m = 1
+    for i in range(1, n):
+        if a[i] != a[m - 1]:
+            a[m] = a[i]
+            m += 1
+    return m
+
+
+cdef bint is_stop(double x, const double* stops, Py_ssize_t n_stops) noexcept nogil:
+    """x equals one of the stops (``np.isin``, ``in`` a set of floats: equality)."""
+    cdef Py_ssize_t k
+    for k in range(n_stops):
+        if x == stops[k]:
+            return True
+    return False
+
+
+cdef struct Grading:
+    double max_step  # longest step [m]
+    double smallest  # the step next to standstill [m]
+    double ratio  # ratio of successive graded steps [-], > 1
+
+
+cdef Py_ssize_t graded_points(double a, double b, bint grade_left, bint grade_right, const Grading* gr,
+                              double* out) noexcept nogil:
+    """The interior points of the coarse interval [a, b] next to a stop (``profile._graded``'s numpy
+    form in the tests): steps graded geometrically from ``smallest`` by ``ratio`` towards a graded end,
+    then a uniform subdivision (numpy's ``linspace``: i x step + start) of at most ``max_step`` in
+    between. Written in increasing order to ``out`` unless it is NULL; returns how many."""
+    cdef double length = b - a, left_edge = a, right_edge = b, reach, h, last = 0.0, span, step, delta
+    cdef Py_ssize_t count = 0, n_off = 0, k, n, i
+    if grade_left or grade_right:
+        reach = length / (2.0 if grade_left and grade_right else 1.0)
+        reach = reach if reach < gr.max_step else gr.max_step  # Python's min(max_step, reach)
+        h = gr.smallest
+        while h < reach:
+            last = h
+            n_off += 1
+            h *= gr.ratio
+        if grade_left:
+            if out != NULL:
+                h = gr.smallest
+                for k in range(n_off):
+                    out[count + k] = a + h
+                    h *= gr.ratio
+            count += n_off
+            left_edge = a + last
+        if grade_right:
+            right_edge = b - last
+    span = right_edge - left_edge
+    if span > 0.0:
+        n = <Py_ssize_t>ceil(span / gr.max_step - 1e-9)
+        if n >= 2:
+            delta = right_edge - left_edge
+            step = delta / <double>n
+            if out != NULL:
+                for i in range(1, n):
+                    # numpy's linspace: i x step + start, or (i / n) x delta for a step that underflows
+                    out[count + i - 1] = (<double>i * step if step != 0.0 else (<double>i / <double>n) * delta) + left_edge
+            count += n - 1
+    if grade_right:
+        if out != NULL:
+            # the offsets again, the largest first (increasing positions), each by the same products
+            for k in range(n_off):
+                h = gr.smallest
+                for i in range(n_off - 1 - k):
+                    h *= gr.ratio
+                out[count + k] = b - h
+        count += n_off
+    return count
+
+
+def kernel_grid(tuple laws, stops, double max_step, double g, double tolerance, double smallest,
+                double ratio):
+    """The kernel grid of a run and its per-interval laws (``profile.compile_route``), in one call.
+
+    ``laws`` = (gradient, curve, tunnel, tunnel_v2, ceiling, available) as ``(x, left, right,
+    steps)``; ``stops`` the run's stops [m], increasing (the run goes from the first to the last).
+    The coarse grid is every stop and every breakpoint of the laws between the first and the last
+    stop, sorted, a point closer than ``tolerance`` [m] to the one before it left out. Each coarse
+    interval is split uniformly into the fewest steps of at most ``max_step`` [m], except one that
+    ends at a stop: there the steps grow from ``smallest`` [m] by ``ratio`` away from the stop and the
+    rest is split uniformly. g [m/s^2] as ``interval_laws``. Returns ``(x, a0, a1, b0, b1, vlim,
+    scale, stop_index)``: the grid [m], the six arrays of ``interval_laws`` and the grid index of
+    each stop (the first grid point at or after stop - ``tolerance``); x is None when the grid is not
+    strictly increasing (an input of NaN)."""
+    stops_a = _vector("stops", stops, np.float64)
+    cdef Py_ssize_t n_stops = stops_a.shape[0]
+    if n_stops < 2:
+        raise ValueError(f"stops: need at least two stops, got {n_stops}")
+    if len(laws) != 6:
+        raise ValueError(f"laws: need 6 laws (gradient, curve, tunnel, tunnel_v2, ceiling, available), got {len(laws)}")
+    if not (max_step > 0.0 and smallest > 0.0 and ratio > 1.0):
+        raise ValueError(
+            f"grading: need max_step > 0, smallest > 0 and ratio > 1, got {max_step}, {smallest}, {ratio}"
+        )
+    cdef Grading gr
+    gr.max_step = max_step
+    gr.smallest = smallest
+    gr.ratio = ratio
+    cdef Held held
+    held.count = 0
+    cdef Law L[6]
+    cdef const double* sp
+    cdef Py_ssize_t size, k, j, i, n_cand, n_coarse, n_x, count, nk
+    cdef double lo, hi, a, b, w, step
+    cdef double* cand = NULL
+    cdef double* xp
+    cdef double* outs[6]
+    cdef int64_t* idx
+    cdef int q
+    cdef bint left_stop, right_stop
+    x = None
+    try:
+        for q in range(6):
+            law_from(&held, _GRID_LAW_LABELS[q], laws[q], &L[q])
+        sp = <const double*>hold(&held, "stops", "", stops_a, False, False, &size)
+        lo = sp[0]
+        hi = sp[n_stops - 1]
+        n_cand = 2 + n_stops
+        for q in range(6):
+            n_cand += L[q].n + 1
+        cand = <double*>malloc(n_cand * sizeof(double))
+        if cand == NULL:
+            raise MemoryError()
+        # the coarse grid: the ends, the stops and the laws' breakpoints strictly inside
+        cand[0] = lo
+        cand[1] = hi
+        n_cand = 2
+        for k in range(n_stops):
+            cand[n_cand] = sp[k]
+            n_cand += 1
+        for q in range(6):
+            for k in range(L[q].n + 1):
+                if L[q].x[k] > lo and L[q].x[k] < hi:
+                    cand[n_cand] = L[q].x[k]
+                    n_cand += 1
+        for k in range(n_cand):
+            if cand[k] != cand[k]:
+                return None, None, None, None, None, None, None, None
+        n_coarse = sorted_unique(cand, n_cand)
+        j = 1
+        for k in range(1, n_coarse):
+            if cand[k] - cand[j - 1] > tolerance:
+                cand[j] = cand[k]
+                j += 1
+        n_coarse = j
+        # the points of each coarse interval: its start and its interior points, then the last point
+        n_x = 1
+        for k in range(n_coarse - 1):
+            a = cand[k]
+            b = cand[k + 1]
+            left_stop = is_stop(a, sp, n_stops)
+            right_stop = is_stop(b, sp, n_stops)
+            if left_stop or right_stop:
+                n_x += 1 + graded_points(a, b, left_stop, right_stop, &gr, NULL)
+            else:
+                n_x += max(<Py_ssize_t>ceil((b - a) / max_step - 1e-9), 1)
+        x_full = np.empty(n_x)
+        xp = <double*>hold(&held, "x", "", x_full, False, True, &size)
+        count = 0
+        for k in range(n_coarse - 1):
+            a = cand[k]
+            b = cand[k + 1]
+            left_stop = is_stop(a, sp, n_stops)
+            right_stop = is_stop(b, sp, n_stops)
+            if left_stop or right_stop:
+                xp[count] = a + 0.0
+                count += 1 + graded_points(a, b, left_stop, right_stop, &gr, xp + count + 1)
+            else:
+                w = b - a
+                nk = max(<Py_ssize_t>ceil(w / max_step - 1e-9), 1)
+                step = w / <double>nk
+                for i in range(nk):
+                    xp[count + i] = a + <double>i * step
+                count += nk
+        xp[count] = cand[n_coarse - 1]
+        n_x = sorted_unique(xp, n_x)
+        for k in range(1, n_x):
+            if not (xp[k] > xp[k - 1]):
+                return None, None, None, None, None, None, None, None
+        x = x_full[:n_x]
+        results = tuple(np.empty(n_x - 1) for _ in range(6))
+        stop_index = np.empty(n_stops, dtype=np.int64)
+        for q in range(6):
+            outs[q] = <double*>hold(&held, "result", "", results[q], False, True, &size)
+        idx = <int64_t*>hold(&held, "stop_index", "", stop_index, True, True, &size)
+        with nogil:
+            interval_loop(n_x - 1, xp, L, g, outs[0], outs[1], outs[2], outs[3], outs[4], outs[5])
+            for k in range(n_stops):
+                idx[k] = search_left(xp, n_x, sp[k] - tolerance)
+    finally:
+        free(cand)
+        release(&held)
+    return (x, *results, stop_index)
 
 
 def piecewise_value_at(tuple law, double s):

@@ -17,7 +17,7 @@ from trainsim.errors import InputError
 from trainsim.model.route import Route
 from trainsim.model.train import Train
 from trainsim.physics import line_resistance as lr
-from trainsim.sim._trace_c import interval_laws
+from trainsim.sim._trace_c import kernel_grid
 
 #: Smallest interval kept when merging breakpoints [m]; closer points are the same point.
 POSITION_TOLERANCE_M = 1e-6
@@ -262,32 +262,6 @@ class KernelTrack:
     stop_index: np.ndarray  # grid index of each stop, increasing
 
 
-def _graded(a: float, b: float, max_step: float, grade_left: bool, grade_right: bool) -> list[float]:
-    """Interior points of [a, b]: steps of at most ``max_step``, graded geometrically towards an
-    end where the train is at standstill."""
-    pts: list[float] = []
-    length = b - a
-    left_edge, right_edge = a, b
-    if grade_left or grade_right:
-        h = SMALLEST_STEP_M
-        reach = min(max_step, length / (2 if grade_left and grade_right else 1))
-        offsets = []
-        while h < reach:
-            offsets.append(h)
-            h *= GRADING_RATIO
-        if grade_left:
-            pts += [a + d for d in offsets]
-            left_edge = a + (offsets[-1] if offsets else 0.0)
-        if grade_right:
-            pts += [b - d for d in offsets]
-            right_edge = b - (offsets[-1] if offsets else 0.0)
-    span = right_edge - left_edge
-    if span > 0:
-        n = int(np.ceil(span / max_step - 1e-9))
-        pts += list(np.linspace(left_edge, right_edge, n + 1)[1:-1])
-    return sorted(pts)
-
-
 @dataclass(frozen=True)
 class CompiledRoute:
     """Everything a run derives from its route and train once: the kernel's arrays, the line
@@ -300,49 +274,32 @@ class CompiledRoute:
     voltage: PiecewiseLinear
 
 
-def _breakpoints_inside(functions: tuple[PiecewiseLinear, ...], lo: float, hi: float) -> list[np.ndarray]:
-    return [f.x[(f.x > lo) & (f.x < hi)] for f in functions]
-
-
 def compile_route(route: Route, train: Train, stops_m: list[float], max_step_m: float) -> CompiledRoute:
     """Build the kernel grid for a run between the first and last of ``stops_m``, with the laws
-    the result needs too (``compile_track`` returns its first three)."""
+    the result needs too (``compile_track`` returns its first three).
+
+    The grid holds every stop and every breakpoint of the laws in between (points closer than
+    ``POSITION_TOLERANCE_M`` merged), each interval split uniformly into steps of at most
+    ``max_step_m``, graded from ``SMALLEST_STEP_M`` by ``GRADING_RATIO`` next to a stop; each interval's
+    laws are read just inside it so that a jump at a breakpoint belongs to the interval on its right.
+    Grid and laws are built in one compiled call (``_trace_c.kernel_grid``)."""
     profile = line_resistance_profile(route, train)
     ceiling = speed_ceiling(route, train)
     voltage = line_voltage(route, train)
     available = traction_availability(route, train, voltage)
-    lo, hi = stops_m[0], stops_m[-1]
     laws = (profile.gradient, profile.curve, profile.tunnel, profile.tunnel_v2, ceiling, available)
-    # the set of breakpoints, sorted (np.unique: the same values as a set of floats)
-    coarse = np.unique(
-        np.concatenate([[lo, hi], np.asarray(stops_m, dtype=float), *_breakpoints_inside(laws, lo, hi)])
+    x, a0, a1, b0, b1, vlim, traction_scale, stop_index = kernel_grid(
+        tuple(_law_arrays(f) for f in laws),
+        np.asarray(stops_m, dtype=float),
+        float(max_step_m),
+        float(route.gravity_mps2),
+        POSITION_TOLERANCE_M,
+        SMALLEST_STEP_M,
+        GRADING_RATIO,
     )
-    keep = np.concatenate([[True], np.diff(coarse) > POSITION_TOLERANCE_M])
-    coarse = coarse[keep]
-    stop_set = set(stops_m)
-    # uniform subdivision of every coarse interval, vectorised; grading only next to stops
-    widths = np.diff(coarse)
-    counts = np.maximum(np.ceil(widths / max_step_m - 1e-9).astype(np.int64), 1)
-    at_stop = np.isin(coarse, np.asarray(stops_m, dtype=float))  # equality, as ``in stop_set``
-    graded = at_stop[:-1] | at_stop[1:]
-    counts[graded] = 1
-    starts = np.repeat(coarse[:-1], counts)
-    within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-    uniform = starts + within * np.repeat(widths / counts, counts)
-    extra: list[float] = []
-    for k in np.flatnonzero(graded):
-        a, b = float(coarse[k]), float(coarse[k + 1])
-        extra += _graded(a, b, max_step_m, a in stop_set, b in stop_set)
-    x = np.unique(np.concatenate([uniform, coarse[-1:], np.array(extra)]))
-    if np.any(np.diff(x) <= 0):
+    if x is None:
         raise InputError("internal: grid not increasing", field="route")
-    # per-interval laws, evaluated just inside each interval so a jump at a breakpoint belongs to the
-    # right piece (compiled: one pass instead of eight interpolations and their temporaries)
-    a0, a1, b0, b1, vlim, traction_scale = interval_laws(
-        x, *(_law_arrays(f) for f in laws), float(route.gravity_mps2)
-    )
-    stop_index = np.searchsorted(x, np.array(stops_m) - POSITION_TOLERANCE_M)
-    track = KernelTrack(x, a0, a1, b0, b1, vlim, traction_scale, stop_index.astype(np.int64))
+    track = KernelTrack(x, a0, a1, b0, b1, vlim, traction_scale, stop_index)
     return CompiledRoute(track, profile, ceiling, available, voltage)
 
 
