@@ -18,7 +18,7 @@ import typing
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Literal, NoReturn
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, NoReturn
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, WrapValidator, model_validator
@@ -298,7 +298,15 @@ class Spec(BaseModel):
     :func:`fail`.
     """
 
-    model_config = ConfigDict(extra="forbid", populate_by_name=True, allow_inf_nan=False)
+    # Built when first validated, not when defined: a class nested in another is then never built on
+    # its own (its schema is generated once, inside the document that holds it), and a command
+    # builds only the documents it reads (issue 14: building every spec of the readers at import
+    # was a fifth of a `trainsim run`). A document that holds others names them in
+    # ``_built_first`` so that their schemas are generated once and reused (:func:`built`).
+    model_config = ConfigDict(extra="forbid", populate_by_name=True, allow_inf_nan=False, defer_build=True)
+
+    #: documents nested in this one that are also validated on their own: built before this one
+    _built_first: ClassVar[tuple[type[Spec], ...]] = ()
 
     @classmethod
     def _field_names(
@@ -668,11 +676,25 @@ def _check_header(data: Any, schema: str, file: str, *, required: bool = True) -
         )
 
 
+def built(cls: type[Spec]) -> type[Spec]:
+    """``cls`` with its validator built, after the documents it names in ``_built_first``.
+
+    A deferred model nested in another that is built first has its schema generated inside the
+    other and not kept: validating the nested one on its own later generates it again. Building
+    the nested documents first lets the outer one reuse their schemas (a scenario reads its train
+    and route files with their own validators)."""
+    if not cls.__pydantic_complete__:
+        for first in cls._built_first:
+            built(first)
+        cls.model_rebuild(force=True)
+    return cls
+
+
 def _validate(
     cls: type[Spec], data: Any, schema: str, source: str, path: str | Path | None, *, header: bool
 ) -> Any:
     _check_header(data, schema, source, required=header)
     try:
-        return cls.model_validate(data)
+        return built(cls).model_validate(data)
     except ValidationError as exc:
         raise validation_error(exc, source, path) from None

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
 
 from pydantic import Discriminator, Field, Tag, ValidationError
 
@@ -78,6 +78,9 @@ class ScenarioSpec(Spec):
     dwell_s: dict[str, NonNegative] | None = None
     settings: SettingsSpec = Field(default_factory=SettingsSpec)
     driving: DrivingSpec | None = None
+
+    # a scenario names train and route files, read with their own validators (see spec.built)
+    _built_first: ClassVar[tuple[type[Spec], ...]] = (TrainSpec, RouteSpec)
 
     def to_scenario(self, file: str = "<scenario>", base_dir: str | Path | None = None) -> Scenario:
         """The :class:`~trainsim.model.scenario.Scenario`; file names are relative to ``base_dir``."""
