@@ -4,8 +4,13 @@ TTOBench trains, and on the heavy-haul example and the source 002 metro with and
 regeneration, at 5, 10, 20 and 30 % supplements, section by section.
 
 Run: python benchmarks/bench_optimize.py [--out table.csv] [--tracks NAME ...] [--trains NAME ...]
-     [--extra-only] [--no-extra] [--extra-first] [--no-lesov] [--no-bound]
+     [--extra-only] [--no-extra] [--extra-first] [--extras metro metro_regen heavy_haul] [--skip-done]
+     [--no-lesov] [--no-bound]
 ``--tracks`` are measured in the order given (two processes can work a list from both ends).
+     python benchmarks/bench_optimize.py --journeys [--out journeys.csv] [--trains NAME ...]
+``--journeys``: every TTOBench journey with passing windows, with every train: the optimal strategy
+with the windows enforced (``optimize.windows``, as ``optimize(..., strategy="optimal")`` drives it)
+against the certified reference with the same windows, one row per window (``journeys``).
      python benchmarks/bench_optimize.py --speed [--max-km 35] [--tracks ...] [--trains ...]
 ``--speed`` times the optimal strategy alone at +10 % (no reference): a fresh solver per section,
 one solve beforehand, wall and CPU time against the RK4 baseline of ``_timing`` timed around
@@ -36,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 from _timing import machine, rk4_line
-from optimize_report import judged_denominator_kwh
+from optimize_report import judged_denominator_kwh, reachable_window_s
 
 from trainsim.io.ttobench import read_ttobench_track, read_ttobench_train
 from trainsim.model.route import Station
@@ -100,8 +105,9 @@ def measured_commit() -> str:
 
 def cases(args):
     """(case name, train name, train, route, sections) for every line and train to measure."""
+    extras = getattr(args, "extras", None) or list(EXTRAS)
     if getattr(args, "extra_first", False) and not args.no_extra:
-        yield from extra_cases()
+        yield from extra_cases(extras)
     if not args.extra_only:
         tracks = sorted(DATA.glob("tracks/*.json"))
         if args.tracks:
@@ -116,24 +122,154 @@ def cases(args):
                 stops = [s.position_m for s in route.stations]
                 yield track_file.stem, train_name, tt.train, route, list(pairwise(stops))
     if not args.no_extra and not getattr(args, "extra_first", False):
-        yield from extra_cases()
+        yield from extra_cases(extras)
 
 
-def extra_cases():
-    """The source 002 metro with and without regeneration and the heavy-haul example."""
+#: The cases beside TTOBench, in their default order (``--extras`` chooses and orders them).
+EXTRAS = ("metro", "metro_regen", "heavy_haul")
+
+
+def extra_cases(which=EXTRAS):
+    """The source 002 metro without (``metro``) and with regeneration (``metro_regen``) and the
+    heavy-haul example (``heavy_haul``), in the order of ``which``."""
     import trainsim
 
-    metro = trainsim.load_scenario(ROOT / "examples" / "metro_b" / "scenario.yaml")
-    stops = [s.position_m for s in metro.route.stations]
-    yield "metro_b", "source 002 metro", metro.train, metro.route, list(pairwise(stops))
-    t = metro.train
-    regen = dataclasses.replace(
-        t, braking=dataclasses.replace(t.braking, regenerative=t.traction.scaled(0.8))
-    )
-    yield "metro_b", "source 002 metro + regen 0.8", regen, metro.route, list(pairwise(stops))
-    heavy = trainsim.load_scenario(ROOT / "examples" / "heavy_haul" / "scenario_head.yaml")
-    stops = [s.position_m for s in heavy.route.stations]
-    yield "heavy_haul", "heavy haul (head power)", heavy.train, heavy.route, list(pairwise(stops))
+    for name in which:
+        if name in ("metro", "metro_regen"):
+            metro = trainsim.load_scenario(ROOT / "examples" / "metro_b" / "scenario.yaml")
+            stops = list(pairwise(s.position_m for s in metro.route.stations))
+            if name == "metro":
+                yield "metro_b", "source 002 metro", metro.train, metro.route, stops
+            else:
+                t = metro.train
+                regen = dataclasses.replace(
+                    t, braking=dataclasses.replace(t.braking, regenerative=t.traction.scaled(0.8))
+                )
+                yield "metro_b", "source 002 metro + regen 0.8", regen, metro.route, stops
+        elif name == "heavy_haul":
+            heavy = trainsim.load_scenario(ROOT / "examples" / "heavy_haul" / "scenario_head.yaml")
+            stops = list(pairwise(s.position_m for s in heavy.route.stations))
+            yield "heavy_haul", "heavy haul (head power)", heavy.train, heavy.route, stops
+        else:
+            raise SystemExit(f"--extras: no case {name!r} (allowed: {', '.join(EXTRAS)})")
+
+
+def done_cases(path: Path | None) -> set[tuple[str, str, float, float, float]]:
+    """(track, train, s0, s1, supplement) of the rows already in a CSV (``--skip-done``)."""
+    if path is None or not path.exists():
+        return set()
+    import pandas as pd
+
+    df = pd.read_csv(path)
+    return {
+        (r.track, r.train, round(float(r.s0), 2), round(float(r.s1), 2), round(float(r.supplement), 2))
+        for r in df.itertuples()
+    }
+
+
+#: A window no run can meet is given to the reference moved this far inside what the fastest run
+#: reaches [s], at least (the transcription's fastest run is not the integrator's to the second).
+RELAXED_WINDOW_SLACK_S = 1.0
+#: ... or this fraction of the section's running time, whichever is larger [-].
+RELAXED_WINDOW_SLACK_FRACTION = 0.005
+
+
+def journey_cases(args):
+    """(journey name, train name, TTOBench train, route with the journey's stops, timetable) for every
+    journey with a passing window and every train."""
+    from trainsim.io.ttobench import read_ttobench_journey
+    from trainsim.optimize.timetable import timetable_from_journey
+
+    for path in sorted(DATA.glob("journeys/*.json")):
+        journey = read_ttobench_journey(path)
+        if not any(p.earliest_s is not None or p.latest_s is not None for p in journey.passing_points):
+            continue
+        for train_name in args.trains or TRAINS:
+            tt = read_ttobench_train(DATA / "trains" / f"{train_name}.json")
+            route = read_ttobench_track(DATA / "tracks" / f"{journey.track_id}.json", tt)
+            section_route, timetable = timetable_from_journey(journey, route)
+            yield path.stem, train_name, tt, section_route, timetable
+
+
+def journeys(args) -> None:
+    """The optimal strategy with windows against the certified reference with the same windows."""
+    from trainsim.optimize.api import optimize
+    from trainsim.optimize.windows import enforce_windows, passing_time_s, window_miss_s
+
+    commit = measured_commit()
+    print(f"commit {commit}; {machine()}", flush=True)
+    for name, train_name, tt, route, timetable in journey_cases(args):
+        train = tt.train
+        result = optimize(train, route, timetable, strategy="optimal")
+        summary = result.summary()
+        stops = [s.position_m for s in route.stations]
+        for (s0, s1), sched in zip(pairwise(stops), timetable.sections, strict=True):
+            windows = [w for w in timetable.timing_points if s0 < w.position_m < s1]
+            if not windows:
+                continue
+            T = float(sched.running_time_s)
+            solver = SectionSolver(train, route, s0, s1)
+            t0, c0 = time.perf_counter(), time.process_time()
+            outcome = enforce_windows(solver, T, timetable.timing_points, solver.solve(T))
+            t_opt, c_opt = time.perf_counter() - t0, time.process_time() - c0
+            plan = outcome.plan
+            e_opt, _ = energies_j(train, route, s0, s1, plan)
+            # a window no run can meet goes to the reference as the nearest reachable one (slack
+            # inside), so that both are compared on the runs that come as close to it as possible
+            slack = max(RELAXED_WINDOW_SLACK_S, RELAXED_WINDOW_SLACK_FRACTION * T)
+            ref_windows, reach = [], {}
+            for w in windows:
+                lo, hi = reachable_window_s(solver.fastest[0], solver.fastest[2], w.position_m, T)
+                reach[w.position_m] = (lo, hi)
+                e, lt = w.earliest_s, w.latest_s
+                if lt is not None and lt < lo:
+                    lt = min(lo + slack, hi)
+                if e is not None and e > hi:
+                    e = max(hi - slack, lo)
+                ref_windows.append(dataclasses.replace(w, earliest_s=e, latest_s=lt))
+            t0, c0 = time.perf_counter(), time.process_time()
+            ref = certified_reference(
+                train, route, s0, s1, T, intervals=max(1000, int((s1 - s0) / 20)),
+                warm_start=(plan.s, plan.v), timing_points=ref_windows,
+            )  # fmt: skip
+            t_ref, c_ref = time.perf_counter() - t0, time.process_time() - c0
+            usable = ref.status == "ok" or ref.status.startswith("mesh not converged")
+            ref_traction, _ = reference_flows_j(train, ref)
+            judged = judged_denominator_kwh(ref.energy_j / 3.6e6, ref_traction / 3.6e6) * 3.6e6
+            for w, rw in zip(windows, ref_windows, strict=True):
+                lo, hi = reach[w.position_m]
+                t_o = passing_time_s(plan, w.position_m)
+                v_o = float(np.interp(w.position_m, plan.s, plan.v))
+                t_r = float(np.interp(w.position_m, ref.s, ref.time_s))
+                late = 0.0 if w.latest_s is None else lo - w.latest_s
+                early = 0.0 if w.earliest_s is None else w.earliest_s - hi
+                unreachable = max(late, early, 0.0)
+                miss_o = window_miss_s(t_o, w)
+                row = dict(
+                    journey=name, train=train_name, s0=s0, s1=s1, time_s=T, window=w.label,
+                    position_m=w.position_m, earliest_s=w.earliest_s, latest_s=w.latest_s,
+                    min_speed_kmh=None if w.min_speed_mps is None else w.min_speed_mps * 3.6,
+                    reachable_from_s=lo, reachable_to_s=hi, no_run_meets_by_s=unreachable,
+                    opt_pass_s=t_o, opt_pass_kmh=v_o * 3.6, opt_miss_s=miss_o,
+                    opt_speed_ok=w.min_speed_mps is None or v_o >= w.min_speed_mps - 1e-6,
+                    ref_pass_s=t_r, ref_earliest_s=rw.earliest_s, ref_latest_s=rw.latest_s,
+                    opt_kwh=e_opt / 3.6e6, ref_kwh=ref.energy_j / 3.6e6, gap_kwh=(e_opt - ref.energy_j) / 3.6e6,
+                    judged_gap_percent=(e_opt - ref.energy_j) / judged * 100 if usable else float("nan"),
+                    lower_bound_kwh=(ref.lower_bound_j or float("nan")) / 3.6e6, ref_status=ref.status,
+                    bound_status=ref.bound_status, ref_cpu_s=c_ref, ref_s=t_ref, opt_ms=t_opt * 1e3,
+                    opt_cpu_ms=c_opt * 1e3, opt_running_time_s=plan.running_time_s,
+                    result_status=summary["status"],
+                    result_warning="; ".join(x for x in summary.get("warnings", []) if f"{w.position_m:.0f} m" in x),
+                    notes="; ".join(outcome.notes), commit=commit,
+                )  # fmt: skip
+                print(f"{name} {train_name:22s} {w.label:>12s} window {w.earliest_s}-{w.latest_s} s, reachable "
+                      f"{lo:.1f}-{hi:.1f} s, optimal passes {t_o:.1f} s ({miss_o:+.1f}), reference {t_r:.1f} s; "
+                      f"opt {e_opt / 3.6e6:.3f} ref {ref.energy_j / 3.6e6:.3f} kWh ({row['judged_gap_percent']:.3f} %), "
+                      f"ref {ref.status[:40]}, CPU {c_ref:.1f} s; result {summary['status']}", flush=True)  # fmt: skip
+                if args.out:
+                    import pandas as pd
+
+                    pd.DataFrame([row]).to_csv(args.out, mode="a", header=not args.out.exists(), index=False)
 
 
 #: Length classes of the speed targets (issue 16): (label, longest section [m], target max [ms]).
@@ -219,13 +355,21 @@ def main() -> None:
     parser.add_argument("--extra-only", action="store_true", help="only the metro and heavy-haul cases")
     parser.add_argument("--no-extra", action="store_true", help="only the TTOBench cases")
     parser.add_argument("--extra-first", action="store_true", help="the metro and heavy-haul cases first")
+    parser.add_argument(
+        "--extras", nargs="*", default=None, help=f"which of {', '.join(EXTRAS)}, in this order"
+    )
+    parser.add_argument("--skip-done", action="store_true", help="skip the cases already in --out")
     parser.add_argument("--no-lesov", action="store_true")
     parser.add_argument("--no-bound", action="store_true", help="skip the lower bound")
     parser.add_argument("--speed", action="store_true", help="time the optimal strategy only, at +10 %%")
     parser.add_argument("--max-km", type=float, default=35.0, help="with --speed: longest section [km]")
+    parser.add_argument("--journeys", action="store_true", help="the TTOBench journeys with windows")
     args = parser.parse_args()
     if args.speed:
         speed(args)
+        return
+    if args.journeys:
+        journeys(args)
         return
     rows = []
     commit = measured_commit()
@@ -234,11 +378,19 @@ def main() -> None:
               f"{'d kWh':>8s} {'gap %':>7s} {'judged %':>8s} {'cert %':>7s} {'opt ms':>7s} {'ref cpu s':>9s} "
               f"{'N':>6s} {'004 gap %':>9s}")  # fmt: skip
     print(header, flush=True)
+    done = done_cases(args.out) if args.skip_done else set()
     for track, train_name, train, route, sections in cases(args):
         for s0, s1 in sections:
+            todo = [
+                sup
+                for sup in SUPPLEMENTS
+                if (track, train_name, round(s0, 2), round(s1, 2), round(sup, 2)) not in done
+            ]
+            if not todo:
+                continue
             solver = SectionSolver(train, route, s0, s1)
             solver.solve(solver.fastest_time_s * 1.1)  # warm-up (numba compilation, caches)
-            for sup in SUPPLEMENTS:
+            for sup in todo:
                 T = solver.fastest_time_s * (1 + sup)
                 t0 = time.perf_counter()
                 plan = solver.solve(T)

@@ -170,8 +170,16 @@ def coverage(df: pd.DataFrame, missing_reason: str) -> list[str]:
         by_line.setdefault((track, train), []).append(
             f"{s0:.0f}-{s1:.0f} at {', '.join(f'{100 * x:.0f} %' for x in sups)}"
         )
+    trains_of: dict[str, list[str]] = {}
     for (track, train), secs in sorted(by_line.items()):
-        out.append(f"- {track} / {train}: {'; '.join(secs)} m")
+        n_sections = len({k for k in expected if k[0] == track and k[1] == train})
+        if len(secs) == n_sections and all(" at " not in s for s in secs):
+            trains_of.setdefault(track, []).append(train)  # nothing measured on this line with this train
+        else:
+            out.append(f"- {track} / {train}: {'; '.join(secs)} m")
+    for track, trains in trains_of.items():
+        n_sections = len({k[2:] for k in expected if k[0] == track})
+        out.append(f"- {track}: all {n_sections} section(s) at all 4 supplements with {', '.join(trains)}")
     out.append("")
     return out
 
