@@ -107,7 +107,7 @@ def test_report_shows_rows_above_the_target_rises_with_time_and_missing_cases(
     report.main([str(csv), "--csv", str(out_csv), "--missing-reason", "not run."])
     md = capsys.readouterr().out
     assert "8 of the 12 cases expected" in md
-    assert "- line / train C: 0-1000 m" in md
+    assert "- line: all 1 section(s) at all 4 supplements with train C" in md
     assert "within 0.5 %: **7/8**" in md
     assert "within 0.1 %: **6/8**" in md
     assert "(1 above 0.5 %)" in md
