@@ -69,9 +69,19 @@ from trainsim.sim._forces cimport (
     speed_domain_steps,
 )
 
-# Status of ``fastest_segment(..., grow=True)`` when its out arrays are full (trainsim.sim.codes)
+# Status of ``fastest_segment(..., grow=True)`` when its out arrays are full, and the settings of the
+# speed-domain steps near standstill (trainsim.sim.codes; checked by a test)
 cdef enum:
     STATUS_FULL = 2
+    SLOW_STEP_SUBSTEPS = 32
+    SLOW_STEP_SPEED_STEPS = 4
+    SLOW_STEP_NEWTON = 8
+
+cdef extern from *:
+    """
+    static const double TRAINSIM_SLOW_STEP_TOLERANCE = 1e-13;
+    """
+    const double SLOW_STEP_TOLERANCE "TRAINSIM_SLOW_STEP_TOLERANCE"
 
 
 cdef struct StepKinks:
@@ -207,6 +217,78 @@ cdef ET rk4_energy_time(
     return r
 
 
+cdef bint speed_domain_step(
+    double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref, double a0,
+    ET* out,
+) noexcept nogil:
+    """(E [m^2/s^2], elapsed time [s]) after a forward step h [m] from offset u of an accelerating
+    motion, integrated in the speed domain (ds/dv = v / a, dt/dv = 1 / a, both regular at low speed,
+    where E(s) has the square-root singularity of standstill just behind it): RK4 from v0 to the speed
+    the constant acceleration a0 [m/s^2] (the acceleration at the start) reaches after h, in as many
+    steps as ``speed_domain_steps`` gives for an event location over those speeds (at least
+    SLOW_STEP_SPEED_STEPS), then Newton steps on the end speed (each one more RK4
+    step from the last speed by (h - s) a / v) until the distance is h to SLOW_STEP_TOLERANCE
+    relative. Into ``out``; False (``out`` not valid) when the acceleration is not positive at some
+    stage or Newton does not converge: the caller integrates in the distance domain then."""
+    cdef double v = sqrt(2.0 * E) if E > 0.0 else 0.0
+    if not (a0 > 0.0 and h > 0.0):
+        return False
+    cdef double v_end = sqrt(v * v + 2.0 * a0 * h)
+    # as many steps as an event location over these speeds takes, and at least SLOW_STEP_SPEED_STEPS
+    cdef double a_end = acceleration(mode, 0.5 * v_end * v_end, u + h, line, c, vref)
+    cdef long n = speed_domain_steps(v, v_end, a0, a_end)
+    if n < SLOW_STEP_SPEED_STEPS:
+        n = SLOW_STEP_SPEED_STEPS
+    cdef double dv = (v_end - v) / n
+    cdef double s = 0.0, t = 0.0, a, vm, ve, a1, a2, a3, a4
+    cdef long it
+    for it in range(n + SLOW_STEP_NEWTON):
+        if it >= n:
+            if fabs(h - s) <= SLOW_STEP_TOLERANCE * h:
+                out.E = 0.5 * v * v
+                out.dt = t
+                return True
+            a = acceleration(mode, 0.5 * v * v, u + s, line, c, vref)
+            if not (a > 0.0 and v > 0.0):
+                return False
+            dv = (h - s) * a / v
+        a1 = acceleration(mode, 0.5 * v * v, u + s, line, c, vref)
+        if not a1 > 0.0:
+            return False
+        vm = v + 0.5 * dv
+        a2 = acceleration(mode, 0.5 * vm * vm, u + s + 0.5 * dv * v / a1, line, c, vref)
+        if not a2 > 0.0:
+            return False
+        a3 = acceleration(mode, 0.5 * vm * vm, u + s + 0.5 * dv * vm / a2, line, c, vref)
+        if not a3 > 0.0:
+            return False
+        ve = v + dv
+        a4 = acceleration(mode, 0.5 * ve * ve, u + s + dv * vm / a3, line, c, vref)
+        if not a4 > 0.0:
+            return False
+        s += dv / 6.0 * (v / a1 + 2.0 * vm / a2 + 2.0 * vm / a3 + ve / a4)
+        t += dv / 6.0 * (1.0 / a1 + 2.0 / a2 + 2.0 / a3 + 1.0 / a4)
+        v = ve
+    return False
+
+
+cdef ET rk4_energy_time_s(
+    double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref, bint slow
+) noexcept nogil:
+    """``rk4_energy_time``; with ``slow``, a step of an accelerating motion that it would divide into
+    SLOW_STEP_SUBSTEPS sub-steps or more (near standstill) is integrated in the speed domain instead
+    (``speed_domain_step``), with far fewer force evaluations."""
+    cdef double a0
+    cdef ET r
+    if slow and E > 0.0:
+        a0 = acceleration(mode, E, u, line, c, vref)
+        if substeps(E, h, a0) >= SLOW_STEP_SUBSTEPS and speed_domain_step(
+            E, u, h, mode, line, c, vref, a0, &r
+        ):
+            return r
+    return rk4_energy_time(E, u, h, mode, line, c, vref)
+
+
 cdef double distance_to_speed(
     double E, double u, double Et, long mode, const Line* line, const Ctx* c
 ) noexcept nogil:
@@ -270,12 +352,12 @@ cdef ET step_energy_time_c(
     end speed is looked for too (RK4 across it can land on either side), and a piece that starts at
     a kink or ends at one is integrated again on its own branch (vref the mean of its end speeds).
     At most 64 pieces."""
-    return step_energy_time_k(E, u, h, mode, line, c, kinks, NULL)
+    return step_energy_time_k(E, u, h, mode, line, c, kinks, NULL, False)
 
 
 cdef ET step_energy_time_k(
     double E, double u, double h, long mode, const Line* line, const Ctx* c, const Kinks* kinks,
-    StepKinks* sk,
+    StepKinks* sk, bint slow,
 ) noexcept nogil:
     """``step_energy_time_c``, recording in ``sk`` (unless NULL) the kinks where it split the step:
     their offsets [m], speeds [m/s] and times since the step's start [s], in the order met (one pass:
@@ -290,7 +372,7 @@ cdef ET step_energy_time_k(
     if sk != NULL:
         sk.n = 0
     for it in range(64):
-        r = rk4_energy_time(E, u, remaining, mode, line, c, -1.0)
+        r = rk4_energy_time_s(E, u, remaining, mode, line, c, -1.0, slow)
         v0 = sqrt(2.0 * E) if E > 0.0 else 0.0
         v1 = sqrt(2.0 * r.E) if r.E > 0.0 else 0.0
         rising = v1 > v0
@@ -301,11 +383,11 @@ cdef ET step_energy_time_k(
             hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, line, c)
         if not (hk * remaining > 0.0 and fabs(hk) < fabs(remaining) - POSITION_TOLERANCE):
             if split or vk >= 0.0:
-                r = rk4_energy_time(E, u, remaining, mode, line, c, 0.5 * (v0 + v1))
+                r = rk4_energy_time_s(E, u, remaining, mode, line, c, 0.5 * (v0 + v1), slow)
             r.dt = total_dt + r.dt
             return r
         split = True
-        rk = rk4_energy_time(E, u, hk, mode, line, c, 0.5 * (v0 + vk))
+        rk = rk4_energy_time_s(E, u, hk, mode, line, c, 0.5 * (v0 + vk), slow)
         total_dt += rk.dt
         E = 0.5 * vk * vk
         u += hk
@@ -502,16 +584,18 @@ cdef long fastest_segment_c(
     DWELL point at the stop. Returns STATUS_OK, or STATUS_STALLED with the stall position [m] in
     ``stall_at`` (the traction cannot overcome the resistance). Writes P[P_TRACTION_SCALE] per
     interval. Cr, Cl, US: scratch of i1 - i0 values each."""
-    return fastest_segment_k(tr, i0, i1, t0, c, tk, bk, o, Cr, Cl, US, stall_at, False)
+    return fastest_segment_k(tr, i0, i1, t0, c, tk, bk, o, Cr, Cl, US, stall_at, False, False)
 
 
 cdef long fastest_segment_k(
     const Track* tr, Py_ssize_t i0, Py_ssize_t i1, double t0, const Ctx* c, const Kinks* tk,
     const Kinks* bk, Out* o, double* Cr, double* Cl, double* US, double* stall_at, bint kink_points,
+    bint slow,
 ) noexcept nogil:
     """``fastest_segment_c``; with ``kink_points``, also a point wherever a traction or braking
     stretch crosses a kink of its effort curve, taken from the kink-aware steps that located it
-    (``step_energy_time_k``; the points ``insert_kink_points_c`` adds to the trace without them)."""
+    (``step_energy_time_k``; the points ``insert_kink_points_c`` adds to the trace without them);
+    with ``slow``, accelerating steps near standstill in the speed domain (``rk4_energy_time_s``)."""
     cdef Py_ssize_t m_int = i1 - i0
     cdef double* P = c.P
     braking_ceiling_mixed_c(tr, i0, i1, c, bk, bk, NULL, BRAKE, Cr, Cl, US)
@@ -555,7 +639,7 @@ cdef long fastest_segment_k(
                         u = stop_at
                         continue
                 # traction towards the end of this part
-                r = step_energy_time_k(E, u, end - u, TRACTION, &line, c, tk, pa)
+                r = step_energy_time_k(E, u, end - u, TRACTION, &line, c, tk, pa, slow)
                 if r.E <= 0.0:
                     h = find_speed_crossing_split_c(E, u, end - u, 0.0, TRACTION, &line, c, tk)
                     push(o, xi + u, v, t, TRACTION)
@@ -568,7 +652,7 @@ cdef long fastest_segment_k(
                 push(o, xi + u, v, t, TRACTION)
                 if v1 > vl_i and v < vl_i:
                     h = find_speed_crossing_split_c(E, u, end - u, 0.5 * vl_i * vl_i, TRACTION, &line, c, tk)
-                    rm = step_energy_time_k(E, u, h, TRACTION, &line, c, tk, pb)
+                    rm = step_energy_time_k(E, u, h, TRACTION, &line, c, tk, pb, slow)
                     if kink_points:
                         push_step_kinks(o, pb, xi, u, u + h, v, vl_i, t, TRACTION)
                     t += rm.dt
@@ -585,11 +669,11 @@ cdef long fastest_segment_k(
                 Er = 0.5 * Cr[k] * Cr[k]
                 Eb = step_energy_c(Er, w, u - w, BRAKE, &line, c, bk)
                 if Eb * (1.0 - 1e-9) - 1e-12 > E:
-                    r = step_energy_time_k(E, u, w - u, TRACTION, &line, c, tk, pa)
+                    r = step_energy_time_k(E, u, w - u, TRACTION, &line, c, tk, pa, slow)
                     push(o, xi + u, v, t, TRACTION)
                     if Er < r.E:
                         xm = find_curve_meeting(E, u, Er, w, &line, c, tk, bk)
-                        rm = step_energy_time_k(E, u, xm - u, TRACTION, &line, c, tk, pb)
+                        rm = step_energy_time_k(E, u, xm - u, TRACTION, &line, c, tk, pb, slow)
                         if kink_points:
                             push_step_kinks(
                                 o, pb, xi, u, xm, v, sqrt(2.0 * rm.E) if rm.E > 0 else 0.0, t, TRACTION
@@ -608,7 +692,7 @@ cdef long fastest_segment_k(
                     v = sqrt(2.0 * r.E)
                 else:
                     push(o, xi + u, v, t, BRAKE)
-                    r = step_energy_time_k(0.5 * v * v, u, w - u, BRAKE, &line, c, bk, pa)
+                    r = step_energy_time_k(0.5 * v * v, u, w - u, BRAKE, &line, c, bk, pa, slow)
                     if kink_points:
                         push_step_kinks(o, pa, xi, u, w, v, Cr[k], t, BRAKE)
                     t += r.dt
@@ -768,6 +852,7 @@ cdef int _ctx(object P, object curves, Curves* cv, Ctx* c) except -1:
 def fastest_segment(
     x, a0, a1, b0, b1, vlim, tscale, Py_ssize_t i0, Py_ssize_t i1, double t0, P, curves, tk, bk,
     out_s, out_v, out_t, out_m, Py_ssize_t n, *, bint kink_points=False, bint grow=False,
+    bint slow_steps=False,
 ):
     """Fastest run from standstill at x[i0] to standstill at x[i1] [m], starting at time t0 [s];
     appends points to the out arrays (float64, regimes int8) from index n. Returns
@@ -777,7 +862,9 @@ def fastest_segment(
     ``kink_points``: also a point wherever a traction or braking stretch crosses a kink of its effort
     curve (what ``insert_kink_points`` adds afterwards, found here by the steps that locate the kinks
     anyway). ``grow``: out arrays too short give ``(n, STATUS_FULL, nan)`` (n as given: nothing
-    past it is valid) for the caller to run the segment again with longer ones, instead of an error."""
+    past it is valid) for the caller to run the segment again with longer ones, instead of an error.
+    ``slow_steps``: accelerating steps near standstill integrated in the speed domain
+    (``rk4_energy_time_s``: the same motion with a fraction of the force evaluations)."""
     cdef Track tr = _track(x, a0, a1, b0, b1, vlim, tscale, i1)
     cdef Curves cv
     cdef Ctx c
@@ -811,7 +898,8 @@ def fastest_segment(
     try:
         with nogil:
             status = fastest_segment_k(
-                &tr, i0, i1, t0, &c, &ktk, &kbk, &o, sc, sc + m_int, sc + 2 * m_int, &stall_at, kink_points
+                &tr, i0, i1, t0, &c, &ktk, &kbk, &o, sc, sc + m_int, sc + 2 * m_int, &stall_at, kink_points,
+                slow_steps,
             )
     finally:
         PyMem_Free(sc)
@@ -934,6 +1022,23 @@ def rk4_energy_time_of(double E, double u, double h, long mode, line, P, curves,
     return r.E, r.dt
 
 
+def rk4_energy_time_slow_of(double E, double u, double h, long mode, line, P, curves, double vref=-1.0):
+    """(E [m^2/s^2], elapsed time [s]) of the cdef ``rk4_energy_time_s`` with speed-domain steps near
+    standstill, and whether the speed domain was used (for tests)."""
+    cdef Curves cv
+    cdef Ctx c
+    _ctx(P, curves, &cv, &c)
+    cdef Line ln = _line(line)
+    cdef ET r = rk4_energy_time_s(E, u, h, mode, &ln, &c, vref, True)
+    cdef ET q
+    cdef double a0 = acceleration(mode, E, u, &ln, &c, vref)
+    cdef bint used = (
+        E > 0.0 and substeps(E, h, a0) >= SLOW_STEP_SUBSTEPS
+        and speed_domain_step(E, u, h, mode, &ln, &c, vref, a0, &q)
+    )
+    return r.E, r.dt, used
+
+
 def distance_to_speed_of(double E, double u, double Et, long mode, line, P, curves):
     """Signed distance [m] of the cdef ``distance_to_speed`` (inf: never reached; for tests)."""
     cdef Curves cv
@@ -1005,4 +1110,8 @@ def compiled_constants():
         "STATUS_OK": STATUS_OK,
         "STATUS_STALLED": STATUS_STALLED,
         "STATUS_FULL": STATUS_FULL,
+        "SLOW_STEP_SUBSTEPS": SLOW_STEP_SUBSTEPS,
+        "SLOW_STEP_SPEED_STEPS": SLOW_STEP_SPEED_STEPS,
+        "SLOW_STEP_NEWTON": SLOW_STEP_NEWTON,
+        "SLOW_STEP_TOLERANCE": SLOW_STEP_TOLERANCE,
     }

@@ -255,6 +255,7 @@ def run_fastest(
             n_next, status, stall_at_k = _kernel_c.fastest_segment(
                 track.x, track.a0, track.a1, track.b0, track.b1, track.vlim, track.traction_scale,
                 i0, i1, t, P, curves, tk, bk, out_s, out_v, out_t, out_m, n, kink_points=True, grow=True,
+                slow_steps=True,
             )  # fmt: skip
             if status != STATUS_FULL:
                 break
