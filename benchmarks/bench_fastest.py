@@ -12,7 +12,8 @@ Four tables:
    in CPU time (on a machine loaded beyond its cores the CPU-time ratio is the trustworthy one), with
    the trace and without it (``run_fastest(..., trace=False)``, batch mode; CPU time and its ratio).
 2. stages (CPU time): one run split into what ``trainsim.sim.fastest.run_fastest`` calls:
-   compile_route, the brake check, the segment kernel (sim/_kernel_c, summed over the stops), kink-point insertion, result
+   compile_route, the brake check, the segment kernel (sim/_kernel_c, summed over the stops; it places
+   the kink points itself since issue 14's stop 26, where ``insert_kink_points`` once ran after it), result
    building, and inside the latter the exact energy integration (``run_works``). The run's own
    functions are timed where the run calls them (each is wrapped by a timer for the instrumented runs
    only; nothing in src/ is edited), so the split follows any change of the pipeline; "other" is the
@@ -62,7 +63,6 @@ STAGES = (
     ("trainsim.sim.fastest", "compile_route", "compile_route"),
     ("trainsim.sim.fastest", "braking_surplus", "brake check"),
     ("trainsim.sim._kernel_c", "fastest_segment", "kernel"),
-    ("trainsim.sim._kernel_c", "insert_kink_points", "kinks"),
     ("trainsim.sim.fastest", "build_result", "result"),
     ("trainsim.sim.result", "run_works", "(energy)"),
 )
@@ -129,7 +129,7 @@ def stage_split(train, route, settings, repeat: int, trace: bool = True) -> dict
             t0 = time.process_time()
             run_fastest(train, route, settings, trace=trace)
             acc["total"] = time.process_time() - t0
-        stages = ("compile_route", "brake check", "kernel", "kinks", "result")
+        stages = ("compile_route", "brake check", "kernel", "result")
         acc["other"] = acc["total"] - sum(acc[k] for k in stages)
         for k, x in acc.items():
             samples[k].append(x)
@@ -185,7 +185,7 @@ def main(argv: list[str] | None = None) -> None:
         )
 
     print("\n2. where one run goes (median CPU ms of instrumented runs; (energy) is part of result)")
-    labels = ("compile_route", "brake check", "kernel", "kinks", "result", "(energy)", "other", "total")
+    labels = ("compile_route", "brake check", "kernel", "result", "(energy)", "other", "total")
     print(f"{'case':46s} {'trace':>5s} " + " ".join(f"{x:>13s}" for x in labels))
     for name, train, route, settings in selected:
         for trace in (True, False):
