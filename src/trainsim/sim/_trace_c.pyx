@@ -119,6 +119,14 @@ cdef struct RunLaws:
     Law ceil
 
 
+cdef struct RunPoints:
+    const double* s
+    const double* v
+    const int64_t* regime
+    const double* level
+    const double* s_right  # NULL when not given
+
+
 cdef inline double nmin(double a, double b) noexcept nogil:
     """min(a, b) with NaN propagated, the first NaN if both are (numpy's ``minimum``)."""
     if a != a:
@@ -243,6 +251,12 @@ cdef inline void regime_forces(
     fb_out[0] = fb
 
 
+cdef inline void fold_peak(double* best, double x) noexcept nogil:
+    """``best`` = the larger of ``best`` and x, NaN ignored (numpy's ``nanmax``: NaN until a number)."""
+    if x == x and (best[0] != best[0] or x > best[0]):
+        best[0] = x
+
+
 cdef void run_loop(
     Py_ssize_t n,
     const double* s,
@@ -250,14 +264,23 @@ cdef void run_loop(
     const int64_t* regime,
     const double* level,
     const double* s_right,
+    double s_end,
     RunLaws* L,
     const Train* tr,
     bint with_trace,
     double* out,
     double* peak,
     double* peak_paper,
+    const int64_t* bounds,
+    Py_ssize_t n_sections,
+    double* section_peaks,
 ) noexcept nogil:
-    """The points' rows (``out``, N_ROWS x n, row-major, written only ``with_trace``) and peaks."""
+    """The points' rows (``out``, N_ROWS x n, row-major, written only ``with_trace``) and peaks: per
+    point (``peak``, ``peak_paper``) or, where ``peak`` is NULL, only their largest values ignoring
+    NaN (numpy's ``nanmax``; NaN if all are) over each section's points ``bounds[2k] ..
+    bounds[2k + 1]`` (inclusive, increasing) and over all points, in ``section_peaks`` (current of each
+    section, paper current of each section, then the two over all points). Without ``s_right`` the
+    line laws are read at min(s + 1e-7, s_end)."""
     cdef const Mech* mech = &tr.mech
     cdef const Electric* e = &tr.electric
     cdef double m_inertial = mech.inertial_mass
@@ -268,10 +291,15 @@ cdef void run_loop(
     cdef double vi, sr, running, grad, curve, tunnel, line, inertia, ds, acc_stretch, avail
     cdef double ft, fb, cap, fr, p_trac, el_power, paper_power, current, paper_current
     cdef double u, safe, end_current, end_paper, v0, v1, mid, vm, line_mid, avail_mid, run0, run1
-    cdef double f0t, f0b, f1t, f1b, rg0, rg1, u_mid, safe_mid, end_power
+    cdef double f0t, f0b, f1t, f1b, rg0, rg1, u_mid, safe_mid, end_power, pk, pk_paper
+    cdef Py_ssize_t sec = 0, j
+    cdef double* all_peaks = section_peaks + 2 * n_sections
+    if peak == NULL:
+        for i in range(2 * n_sections + 2):
+            section_peaks[i] = NAN
     for i in range(n):
         vi = v[i]
-        sr = s_right[i]
+        sr = s_right[i] if s_right != NULL else nmin(s[i] + 1e-7, s_end)
         r = regime[i]
         running = (c0 + c1 * vi + c2 * vi * vi) * (1.0 if vi > 0.0 else 0.0)
         grad = weight * piecewise_value_seq(&L.grad, sr)
@@ -279,7 +307,9 @@ cdef void run_loop(
         tunnel = weight * (piecewise_value_seq(&L.tun, sr) + piecewise_value_seq(&L.tun2, sr) * vi * vi)
         line = grad + curve + tunnel
         inertia = 0.0
-        if i < n - 1:
+        # the stretch's acceleration enters only a prescribed profile's forces (FOLLOW): its division
+        # is skipped elsewhere (regime_forces reads ``inertia`` in FOLLOW only, here and at the ends)
+        if i < n - 1 and r == FOLLOW:
             ds = s[i + 1] - s[i]
             acc_stretch = (v[i + 1] * v[i + 1] - vi * vi) / (2.0 * ds) if ds > 0.0 else 0.0
             inertia = m_inertial * acc_stretch
@@ -327,9 +357,23 @@ cdef void run_loop(
                 else:
                     end_current = 0.0
                     end_paper = 0.0
-            peak[i] = nmax(current, end_current)
-            peak_paper[i] = nmax(paper_current, end_paper)
-        else:
+            pk = nmax(current, end_current)
+            pk_paper = nmax(paper_current, end_paper)
+            if peak != NULL:
+                peak[i] = pk
+                peak_paper[i] = pk_paper
+            else:
+                fold_peak(&all_peaks[0], pk)
+                fold_peak(&all_peaks[1], pk_paper)
+                while sec < n_sections and i > bounds[2 * sec + 1]:
+                    sec += 1
+                # a section's last point is the next one's first where the train does not dwell
+                j = sec
+                while j < n_sections and bounds[2 * j] <= i:
+                    fold_peak(&section_peaks[j], pk)
+                    fold_peak(&section_peaks[n_sections + j], pk_paper)
+                    j += 1
+        elif peak != NULL:
             peak[i] = NAN
             peak_paper[i] = NAN
         if with_trace:
@@ -513,18 +557,122 @@ def run_arrays(
     Returns ``(arrays, peak_current, peak_paper_current)``: ``arrays`` of shape (15, n), rows as
     ``TRACE_ROWS``; (15, 0) without ``with_trace``. The peaks [A] hold, at each point, the larger of
     its own current and that of the stretch it starts at either end (NaN without electrics)."""
+    points = _points(s, v, regime, level, s_right)
+    s_a, v_a, regime_a, level_a, s_right_a = points
+    cdef Py_ssize_t n = s_a.shape[0]
+    cdef Train tr
+    train_from(&tr, laws, resist, weight, mech, electric, traction, service, regen)
+
+    out = np.empty((N_ROWS, n if with_trace else 0))
+    peak = np.empty(n)
+    peak_paper = np.empty(n)
+    if n == 0:
+        return out, peak, peak_paper
+    cdef Held held
+    held.count = 0
+    cdef RunLaws L
+    cdef RunPoints P
+    cdef Py_ssize_t size
+    cdef double* rows = NULL
+    cdef double* pp
+    cdef double* ppp
+    try:
+        hold_run(&held, laws, points, &L, &P)
+        if with_trace:
+            rows = <double*>hold(&held, "rows", "", out, False, True, &size)
+        pp = <double*>hold(&held, "peak", "", peak, False, True, &size)
+        ppp = <double*>hold(&held, "paper peak", "", peak_paper, False, True, &size)
+        with nogil:
+            run_loop(n, P.s, P.v, P.regime, P.level, P.s_right, 0.0, &L, &tr, with_trace, rows, pp, ppp, NULL, 0, NULL)
+    finally:
+        release(&held)
+    return out, peak, peak_paper
+
+
+def run_peaks(
+    s,
+    v,
+    regime,
+    level,
+    double s_end,
+    tuple laws,
+    resist,
+    double weight,
+    mech,
+    electric,
+    tuple traction,
+    tuple service,
+    tuple regen,
+    sections,
+):
+    """The line-current peaks of a run without its point arrays (a summary): the arguments of
+    ``run_arrays`` but ``s_right``, read as min(s + 1e-7, ``s_end`` [m]), and ``sections``, an int64
+    array of shape (k, 2), each row the first and the last point of a section (inclusive, in
+    increasing order). Returns ``(section_peak, section_paper_peak, peak, paper_peak)`` [A]: per
+    section and over all points, the largest of what ``run_arrays`` gives per point, NaN ignored
+    (``np.nanmax``; NaN where every value is, and without electrics). Nothing per point is stored."""
+    points = _points(s, v, regime, level, None)
+    cdef Py_ssize_t n = points[0].shape[0]
+    cdef Train tr
+    train_from(&tr, laws, resist, weight, mech, electric, traction, service, regen)
+    bounds = np.ascontiguousarray(sections, dtype=np.int64)
+    if bounds.ndim != 2 or bounds.shape[1] != 2:
+        raise ValueError(f"sections: need an array of shape (k, 2), got shape {bounds.shape}")
+    cdef Py_ssize_t n_sections = bounds.shape[0], k
+    flat = bounds.ravel()
+    for k in range(2 * n_sections):
+        if not (0 <= flat[k] < n) or (k > 0 and flat[k] < flat[k - 1]):
+            raise ValueError(
+                f"sections: need increasing point indices in 0 .. {n - 1}, got {bounds.tolist()}"
+            )
+    result = np.empty(2 * n_sections + 2)
+    cdef Held held
+    held.count = 0
+    cdef RunLaws L
+    cdef RunPoints P
+    cdef Py_ssize_t size
+    cdef double* out
+    cdef const int64_t* bp
+    try:
+        out = <double*>hold(&held, "result", "", result, False, True, &size)
+        if n == 0:
+            for k in range(2 * n_sections + 2):
+                out[k] = NAN
+        else:
+            hold_run(&held, laws, points, &L, &P)
+            bp = <const int64_t*>hold(&held, "sections", "", flat, True, False, &size)
+            with nogil:
+                run_loop(n, P.s, P.v, P.regime, P.level, NULL, s_end, &L, &tr, False, NULL, NULL, NULL,
+                         bp, n_sections, out)
+    finally:
+        release(&held)
+    return (
+        result[:n_sections],
+        result[n_sections : 2 * n_sections],
+        float(result[2 * n_sections]),
+        float(result[2 * n_sections + 1]),
+    )
+
+
+cdef tuple _points(s, v, regime, level, s_right):
+    """The run's point arrays as C-contiguous arrays of their types, checked to be of one length."""
     s_a = _vector("s", s, np.float64)
     cdef Py_ssize_t n = s_a.shape[0]
     v_a = _vector("v", v, np.float64)
     regime_a = _vector("regime", regime, np.int64)
     level_a = _vector("level", level, np.float64)
-    s_right_a = _vector("s_right", s_right, np.float64)
+    s_right_a = None if s_right is None else _vector("s_right", s_right, np.float64)
     for name, arr in (("v", v_a), ("regime", regime_a), ("level", level_a), ("s_right", s_right_a)):
-        if arr.shape[0] != n:
+        if arr is not None and arr.shape[0] != n:
             raise ValueError(f"{name}: length {arr.shape[0]}, need the length of s ({n})")
+    return s_a, v_a, regime_a, level_a, s_right_a
+
+
+cdef int train_from(Train* tr, tuple laws, resist, double weight, mech, electric, tuple traction,
+                    tuple service, tuple regen) except -1:
+    """Fill ``tr`` from ``run_arrays``'s arguments (see there), checking them and the number of laws."""
     if len(laws) != 7:
         raise ValueError(f"laws: need 7 laws {RUN_LAWS}, got {len(laws)}")
-    cdef Train tr
     tr.c0, tr.c1, tr.c2 = _sized("resist (c0, c1, c2)", resist, 3)
     tr.weight = weight
     m = _sized("mech", mech, 6)
@@ -543,46 +691,27 @@ def run_arrays(
     curve_checked("traction", traction, &tr.traction)
     curve_checked("service braking", service, &tr.service)
     curve_checked("regenerative braking", regen, &tr.regen)
+    return 0
 
-    out = np.empty((N_ROWS, n if with_trace else 0))
-    peak = np.empty(n)
-    peak_paper = np.empty(n)
-    if n == 0:
-        return out, peak, peak_paper
-    cdef Held held
-    held.count = 0
-    cdef RunLaws L
+
+cdef int hold_run(Held* held, tuple laws, tuple points, RunLaws* L, RunPoints* P) except -1:
+    """Hold the seven laws and the point arrays (``_points``) of a run for the call."""
     cdef Py_ssize_t size
-    cdef const double* sp
-    cdef const double* vp
-    cdef const int64_t* rp
-    cdef const double* lp
-    cdef const double* srp
-    cdef double* rows = NULL
-    cdef double* pp
-    cdef double* ppp
-    try:
-        law_from(&held, _RUN_LAW_LABELS[0], laws[0], &L.grad)
-        law_from(&held, _RUN_LAW_LABELS[1], laws[1], &L.curve)
-        law_from(&held, _RUN_LAW_LABELS[2], laws[2], &L.tun)
-        law_from(&held, _RUN_LAW_LABELS[3], laws[3], &L.tun2)
-        law_from(&held, _RUN_LAW_LABELS[4], laws[4], &L.avail)
-        law_from(&held, _RUN_LAW_LABELS[5], laws[5], &L.volt)
-        law_from(&held, _RUN_LAW_LABELS[6], laws[6], &L.ceil)
-        sp = <const double*>hold(&held, "s", "", s_a, False, False, &size)
-        vp = <const double*>hold(&held, "v", "", v_a, False, False, &size)
-        rp = <const int64_t*>hold(&held, "regime", "", regime_a, True, False, &size)
-        lp = <const double*>hold(&held, "level", "", level_a, False, False, &size)
-        srp = <const double*>hold(&held, "s_right", "", s_right_a, False, False, &size)
-        if with_trace:
-            rows = <double*>hold(&held, "rows", "", out, False, True, &size)
-        pp = <double*>hold(&held, "peak", "", peak, False, True, &size)
-        ppp = <double*>hold(&held, "paper peak", "", peak_paper, False, True, &size)
-        with nogil:
-            run_loop(n, sp, vp, rp, lp, srp, &L, &tr, with_trace, rows, pp, ppp)
-    finally:
-        release(&held)
-    return out, peak, peak_paper
+    law_from(held, _RUN_LAW_LABELS[0], laws[0], &L.grad)
+    law_from(held, _RUN_LAW_LABELS[1], laws[1], &L.curve)
+    law_from(held, _RUN_LAW_LABELS[2], laws[2], &L.tun)
+    law_from(held, _RUN_LAW_LABELS[3], laws[3], &L.tun2)
+    law_from(held, _RUN_LAW_LABELS[4], laws[4], &L.avail)
+    law_from(held, _RUN_LAW_LABELS[5], laws[5], &L.volt)
+    law_from(held, _RUN_LAW_LABELS[6], laws[6], &L.ceil)
+    P.s = <const double*>hold(held, "s", "", points[0], False, False, &size)
+    P.v = <const double*>hold(held, "v", "", points[1], False, False, &size)
+    P.regime = <const int64_t*>hold(held, "regime", "", points[2], True, False, &size)
+    P.level = <const double*>hold(held, "level", "", points[3], False, False, &size)
+    P.s_right = NULL
+    if points[4] is not None:
+        P.s_right = <const double*>hold(held, "s_right", "", points[4], False, False, &size)
+    return 0
 
 
 def interval_laws(x, tuple gradient, tuple curve, tuple tunnel, tuple tunnel_v2, tuple ceiling,
@@ -622,6 +751,49 @@ def interval_laws(x, tuple gradient, tuple curve, tuple tunnel, tuple tunnel_v2,
     finally:
         release(&held)
     return results
+
+
+def cumulative_rows(tuple stretches):
+    """The running totals of per-stretch quantities, one row each: row k is 0 at the first point and,
+    at point i + 1, the sum of stretches 0 .. i of ``stretches[k]`` added in order (the bits of
+    ``np.concatenate([[0.0], np.cumsum(x)])``: numpy's accumulation is sequential too), in one
+    (len(stretches), n + 1) block. Every array must have the same length n."""
+    cdef Py_ssize_t rows = len(stretches), n = 0, k, i, size
+    if rows >= MAX_HELD:
+        raise ValueError(f"stretches: at most {MAX_HELD - 1} arrays, got {rows}")
+    arrays = [_vector(f"stretches[{k}]", stretches[k], np.float64) for k in range(rows)]
+    for k in range(rows):
+        if arrays[k].shape[0] != arrays[0].shape[0]:
+            raise ValueError(
+                f"stretches[{k}]: length {arrays[k].shape[0]}, need the length of stretches[0] "
+                f"({arrays[0].shape[0]})"
+            )
+    if rows:
+        n = arrays[0].shape[0]
+    out = np.empty((rows, n + 1 if rows else 0))
+    cdef Held held
+    held.count = 0
+    cdef const double* src
+    cdef double* dst
+    cdef double total
+    try:
+        if rows:
+            dst = <double*>hold(&held, "rows", "", out, False, True, &size)
+        for k in range(rows):
+            src = <const double*>hold(&held, "stretches", "", arrays[k], False, False, &size)
+            with nogil:
+                dst[0] = 0.0
+                if n > 0:
+                    # np.cumsum starts from the first value itself, not from 0 + it (-0.0 stays -0.0)
+                    total = src[0]
+                    dst[1] = total
+                    for i in range(1, n):
+                        total = total + src[i]
+                        dst[i + 1] = total
+            dst += n + 1
+    finally:
+        release(&held)
+    return out
 
 
 cdef int _compare_doubles(const void* a, const void* b) noexcept nogil:

@@ -70,8 +70,11 @@ def step_function(
     """A piecewise constant function on [lo, hi] that is ``values[k]`` on ``[starts[k], ends[k])``
     and 0 elsewhere (the sections do not overlap)."""
     if not len(starts):
-        # no section (a route without curves or tunnels): 0 on [lo, hi], without the look-ups
-        x = np.unique(np.clip(np.array([lo, hi], dtype=float), lo, hi))
+        # no section (a route without curves or tunnels): 0 on [lo, hi], without the look-ups (and
+        # without np.unique's sort of two values, a tenth of compile_route on such a route)
+        x = np.array([lo, hi], dtype=float)
+        if not lo < hi:
+            x = np.unique(np.clip(x, lo, hi))
         return PiecewiseLinear(x, np.zeros(len(x) - 1), np.zeros(len(x) - 1))
     a = np.asarray(starts, dtype=float)
     b = np.asarray(ends, dtype=float)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, fields
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -13,7 +13,7 @@ from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
 from trainsim.physics import electrical as el
-from trainsim.sim._trace_c import TRACE_ROWS, run_arrays
+from trainsim.sim._trace_c import TRACE_ROWS, cumulative_rows, run_arrays, run_peaks
 from trainsim.sim.codes import BRAKE, CRUISE, DWELL, FOLLOW, REGEN, REGIME_NAMES, TRACTION
 from trainsim.sim.energy import run_works
 from trainsim.sim.parameters import _NO_CURVE
@@ -368,34 +368,44 @@ def _line_forces(
     )
 
 
-def _trace_and_peaks_numpy(
-    train: Train,
-    settings: RunSettings,
-    route: Route,
-    profile: LineResistanceProfile,
-    ceiling: PiecewiseLinear,
-    availability: PiecewiseLinear,
-    voltage: PiecewiseLinear,
-    s: np.ndarray,
-    v: np.ndarray,
-    t: np.ndarray,
-    regime: np.ndarray,
-    level: np.ndarray,
-    s_right: np.ndarray,
-    w_traction: np.ndarray,
-    w_braking: np.ndarray,
-    e_regen_line: np.ndarray,
-    e_net: np.ndarray,
-    eta_t: float,
-    eta_r: float,
-    aux_w: float,
-    with_trace: bool,
-) -> tuple[Trace | None, np.ndarray, np.ndarray]:
+class TraceInputs(NamedTuple):
+    """What a run's point arrays are computed from: the train and route with their laws, the run's
+    points, the works of its stretches and the electrical ratios. One container for the compiled pass
+    (``_trace_and_peaks``) and its numpy reference (``_trace_and_peaks_numpy``), so that the two take
+    the same inputs by construction."""
+
+    train: Train
+    settings: RunSettings
+    route: Route
+    profile: LineResistanceProfile
+    ceiling: PiecewiseLinear  # speed ceiling over head position [m/s]
+    availability: PiecewiseLinear  # share of the tractive effort available [-]
+    voltage: PiecewiseLinear  # line voltage [V]
+    s: np.ndarray  # positions [m], one per point
+    v: np.ndarray  # speeds [m/s]
+    t: np.ndarray  # times [s]
+    regime: np.ndarray  # regime code of the stretch each point starts (``codes``)
+    level: np.ndarray  # driver's level [-]
+    s_right: np.ndarray | None  # positions just right of the points [m], where the laws are read (trace)
+    w_traction: np.ndarray  # traction work of each stretch [J], one fewer than points
+    w_braking: np.ndarray  # braking work [J]
+    e_regen_line: np.ndarray  # energy returned to the line [J]
+    e_net: np.ndarray  # energy drawn from the line [J]
+    eta_t: float  # traction efficiency [-]
+    eta_r: float  # regenerative efficiency x receptivity [-]
+    aux_w: float  # auxiliary power [W]
+
+
+def _trace_and_peaks_numpy(inp: TraceInputs, with_trace: bool) -> tuple[Trace | None, np.ndarray, np.ndarray]:
     """Forces, powers and currents at every point of a run: its trace (None without ``with_trace``)
     and the line current at each point and the stretch it starts, for the peaks [A].
 
     The numpy form of ``_trace_and_peaks`` (which evaluates the same expressions compiled, in one
     pass): kept as the reference its results are tested against, bit for bit."""
+    train, settings, profile, ceiling = inp.train, inp.settings, inp.profile, inp.ceiling
+    availability, voltage, s, v, t = inp.availability, inp.voltage, inp.s, inp.v, inp.t
+    regime, level, s_right = inp.regime, inp.level, inp.s_right
+    eta_t, eta_r, aux_w = inp.eta_t, inp.eta_r, inp.aux_w
     m = train.mass_kg
     n = len(s)
     elec = train.electrical
@@ -492,32 +502,19 @@ def _trace_and_peaks_numpy(
         line_current_a=current,
         paper_power_w=paper_power,
         paper_line_current_a=paper_current,
-        traction_work_j=cumulative(w_traction),
-        braking_work_j=cumulative(w_braking),
-        regenerated_energy_j=cumulative(e_regen_line),
-        electrical_energy_j=cumulative(e_net),
+        traction_work_j=cumulative(inp.w_traction),
+        braking_work_j=cumulative(inp.w_braking),
+        regenerated_energy_j=cumulative(inp.e_regen_line),
+        electrical_energy_j=cumulative(inp.e_net),
     )
     return trace, peak_current, peak_paper
 
 
-def _run_arrays_args(
-    train: Train,
-    settings: RunSettings,
-    profile: LineResistanceProfile,
-    ceiling: PiecewiseLinear,
-    availability: PiecewiseLinear,
-    voltage: PiecewiseLinear,
-    s: np.ndarray,
-    v: np.ndarray,
-    regime: np.ndarray,
-    level: np.ndarray,
-    s_right: np.ndarray,
-    eta_t: float,
-    eta_r: float,
-    aux_w: float,
-) -> tuple:
+def _run_arrays_args(inp: TraceInputs) -> tuple:
     """The arguments of ``run_arrays`` but ``with_trace``: the run's arrays, the line laws, the
     train's scalars and its effort curves (see there)."""
+    train, settings, profile = inp.train, inp.settings, inp.profile
+    eta_t, eta_r, aux_w = inp.eta_t, inp.eta_r, inp.aux_w
     elec = train.electrical
     # the ratios are checked where the numpy form checks them, with the same messages
     el.traction_line_power_w(0.0, 0.0, eta_t)
@@ -545,9 +542,9 @@ def _run_arrays_args(
             profile.curve,
             profile.tunnel,
             profile.tunnel_v2,
-            availability,
-            voltage,
-            ceiling,
+            inp.availability,
+            inp.voltage,
+            inp.ceiling,
         )
     )
     electric = (
@@ -558,11 +555,11 @@ def _run_arrays_args(
         float(elec.power_factor if elec else 1.0),
     )
     return (
-        np.ascontiguousarray(s, dtype=float),
-        np.ascontiguousarray(v, dtype=float),
-        np.ascontiguousarray(regime, dtype=np.int64),
-        np.ascontiguousarray(level, dtype=float),
-        np.ascontiguousarray(s_right, dtype=float),
+        np.ascontiguousarray(inp.s, dtype=float),
+        np.ascontiguousarray(inp.v, dtype=float),
+        np.ascontiguousarray(inp.regime, dtype=np.int64),
+        np.ascontiguousarray(inp.level, dtype=float),
+        None if inp.s_right is None else np.ascontiguousarray(inp.s_right, dtype=float),
         laws,
         (float(law.c0), float(law.c1), float(law.c2)),
         float(profile.weight_n(train.mass_kg)),
@@ -574,70 +571,40 @@ def _run_arrays_args(
     )
 
 
-def _trace_and_peaks(
-    train: Train,
-    settings: RunSettings,
-    route: Route,
-    profile: LineResistanceProfile,
-    ceiling: PiecewiseLinear,
-    availability: PiecewiseLinear,
-    voltage: PiecewiseLinear,
-    s: np.ndarray,
-    v: np.ndarray,
-    t: np.ndarray,
-    regime: np.ndarray,
-    level: np.ndarray,
-    s_right: np.ndarray,
-    w_traction: np.ndarray,
-    w_braking: np.ndarray,
-    e_regen_line: np.ndarray,
-    e_net: np.ndarray,
-    eta_t: float,
-    eta_r: float,
-    aux_w: float,
-    with_trace: bool,
-) -> tuple[Trace | None, np.ndarray, np.ndarray]:
+def _trace_and_peaks(inp: TraceInputs, with_trace: bool) -> tuple[Trace | None, np.ndarray, np.ndarray]:
     """Forces, powers and currents at every point of a run: its trace (None without ``with_trace``)
     and the line current at each point and the stretch it starts, for the peaks [A]. Evaluated in one
     compiled pass (``_trace_c.run_arrays``, Cython), the same bits as ``_trace_and_peaks_numpy``; without
-    ``with_trace`` only the peaks are stored."""
-    rows, peak_current, peak_paper = run_arrays(
-        *_run_arrays_args(
-            train,
-            settings,
-            profile,
-            ceiling,
-            availability,
-            voltage,
-            s,
-            v,
-            regime,
-            level,
-            s_right,
-            eta_t,
-            eta_r,
-            aux_w,
-        ),
-        with_trace,
-    )
+    ``with_trace`` only the peaks are stored. The cumulative works are summed in compiled code too
+    (``_trace_c.cumulative_rows``: one block, the order of ``np.cumsum``)."""
+    rows, peak_current, peak_paper = run_arrays(*_run_arrays_args(inp), with_trace)
     if not with_trace:
         return None, peak_current, peak_paper
-
-    def cumulative(x: np.ndarray) -> np.ndarray:
-        return np.concatenate([[0.0], np.cumsum(x)])
-
+    works = cumulative_rows((inp.w_traction, inp.w_braking, inp.e_regen_line, inp.e_net))
     trace = Trace(
-        time_s=t,
-        position_m=s,
-        speed_mps=v,
-        regime=regime,
-        traction_work_j=cumulative(w_traction),
-        braking_work_j=cumulative(w_braking),
-        regenerated_energy_j=cumulative(e_regen_line),
-        electrical_energy_j=cumulative(e_net),
+        time_s=inp.t,
+        position_m=inp.s,
+        speed_mps=inp.v,
+        regime=inp.regime,
+        traction_work_j=works[0],
+        braking_work_j=works[1],
+        regenerated_energy_j=works[2],
+        electrical_energy_j=works[3],
         **{name: rows[k] for k, name in enumerate(TRACE_ROWS)},
     )
     return trace, peak_current, peak_paper
+
+
+def _section_peaks(inp: TraceInputs, sections: list[tuple[int, int]]) -> tuple[list[float], float, float]:
+    """The largest line current [A] of each section (its first to its last point) and of the whole
+    run, and the run's largest in the paper convention, without the run's point arrays: what
+    ``np.nanmax`` gives on ``_trace_and_peaks``'s peaks, evaluated in one compiled pass that keeps
+    only the running maxima (``_trace_c.run_peaks``); the line laws are read just right of each
+    point, as there."""
+    args = _run_arrays_args(inp)
+    bounds = np.array(sections, dtype=np.int64).reshape(len(sections), 2)
+    section, _, peak, paper = run_peaks(*args[:4], float(inp.route.end_m), *args[5:], bounds)
+    return section.tolist(), peak, paper
 
 
 def build_result(
@@ -711,29 +678,39 @@ def build_result(
         e_net = e_traction_line + e_aux - e_regen_line
         e_paper = w_traction * (elec.traction_efficiency if elec else 1.0)
 
-    if with_trace or elec:
-        # point values in each point's own regime, line resistance from the right of the point
-        s_right = np.minimum(s + 1e-7, route.end_m)
-        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # see _not_finite
-            trace, peak_current, peak_paper = _trace_and_peaks(
-                train, settings, route, profile, ceiling, availability, voltage, s, v, t, regime, level,
-                s_right, w_traction, w_braking, e_regen_line, e_net, eta_t, eta_r, aux_w, with_trace,
-            )  # fmt: skip
-    else:
-        # a summary without trace of a train without electrics: no point arrays needed at all (the
-        # peaks are read only for an electric train)
-        trace, peak_current, peak_paper = None, None, None
-
-    # sections: between consecutive stop points (a DWELL point ends a section)
-    names = stop_names if stop_names is not None else [st.name for st in route.stops]
-    ends = _section_ends(regime)
-    sections = []
+    # sections: between consecutive stop points (a DWELL point ends a section); stretches a .. b-1
+    # are the run, b .. d-1 the dwell at its arrival station
+    bounds = []
     a = 0
-    for k, b in enumerate(ends):
-        # stretches a .. b-1 are the run; b .. d-1 the dwell at its arrival station
+    for b in _section_ends(regime):
         d = b
         while d < n - 1 and regime[d] == DWELL:
             d += 1
+        bounds.append((a, b, d))
+        a = d
+    section_peak = [float("nan")] * len(bounds)
+    peak = peak_paper_a = float("nan")
+    trace = None
+    if with_trace or elec:
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # see _not_finite
+            inputs = TraceInputs(
+                train, settings, route, profile, ceiling, availability, voltage, s, v, t, regime, level,
+                None, w_traction, w_braking, e_regen_line, e_net, eta_t, eta_r, aux_w,
+            )  # fmt: skip
+            if with_trace:
+                # point values in each point's own regime, line resistance from the right of the point
+                inputs = inputs._replace(s_right=np.minimum(s + 1e-7, route.end_m))
+                trace, peak_current, peak_paper = _trace_and_peaks(inputs, True)
+                if elec and n:
+                    section_peak = [float(np.nanmax(peak_current[a : b + 1])) for a, b, _ in bounds]
+                    peak, peak_paper_a = float(np.nanmax(peak_current)), float(np.nanmax(peak_paper))
+            elif n:
+                # a summary of an electric train: only the peaks, no point arrays (``run_peaks``)
+                section_peak, peak, peak_paper_a = _section_peaks(inputs, [(a, b) for a, b, _ in bounds])
+
+    names = stop_names if stop_names is not None else [st.name for st in route.stops]
+    sections = []
+    for k, (a, b, d) in enumerate(bounds):
         dwell = float(t[d] - t[b])
         run_time = float(t[b] - t[a])
         dist = float(s[b] - s[a])
@@ -747,7 +724,7 @@ def build_result(
                 dwell_s=dwell,
                 max_speed_kmh=float(v[a : b + 1].max() / KMH),
                 average_speed_kmh=dist / run_time / KMH if run_time > 0 else 0.0,
-                peak_current_a=float(np.nanmax(peak_current[a : b + 1])) if elec else float("nan"),
+                peak_current_a=section_peak[k],
                 energy_kwh=EnergyFigures(
                     traction=float(w_traction[run].sum() / KWH),
                     braking=float(w_braking[run].sum() / KWH),
@@ -758,7 +735,6 @@ def build_result(
                 ),
             )
         )
-        a = d
     if status == "stalled":
         at = np.array([min(stall_position_m + 1e-7, route.end_m)])
         share = float(availability(at)[0])
@@ -812,8 +788,6 @@ def build_result(
         net=float(e_net.sum() / KWH),
         paper=float(e_paper.sum() / KWH),
     )
-    peak = float(np.nanmax(peak_current)) if elec and n else float("nan")
-    peak_paper_a = float(np.nanmax(peak_paper)) if elec and n else float("nan")
     bad = _not_finite(totals, peak, peak_paper_a, electric=elec is not None and n > 0)
     if bad:
         # JSON writes a non-finite figure as null: with status ok it would pass as "no figure"
