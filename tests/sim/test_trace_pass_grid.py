@@ -207,3 +207,56 @@ def test_nan_stop_is_an_input_error_not_a_hang():
     train, route = _electric_gap()
     with pytest.raises(InputError, match="grid not increasing"):
         prof.compile_route(route, train.at_gravity(route.gravity_mps2), [0.0, float("nan"), 10_000.0], 40.0)
+
+
+def _step_function_numpy(starts, ends, values, lo: float, hi: float) -> prof.PiecewiseLinear:
+    """``profile.step_function`` as it was before it was compiled (the reference)."""
+    a = np.asarray(starts, dtype=float)
+    b = np.asarray(ends, dtype=float)
+    val_in = np.broadcast_to(np.asarray(values, dtype=float), a.shape)
+    x = np.unique(np.clip(np.concatenate([[lo, hi], a, b]), lo, hi))
+    mid = 0.5 * (x[:-1] + x[1:])
+    val = np.zeros(len(mid))
+    order = np.argsort(a)
+    a, b, val_in = a[order], b[order], val_in[order]
+    k = np.searchsorted(a, mid, side="right") - 1
+    inside = (k >= 0) & (mid < b[np.maximum(k, 0)])
+    val[inside] = val_in[k[inside]]
+    return prof.PiecewiseLinear(x, val.copy(), val.copy())
+
+
+def _random_sections(rng, count: int, lo: float, hi: float):
+    """Non-overlapping sections in random order, some touching, some with gaps, some reaching
+    beyond [lo, hi]."""
+    cuts = np.sort(rng.uniform(lo - 500.0, hi + 500.0, 2 * count))
+    starts, ends = cuts[0::2].copy(), cuts[1::2].copy()
+    touch = rng.random(count - 1) < 0.5
+    ends[:-1][touch] = starts[1:][touch]
+    order = rng.permutation(count)
+    return starts[order], ends[order], rng.normal(size=count)
+
+
+def test_step_function_equals_the_numpy_form_bit_for_bit():
+    rng = np.random.default_rng(406)
+    cases = [_random_sections(rng, count, 0.0, 20_000.0) for count in (1, 2, 7, 40, 300)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        route = trainsim.load_route(TRAINRUNS / "paths" / "realworld.yaml")
+    g = route.gradients
+    cases.append(([s.start_m for s in g], [s.end_m for s in g], [s.gradient_permille for s in g]))
+    cases.append(([0.0, 100.0], [100.0, 200.0], 1.0))  # one value for every section
+    for k, (a, b, val) in enumerate(cases):
+        for lo, hi in ((0.0, 20_000.0), (150.0, 5_000.0), (route.start_m, route.end_m), (10.0, 10.0)):
+            got = prof.step_function(a, b, val, lo, hi)
+            ref = _step_function_numpy(a, b, val, lo, hi)
+            for name in ("x", "left", "right"):
+                np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=f"{k} {name}")
+            assert got.left is not got.right and got._steps == ref._steps
+
+
+def test_step_function_by_hand_and_bad_positions():
+    f = prof.step_function([300.0, 0.0], [400.0, 100.0], [2.0, 1.0], 50.0, 500.0)
+    assert f.x.tolist() == [50.0, 100.0, 300.0, 400.0, 500.0]
+    assert f.left.tolist() == [1.0, 0.0, 2.0, 0.0]
+    with pytest.raises(InputError, match="is not a number"):
+        prof.step_function([0.0, float("nan")], [1.0, 2.0], [1.0, 1.0], 0.0, 10.0)

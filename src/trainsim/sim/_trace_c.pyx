@@ -796,6 +796,99 @@ def cumulative_rows(tuple stretches):
     return out
 
 
+cdef struct Keyed:
+    double key
+    Py_ssize_t index
+
+
+cdef int _compare_keyed(const void* a, const void* b) noexcept nogil:
+    """Order by key, then by index: a stable sort through qsort."""
+    cdef const Keyed* x = <const Keyed*>a
+    cdef const Keyed* y = <const Keyed*>b
+    if x.key != y.key:
+        return (x.key > y.key) - (x.key < y.key)
+    return (x.index > y.index) - (x.index < y.index)
+
+
+def step_law(starts, ends, values, double lo, double hi):
+    """The breakpoints and piece values of a piecewise constant function on [lo, hi] [m] that is
+    ``values[k]`` on ``[starts[k], ends[k])`` and 0 elsewhere (sections that do not overlap): the
+    breakpoints are lo, hi and every start and end clipped to [lo, hi], sorted, each once; a piece
+    takes the value of the last section (by start) starting at or before its middle if the middle
+    lies before that section's end (``profile.step_function``). Returns ``(x, left, right)``, left and
+    right equal and separate arrays, or None when a position is not a number."""
+    a_arr = _vector("starts", starts, np.float64)
+    b_arr = _vector("ends", ends, np.float64)
+    v_arr = _vector("values", values, np.float64)
+    cdef Py_ssize_t m = a_arr.shape[0], k, i, n_x, j
+    if b_arr.shape[0] != m or v_arr.shape[0] != m:
+        raise ValueError(f"starts, ends, values: lengths {m}, {b_arr.shape[0]}, {v_arr.shape[0]}; need one length")
+    if lo != lo or hi != hi:
+        return None
+    cdef Held held
+    held.count = 0
+    cdef const double* a
+    cdef const double* b
+    cdef const double* vals
+    cdef double* x = <double*>malloc((2 + 2 * m) * sizeof(double))
+    cdef Keyed* order = <Keyed*>malloc((m if m > 0 else 1) * sizeof(Keyed))
+    cdef double* a_s = <double*>malloc((m if m > 0 else 1) * sizeof(double))
+    cdef double* out_l
+    cdef double* out_r
+    cdef double c, mid, value
+    cdef bint ordered = True
+    try:
+        if x == NULL or order == NULL or a_s == NULL:
+            raise MemoryError()
+        a = <const double*>hold(&held, "starts", "", a_arr, False, False, &k)
+        b = <const double*>hold(&held, "ends", "", b_arr, False, False, &k)
+        vals = <const double*>hold(&held, "values", "", v_arr, False, False, &k)
+        x[0] = lo
+        x[1] = hi
+        for k in range(m):
+            x[2 + k] = a[k]
+            x[2 + m + k] = b[k]
+        for k in range(2 + 2 * m):
+            c = x[k]
+            if c != c:
+                return None
+            # np.clip: the lower bound, then the upper one
+            c = lo if c < lo else c
+            x[k] = hi if c > hi else c
+        n_x = sorted_unique(x, 2 + 2 * m)
+        for k in range(m):
+            order[k].key = a[k]
+            order[k].index = k
+            if k > 0 and a[k] < a[k - 1]:
+                ordered = False
+        if not ordered:
+            qsort(order, m, sizeof(Keyed), _compare_keyed)
+        for k in range(m):
+            a_s[k] = order[k].key
+        x_out = np.empty(n_x)
+        left = np.zeros(max(n_x - 1, 0))
+        right = np.zeros(max(n_x - 1, 0))
+        out_l = <double*>hold(&held, "x", "", x_out, False, True, &k)
+        for k in range(n_x):
+            out_l[k] = x[k]
+        if n_x > 1:
+            out_l = <double*>hold(&held, "left", "", left, False, True, &k)
+            out_r = <double*>hold(&held, "right", "", right, False, True, &k)
+            for i in range(n_x - 1):
+                mid = 0.5 * (x[i] + x[i + 1])
+                j = search_right(a_s, m, mid) - 1
+                if j >= 0 and mid < b[order[j].index]:
+                    value = vals[order[j].index]
+                    out_l[i] = value
+                    out_r[i] = value
+    finally:
+        release(&held)
+        free(x)
+        free(order)
+        free(a_s)
+    return x_out, left, right
+
+
 cdef int _compare_doubles(const void* a, const void* b) noexcept nogil:
     cdef double x = (<const double*>a)[0], y = (<const double*>b)[0]
     return (x > y) - (x < y)
