@@ -260,6 +260,9 @@ class SectionSolver:
         self.has_regen = has_regen and self.eta_r > 0.0
         tr = self.track
         self.i0, self.i1 = int(tr.stop_index[0]), int(tr.stop_index[-1])
+        self._last_interval = len(tr.a0) - 1
+        #: buffers of ``_energy_to``'s two-point stretch (s, v, regime, cumulative energy)
+        self._two_points = (np.empty(2), np.empty(2), np.empty(2, dtype=np.int8), np.empty(2))
         self.Cr, _, self.US = _kernel_c.braking_ceiling(
             tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, self.i0, self.i1, P, self.curves, self.bk
         )
@@ -489,7 +492,8 @@ class SectionSolver:
         crawl = 1e-3
 
         def cost(p: float, keep: bool = False):
-            i, u, vp, tp, _ = self._state_at(seg, p)
+            state = self._state_at(seg, p)
+            i, u, vp, tp, _ = state
             vh = vhold.copy()
             vh[i:] = np.minimum(vh[i:], crawl)
             out = self._holding(vh, vtop, Cr, US, modes, (i, u, vp, tp))
@@ -502,7 +506,7 @@ class SectionSolver:
                 out[0], out[1], out[3], tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.P,
                 self.curves, self.inv_eta_t, self.eta_r, e, self.tk, self.bk, self.rk,
             )  # fmt: skip
-            total = self._energy_to(seg, cum, p) + float(e[-1]) + mu * float(out[2][-1])
+            total = self._energy_to(seg, cum, p, state) + float(e[-1]) + mu * float(out[2][-1])
             return total - base, (out if keep else None)
 
         # coasting from the descent's start is what phase A does without a crest coast
@@ -545,7 +549,7 @@ class SectionSolver:
         )  # fmt: skip
         return float(cum[-1]) + mu * float(points[2][-1])
 
-    def _energy_to(self, points, cum: np.ndarray, s_m: float) -> float:
+    def _energy_to(self, points, cum: np.ndarray, s_m: float, state=None) -> float:
         """Electrical energy [J] of the run ``points`` from its start to ``s_m`` [m], ``cum`` its
         cumulative energy at its points (``pk.path_energy``): the last stretch integrated in its
         regime up to s_m as the whole run is. (Interpolated linearly between the points, the costs
@@ -553,23 +557,26 @@ class SectionSolver:
         example's departure ahead of its last descent sat on such a kink and moved by 0.9 m with
         the step.)"""
         tr = self.track
-        _, _, v, _, j = self._state_at(points, s_m)
+        # (``state``: ``_state_at(points, s_m)`` if the caller has it already)
+        _, _, v, _, j = self._state_at(points, s_m) if state is None else state
         s0 = float(points[0][j])
         if s_m <= s0:
             return float(np.interp(s_m, points[0], cum))
-        out = np.empty(2)
-        mode = points[3][j]
+        s2, v2, m2, out = self._two_points
+        s2[0], s2[1] = s0, s_m
+        v2[0], v2[1] = float(points[1][j]), v
+        m2[0] = m2[1] = points[3][j]
         pk.path_energy(
-            np.array([s0, s_m]), np.array([float(points[1][j]), v]), np.array([mode, mode], dtype=np.int8),
-            tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.P, self.curves, self.inv_eta_t,
-            self.eta_r, out, self.tk, self.bk, self.rk,
+            s2, v2, m2, tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.traction_scale, self.P, self.curves,
+            self.inv_eta_t, self.eta_r, out, self.tk, self.bk, self.rk,
         )  # fmt: skip
         return float(cum[j]) + float(out[1])
 
     def _interval_of(self, s_m: float) -> int:
         """The grid interval that holds position ``s_m`` [m] (the last one at the section's end)."""
-        tr = self.track
-        return int(np.clip(np.searchsorted(tr.x, s_m, side="right") - 1, 0, len(tr.a0) - 1))
+        # (Python's min and max: np.clip on a scalar cost more than the search, issue 16)
+        k = int(self.track.x.searchsorted(s_m, side="right")) - 1
+        return min(max(k, 0), self._last_interval)
 
     def _interval_speeds(self, holding_speed: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(V, mu, W) on every grid interval [m/s, W, m/s] for holding speed V; far above every
@@ -614,7 +621,8 @@ class SectionSolver:
             )  # fmt: skip
 
             def cost(p: float, keep: bool = False, points=points, cum=cum, q=q, b=b, i_last=i_last, mu=mu):
-                i, u, vp, tp, _ = self._state_at(points, p)
+                state_p = self._state_at(points, p)
+                i, u, vp, tp, _ = state_p
                 n, status, i_r, u_r, v_r, t_r, e_coast = pk.coast_to_curve(
                     tr.x, tr.a0, tr.a1, tr.b0, tr.b1, vtop, tr.traction_scale, i, u, vp, tp, i_last,
                     self.i0, self.P, self.curves, self.bk, self.rk, Cr, US, modes, ADJOINT_STEP_M,
@@ -623,10 +631,11 @@ class SectionSolver:
                 r = tr.x[i_r] + u_r
                 if status != 0 or n >= self.n_max - 8 or not q - 1e-6 <= r <= b + 1e-6:
                     return np.inf, None  # came to rest, or met another limit's braking curve first
-                _, _, _, t_a, _ = self._state_at(points, r)
+                state_r = self._state_at(points, r)
+                t_a = state_r[3]
                 dj = (
                     e_coast
-                    - (self._energy_to(points, cum, r) - self._energy_to(points, cum, p))
+                    - (self._energy_to(points, cum, r, state_r) - self._energy_to(points, cum, p, state_p))
                     + mu * (t_r - t_a)
                 )
                 if not keep:
@@ -864,7 +873,16 @@ class SectionSolver:
         """First position [m] from ``after`` where ``seg`` holds V (or ``after`` if it never does)."""
         s, v, _, m = seg
         tol = 1e-6 * max(V, 1.0)
-        holding = np.flatnonzero((s >= after - 1e-9) & (m == codes.CRUISE) & (np.abs(v - V) <= tol))
+        # (positions along a run never decrease: only the points from ``after`` on are looked at,
+        # not the whole run for each departure tried, issue 16)
+        j0 = int(s.searchsorted(after - 1e-9, side="left"))
+        holding: np.ndarray = np.empty(0, dtype=np.intp)
+        for a, z in ((j0, j0 + 64), (j0 + 64, len(s))):  # (the hold starts near ``after`` mostly)
+            s_, v_, m_ = s[a:z], v[a:z], m[a:z]
+            holding = np.flatnonzero((s_ >= after - 1e-9) & (m_ == codes.CRUISE) & (np.abs(v_ - V) <= tol))
+            if len(holding):
+                holding = holding + a
+                break
         if not len(holding):
             return after
         j = int(holding[0])
@@ -879,7 +897,8 @@ class SectionSolver:
         if b <= a + 1e-9:
             return 0.0, 0.0
         tr = self.track
-        inner = tr.x[(tr.x > a) & (tr.x < b)]
+        # (the grid points strictly between a and b, found by bisection on the sorted grid)
+        inner = tr.x[int(tr.x.searchsorted(a, side="right")) : int(tr.x.searchsorted(b, side="left"))]
         s = np.concatenate([[a], inner, [b]])
         v = np.full(len(s), V)
         m = np.full(len(s), codes.CRUISE, dtype=np.int8)
@@ -947,7 +966,8 @@ class SectionSolver:
         corners: dict[float, float] = {}
 
         def cost(p: float, keep: bool = False):
-            i, u, vp, tp, _ = self._state_at(seg, p)
+            state_p = self._state_at(seg, p)
+            i, u, vp, tp, _ = state_p
             n, status, residual, iq, uq, tq, e_path = pk.coast_excursion(
                 tr.x, tr.a0, tr.a1, tr.b0, tr.b1, tr.vlim, W, tr.traction_scale, i, u, vp, tp, self.i1,
                 self.P, self.curves, self.bk, V, v_rejoin, mu, self.inv_eta_t, self.eta_r, ADJOINT_STEP_M,
@@ -971,10 +991,12 @@ class SectionSolver:
             q_both = max(q, back)
             if q_both > horizon and self.short_excursions:
                 return np.inf, None
-            _, _, _, t_a, _ = self._state_at(seg, q_both)
+            state_q = self._state_at(seg, q_both)
+            t_a = state_q[3]
             e_hold, t_hold = self._holding_cost(q, q_both, v_rejoin)
             dj = (
-                e_path + e_hold - (self._energy_to(seg, cum, q_both) - self._energy_to(seg, cum, p))
+                e_path + e_hold
+                - (self._energy_to(seg, cum, q_both, state_q) - self._energy_to(seg, cum, p, state_p))
                 + mu * (tq + t_hold - t_a)
             )  # fmt: skip
             if not keep:
@@ -1459,7 +1481,9 @@ class SectionSolver:
                 if self._has_descents and self._has_limit_braking:
                     build(True, False)
         meeting = [(k, p) for k, p in built if self._meets(p, running_time_s)]
-        if meeting:
+        if len(meeting) == 1:
+            best = meeting[0][1]  # (nothing to compare: its energy is not computed, issue 16)
+        elif meeting:
             # compared at the scheduled time (dE/dT = -mu): the variants after the first stop within
             # VARIANT_TIME_TOLERANCE_S of it
             _, best = min(
