@@ -110,3 +110,56 @@ def test_runs_keep_their_running_times_within_1e_9(name):
     np.testing.assert_allclose(t1[stops], t0[stops], rtol=1e-9)
     np.testing.assert_allclose(v1, v0, rtol=1e-7, atol=1e-7)
     assert not np.array_equal(t1, t0), "the speed domain must have been used"
+
+
+def _braking_curves(c0, c1=0.0):
+    """No traction; a service braking curve of one law c0 + c1 v [N], no caps."""
+    none = (np.zeros(1), np.zeros((1, 4)), 0.0, 0.0)
+    brake = (np.zeros(1), np.array([[c0, c1, 0.0, 0.0]]), math.inf, math.inf)
+    return (*none, *brake, *none)
+
+
+def test_a_constant_deceleration_backwards_from_near_standstill_gives_the_closed_form():
+    # the braking curve to a stop, integrated backwards from it: E grows by a h with h < 0
+    P = _params(r0=2_000.0)
+    P[codes.P_DECEL] = 0.6
+    for v0, h in ((0.05, -0.01), (0.4, -5.0), (1.0, -20.0)):
+        E, used = _kernel_c.rk4_energy_slow_of(
+            0.5 * v0 * v0, 20.0, h, codes.BRAKE, (0.0, 0.0, 0.0, 0.0), P, _braking_curves(0.0)
+        )
+        assert used, (v0, h)
+        assert pytest.approx(0.5 * v0 * v0 - 0.6 * h, rel=1e-13) == E
+
+
+@pytest.mark.parametrize("v0,h", [(0.3, -0.1), (0.6, -5.0), (1.0, -20.0), (4.0, 12.0)])
+def test_braking_forces_backwards_and_forwards_agree_with_dop853(v0, h):
+    # a braking force growing with speed against a rising gradient; forwards (h > 0) it slows down
+    # to no less than half its speed (nearer standstill the distance domain keeps the step)
+    P = _params(r0=5_000.0, r1=120.0, r2=8.0)
+    curves = _braking_curves(180_000.0, 3_000.0)
+    line = (0.003, 1e-4, 0.0, 0.0)
+
+    def accel(v, s):
+        res = 5_000.0 + 120.0 * v + 8.0 * v * v + M * (0.003 + 1e-4 * (20.0 + s))
+        return -(180_000.0 + 3_000.0 * v + res) / P[codes.P_INERTIAL_MASS]
+
+    # dE/ds = a(v, s) from s = 0 to h, the reference by DOP853 in the distance domain away from v = 0
+    ref = solve_ivp(
+        lambda s, y: [accel(math.sqrt(2.0 * y[0]), s)], (0.0, h), [0.5 * v0 * v0], method="DOP853",
+        rtol=1e-13, atol=1e-16,
+    )  # fmt: skip
+    E, used = _kernel_c.rk4_energy_slow_of(0.5 * v0 * v0, 20.0, h, codes.BRAKE, line, P, curves)
+    assert used
+    assert pytest.approx(ref.y[0][-1], rel=2e-9) == E
+
+
+def test_a_step_braking_to_standstill_stays_in_the_distance_domain():
+    P = _params(r0=5_000.0)
+    curves = _braking_curves(180_000.0)
+    a = -(185_000.0) / P[codes.P_INERTIAL_MASS]
+    v0 = 0.5
+    h = 0.9 * v0 * v0 / (2.0 * -a)  # ends at a third of the speed
+    args = (0.5 * v0 * v0, 0.0, h, codes.BRAKE, (0.0, 0.0, 0.0, 0.0), P, curves)
+    E, used = _kernel_c.rk4_energy_slow_of(*args)
+    assert not used
+    assert _kernel_c.rk4_energy_of(*args) == E

@@ -17,7 +17,8 @@ constant speed ceiling. The method (OSRD-style envelopes):
 The integrators: RK4 on dE/ds = a(E, s) in the distance domain, steps of at most one interval, slow
 or strongly accelerated steps divided into sub-steps (``substeps``: near standstill E(s) meets the
 square-root singularity of v); time from the cubic Hermite interpolant of E over each step
-(``rk4_energy_time_1``), since ds / v is singular at rest; event distances by RK4 on
+(``rk4_energy_time_1``), since ds / v is singular at rest (the fastest run integrates the steps
+near standstill in the speed domain instead, ``speed_domain_step``); event distances by RK4 on
 ds/dv = v / a in the speed domain (``distance_to_speed``: exact event location, no root finding). An
 effort curve has kinks (table steps such as source 002's braking force jumping from 150 to 335 kN
 between 5 and 6 km/h, the force and power caps): one RK4 step across a kink loses its accuracy, so
@@ -221,19 +222,23 @@ cdef bint speed_domain_step(
     double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref, double a0,
     ET* out,
 ) noexcept nogil:
-    """(E [m^2/s^2], elapsed time [s]) after a forward step h [m] from offset u of an accelerating
-    motion, integrated in the speed domain (ds/dv = v / a, dt/dv = 1 / a, both regular at low speed,
+    """(E [m^2/s^2], elapsed time [s] (negative backwards)) after a step h [m] (negative: backwards)
+    from offset u, integrated in the speed domain (ds/dv = v / a, dt/dv = 1 / a, both regular at low speed,
     where E(s) has the square-root singularity of standstill just behind it): RK4 from v0 to the speed
     the constant acceleration a0 [m/s^2] (the acceleration at the start) reaches after h, in as many
     steps as ``speed_domain_steps`` gives for an event location over those speeds (at least
     SLOW_STEP_SPEED_STEPS), then Newton steps on the end speed (each one more RK4
     step from the last speed by (h - s) a / v) until the distance is h to SLOW_STEP_TOLERANCE
-    relative. Into ``out``; False (``out`` not valid) when the acceleration is not positive at some
-    stage or Newton does not converge: the caller integrates in the distance domain then."""
+    relative. Into ``out``; False (``out`` not valid) when the acceleration changes sign or vanishes at
+    some stage, when the step ends near standstill (the speed below half its start: v(s) has its
+    square-root singularity there) or when Newton does not converge: the caller integrates in the
+    distance domain then."""
     cdef double v = sqrt(2.0 * E) if E > 0.0 else 0.0
-    if not (a0 > 0.0 and h > 0.0):
+    cdef double v2_end = v * v + 2.0 * a0 * h
+    if not (a0 != 0.0 and h != 0.0 and v2_end > 0.25 * v * v):
         return False
-    cdef double v_end = sqrt(v * v + 2.0 * a0 * h)
+    cdef double sign = 1.0 if a0 > 0.0 else -1.0
+    cdef double v_end = sqrt(v2_end)
     # as many steps as an event location over these speeds takes, and at least SLOW_STEP_SPEED_STEPS
     cdef double a_end = acceleration(mode, 0.5 * v_end * v_end, u + h, line, c, vref)
     cdef long n = speed_domain_steps(v, v_end, a0, a_end)
@@ -244,27 +249,27 @@ cdef bint speed_domain_step(
     cdef long it
     for it in range(n + SLOW_STEP_NEWTON):
         if it >= n:
-            if fabs(h - s) <= SLOW_STEP_TOLERANCE * h:
+            if fabs(h - s) <= SLOW_STEP_TOLERANCE * fabs(h):
                 out.E = 0.5 * v * v
                 out.dt = t
                 return True
             a = acceleration(mode, 0.5 * v * v, u + s, line, c, vref)
-            if not (a > 0.0 and v > 0.0):
+            if not (a * sign > 0.0 and v > 0.0):
                 return False
             dv = (h - s) * a / v
         a1 = acceleration(mode, 0.5 * v * v, u + s, line, c, vref)
-        if not a1 > 0.0:
+        if not a1 * sign > 0.0:
             return False
         vm = v + 0.5 * dv
         a2 = acceleration(mode, 0.5 * vm * vm, u + s + 0.5 * dv * v / a1, line, c, vref)
-        if not a2 > 0.0:
+        if not a2 * sign > 0.0:
             return False
         a3 = acceleration(mode, 0.5 * vm * vm, u + s + 0.5 * dv * vm / a2, line, c, vref)
-        if not a3 > 0.0:
+        if not a3 * sign > 0.0:
             return False
         ve = v + dv
         a4 = acceleration(mode, 0.5 * ve * ve, u + s + dv * vm / a3, line, c, vref)
-        if not a4 > 0.0:
+        if not a4 * sign > 0.0:
             return False
         s += dv / 6.0 * (v / a1 + 2.0 * vm / a2 + 2.0 * vm / a3 + ve / a4)
         t += dv / 6.0 * (1.0 / a1 + 2.0 / a2 + 2.0 / a3 + 1.0 / a4)
@@ -272,12 +277,27 @@ cdef bint speed_domain_step(
     return False
 
 
+cdef double rk4_energy_s(
+    double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref, bint slow
+) noexcept nogil:
+    """``rk4_energy`` (forwards or backwards); with ``slow``, as ``rk4_energy_time_s``."""
+    cdef double a0
+    cdef ET r
+    if slow and E > 0.0:
+        a0 = acceleration(mode, E, u, line, c, vref)
+        if substeps(E, h, a0) >= SLOW_STEP_SUBSTEPS and speed_domain_step(
+            E, u, h, mode, line, c, vref, a0, &r
+        ):
+            return r.E
+    return rk4_energy(E, u, h, mode, line, c, vref)
+
+
 cdef ET rk4_energy_time_s(
     double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref, bint slow
 ) noexcept nogil:
-    """``rk4_energy_time``; with ``slow``, a step of an accelerating motion that it would divide into
-    SLOW_STEP_SUBSTEPS sub-steps or more (near standstill) is integrated in the speed domain instead
-    (``speed_domain_step``), with far fewer force evaluations."""
+    """``rk4_energy_time``; with ``slow``, a step that it would divide into SLOW_STEP_SUBSTEPS sub-steps
+    or more (near standstill) is integrated in the speed domain instead (``speed_domain_step``, which
+    declines a step that ends near standstill), with far fewer force evaluations."""
     cdef double a0
     cdef ET r
     if slow and E > 0.0:
@@ -422,6 +442,13 @@ cdef double step_energy_c(
 ) noexcept nogil:
     """E [m^2/s^2] after a kink-aware step h [m] (negative: backwards) from offset u; like
     ``step_energy_time_c`` without the time, for the backward braking curves."""
+    return step_energy_k(E, u, h, mode, line, c, kinks, False)
+
+
+cdef double step_energy_k(
+    double E, double u, double h, long mode, const Line* line, const Ctx* c, const Kinks* kinks, bint slow
+) noexcept nogil:
+    """``step_energy_c``; with ``slow``, its steps near standstill in the speed domain (``rk4_energy_s``)."""
     cdef double remaining = h
     cdef double E1 = E
     cdef bint split = is_kink(sqrt(2.0 * E) if E > 0.0 else 0.0, kinks)
@@ -429,7 +456,7 @@ cdef double step_energy_c(
     cdef bint rising
     cdef int it
     for it in range(64):
-        E1 = rk4_energy(E, u, remaining, mode, line, c, -1.0)
+        E1 = rk4_energy_s(E, u, remaining, mode, line, c, -1.0, slow)
         v0 = sqrt(2.0 * E) if E > 0.0 else 0.0
         v1 = sqrt(2.0 * E1) if E1 > 0.0 else 0.0
         rising = v1 > v0
@@ -440,7 +467,7 @@ cdef double step_energy_c(
             hk = distance_to_speed(E, u, 0.5 * vk * vk, mode, line, c)
         if not (hk * remaining > 0.0 and fabs(hk) < fabs(remaining) - POSITION_TOLERANCE):
             if split or vk >= 0.0:
-                E1 = rk4_energy(E, u, remaining, mode, line, c, 0.5 * (v0 + v1))
+                E1 = rk4_energy_s(E, u, remaining, mode, line, c, 0.5 * (v0 + v1), slow)
             return E1
         split = True
         E = 0.5 * vk * vk
@@ -485,9 +512,17 @@ cdef double find_curve_meeting(
     """Offset [m] in (u, w] where the traction curve from (u, E) meets the braking curve ending at
     (w, Er) (Illinois method on their difference, both curves by kink-aware steps; to within
     POSITION_TOLERANCE, at most 100 iterations)."""
+    return find_curve_meeting_k(E, u, Er, w, line, c, tk, bk, False)
+
+
+cdef double find_curve_meeting_k(
+    double E, double u, double Er, double w, const Line* line, const Ctx* c, const Kinks* tk,
+    const Kinks* bk, bint slow,
+) noexcept nogil:
+    """``find_curve_meeting``; with ``slow``, its steps near standstill in the speed domain."""
     cdef double lo = u, hi = w
-    cdef double f_lo = E - step_energy_c(Er, w, u - w, BRAKE, line, c, bk)
-    cdef double f_hi = step_energy_c(E, u, w - u, TRACTION, line, c, tk) - Er
+    cdef double f_lo = E - step_energy_k(Er, w, u - w, BRAKE, line, c, bk, slow)
+    cdef double f_hi = step_energy_k(E, u, w - u, TRACTION, line, c, tk, slow) - Er
     cdef int side = 0
     cdef double x = hi
     cdef double f
@@ -496,8 +531,8 @@ cdef double find_curve_meeting(
         if f_hi == f_lo:
             break
         x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
-        f = step_energy_c(E, u, x - u, TRACTION, line, c, tk) - step_energy_c(
-            Er, w, x - w, BRAKE, line, c, bk
+        f = step_energy_k(E, u, x - u, TRACTION, line, c, tk, slow) - step_energy_k(
+            Er, w, x - w, BRAKE, line, c, bk, slow
         )
         if (f > 0.0) == (f_hi > 0.0):
             hi = x
@@ -530,6 +565,14 @@ cdef void braking_ceiling_mixed_c(
     braking, with the kinks ``bk``; REGEN: regenerative braking only, for energy-efficient approaches
     to lower limits, with the kinks ``rk``); with ``modes`` NULL every interval's mode is
     ``mode_all``. Writes Cr, Cl, US (i1 - i0 values each)."""
+    braking_ceiling_k(tr, i0, i1, c, bk, rk, modes, mode_all, Cr, Cl, US, False)
+
+
+cdef void braking_ceiling_k(
+    const Track* tr, Py_ssize_t i0, Py_ssize_t i1, const Ctx* c, const Kinks* bk, const Kinks* rk,
+    const int64_t* modes, long mode_all, double* Cr, double* Cl, double* US, bint slow,
+) noexcept nogil:
+    """``braking_ceiling_mixed_c``; with ``slow``, its steps near standstill in the speed domain."""
     cdef Py_ssize_t m_int = i1 - i0
     cdef double c_next = 0.0
     cdef Py_ssize_t k, i
@@ -556,7 +599,7 @@ cdef void braking_ceiling_mixed_c(
             Cr[k] = cr
             c_next = vlim_i
             continue
-        El = step_energy_c(Er, w, -w, mode, &line, c, kinks)
+        El = step_energy_k(Er, w, -w, mode, &line, c, kinks, slow)
         vl = sqrt(2.0 * El) if El > 0.0 else 0.0
         if vl <= vlim_i:
             US[k] = 0.0
@@ -598,7 +641,7 @@ cdef long fastest_segment_k(
     with ``slow``, accelerating steps near standstill in the speed domain (``rk4_energy_time_s``)."""
     cdef Py_ssize_t m_int = i1 - i0
     cdef double* P = c.P
-    braking_ceiling_mixed_c(tr, i0, i1, c, bk, bk, NULL, BRAKE, Cr, Cl, US)
+    braking_ceiling_k(tr, i0, i1, c, bk, bk, NULL, BRAKE, Cr, Cl, US, slow)
     cdef double v = 0.0
     cdef double t = t0
     cdef Py_ssize_t k, i
@@ -667,12 +710,12 @@ cdef long fastest_segment_k(
             else:
                 # under the braking curve that ends at (w, Cr[k])
                 Er = 0.5 * Cr[k] * Cr[k]
-                Eb = step_energy_c(Er, w, u - w, BRAKE, &line, c, bk)
+                Eb = step_energy_k(Er, w, u - w, BRAKE, &line, c, bk, slow)
                 if Eb * (1.0 - 1e-9) - 1e-12 > E:
                     r = step_energy_time_k(E, u, w - u, TRACTION, &line, c, tk, pa, slow)
                     push(o, xi + u, v, t, TRACTION)
                     if Er < r.E:
-                        xm = find_curve_meeting(E, u, Er, w, &line, c, tk, bk)
+                        xm = find_curve_meeting_k(E, u, Er, w, &line, c, tk, bk, slow)
                         rm = step_energy_time_k(E, u, xm - u, TRACTION, &line, c, tk, pb, slow)
                         if kink_points:
                             push_step_kinks(
@@ -1037,6 +1080,22 @@ def rk4_energy_time_slow_of(double E, double u, double h, long mode, line, P, cu
         and speed_domain_step(E, u, h, mode, &ln, &c, vref, a0, &q)
     )
     return r.E, r.dt, used
+
+
+def rk4_energy_slow_of(double E, double u, double h, long mode, line, P, curves, double vref=-1.0):
+    """(E [m^2/s^2], whether the speed domain was used) of the cdef ``rk4_energy_s`` (forwards or
+    backwards; for tests)."""
+    cdef Curves cv
+    cdef Ctx c
+    _ctx(P, curves, &cv, &c)
+    cdef Line ln = _line(line)
+    cdef ET q
+    cdef double a0 = acceleration(mode, E, u, &ln, &c, vref)
+    cdef bint used = (
+        E > 0.0 and substeps(E, h, a0) >= SLOW_STEP_SUBSTEPS
+        and speed_domain_step(E, u, h, mode, &ln, &c, vref, a0, &q)
+    )
+    return rk4_energy_s(E, u, h, mode, &ln, &c, vref, True), used
 
 
 def distance_to_speed_of(double E, double u, double Et, long mode, line, P, curves):

@@ -61,13 +61,14 @@ SPEED_DOMAIN_STEPS_PER_LOG = 12.0
 #: Most RK4 steps of one speed-domain integration.
 SPEED_DOMAIN_MAX_STEPS = 128
 #: Near standstill (a step that the distance domain would divide into ``SLOW_STEP_SUBSTEPS`` sub-steps
-#: or more), the fastest run integrates accelerating steps in the speed domain: RK4 in
-#: ``SLOW_STEP_SPEED_STEPS`` steps to the speed a constant acceleration would reach, then at most
-#: ``SLOW_STEP_NEWTON`` Newton steps on the end speed until the step's length is met to
+#: or more), the fastest run integrates its steps in the speed domain (accelerating, braking backwards
+#: from a stop, and braking forwards unless the step ends below half its start speed): RK4 in at
+#: least ``SLOW_STEP_SPEED_STEPS`` steps to the speed a constant acceleration would reach, then at
+#: most ``SLOW_STEP_NEWTON`` Newton steps on the end speed until the step's length is met to
 #: ``SLOW_STEP_TOLERANCE`` relative (``sim/_kernel_c.pyx``, ``speed_domain_step``). From 32 sub-steps
-#: on, every figure of the examples stays within 4.4e-10 of the distance domain's; from 8 on, running
-#: times moved by up to 5.4e-9, where the distance domain's uniform sub-steps (sized at the step's slow
-#: start) are the less accurate of the two (docs/reference/performance.md, "Stop 26: one pass").
+#: on, every figure of the examples stays within 5.1e-10 of the distance domain's; from 8 on, running
+#: times moved by up to 5.4e-9, where the distance domain's time over uniform sub-steps sized at the
+#: step's slow start is the less accurate of the two (docs/reference/performance.md, "Stop 26").
 SLOW_STEP_SUBSTEPS = 32
 SLOW_STEP_SPEED_STEPS = 4
 SLOW_STEP_NEWTON = 8
