@@ -14,9 +14,9 @@ import importlib
 from typing import Annotated, Any, NamedTuple
 
 import typer
-from typer.core import TyperGroup
+from typer.core import TyperCommand, TyperGroup
 
-from trainsim.cli.context import EXIT_CODES_HELP
+from trainsim.cli.context import EXIT_CODES_HELP, use_plain_coercion
 
 
 class CommandEntry(NamedTuple):
@@ -63,14 +63,26 @@ def load_command(name: str) -> Any:
     entry = COMMANDS[name]
     function = getattr(importlib.import_module(entry.module), entry.function)
     single = typer.Typer(add_completion=False, pretty_exceptions_enable=False, rich_markup_mode=None)
-    single.command(name, hidden=entry.hidden, epilog=EXIT_CODES_HELP)(function)
+    single.command(name, cls=PlainCommand, hidden=entry.hidden, epilog=EXIT_CODES_HELP)(function)
     command = typer.main.get_command(single)
     command.name = name
     return command
 
 
+class PlainCommand(TyperCommand):
+    """A command whose options are coerced without pydantic where they are plain (cli/context.py)."""
+
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        use_plain_coercion(self.get_params(ctx))
+        return super().parse_args(ctx, args)
+
+
 class LazyCommands(TyperGroup):
     """A group whose commands are imported when called, and listed from the table for help."""
+
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        use_plain_coercion(self.get_params(ctx))  # --version and --help too, even when not given
+        return super().parse_args(ctx, args)
 
     def list_commands(self, ctx: Any) -> list[str]:
         return [*super().list_commands(ctx), *(n for n in COMMANDS if n not in self.commands)]

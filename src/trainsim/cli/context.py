@@ -8,11 +8,12 @@ exits with 3 after printing its result.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import re
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
-from enum import IntEnum, StrEnum
+from enum import Enum, IntEnum, StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import typer
 
@@ -199,3 +200,91 @@ def load_scenario(
     t = loader.load_train(train)
     r = loader.load_route(route, mass_model=mass_model.value)
     return Scenario(name=f"{t.name} on {r.name}", train=t, route=r)
+
+
+# ====================================================================== options without pydantic
+# typer (0.2x) coerces every option through a pydantic TypeAdapter, built on first use: for `trainsim
+# run` that imported pydantic's schema machinery and, through its plugin loader, importlib.metadata
+# (about 30 ms CPU of a 0.7 s process, issue 14) only to turn "5" into 5.0. The plain coercion below
+# does the plain cases itself with typer's own functions (a path, a number written plainly, text, a
+# choice) and hands every other value, and every value it cannot take, to typer's own coercion: the
+# messages of bad options stay typer's. With a typer that does not coerce this way nothing changes.
+
+#: numbers written plainly (digits, one point, an exponent): their value is the same in Python and
+#: pydantic; anything else (inf, nan, underscores, spaces) goes to typer's own coercion
+_INT = re.compile(r"[+-]?[0-9]{1,15}")
+_FLOAT = re.compile(r"[+-]?(?:[0-9]{1,17}(?:\.[0-9]{0,17})?|\.[0-9]{1,17})(?:[eE][+-]?[0-9]{1,3})?")
+
+#: the plain coercion declines: typer's own does the work
+_TYPER = object()
+
+
+class PlainCoercion:
+    """A typer runtime parameter (``coerce(value, param, ctx)``) doing the plain cases itself."""
+
+    def __init__(self, functions: tuple[Any, Any, Any]) -> None:
+        self._choice, self._path, self._typer_runtime = functions
+        self._typer: Any = None
+
+    def coerce(self, value: Any, param: Any, ctx: Any) -> Any:
+        multi = param.multiple or param.nargs == -1
+        if value is None:
+            return () if multi else None  # as typer's RuntimeParam.coerce
+        out = _TYPER if multi else self._plain(value, param, ctx)
+        if out is not _TYPER:
+            return out
+        if self._typer is None:
+            self._typer = self._typer_runtime(param.type_descriptor)
+        return self._typer.coerce(value, param=param, ctx=ctx)
+
+    def _plain(self, value: Any, param: Any, ctx: Any) -> Any:
+        descriptor = param.type_descriptor
+        info = descriptor.parameter_info
+        annotation = descriptor.annotation
+        if descriptor.is_file or info.parser is not None or descriptor.is_ranged:
+            return _TYPER
+        if annotation in (int, float, str) and type(value) is annotation:
+            return value
+        if isinstance(value, str):
+            if annotation is int and _INT.fullmatch(value):
+                return int(value)
+            if annotation is float and _FLOAT.fullmatch(value):
+                return float(value)
+            if annotation is str:
+                return value
+        if annotation is float and type(value) is int:
+            return float(value)
+        if isinstance(annotation, type) and issubclass(annotation, Enum):
+            try:
+                return self._choice(
+                    value, choices=list(annotation), case_sensitive=info.case_sensitive, ctx=ctx
+                )
+            except ValueError:
+                return _TYPER
+        if annotation is Path and descriptor.is_path and info.path_type is None:
+            if isinstance(value, str) and value:
+                value = Path(value)
+            if isinstance(value, Path):
+                try:
+                    return self._path(value, info, path_type=Path, param=param, ctx=ctx)
+                except Exception:  # typer's own coercion raises its message
+                    return _TYPER
+        return _TYPER
+
+
+def use_plain_coercion(params: Iterable[Any]) -> None:
+    """Give the parameters of a command built by typer (``command.get_params(ctx)``) the plain
+    coercion, if typer has the runtime coercion this module knows (else leave them as they are)."""
+    try:
+        from typer._coercion import build_runtime_param
+        from typer._param_types import coerce_cli_choice, coerce_cli_path
+    except ImportError:
+        return
+    functions = (coerce_cli_choice, coerce_cli_path, build_runtime_param)
+    for param in params:
+        if (
+            "_runtime_param" in vars(param)
+            and param._runtime_param is None
+            and hasattr(param, "type_descriptor")
+        ):
+            param._runtime_param = PlainCoercion(functions)

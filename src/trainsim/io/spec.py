@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import math
+import operator
 import types
 import typing
 from collections.abc import Iterator, Sequence
@@ -21,7 +23,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, NoReturn
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, WrapValidator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    Tag,
+    ValidationError,
+    WrapSerializer,
+    WrapValidator,
+    model_validator,
+)
+from pydantic.fields import FieldInfo
 from pydantic_core import PydanticCustomError
 
 from trainsim.errors import InputError, Problem, shown_value
@@ -624,6 +637,7 @@ def table_or_models(cls: type[Spec]) -> Any:
         table = spec_table(cls, value)
         return table if table is not None else handler(value)
 
+    validate.table_of = cls  # type: ignore[attr-defined]  # read by the quick reader (_quick_value)
     return WrapValidator(validate)
 
 
@@ -690,10 +704,183 @@ def built(cls: type[Spec]) -> type[Spec]:
     return cls
 
 
+# ====================================================================== the quick reader
+# Building a document's pydantic validator costs more than a whole fastest run of the metro (about
+# 60 ms CPU for a scenario with its train and route, plus pydantic's first-use imports); the quick
+# reader makes the spec of a plainly valid mapping without it, from the same field declarations,
+# the same before/after model validators and model_construct. It accepts a subset of what pydantic
+# accepts (exact types: a number where a float is declared, text where text is; no coercion) and
+# leaves everything else, every problem included, to pydantic's validation: error messages come
+# only from there. tests/io/test_startup_specs.py checks that both give equal specs.
+
+
+class _LeftToPydanticError(Exception):
+    """The quick reader leaves this mapping to pydantic."""
+
+
+@dataclasses.dataclass(frozen=True)
+class _Tagged:
+    """A union discriminated by a field (``Field(discriminator="model")``)."""
+
+    field: str
+
+
+_BOUNDS = {"Gt": operator.gt, "Ge": operator.ge, "Lt": operator.lt, "Le": operator.le}
+_LENGTHS = {"MinLen": operator.ge, "MaxLen": operator.le}
+_NOTHING = object()
+#: the largest integer every float holds exactly: larger ones are left to pydantic's conversion
+_EXACT_INT = 2**53
+
+
+def quick_spec(cls: type[Spec], data: Any) -> Spec | None:
+    """The spec of ``data`` made without building ``cls``'s validator, or None when the quick reader
+    leaves it to pydantic (any problem, or anything but plain values of the declared types)."""
+    try:
+        return _quick(cls, data)
+    except Exception:  # every doubt goes to pydantic, which validates and reports
+        return None
+
+
+def _quick(cls: type[Spec], data: Any) -> Spec:
+    if type(data) is not dict:
+        raise _LeftToPydanticError
+    decorators = cls.__pydantic_decorators__
+    modes = {name: d.info.mode for name, d in decorators.model_validators.items()}
+    if (
+        [n for n, m in modes.items() if m != "after"] != ["_fields_and_units"]
+        or decorators.field_validators
+        or decorators.validators
+        or decorators.root_validators
+        or cls.__private_attributes__
+    ):
+        raise _LeftToPydanticError
+    data = cls._fields_and_units(data)  # problems raise: left to pydantic
+    fields = cls.model_fields
+    names = {info.alias or name: name for name, info in fields.items()}
+    values: dict[str, Any] = {}
+    for key, value in data.items():
+        name = names.get(key)
+        if name is None or isinstance(value, _UnknownField):
+            raise _LeftToPydanticError
+        values[name] = _quick_value(fields[name].annotation, [fields[name]], value)
+    if any(info.is_required() and name not in values for name, info in fields.items()):
+        raise _LeftToPydanticError
+    spec = cls.model_construct(_fields_set=set(values), **values)
+    for name, mode in modes.items():
+        if mode == "after" and getattr(spec, name)() is not spec:
+            raise _LeftToPydanticError
+    return spec
+
+
+def _quick_value(tp: Any, meta: list[Any], value: Any) -> Any:
+    """``value`` of declared type ``tp`` with the metadata ``meta`` (constraints, discriminators)."""
+    while typing.get_origin(tp) is Annotated:
+        tp, *more = typing.get_args(tp)
+        meta = [*meta, *more]
+    flat: list[Any] = []
+    for m in meta:
+        if isinstance(m, FieldInfo):
+            flat += m.metadata
+            if isinstance(m.discriminator, str):
+                flat.append(_Tagged(m.discriminator))
+            elif m.discriminator is not None:
+                flat.append(m.discriminator)
+        else:
+            flat.append(m)
+    result: Any = _NOTHING
+    for m in flat:
+        if isinstance(m, WrapValidator):
+            table_of = getattr(m.func, "table_of", None)
+            if table_of is None:
+                raise _LeftToPydanticError
+            table = spec_table(table_of, value)
+            if table is not None:
+                result = table
+    tags = [m for m in flat if isinstance(m, _Tagged | Discriminator)]
+    if result is _NOTHING:
+        result = _quick_typed(tp, tags[0] if tags else None, value)
+    for m in flat:
+        kind = type(m).__name__
+        if kind in _BOUNDS:
+            if result is not None and not _BOUNDS[kind](result, getattr(m, kind.lower())):
+                raise _LeftToPydanticError
+        elif kind in _LENGTHS:
+            limit = m.min_length if kind == "MinLen" else m.max_length
+            if result is not None and not _LENGTHS[kind](len(result), limit):
+                raise _LeftToPydanticError
+        elif not isinstance(m, WrapValidator | WrapSerializer | _Tagged | Discriminator | Tag):
+            raise _LeftToPydanticError
+    return result
+
+
+def _quick_typed(tp: Any, tag: Any, value: Any) -> Any:
+    if tp is Any:
+        return value
+    if tp is float:
+        if type(value) is float and math.isfinite(value):
+            return value
+        if type(value) is int and abs(value) <= _EXACT_INT:
+            return float(value)
+        raise _LeftToPydanticError
+    if tp in (int, bool, str):
+        if type(value) is tp:
+            return value
+        raise _LeftToPydanticError
+    if tp is type(None):
+        if value is None:
+            return None
+        raise _LeftToPydanticError
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin is Literal:
+        for choice in args:
+            if type(choice) is type(value) and choice == value:
+                return choice
+        raise _LeftToPydanticError
+    if origin is typing.Union or origin is types.UnionType:
+        if value is None and type(None) in args:
+            return None
+        members = [a for a in args if a is not type(None)]
+        if tag is not None:
+            return _quick_tagged(members, tag, value)
+        if len(members) == 1:
+            return _quick_value(members[0], [], value)
+        raise _LeftToPydanticError
+    if origin is list and type(value) is list:
+        return [_quick_value(args[0], [], item) for item in value]
+    if origin is dict and type(value) is dict:
+        return {_quick_value(args[0], [], k): _quick_value(args[1], [], v) for k, v in value.items()}
+    if isinstance(tp, type) and issubclass(tp, Spec):
+        return _quick(tp, value)
+    raise _LeftToPydanticError
+
+
+def _quick_tagged(members: list[Any], tag: Any, value: Any) -> Any:
+    """The member of a discriminated union that ``value`` names."""
+    if isinstance(tag, _Tagged):
+        if type(value) is not dict:
+            raise _LeftToPydanticError
+        for member in members:
+            if isinstance(member, type) and issubclass(member, Spec):
+                choices = typing.get_args(member.model_fields[tag.field].annotation)
+                if any(type(c) is type(value.get(tag.field)) and c == value.get(tag.field) for c in choices):
+                    return _quick(member, value)
+        raise _LeftToPydanticError
+    if not callable(tag.discriminator):
+        raise _LeftToPydanticError
+    name = tag.discriminator(value)
+    for member in members:
+        if typing.get_origin(member) is Annotated and Tag(name) in typing.get_args(member)[1:]:
+            return _quick_value(member, [], value)
+    raise _LeftToPydanticError
+
+
 def _validate(
     cls: type[Spec], data: Any, schema: str, source: str, path: str | Path | None, *, header: bool
 ) -> Any:
     _check_header(data, schema, source, required=header)
+    quick = quick_spec(cls, data)
+    if quick is not None:
+        return quick
     try:
         return built(cls).model_validate(data)
     except ValidationError as exc:
