@@ -180,3 +180,37 @@ def test_run_peaks_without_electrics_or_points_and_bad_sections():
             _trace_c.run_peaks(*args[:4], end, *args[5:], np.array(bad))
     with pytest.raises(ValueError, match=r"sections: need an array of shape \(k, 2\)"):
         _trace_c.run_peaks(*args[:4], end, *args[5:], np.array([0, 3]))
+
+
+def _violations_numpy(s, v, t) -> list[str]:
+    """``result._invariant_violations`` as it was before it was compiled (the reference)."""
+    problems = []
+    if not (np.all(np.isfinite(s)) and np.all(np.isfinite(v)) and np.all(np.isfinite(t))):
+        problems.append("non-finite position, speed or time")
+    if np.any(v < 0.0):
+        problems.append("negative speed")
+    if np.any(np.diff(s) < -1e-9):
+        problems.append("position decreasing")
+    if np.any(np.diff(t) < -1e-9):
+        problems.append("time decreasing")
+    return problems
+
+
+def test_point_problems_are_the_numpy_checks():
+    rng = np.random.default_rng(50388)
+    base = np.cumsum(rng.uniform(0.0, 10.0, (3, 200)), axis=1)
+    seen = set()
+    for trial in range(400):
+        s, v, t = (x.copy() for x in base)
+        for _ in range(rng.integers(0, 3)):
+            arr = (s, v, t)[rng.integers(0, 3)]
+            k = rng.integers(0, 200)
+            arr[k] = rng.choice([np.nan, np.inf, -np.inf, -1e-3, arr[k] - 2e-9, arr[k] - 5e-10, -0.0])
+        got = res._invariant_violations(s, v, t)
+        assert got == _violations_numpy(s, v, t), trial
+        seen |= set(got)
+    assert len(seen) == 4  # every problem met
+    assert res._invariant_violations(np.zeros(0), np.zeros(0), np.zeros(0)) == []
+    assert res._invariant_violations(np.array([0.0, 1.0]), np.array([0.0, -0.0]), np.array([0.0, 1.0])) == []
+    with pytest.raises(ValueError, match=r"t: length 1, need the length of s \(2\)"):
+        _trace_c.point_problems(np.zeros(2), np.zeros(2), np.zeros(1), 1e-9)

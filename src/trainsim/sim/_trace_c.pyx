@@ -796,6 +796,55 @@ def cumulative_rows(tuple stretches):
     return out
 
 
+cdef enum:
+    NOT_FINITE = 1
+    NEGATIVE_SPEED = 2
+    POSITION_DECREASING = 4
+    TIME_DECREASING = 8
+
+#: The bits of ``point_problems``'s answer, in the order ``result._invariant_violations`` names them.
+PROBLEM_NOT_FINITE = NOT_FINITE
+PROBLEM_NEGATIVE_SPEED = NEGATIVE_SPEED
+PROBLEM_POSITION_DECREASING = POSITION_DECREASING
+PROBLEM_TIME_DECREASING = TIME_DECREASING
+
+
+def point_problems(s, v, t, double tolerance):
+    """What is wrong with a run's points, in one pass: a bit set (``PROBLEM_*``) for a position, speed
+    or time that is not finite, a negative speed, a position or a time falling by more than
+    ``tolerance`` from one point to the next (a difference that is NaN falls by nothing, as numpy's
+    comparison says). s, v, t of one length."""
+    points = [_vector(name, a, np.float64) for name, a in (("s", s), ("v", v), ("t", t))]
+    cdef Py_ssize_t n = points[0].shape[0], i, size
+    for name, arr in zip(("v", "t"), points[1:]):
+        if arr.shape[0] != n:
+            raise ValueError(f"{name}: length {arr.shape[0]}, need the length of s ({n})")
+    cdef Held held
+    held.count = 0
+    cdef const double* sp
+    cdef const double* vp
+    cdef const double* tp
+    cdef int found = 0
+    try:
+        sp = <const double*>hold(&held, "s", "", points[0], False, False, &size)
+        vp = <const double*>hold(&held, "v", "", points[1], False, False, &size)
+        tp = <const double*>hold(&held, "t", "", points[2], False, False, &size)
+        with nogil:
+            for i in range(n):
+                # x - x is 0 for a finite x and NaN for NaN and the infinities
+                if not (sp[i] - sp[i] == 0.0 and vp[i] - vp[i] == 0.0 and tp[i] - tp[i] == 0.0):
+                    found |= NOT_FINITE
+                if vp[i] < 0.0:
+                    found |= NEGATIVE_SPEED
+                if i > 0 and sp[i] - sp[i - 1] < -tolerance:
+                    found |= POSITION_DECREASING
+                if i > 0 and tp[i] - tp[i - 1] < -tolerance:
+                    found |= TIME_DECREASING
+    finally:
+        release(&held)
+    return found
+
+
 cdef struct Keyed:
     double key
     Py_ssize_t index

@@ -13,7 +13,17 @@ from trainsim.model.route import Route
 from trainsim.model.scenario import RunSettings
 from trainsim.model.train import Train
 from trainsim.physics import electrical as el
-from trainsim.sim._trace_c import TRACE_ROWS, cumulative_rows, run_arrays, run_peaks
+from trainsim.sim._trace_c import (
+    PROBLEM_NEGATIVE_SPEED,
+    PROBLEM_NOT_FINITE,
+    PROBLEM_POSITION_DECREASING,
+    PROBLEM_TIME_DECREASING,
+    TRACE_ROWS,
+    cumulative_rows,
+    point_problems,
+    run_arrays,
+    run_peaks,
+)
 from trainsim.sim.codes import BRAKE, CRUISE, DWELL, FOLLOW, REGEN, REGIME_NAMES, TRACTION
 from trainsim.sim.energy import run_works
 from trainsim.sim.parameters import _NO_CURVE
@@ -99,6 +109,9 @@ class EnergyFigures:
     auxiliary: float
     net: float
     paper: float
+
+
+_ENERGY_NAMES = tuple(f.name for f in fields(EnergyFigures))
 
 
 @dataclass(frozen=True)
@@ -241,17 +254,18 @@ def _regime_forces(
 
 
 def _invariant_violations(s: np.ndarray, v: np.ndarray, t: np.ndarray) -> list[str]:
-    """What is wrong with a trace: NaN, negative speed, position or time going backwards."""
-    problems = []
-    if not (np.all(np.isfinite(s)) and np.all(np.isfinite(v)) and np.all(np.isfinite(t))):
-        problems.append("non-finite position, speed or time")
-    if np.any(v < 0.0):
-        problems.append("negative speed")
-    if np.any(np.diff(s) < -1e-9):
-        problems.append("position decreasing")
-    if np.any(np.diff(t) < -1e-9):
-        problems.append("time decreasing")
-    return problems
+    """What is wrong with a trace: NaN, negative speed, position or time going backwards (by more
+    than 1e-9 m or s); checked in one compiled pass (``_trace_c.point_problems``)."""
+    found = point_problems(s, v, t, 1e-9)
+    return [text for bit, text in _PROBLEMS if found & bit]
+
+
+_PROBLEMS = (
+    (PROBLEM_NOT_FINITE, "non-finite position, speed or time"),
+    (PROBLEM_NEGATIVE_SPEED, "negative speed"),
+    (PROBLEM_POSITION_DECREASING, "position decreasing"),
+    (PROBLEM_TIME_DECREASING, "time decreasing"),
+)
 
 
 #: A run ends at a stop when its head is this close [m] and its speed this low [m/s].
@@ -270,7 +284,8 @@ def _check_stops(
     """``ok`` when the run stands still at every dwell point and ends at standstill at its last stop;
     otherwise ``did_not_reach_stop`` with a warning saying where it ended and how fast."""
     moving_dwell = np.flatnonzero((regime == DWELL) & (v > STOP_SPEED_TOLERANCE_MPS))
-    last = route.stops[-1] if route.stops and stop_names is None else None
+    stops = route.stops  # a property that builds its tuple on each call
+    last = stops[-1] if stops and stop_names is None else None
     short = last is not None and abs(float(s[-1]) - last.position_m) > STOP_POSITION_TOLERANCE_M
     if not (short or v[-1] > STOP_SPEED_TOLERANCE_MPS or len(moving_dwell)):
         return "ok"
@@ -772,8 +787,10 @@ def build_result(
     distance = float(s[-1] - s[0]) if n else 0.0
     # energy balance: traction work = kinetic + potential change + resistance + braking work
     kinetic = 0.5 * train.inertial_mass_kg * (v[-1] ** 2 - v[0] ** 2)
-    supplied = float(w_traction.sum())
-    spent = float(kinetic + w_gradient.sum() + w_running.sum() + w_curve_tunnel.sum() + w_braking.sum())
+    # each sum once: the totals below divide the same values
+    traction_sum, braking_sum = w_traction.sum(), w_braking.sum()
+    supplied = float(traction_sum)
+    spent = float(kinetic + w_gradient.sum() + w_running.sum() + w_curve_tunnel.sum() + braking_sum)
     balance = {
         "traction_work_j": supplied,
         "kinetic_potential_resistance_braking_j": spent,
@@ -781,8 +798,8 @@ def build_result(
         "off_regime_stretches": float(off_regime.sum()),
     }
     totals = EnergyFigures(
-        traction=float(w_traction.sum() / KWH),
-        braking=float(w_braking.sum() / KWH),
+        traction=float(traction_sum / KWH),
+        braking=float(braking_sum / KWH),
         regenerated=float(e_regen_line.sum() / KWH),
         auxiliary=float(e_aux.sum() / KWH),
         net=float(e_net.sum() / KWH),
@@ -829,7 +846,7 @@ def _not_finite(totals: EnergyFigures, peak_a: float, peak_paper_a: float, *, el
     """Names of the run's figures that are not finite: every energy, and the peak currents of an
     electric train (a train without electrics has no current: NaN there is "none", not an overflow)."""
     # the fields' values directly: asdict deep-copies (a tenth of a summary's Python time)
-    bad = [f"the {f.name} energy" for f in fields(totals) if not math.isfinite(getattr(totals, f.name))]
+    bad = [f"the {name} energy" for name in _ENERGY_NAMES if not math.isfinite(getattr(totals, name))]
     if electric:
         for name, value in (("peak current", peak_a), ("paper peak current", peak_paper_a)):
             if not math.isfinite(value):
