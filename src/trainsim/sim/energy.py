@@ -115,10 +115,14 @@ def line_laws(profile: LineResistanceProfile, available: PiecewiseLinear, lo: fl
     width = right - left
     eps = np.minimum(1e-9 * np.maximum(1.0, np.abs(left)), 0.25 * width)
 
+    # just inside each piece, so that a jump at a breakpoint belongs to the piece on its right; both
+    # ends in one evaluation per law (elementwise: the same values as two)
+    inside = np.concatenate([left + eps, right - eps])
+    n = len(left)
+
     def law(f: PiecewiseLinear) -> tuple[np.ndarray, np.ndarray]:
-        # just inside each piece, so that a jump at a breakpoint belongs to the piece on its right
-        a = f(left + eps)
-        b = f(right - eps)
+        ab = f(inside)
+        a, b = ab[:n], ab[n:]
         slope = (b - a) / (width - 2 * eps)
         return a - slope * eps, slope
 
