@@ -82,26 +82,10 @@ def runs():
             (rng.integers(0, 7, len(s)), rng.uniform(0.0, 1.0, len(s))),
         ):
             laws = (compiled.profile, compiled.ceiling, availability, voltage)
-            args = res._run_arrays_args(
-                train, settings, *laws, s, v, regime, level, s_right, eta_t, eta_r, aux
+            inputs = res.TraceInputs(
+                train, settings, route, *laws, s, v, t, regime, level, s_right, *works, eta_t, eta_r, aux
             )
-            ref_args = (
-                train,
-                settings,
-                route,
-                *laws,
-                s,
-                v,
-                t,
-                regime,
-                level,
-                s_right,
-                *works,
-                eta_t,
-                eta_r,
-                aux,
-            )
-            variants.append((args, ref_args))
+            variants.append((res._run_arrays_args(inputs), inputs))
         out[name] = variants
     return out
 
@@ -111,7 +95,7 @@ def test_run_arrays_equal_the_numpy_reference_bit_for_bit(runs):
         for k, (args, ref_args) in enumerate(variants):
             for with_trace in (True, False):
                 rows, peak, paper = _trace_c.run_arrays(*args, with_trace)
-                trace, ref_peak, ref_paper = res._trace_and_peaks_numpy(*ref_args, with_trace)
+                trace, ref_peak, ref_paper = res._trace_and_peaks_numpy(ref_args, with_trace)
                 what = f"{name} variant {k} trace {with_trace}"
                 assert rows.shape == ((15, len(peak)) if with_trace else (15, 0)), what
                 np.testing.assert_array_equal(peak, ref_peak, err_msg=f"{what}: peak")

@@ -98,9 +98,10 @@ def _both(train, route, settings, scramble: bool, with_trace: bool):
         s_right,
         *w,
     )
+    inputs = res.TraceInputs(*args, eta_t, eta_r, aux)
     return (
-        res._trace_and_peaks(*args, eta_t, eta_r, aux, with_trace),
-        res._trace_and_peaks_numpy(*args, eta_t, eta_r, aux, with_trace),
+        res._trace_and_peaks(inputs, with_trace),
+        res._trace_and_peaks_numpy(inputs, with_trace),
     )
 
 
