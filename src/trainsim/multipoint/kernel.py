@@ -13,7 +13,9 @@ over the vehicle's own length.
 Integrator: the implicit midpoint rule. With the midpoint velocities w = (v0 + v1) / 2 as unknowns,
 x1 = x0 + h w and the residual ``2 M (w - v0) / h - F(x0 + h w / 2, w) = 0`` has a symmetric
 tridiagonal Jacobian ``2M/h + D + (h/2) K + C`` (K, C: coupler stiffness and damping, D: derivative of
-the vehicles' own forces), solved by Newton iterations with the Thomas algorithm: O(n) per iteration.
+the vehicles' own forces), solved by Newton iterations with the Thomas algorithm: O(n) per iteration. A step whose Newton
+iterations do not converge (``MAX_NEWTON``; given up earlier when the damped iterations cannot reach
+the tolerance in time, ``HOPELESS_MARGIN``) is halved.
 The rule is A-stable (any coupler stiffness is stable at any step) and symplectic: it neither adds
 nor removes energy from the coupler oscillations, so losses come from the dampers alone, and the
 kinetic energy change of a step equals the work of the midpoint forces exactly, which the energy
@@ -25,15 +27,34 @@ integrates without small steps.
 
 The functions are compiled (Cython, ``multipoint/_mp_c.pyx``, built by ``pip install .``); this module
 defines the columns of the arrays they read and write and re-exports them: ``run`` (integrate until a
-time or an event), ``record`` (store a state), ``vehicle_forces``, ``coupler_force``,
+time or an event), ``record`` (store a state), ``implicit_step`` (one step's Newton solve),
+``vehicle_forces``, ``coupler_force``,
 ``coupler_energy``, ``thomas`` and ``tanh``. Importing it loads no numba (issue 14).
 """
 
 from __future__ import annotations
 
-from trainsim.multipoint._mp_c import coupler_energy, coupler_force, record, run, tanh, thomas, vehicle_forces
+from trainsim.multipoint._mp_c import (
+    coupler_energy,
+    coupler_force,
+    implicit_step,
+    record,
+    run,
+    tanh,
+    thomas,
+    vehicle_forces,
+)
 
-__all__ = ["coupler_energy", "coupler_force", "record", "run", "tanh", "thomas", "vehicle_forces"]
+__all__ = [
+    "coupler_energy",
+    "coupler_force",
+    "implicit_step",
+    "record",
+    "run",
+    "tanh",
+    "thomas",
+    "vehicle_forces",
+]
 
 # columns of the vehicle parameter array VP
 V_MASS = 0  # static mass m_i [kg]
@@ -162,3 +183,10 @@ ST_END_OF_ROUTE = 6
 ELECTRIC_FADE_MPS = 1.0
 #: Newton iterations per (sub-)step before halving.
 MAX_NEWTON = 12
+#: From this iteration on (counted from 0) Newton takes half updates: next to a kink of a force law
+#: (slack taken up, the draft gears' friction) full updates can cycle.
+DAMPED_FROM = 6
+#: The damped iterations halve the update at best, so an update of iteration ``it`` above
+#: ``HOPELESS_MARGIN * tol * 2**(MAX_NEWTON - 1 - it)`` (from iteration DAMPED_FROM + 1) cannot reach the
+#: tolerance ``tol`` in time: the step is halved at once rather than after MAX_NEWTON iterations (issue 14).
+HOPELESS_MARGIN = 64.0
