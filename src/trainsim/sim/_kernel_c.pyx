@@ -143,7 +143,13 @@ cdef double rk4_energy(
     """E [m^2/s^2] after a step h [m] (negative: backwards) from offset u; not clipped at 0. Slow
     steps are divided into sub-steps (``substeps``, LENGTH_SCALE_FRACTION)."""
     cdef double k1 = acceleration(mode, E, u, line, c, vref)
-    cdef long n = substeps(E, h, k1)
+    return rk4_energy_from(E, u, h, mode, line, c, vref, k1, substeps(E, h, k1))
+
+
+cdef inline double rk4_energy_from(
+    double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref, double k1, long n
+) noexcept nogil:
+    """``rk4_energy`` in n sub-steps, with k1 the acceleration at the start."""
     cdef double d = h / n
     cdef long j
     for j in range(n):
@@ -200,7 +206,13 @@ cdef ET rk4_energy_time(
     """(E [m^2/s^2], elapsed time [s]) after a forward step h [m] from offset u; slow steps are
     divided into sub-steps (``substeps``, LENGTH_SCALE_FRACTION), each as ``rk4_energy_time_1``."""
     cdef double k1 = acceleration(mode, E, u, line, c, vref)
-    cdef long n = substeps(E, h, k1)
+    return rk4_energy_time_from(E, u, h, mode, line, c, vref, k1, substeps(E, h, k1))
+
+
+cdef inline ET rk4_energy_time_from(
+    double E, double u, double h, long mode, const Line* line, const Ctx* c, double vref, double k1, long n
+) noexcept nogil:
+    """``rk4_energy_time`` in n sub-steps, with k1 the acceleration at the start (at E unclipped)."""
     cdef double d = h / n
     cdef double total = 0.0
     cdef long j
@@ -282,13 +294,14 @@ cdef double rk4_energy_s(
 ) noexcept nogil:
     """``rk4_energy`` (forwards or backwards); with ``slow``, as ``rk4_energy_time_s``."""
     cdef double a0
+    cdef long n
     cdef ET r
     if slow and E > 0.0:
         a0 = acceleration(mode, E, u, line, c, vref)
-        if substeps(E, h, a0) >= SLOW_STEP_SUBSTEPS and speed_domain_step(
-            E, u, h, mode, line, c, vref, a0, &r
-        ):
+        n = substeps(E, h, a0)
+        if n >= SLOW_STEP_SUBSTEPS and speed_domain_step(E, u, h, mode, line, c, vref, a0, &r):
             return r.E
+        return rk4_energy_from(E, u, h, mode, line, c, vref, a0, n)
     return rk4_energy(E, u, h, mode, line, c, vref)
 
 
@@ -299,13 +312,15 @@ cdef ET rk4_energy_time_s(
     or more (near standstill) is integrated in the speed domain instead (``speed_domain_step``, which
     declines a step that ends near standstill), with far fewer force evaluations."""
     cdef double a0
+    cdef long n
     cdef ET r
     if slow and E > 0.0:
         a0 = acceleration(mode, E, u, line, c, vref)
-        if substeps(E, h, a0) >= SLOW_STEP_SUBSTEPS and speed_domain_step(
-            E, u, h, mode, line, c, vref, a0, &r
-        ):
+        n = substeps(E, h, a0)
+        if n >= SLOW_STEP_SUBSTEPS and speed_domain_step(E, u, h, mode, line, c, vref, a0, &r):
             return r
+        # the start's acceleration is the distance domain's k1: not evaluated twice
+        return rk4_energy_time_from(E, u, h, mode, line, c, vref, a0, n)
     return rk4_energy_time(E, u, h, mode, line, c, vref)
 
 
