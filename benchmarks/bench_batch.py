@@ -25,7 +25,9 @@ median of ``--repeat`` repetitions is printed.
    descent; the 25 kV EMU of examples/power, in turn an Intercity (no intermediate stop) and a regional
    train (every station, 30 s), 1,000 departures from 05:00, one every 72 s, a timetable study as
    examples/studies/metro_timetable.yaml: each hour's Intercity and regional trains are one entry with
-   their departures and the hour's load (seeded); every train is computed.
+   their departures and the hour's load (seeded). A worker computes each entry's scenario once and
+   gives every departure its own row (the runs differ only in their clock times); 3b, the same day
+   with one entry and load per train, computes every train.
    Baseline: 1 worker. Prints the wall time on 2 workers (target <= 5 s on 2 cores) and the speed-up.
    (The trains are independent runs: no signalling between them; bench_operations.py times the day
    with signals, in one process.)
@@ -116,9 +118,11 @@ def multipoint_study(quick: bool):
     return study_from_dict(data, str(HEAVY))
 
 
-def day_study(trains: int, seed: int = 1):
+def day_study(trains: int, seed: int = 1, distinct: bool = False):
     """``trains`` departures on the 100 km line, Intercity and regional in turn, one every 72 s; one
-    entry per hour and kind of train."""
+    entry per hour and kind of train (a worker computes each entry's scenario once and gives every
+    departure its row), or with ``distinct`` one entry per train with its own load (every train
+    computed)."""
     positions = [1000.0 + 9800.0 * k for k in range(11)]
     names = [f"S{k:02d}" for k in range(11)]
     route = {
@@ -145,18 +149,18 @@ def day_study(trains: int, seed: int = 1):
         },
     }
     rng = np.random.default_rng(seed)
-    groups: dict[tuple[int, bool], list[str]] = {}  # (hour, Intercity) -> departures
+    groups: dict[tuple[int, bool], list[str]] = {}  # (hour or train, Intercity) -> departures
     for k in range(trains):
         t = 5 * 3600 + 72 * k
-        groups.setdefault((t // 3600, k % 2 == 0), []).append(
+        groups.setdefault((k if distinct else t // 3600, k % 2 == 0), []).append(
             f"{t // 3600:02d}:{t // 60 % 60:02d}:{t % 60:02d}"
         )
     runs = []
-    for (hour, fast), departures in groups.items():
+    for (group, fast), departures in groups.items():
         run: dict[str, Any] = {
-            "name": f"{'Intercity' if fast else 'regional'} {hour:02d} h",
+            "name": f"{'Intercity' if fast else 'regional'} {f'train {group}' if distinct else f'{group:02d} h'}",
             "departures": departures,
-            # the hour's load per car [t]
+            # the hour's (or the train's) load per car [t]
             "set": {"train.formation[*].load_t": round(float(rng.uniform(2.0, 12.0)), 2)},
         }
         if fast:
@@ -166,7 +170,8 @@ def day_study(trains: int, seed: int = 1):
         {
             "schema": "trainsim/study",
             "version": 1,
-            "name": f"bench: a day of {trains} trains on a 100 km line",
+            "name": f"bench: a day of {trains} trains on a 100 km line"
+            + (", each train its own load" if distinct else ""),
             "base": {"name": "main line", "train": str(EMU), "route": route},
             "runs": runs,
         },
@@ -360,23 +365,26 @@ def multipoint(quick: bool, repeat: int) -> None:
 
 
 def day(trains: int, repeat: int, base_ms: float) -> None:
-    t0 = time.perf_counter()
-    study = day_study(trains)
-    study.expand()
-    expand_s = time.perf_counter() - t0
-    print(f"\n3. {study.name} (batch); reading and expansion {expand_s:.2f} s (not counted)")
-    rows = paired_runs(study, {"1 worker (baseline)": (1, None), "2 workers": (2, None)}, repeat)
-    _table(rows)
-    one, two = rows["1 worker (baseline)"], rows["2 workers"]
-    print(
-        f"  {trains} trains on 2 workers: {med(two, 'wall'):.2f} s wall, {med(two, 'idle'):.2f} s idle-core "
-        f"estimate (target <= 5 s for 1,000); 1 worker {med(one, 'wall'):.2f} / {med(one, 'idle'):.2f} s"
-    )
-    cpu_ms = statistics.median(s.workers_cpu / s.runs * 1e3 for s in two)
-    print(
-        f"  speed-up x{ratio(one, two, 'wall'):.2f} wall, x{ratio(one, two, 'idle'):.2f} idle-core estimate; "
-        f"CPU per train {cpu_ms:.1f} ms = {cpu_ms / base_ms:.1f} x the RK4 baseline"
-    )
+    for distinct in (False, True):
+        t0 = time.perf_counter()
+        study = day_study(trains, distinct=distinct)
+        study.expand()
+        expand_s = time.perf_counter() - t0
+        print(
+            f"\n3{'b' if distinct else ''}. {study.name} (batch); reading and expansion {expand_s:.2f} s (not counted)"
+        )
+        rows = paired_runs(study, {"1 worker (baseline)": (1, None), "2 workers": (2, None)}, repeat)
+        _table(rows)
+        one, two = rows["1 worker (baseline)"], rows["2 workers"]
+        print(
+            f"  {trains} trains on 2 workers: {med(two, 'wall'):.2f} s wall, {med(two, 'idle'):.2f} s idle-core "
+            f"estimate (target <= 5 s for 1,000); 1 worker {med(one, 'wall'):.2f} / {med(one, 'idle'):.2f} s"
+        )
+        cpu_ms = statistics.median(s.workers_cpu / s.runs * 1e3 for s in two)
+        print(
+            f"  speed-up x{ratio(one, two, 'wall'):.2f} wall, x{ratio(one, two, 'idle'):.2f} idle-core "
+            f"estimate; CPU per train {cpu_ms:.1f} ms = {cpu_ms / base_ms:.1f} x the RK4 baseline"
+        )
 
 
 def main() -> None:
