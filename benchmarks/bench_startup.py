@@ -1,6 +1,6 @@
 """Start-up of trainsim as a user meets it, whole processes, against `python -c "import numpy"`.
 
-Run: python benchmarks/bench_startup.py [--repeat N] [--no-cold] [--as-is]
+Run: python benchmarks/bench_startup.py [--repeat N] [--no-cold] [--as-is] [--only TEXT ...]
 
 Every start-up figure of issue 14's table, each as the median wall time of N whole processes (after one
 warm-up) and the median of its ratios to the baseline `python -c "import numpy"` timed in the same run,
@@ -175,6 +175,13 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument(
         "--as-is", action="store_true", help="keep the environment's bytecode settings (see the docstring)"
     )
+    parser.add_argument(
+        "--only",
+        action="append",
+        default=[],
+        metavar="TEXT",
+        help="time only the warm rows whose name contains TEXT (repeatable; e.g. --only run --only help)",
+    )
     args = parser.parse_args(argv)
     import _timing
 
@@ -190,7 +197,12 @@ def main(argv: Sequence[str] | None = None) -> None:
                 else f"written and read under a temporary PYTHONPYCACHEPREFIX ({work / 'pycache'})"
             )
         )
-        table = cases(work)
+        every = cases(work)
+        table = {
+            name: case for name, case in every.items() if not args.only or any(t in name for t in args.only)
+        }
+        if not table:
+            parser.error(f"no row matches --only {args.only}; rows: {', '.join(every)}")
         for cmd, _ in table.values():  # warm-up: bytecode, numba's caches and the OS's file cache
             timed(cmd, env)
         timed(BASELINE, env)
@@ -200,7 +212,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         )
         for name, (cmd, target) in table.items():
             print(row(name, *paired(cmd, args.repeat, env), target), flush=True)
-        if not args.no_cold:
+        if not args.no_cold and RUN in table:
             for name, warm in ((FIRST, None), (EMPTY_NUMBA, env)):
                 series: tuple[list[float], list[float], list[float], list[float]] = ([], [], [], [])
                 for k in range(args.repeat):

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from trainsim.errors import InputError
+from trainsim.io.railtoolkit_names import MASS_MODELS
 from trainsim.io.report import CheckReport, route_figures, train_figures
 
 if TYPE_CHECKING:
@@ -44,7 +45,7 @@ Kind = Literal["train", "route", "scenario"]
 Format = Literal["railml2", "railml3", "spreadsheet"]
 
 #: mass models of railtoolkit / TrainRuns.jl -> where line resistance applies
-_MASS_MODELS = {"mass_point": "head", "homogeneous_strip": "train_length"}
+_MASS_MODELS = MASS_MODELS
 
 
 def detect_interchange(path: str | Path) -> Format | None:

@@ -18,12 +18,13 @@ import functools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 from typing import Any, Literal, ParamSpec, TypeVar
 
 from trainsim.errors import InputError
 from trainsim.io import documents, interchange
-from trainsim.io import railtoolkit as rtk
 from trainsim.io import trainsim_yaml as tsy
+from trainsim.io.railtoolkit_names import MASS_MODELS, PATH_SCHEMA_URL, ROLLING_STOCK_SCHEMA_URL
 from trainsim.io.report import CheckReport
 from trainsim.io.report import route_figures as _route_figures
 from trainsim.io.report import train_figures as _train_figures
@@ -52,8 +53,8 @@ KNOWN_FORMATS: dict[str, tuple[Kind, str]] = {
     "trainsim/train": ("train", "schema: trainsim/train"),
     "trainsim/route": ("route", "schema: trainsim/route"),
     "trainsim/scenario": ("scenario", "schema: trainsim/scenario"),
-    "railtoolkit/rolling-stock": ("train", f"schema: {rtk.ROLLING_STOCK_SCHEMA_URL}"),
-    "railtoolkit/running-path": ("route", f"schema: {rtk.PATH_SCHEMA_URL}"),
+    "railtoolkit/rolling-stock": ("train", f"schema: {ROLLING_STOCK_SCHEMA_URL}"),
+    "railtoolkit/running-path": ("route", f"schema: {PATH_SCHEMA_URL}"),
     "trainruns/settings": ("settings", "a top-level 'settings' mapping (TrainRuns.jl settings)"),
     "ttobench/train": ("train", "TTOBench JSON with 'metadata' and 'mass'"),
     "ttobench/track": ("route", "TTOBench JSON with 'metadata' and 'stops'"),
@@ -65,9 +66,16 @@ _BY_SCHEMA = {
     "trainsim/train": "trainsim/train",
     "trainsim/route": "trainsim/route",
     "trainsim/scenario": "trainsim/scenario",
-    rtk.ROLLING_STOCK_SCHEMA_URL: "railtoolkit/rolling-stock",
-    rtk.PATH_SCHEMA_URL: "railtoolkit/running-path",
+    ROLLING_STOCK_SCHEMA_URL: "railtoolkit/rolling-stock",
+    PATH_SCHEMA_URL: "railtoolkit/running-path",
 }
+
+
+def _railtoolkit() -> ModuleType:
+    """The railtoolkit reader, imported when a railtoolkit file is read (not by every run)."""
+    from trainsim.io import railtoolkit
+
+    return railtoolkit
 
 
 def _errors_name_the_file(func: Callable[P, R]) -> Callable[P, R]:
@@ -194,7 +202,7 @@ def load_train(path: str | Path, train_id: str | None = None) -> Train:
         from trainsim.io.ttobench import read_ttobench_train
 
         return read_ttobench_train(path).train
-    return rtk.load_railtoolkit_train(path, train_id, data=data)
+    return _railtoolkit().load_railtoolkit_train(path, train_id, data=data)
 
 
 @documents.gc_paused
@@ -217,7 +225,7 @@ def load_route(path: str | Path, mass_model: str | None = None, path_id: str | N
     _expect(detected, "route", file)
     if detected.format == "trainsim/route":
         route = tsy.route_spec_from_dict(data, file, path=path).to_route(file)
-        if mass_model is not None and rtk.MASS_MODELS.get(mass_model) != route.line_resistance.apply_over:
+        if mass_model is not None and MASS_MODELS.get(mass_model) != route.line_resistance.apply_over:
             raise InputError(
                 "the mass model contradicts the route's line_resistance.apply_over",
                 file=file,
@@ -230,7 +238,7 @@ def load_route(path: str | Path, mass_model: str | None = None, path_id: str | N
         from trainsim.io.ttobench import read_ttobench_track
 
         return read_ttobench_track(path)
-    return rtk.load_railtoolkit_path(path, path_id, mass_model or "mass_point", data=data)
+    return _railtoolkit().load_railtoolkit_path(path, path_id, mass_model or "mass_point", data=data)
 
 
 @documents.gc_paused
@@ -281,7 +289,7 @@ def scenario_from_files(
     if isinstance(settings, RunSettings):
         run_settings = settings
     elif isinstance(settings, str | Path):
-        mass_model = rtk.load_railtoolkit_settings(settings).mass_model
+        mass_model = _railtoolkit().load_railtoolkit_settings(settings).mass_model
     elif settings is not None:
         run_settings = tsy.settings_from_dict(dict(settings))
     train = load_train(train_path, train_id)
@@ -380,7 +388,7 @@ def check_file(path: str | Path) -> CheckReport:
                 notes += [f"{label}: {n}" for n in sub.notes()]
         return CheckReport(file, "scenario", fmt, scenario.name, figures, notes)
     if detected.format == "railtoolkit/rolling-stock":
-        loaded = rtk.read_railtoolkit_train(path)
+        loaded = _railtoolkit().read_railtoolkit_train(path)
         notes = list(loaded.notes)
         ignored = _ignored_rtk_fields(data)
         if ignored:
@@ -388,7 +396,7 @@ def check_file(path: str | Path) -> CheckReport:
         figures = {"train id": loaded.train_id, **_train_figures(loaded.train)}
         return CheckReport(file, "train", fmt, loaded.train.name, figures, notes)
     if detected.format == "railtoolkit/running-path":
-        loaded_p = rtk.read_railtoolkit_path(path)
+        loaded_p = _railtoolkit().read_railtoolkit_path(path)
         notes = list(loaded_p.notes)
         ignored = _ignored_rtk_fields(data)
         if ignored:
@@ -405,7 +413,7 @@ def check_file(path: str | Path) -> CheckReport:
             else "none"
         )
         return CheckReport(file, "route", fmt, loaded_p.route.name, figures, notes)
-    settings = rtk.load_railtoolkit_settings(path)
+    settings = _railtoolkit().load_railtoolkit_settings(path)
     figures = {"mass model": settings.mass_model, "line resistance applied over": settings.apply_over}
     return CheckReport(file, "settings", fmt, Path(file).stem, figures, list(settings.notes))
 

@@ -65,6 +65,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from trainsim.constants import KMH, TONNE, TRAINRUNS_GRAVITY
 from trainsim.errors import InputError, Problem
 from trainsim.io.documents import read_document as read_yaml
+from trainsim.io.railtoolkit_names import MASS_MODELS, PATH_SCHEMA_URL, ROLLING_STOCK_SCHEMA_URL
 from trainsim.model import (
     Braking,
     EffortCurve,
@@ -99,20 +100,12 @@ __all__ = [
     "read_railtoolkit_train",
 ]
 
-ROLLING_STOCK_SCHEMA_URL = "https://railtoolkit.org/schema/rolling-stock.json"
-PATH_SCHEMA_URL = "https://railtoolkit.org/schema/running-path.json"
-
 #: schema URL -> {supported schema_version: schema file in trainsim/io/schemas}
 _SCHEMA_FILES: dict[str, dict[str, str]] = {
     ROLLING_STOCK_SCHEMA_URL: {"2022.05": "rolling-stock.json"},
     PATH_SCHEMA_URL: {"2022.05": "running-path.2022.05.json", "2024.07": "running-path.json"},
 }
 
-#: TrainRuns.jl mass models -> where trainsim applies the line resistance.
-MASS_MODELS: dict[str, Literal["head", "train_length"]] = {
-    "mass_point": "head",
-    "homogeneous_strip": "train_length",
-}
 
 # TrainRuns.jl 1.0.4 defaults (src/constructors.jl, Train(file)).
 _XI_LOCO = 1.09  # rotation mass factor of a traction unit
