@@ -64,6 +64,11 @@ def test_a_warm_run_of_the_metro_loads_neither_typers_adapters_nor_package_metad
     assert not {"typer._adapters", "importlib.metadata", "pydantic.plugin._loader"} & modules
 
 
+def test_a_run_of_a_trainsim_scenario_does_not_import_the_railtoolkit_reader(metro_run: dict) -> None:
+    assert "trainsim.io.loader" in metro_run["modules"]
+    assert "trainsim.io.railtoolkit" not in metro_run["modules"]
+
+
 def test_a_run_with_a_problem_still_reports_it(tmp_path: Path) -> None:
     """The fallback works: the metro with a bad step is read by pydantic, which names the field."""
     for name in ("train.yaml", "route.yaml"):
