@@ -4,8 +4,9 @@ Cases: the heavy-haul example (2 locomotives + 104 wagons, 10,700 t, 50 km with 
 propagation delay, distributed power and all power at the head), the same train with the default
 settings, and with a 0.02 s step. Each case runs once to compile / warm up, then ``--repeat`` times; the
 process is pinned to one core and numba to one thread. Prints per case the median and best wall time,
-the CPU time, integrator steps, Newton iterations per step, the simulated running time, and the
-machine's load average (other processes on the machine slow the wall time down).
+the CPU time, integrator steps, Newton iterations per step, steps halved because Newton did not
+converge, the simulated running time, and the machine's load average (other processes on the machine
+slow the wall time down).
 
 With ``--scaling`` it also runs the example's train with 50, 100 and 200 wagons (the wagons repeated or
 cut, locomotives at the head and in the middle) over the same line and prints each wall time as a ratio
@@ -68,7 +69,7 @@ def main() -> None:
     print(machine())
     print(
         f"{'case':32s} {'median s':>9s} {'best s':>7s} {'cpu s':>6s} {'x base':>7s} {'x base cpu':>10s} "
-        f"{'steps':>7s} {'it/step':>7s} {'run s':>7s}"
+        f"{'steps':>7s} {'it/step':>7s} {'halved':>6s} {'run s':>7s}"
     )
     for name, settings in settings_list:
         out = []
@@ -85,7 +86,8 @@ def main() -> None:
         st = result.statistics
         print(
             f"{name:32s} {p.median:9.2f} {p.best:7.2f} {p.cpu:6.2f} {p.ratio:7.1f} {p.ratio_cpu:10.1f} "
-            f"{st['steps']:7.0f} {st['newton_iterations'] / st['steps']:7.2f} {result.running_time_s:7.0f}"
+            f"{st['steps']:7.0f} {st['newton_iterations'] / st['steps']:7.2f} {st['halved_steps']:6.0f} "
+            f"{result.running_time_s:7.0f}"
         )
     if args.scaling:
         scaling(scenario, args.repeat)
