@@ -115,3 +115,43 @@ def test_report_shows_rows_above_the_target_rises_with_time_and_missing_cases(
     assert "Energy falls with running time on 1/2 sections" in md and "train B 0-1000 m (+1.0000 kWh)" in md
     assert "NO (1)" in md
     assert len(pd.read_csv(out_csv)) == 8
+
+
+def test_journey_table_names_unreachable_windows_and_schedules_no_run_keeps(
+    report, tmp_path, capsys, monkeypatch
+):
+    base = dict(journey="J", s0=0.0, s1=1000.0, time_s=100.0, position_m=500.0, min_speed_kmh=None,
+                opt_speed_ok=True, ref_earliest_s=None, ref_latest_s=None, lower_bound_kwh=1.0, bound_status="ok",
+                ref_cpu_s=1.0, ref_s=1.0, opt_ms=1.0, opt_cpu_ms=1.0, opt_running_time_s=100.0,
+                result_warning="", notes="", commit="abc")  # fmt: skip
+    jrows = [
+        # reachable and met, 0.2 % above the reference
+        dict(base, train="A", window="P", earliest_s=40.0, latest_s=60.0, reachable_from_s=30.0, reachable_to_s=70.0,
+             no_run_meets_by_s=0.0, opt_pass_s=60.0, opt_miss_s=0.0, ref_pass_s=60.0, opt_kwh=10.02, ref_kwh=10.0,
+             gap_kwh=0.02, judged_gap_percent=0.2, ref_status="ok", result_status="ok"),
+        # the earliest time 80 s leaves no time to arrive: 10 s beyond what any run reaches
+        dict(base, train="B", window="Q", earliest_s=80.0, latest_s=90.0, reachable_from_s=30.0, reachable_to_s=70.0,
+             no_run_meets_by_s=10.0, opt_pass_s=65.0, opt_miss_s=-15.0, ref_pass_s=69.0, opt_kwh=12.0, ref_kwh=11.9,
+             gap_kwh=0.1, judged_gap_percent=0.84, ref_status="ok", result_status="timing window missed"),
+        # the fastest run takes 5 s longer than the schedule
+        dict(base, train="C", window="R", earliest_s=40.0, latest_s=60.0, reachable_from_s=50.0, reachable_to_s=45.0,
+             no_run_meets_by_s=5.0, opt_pass_s=50.0, opt_miss_s=0.0, ref_pass_s=50.0, opt_kwh=20.0, ref_kwh=30.0,
+             gap_kwh=-10.0, judged_gap_percent=float("nan"), ref_status="infeasible: X",
+             result_status="infeasible schedule"),
+    ]  # fmt: skip
+    table = rows("line", "train A", 0.0, 1000.0, [100.0, 90.0, 80.0, 70.0], [0.01, 0.02, 0.03, 0.04])
+    pd.DataFrame(table).to_csv(tmp_path / "t.csv", index=False)
+    pd.DataFrame(jrows).to_csv(tmp_path / "j.csv", index=False)
+    monkeypatch.setattr(report, "expected_cases", lambda: {("line", "train A", 0.0, 1000.0)})
+    report.main([str(tmp_path / "t.csv"), "--journeys", str(tmp_path / "j.csv")])
+    md = capsys.readouterr().out
+    assert "Every expected case was measured." in md
+    assert "| J | B | Q | 80-90 | 30.0-70.0 | **10.0 s** | 65.0 (-15.0) |" in md
+    assert "**no run keeps the schedule** (fastest 5.0 s over)" in md
+    assert "| 20.000 | – | – | – | infeasible: X |" in md  # no energy from an infeasible iterate
+    assert "Reachable windows met by the optimal strategy (within 0.5 s): 1/1" in md
+    assert (
+        "no run can meet (or in a section whose schedule no run keeps): 2, each with result status other than ok: True"
+        in md
+    )
+    assert "(within 0.5 %: 1/2)" in md
