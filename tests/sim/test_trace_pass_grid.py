@@ -7,6 +7,7 @@ grading, steps longer than the line); the grading checked by hand; bad input ref
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import warnings
 from pathlib import Path
 
@@ -260,3 +261,65 @@ def test_step_function_by_hand_and_bad_positions():
     assert f.left.tolist() == [1.0, 0.0, 2.0, 0.0]
     with pytest.raises(InputError, match="is not a number"):
         prof.step_function([0.0, float("nan")], [1.0, 2.0], [1.0, 1.0], 0.0, 10.0)
+
+
+def _speed_ceiling_numpy(route, train) -> prof.PiecewiseLinear:
+    """``profile.speed_ceiling`` as it was before it was compiled (the reference)."""
+    lo, hi = route.start_m, route.end_m
+    limits = route.speed_limits
+    starts = np.array([lim.start_m for lim in limits], dtype=float)
+    ends = np.array([lim.end_m for lim in limits], dtype=float)
+    cleared = ends + train.length_m
+    inner = np.concatenate([starts, ends, cleared])
+    x = np.unique(np.concatenate([[lo, hi], inner[(inner > lo) & (inner < hi)]]))
+    mid = 0.5 * (x[:-1] + x[1:])
+    ceiling = np.full(len(mid), train.max_speed_mps)
+    j0 = np.searchsorted(mid, starts, side="left")
+    j1 = np.searchsorted(mid, cleared, side="left")
+    counts = np.maximum(j1 - j0, 0)
+    within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    values = np.array([lim.limit_mps for lim in limits], dtype=float)
+    np.minimum.at(ceiling, np.repeat(j0, counts) + within, np.repeat(values, counts))
+    return prof.PiecewiseLinear(x, ceiling.copy(), ceiling.copy())
+
+
+def test_speed_ceiling_equals_the_numpy_form_bit_for_bit():
+    from trainsim.model import SpeedLimit
+
+    rng = np.random.default_rng(26)
+    checked = 0
+    for name, train, route, _ in _cases():
+        routes = [route]
+        if name == "electrification_gap":
+            # 25 limits tiling the line, some a few millimetres long, in random values
+            cuts = np.concatenate([[0.0], np.sort(rng.uniform(0.0, 10_000.0, 24)), [10_000.0]])
+            cuts[5] = cuts[4] + 0.003
+            limits = [SpeedLimit(a, b, rng.uniform(5.0, 40.0)) for a, b in itertools.pairwise(cuts)]
+            routes.append(dataclasses.replace(route, speed_limits=tuple(limits)))
+        for r in routes:
+            for t in (
+                train,
+                dataclasses.replace(train, length_m=0.5),
+                dataclasses.replace(train, length_m=750.0),
+            ):
+                got, ref = prof.speed_ceiling(r, t), _speed_ceiling_numpy(r, t)
+                for field in ("x", "left", "right"):
+                    np.testing.assert_array_equal(
+                        getattr(got, field), getattr(ref, field), err_msg=f"{name} {field}"
+                    )
+                assert got.left is not got.right
+                checked += 1
+    assert checked >= 40
+
+
+def test_speed_ceiling_by_hand():
+    """A 100 km/h line with a 40 km/h limit on 1000-1200 m: a 300 m train is held at 40 km/h from 1000 m
+    until its rear clears 1200 m, at 1500 m."""
+    from trainsim.constants import KMH
+
+    route = make_route(
+        length_m=3000.0, limits=[(0.0, 1000.0, 100.0), (1000.0, 1200.0, 40.0), (1200.0, 3000.0, 100.0)]
+    )
+    f = prof.speed_ceiling(route, make_train(length_m=300.0, vmax_kmh=90.0))
+    assert f.x.tolist() == [0.0, 1000.0, 1200.0, 1300.0, 1500.0, 3000.0]  # 1300: the first limit cleared
+    np.testing.assert_array_equal(f.left, [90.0 * KMH, 40.0 * KMH, 40.0 * KMH, 40.0 * KMH, 90.0 * KMH])

@@ -214,3 +214,25 @@ def test_point_problems_are_the_numpy_checks():
     assert res._invariant_violations(np.array([0.0, 1.0]), np.array([0.0, -0.0]), np.array([0.0, 1.0])) == []
     with pytest.raises(ValueError, match=r"t: length 1, need the length of s \(2\)"):
         _trace_c.point_problems(np.zeros(2), np.zeros(2), np.zeros(1), 1e-9)
+
+
+def test_curve_values_looked_up_from_the_last_piece_are_the_curve_call():
+    """The effort curve's piece found from the last one (speeds in a run change slowly): the force of
+    ``EffortCurve.__call__`` in increasing, decreasing, random and jumping orders, with NaN and
+    speeds beyond the table, for a tabulated curve of 81 pieces and a constant one."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tabulated = trainsim.load_train(TRAINRUNS / "trains" / "freight.yaml").traction
+    rng = np.random.default_rng(26)
+    up = np.linspace(0.0, 40.0, 3001)
+    orders = [
+        up,
+        up[::-1],
+        rng.permutation(up),
+        np.concatenate([up[::97], up[::-53], [np.nan, 1e9, -1.0, 3.0]]),
+    ]
+    for curve in (tabulated, make_train().traction):
+        assert curve.as_arrays()[0].shape[0] >= 1
+        for speeds in orders:
+            np.testing.assert_array_equal(_trace_c.curve_values_seq(curve.as_arrays(), speeds), curve(speeds))
+    assert len(tabulated.as_arrays()[0]) > 50  # the walk is really exercised over many pieces

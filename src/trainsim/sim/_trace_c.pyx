@@ -78,6 +78,7 @@ cdef struct Law:
     bint steps  # piecewise constant: left == right on every piece
     bint ordered  # x[k] <= x[k + 1] for every k (so no NaN): ``piecewise_value_seq`` may walk
     Py_ssize_t hint  # search_right's answer for the last position looked up by piecewise_value_seq
+    bint constant  # one piece, piecewise constant: the same value everywhere (a route without curves)
 
 
 cdef struct Mech:
@@ -97,7 +98,15 @@ cdef struct Electric:
     double pf  # power factor [-]
 
 
+cdef struct CurveHint:
+    Py_ssize_t k  # search_right's answer for the last speed looked up
+    bint ordered  # the curve's starts are ordered (no NaN): ``curve_value_seq`` may walk
+
+
 cdef struct Train:
+    CurveHint traction_hint
+    CurveHint service_hint
+    CurveHint regen_hint
     Mech mech
     Electric electric
     double c0  # running resistance c0 [N]
@@ -178,6 +187,10 @@ cdef inline double piecewise_value_seq(Law* f, double s) noexcept nogil:
     """``piecewise_value`` for positions looked up in (mostly) increasing order: the same value."""
     if s != s:
         return NAN
+    if f.constant:
+        # value_in_piece's answer on the only piece, without the search (half the look-ups of a run
+        # on a line without curves or tunnels)
+        return f.left[0] + 0.0
     if not f.ordered:
         return value_in_piece(f, search_right(f.x, f.n + 1, s) - 1, s)
     return value_in_piece(f, search_right_from(f.x, f.n + 1, s, &f.hint) - 1, s)
@@ -202,7 +215,19 @@ cdef inline double curve_value(double v, const Curve* k) noexcept nogil:
     hyperbolic term c3 / v, the force cap, the power cap P / max(v, 1 mm/s), then the clip at 0).
     ``_forces.effort`` compares F v with the power cap instead: the same force but for the last bit,
     which is why the trace has its own."""
-    cdef Py_ssize_t j = search_right(k.starts, k.n, v) - 1
+    return curve_in_piece(v, k, search_right(k.starts, k.n, v) - 1)
+
+
+cdef inline double curve_value_seq(double v, const Curve* k, CurveHint* h) noexcept nogil:
+    """``curve_value`` for speeds looked up in (mostly) slowly changing order, the piece found from
+    the last one (``search_right_from``) where the curve's starts are ordered: the same force."""
+    if not h.ordered:
+        return curve_value(v, k)
+    return curve_in_piece(v, k, search_right_from(k.starts, k.n, v, &h.k) - 1)
+
+
+cdef inline double curve_in_piece(double v, const Curve* k, Py_ssize_t j) noexcept nogil:
+    """``curve_value`` at v [m/s] on piece j (the first piece below it)."""
     if j < 0:
         j = 0
     cdef const double* c = k.coefs + 4 * j
@@ -220,7 +245,7 @@ cdef inline void regime_forces(
     double level,
     double avail,
     double inertia,
-    const Train* tr,
+    Train* tr,
     double* ft_out,
     double* fb_out,
 ) noexcept nogil:
@@ -230,7 +255,7 @@ cdef inline void regime_forces(
     cdef double ft = 0.0, fb = 0.0, need
     cdef const Mech* m = &tr.mech
     if mode == TRACTION:
-        ft = level * avail * curve_value(v, &tr.traction)
+        ft = level * avail * curve_value_seq(v, &tr.traction, &tr.traction_hint)
     elif mode == CRUISE:
         need = running + line
         ft = nmax(need, 0.0)
@@ -239,10 +264,10 @@ cdef inline void regime_forces(
         if m.has_decel:
             fb = level * nmax(m.inertial_mass * m.decel - running - line, 0.0)
         elif m.has_service:
-            fb = level * m.fraction * curve_value(v, &tr.service)
+            fb = level * m.fraction * curve_value_seq(v, &tr.service, &tr.service_hint)
     elif mode == REGEN:
         if m.has_regen:
-            fb = curve_value(v, &tr.regen)
+            fb = curve_value_seq(v, &tr.regen, &tr.regen_hint)
     elif mode == FOLLOW:
         need = inertia + running + line
         ft = nmax(need, 0.0)
@@ -266,7 +291,7 @@ cdef void run_loop(
     const double* s_right,
     double s_end,
     RunLaws* L,
-    const Train* tr,
+    Train* tr,
     bint with_trace,
     double* out,
     double* peak,
@@ -315,7 +340,7 @@ cdef void run_loop(
             inertia = m_inertial * acc_stretch
         avail = piecewise_value_seq(&L.avail, sr)
         regime_forces(r, vi, running, line, level[i], avail, inertia, tr, &ft, &fb)
-        cap = curve_value(vi, &tr.regen) if mech.has_regen else 0.0
+        cap = curve_value_seq(vi, &tr.regen, &tr.regen_hint) if mech.has_regen else 0.0
         fr = nmin(fb, cap)
         p_trac = ft * vi / eta_t
         el_power = p_trac + aux_w - fr * vi * eta_r
@@ -346,8 +371,8 @@ cdef void run_loop(
                 run1 = c0 + c1 * v1 + c2 * v1 * v1
                 regime_forces(r, v0, run0, line_mid, level[i], avail_mid, inertia, tr, &f0t, &f0b)
                 regime_forces(r, v1, run1, line_mid, level[i], avail_mid, inertia, tr, &f1t, &f1b)
-                rg0 = nmin(f0b, curve_value(v0, &tr.regen)) if mech.has_regen else 0.0
-                rg1 = nmin(f1b, curve_value(v1, &tr.regen)) if mech.has_regen else 0.0
+                rg0 = nmin(f0b, curve_value_seq(v0, &tr.regen, &tr.regen_hint)) if mech.has_regen else 0.0
+                rg1 = nmin(f1b, curve_value_seq(v1, &tr.regen, &tr.regen_hint)) if mech.has_regen else 0.0
                 u_mid = piecewise_value_seq(&L.volt, mid)
                 safe_mid = u_mid if u_mid > 0.0 else 1.0
                 end_power = nmax(f0t * v0 / eta_t - rg0 * v0 * eta_r, f1t * v1 / eta_t - rg1 * v1 * eta_r)
@@ -501,6 +526,7 @@ cdef int law_from(Held* held, str name, object arrays, Law* out) except -1:
         )
     out.n = nl
     out.steps = bool(steps)
+    out.constant = out.steps and out.n == 1
     out.hint = 0
     out.ordered = True
     cdef Py_ssize_t k
@@ -691,7 +717,21 @@ cdef int train_from(Train* tr, tuple laws, resist, double weight, mech, electric
     curve_checked("traction", traction, &tr.traction)
     curve_checked("service braking", service, &tr.service)
     curve_checked("regenerative braking", regen, &tr.regen)
+    hint_for(&tr.traction, &tr.traction_hint)
+    hint_for(&tr.service, &tr.service_hint)
+    hint_for(&tr.regen, &tr.regen_hint)
     return 0
+
+
+cdef void hint_for(const Curve* c, CurveHint* h) noexcept:
+    """A fresh hint for the curve c: walked only where its starts are ordered (so without NaN)."""
+    cdef Py_ssize_t k
+    h.k = 0
+    h.ordered = True
+    for k in range(c.n - 1):
+        if not (c.starts[k] <= c.starts[k + 1]):
+            h.ordered = False
+            break
 
 
 cdef int hold_run(Held* held, tuple laws, tuple points, RunLaws* L, RunPoints* P) except -1:
@@ -843,6 +883,78 @@ def point_problems(s, v, t, double tolerance):
     finally:
         release(&held)
     return found
+
+
+def ceiling_law(starts, ends, limits, double length, double lo, double hi, double vmax):
+    """The breakpoints and piece values of the speed ceiling over head position on [lo, hi] [m]
+    (``profile.speed_ceiling``): ``limits[k]`` [m/s] holds from ``starts[k]`` until the rear of a train
+    ``length`` [m] long has cleared ``ends[k]``, the train's ``vmax`` [m/s] elsewhere. Breakpoints: lo,
+    hi and every start, end and cleared end strictly between them, sorted, each once; a piece takes the
+    lowest limit whose span [start, cleared end) holds its middle (NaN propagated, as ``np.minimum``).
+    Returns ``(x, left, right)``, left and right equal and separate arrays, or None when lo or hi is
+    not a number."""
+    a_arr = _vector("starts", starts, np.float64)
+    b_arr = _vector("ends", ends, np.float64)
+    v_arr = _vector("limits", limits, np.float64)
+    cdef Py_ssize_t m = a_arr.shape[0], k, i, j, j0, j1, n_x, size
+    if b_arr.shape[0] != m or v_arr.shape[0] != m:
+        raise ValueError(f"starts, ends, limits: lengths {m}, {b_arr.shape[0]}, {v_arr.shape[0]}; need one length")
+    if lo != lo or hi != hi:
+        return None
+    cdef Held held
+    held.count = 0
+    cdef const double* a
+    cdef const double* b
+    cdef const double* vals
+    cdef double* x = <double*>malloc((2 + 3 * m) * sizeof(double))
+    cdef double* mid = <double*>malloc((2 + 3 * m) * sizeof(double))
+    cdef double* out_l
+    cdef double* out_r
+    cdef double c
+    cdef double cands[3]
+    try:
+        if x == NULL or mid == NULL:
+            raise MemoryError()
+        a = <const double*>hold(&held, "starts", "", a_arr, False, False, &size)
+        b = <const double*>hold(&held, "ends", "", b_arr, False, False, &size)
+        vals = <const double*>hold(&held, "limits", "", v_arr, False, False, &size)
+        x[0] = lo
+        x[1] = hi
+        n_x = 2
+        for k in range(m):
+            cands[0] = a[k]
+            cands[1] = b[k]
+            cands[2] = b[k] + length
+            for i in range(3):
+                c = cands[i]
+                if c > lo and c < hi:
+                    x[n_x] = c
+                    n_x += 1
+        n_x = sorted_unique(x, n_x)
+        x_out = np.empty(n_x)
+        left = np.empty(n_x - 1)
+        right = np.empty(n_x - 1)
+        out_l = <double*>hold(&held, "x", "", x_out, False, True, &size)
+        for i in range(n_x):
+            out_l[i] = x[i]
+        out_l = <double*>hold(&held, "left", "", left, False, True, &size)
+        out_r = <double*>hold(&held, "right", "", right, False, True, &size)
+        for i in range(n_x - 1):
+            mid[i] = 0.5 * (x[i] + x[i + 1])
+            out_l[i] = vmax
+        for k in range(m):
+            # the pieces whose middles lie in [start, cleared end): one slice, mid increasing
+            j0 = search_left(mid, n_x - 1, a[k])
+            j1 = search_left(mid, n_x - 1, b[k] + length)
+            for j in range(j0, j1):
+                out_l[j] = nmin(out_l[j], vals[k])
+        for i in range(n_x - 1):
+            out_r[i] = out_l[i]
+    finally:
+        release(&held)
+        free(x)
+        free(mid)
+    return x_out, left, right
 
 
 cdef struct Keyed:
@@ -1179,6 +1291,23 @@ def piecewise_values_seq(tuple law, s):
             ov[i] = piecewise_value_seq(&f, sv[i])
     finally:
         release(&held)
+    return out
+
+
+def curve_values_seq(tuple curve, speeds):
+    """``curve_value_seq`` of an effort curve ``as_arrays()`` at each of the speeds [m/s], looked up
+    in the given order with one hint, as the loops do (for tests)."""
+    cdef Curve k
+    cdef CurveHint h
+    curve_checked("effort", curve, &k)
+    hint_for(&k, &h)
+    v_a = np.ascontiguousarray(speeds, dtype=np.float64)
+    out = np.empty(v_a.shape[0])
+    cdef double[::1] vv = v_a
+    cdef double[::1] ov = out
+    cdef Py_ssize_t i
+    for i in range(vv.shape[0]):
+        ov[i] = curve_value_seq(vv[i], &k, &h)
     return out
 
 

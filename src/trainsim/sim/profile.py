@@ -17,7 +17,7 @@ from trainsim.errors import InputError
 from trainsim.model.route import Route
 from trainsim.model.train import Train
 from trainsim.physics import line_resistance as lr
-from trainsim.sim._trace_c import kernel_grid, step_law
+from trainsim.sim._trace_c import ceiling_law, kernel_grid, step_law
 
 #: Smallest interval kept when merging breakpoints [m]; closer points are the same point.
 POSITION_TOLERANCE_M = 1e-6
@@ -116,28 +116,25 @@ def averaged_over_length(f: PiecewiseLinear, length_m: float) -> PiecewiseLinear
 def speed_ceiling(route: Route, train: Train) -> PiecewiseLinear:
     """Most restrictive speed profile over head position [m/s]: the line limits, each held until
     the train's rear has cleared it, and the train's maximum speed."""
-    lo, hi = route.start_m, route.end_m
-    L = train.length_m
     limits = route.speed_limits
-    starts = np.array([lim.start_m for lim in limits], dtype=float)
-    ends = np.array([lim.end_m for lim in limits], dtype=float)
-    cleared = ends + L
-    # the set of breakpoints, sorted (np.unique: the same values as a set of floats, in one call
-    # instead of a Python loop over the limits)
-    inner = np.concatenate([starts, ends, cleared])
-    x = np.unique(np.concatenate([[lo, hi], inner[(inner > lo) & (inner < hi)]]))
-    mid = 0.5 * (x[:-1] + x[1:])
-    ceiling = np.full(len(mid), train.max_speed_mps)
-    # a limit on [a, b) binds head positions in [a, b + L): the rear leaves it at b + L; mid is
-    # increasing, so the covered pieces are one slice (all slices found in one call)
-    j0 = np.searchsorted(mid, starts, side="left")
-    j1 = np.searchsorted(mid, cleared, side="left")
-    # every (piece, limit) pair of those slices at once: the minimum is exact, so its order is free
-    counts = np.maximum(j1 - j0, 0)
-    within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-    values = np.array([lim.limit_mps for lim in limits], dtype=float)
-    np.minimum.at(ceiling, np.repeat(j0, counts) + within, np.repeat(values, counts))
-    return PiecewiseLinear(x, ceiling.copy(), ceiling.copy())
+    # compiled: the breakpoints and each piece's lowest limit in one call (``_trace_c.ceiling_law``)
+    law = ceiling_law(
+        np.array([lim.start_m for lim in limits], dtype=float),
+        np.array([lim.end_m for lim in limits], dtype=float),
+        np.array([lim.limit_mps for lim in limits], dtype=float),
+        float(train.length_m),
+        float(route.start_m),
+        float(route.end_m),
+        float(train.max_speed_mps),
+    )
+    if law is None:
+        raise InputError(
+            "the route's start or end is not a number",
+            field="route",
+            value=[route.start_m, route.end_m],
+            allowed="finite positions [m]",
+        )
+    return PiecewiseLinear(*law)
 
 
 @dataclass(frozen=True)
