@@ -18,6 +18,7 @@ pytestmark = pytest.mark.slow
 CASES = int(os.environ.get("TRAINSIM_FUZZ_CASES", "10000"))
 SEED = int(os.environ.get("TRAINSIM_FUZZ_SEED", "13"))
 
+
 @pytest.fixture(scope="module")
 def tally() -> Tally:
     t0 = time.perf_counter()

@@ -127,8 +127,12 @@ def test_double_track_on_a_single_track_file_names_the_station() -> None:
 def test_a_railml3_track_on_an_unknown_net_element_is_an_error(tmp_path: Path) -> None:
     text = (DATA / "double_track_railml3.xml").read_text()
     bad = tmp_path / "bad.xml"
-    bad.write_text(text.replace('<associatedNetElement netElementRef="ne_l" keepsOrientation="true"/>',
-                                '<associatedNetElement netElementRef="ne_x" keepsOrientation="true"/>'))
+    bad.write_text(
+        text.replace(
+            '<associatedNetElement netElementRef="ne_l" keepsOrientation="true"/>',
+            '<associatedNetElement netElementRef="ne_x" keepsOrientation="true"/>',
+        )
+    )
     with pytest.raises(InputError) as err:
         _read_path(bad)
     assert "ne_x" in str(err.value) and "unknown netElement" in str(err.value) and "line" in str(err.value)
@@ -137,8 +141,11 @@ def test_a_railml3_track_on_an_unknown_net_element_is_an_error(tmp_path: Path) -
 def test_a_down_track_missing_a_station_is_an_error(tmp_path: Path) -> None:
     text = (DATA / "double_track_railml2.xml").read_text()
     bad = tmp_path / "bad.xml"
-    bad.write_text(text.replace('<crossSection id="cs_d_b" ocpRef="ocpB" pos="2900"/>', "")
-                   .replace('<crossSection id="cs_l_b" ocpRef="ocpB" pos="400"/>', ""))
+    bad.write_text(
+        text.replace('<crossSection id="cs_d_b" ocpRef="ocpB" pos="2900"/>', "").replace(
+            '<crossSection id="cs_l_b" ocpRef="ocpB" pos="400"/>', ""
+        )
+    )
     with pytest.raises(InputError) as err:
         _read_path(bad, double_track=True)
     assert "'B'" in str(err.value) and "double_track" in str(err.value)

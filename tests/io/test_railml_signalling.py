@@ -122,8 +122,10 @@ def test_a_signal_without_direction_is_an_error(tmp_path):
 
 
 def test_railml3_signal_on_an_unknown_net_element(tmp_path):
-    text = (DATA / "line_railml3.xml").read_text().replace(
-        'id="l3" netElementRef="ne_a"', 'id="l3" netElementRef="ne_x"'
+    text = (
+        (DATA / "line_railml3.xml")
+        .read_text()
+        .replace('id="l3" netElementRef="ne_a"', 'id="l3" netElementRef="ne_x"')
     )
     path = tmp_path / "bad.xml"
     path.write_text(text)
@@ -207,8 +209,12 @@ def test_mutated_files_read_or_refused_never_a_traceback(name, double_track, tmp
 def test_positions_follow_the_route_mileage_and_its_timetable_path():
     # the interchange test line: its first track begins at mileage 1000 m (trackBegin@absPos), the
     # timetable train's path is the route; sig1 sits at pos 2900 of that track, sw1 at 4800
-    line = read_signalling(Path(__file__).resolve().parents[1] / "interchange" / "data" / "testline_railml2.xml")
+    line = read_signalling(
+        Path(__file__).resolve().parents[1] / "interchange" / "data" / "testline_railml2.xml"
+    )
     assert line.start_m == 1000.0
-    assert [(s.name, s.position_m, s.direction, s.kind) for s in line.signals] == [("sig1", 3900.0, "up", "main")]
+    assert [(s.name, s.position_m, s.direction, s.kind) for s in line.signals] == [
+        ("sig1", 3900.0, "up", "main")
+    ]
     assert [(s.name, s.position_m) for s in line.switches] == [("sw1", 5800.0)]
     assert [st.position_m for st in line.stations] == [1200.0, 4000.0, 6500.0, 9800.0]

@@ -87,13 +87,33 @@ def _broken(tmp_path: Path, table: str, old: str, new: str) -> Path:
         ("signals.csv", "Block U1,1500,up", "Block U1,1500,north", ["signals!C3", "'north'", "up, down"]),
         ("signals.csv", "Block U1,1500,up", "Block U1,7000,up", ["signals!B3", "'7000'", "0 .. 6000 m"]),
         ("signals.csv", "Block U1,1500,up", "Block U1,15x0,up", ["signals!B3", "not a number", "'15x0'"]),
-        ("signals.csv", "Block U1,1500,up,block", "Block U1,1500,up,shunt", ["signals!D3", "main, block, distant"]),
-        ("signals.csv", "Name,Position (m),Direction,Kind", "Name,Position (m),Way,Kind", ["signals!C1", "'Way'"]),
-        ("signals.csv", "Name,Position (m),Direction,Kind", "Name,Position,Direction,Kind", ["signals!B1", "unit"]),
+        (
+            "signals.csv",
+            "Block U1,1500,up,block",
+            "Block U1,1500,up,shunt",
+            ["signals!D3", "main, block, distant"],
+        ),
+        (
+            "signals.csv",
+            "Name,Position (m),Direction,Kind",
+            "Name,Position (m),Way,Kind",
+            ["signals!C1", "'Way'"],
+        ),
+        (
+            "signals.csv",
+            "Name,Position (m),Direction,Kind",
+            "Name,Position,Direction,Kind",
+            ["signals!B1", "unit"],
+        ),
         ("station_tracks.csv", "B,2", "X,2", ["station_tracks!A2", "'X'", "A, B, C"]),
         ("station_tracks.csv", "B,2", "B,0", ["station_tracks!B2", "1 .. 50"]),
         ("station_tracks.csv", "B,2", "B,2\nB,3", ["station_tracks!A3", "given twice"]),
-        ("detection_points.csv", "AC 1,1480,axle_counter", "AC 1,1480,magnet", ["detection_points!C3", "magnet"]),
+        (
+            "detection_points.csv",
+            "AC 1,1480,axle_counter",
+            "AC 1,1480,magnet",
+            ["detection_points!C3", "magnet"],
+        ),
     ],
 )
 def test_bad_cells_name_file_sheet_cell_value_and_what_is_allowed(tmp_path, table, old, new, words) -> None:
@@ -116,7 +136,11 @@ def test_no_signals_table_is_an_error(tmp_path: Path) -> None:
 
 def test_the_cli_reports_a_bad_sheet_in_one_line_exit_2(tmp_path: Path) -> None:
     _broken(tmp_path, "signals.csv", "Block U1,1500,up", "Block U1,1500,north")
-    text = (EXAMPLE / "operation.yaml").read_text().replace("../../metro_b/", f"{EXAMPLE.parent.parent / 'metro_b'}/")
+    text = (
+        (EXAMPLE / "operation.yaml")
+        .read_text()
+        .replace("../../metro_b/", f"{EXAMPLE.parent.parent / 'metro_b'}/")
+    )
     op = tmp_path / "op.yaml"
     op.write_text(text)
     result = CliRunner().invoke(app, ["operate", str(op), "--json"])
@@ -133,7 +157,21 @@ def test_mutated_tables_read_or_refused_never_a_traceback(tmp_path: Path) -> Non
     import random
 
     tables = ["signals.csv", "station_tracks.csv", "detection_points.csv"]
-    values = ["", "-1", "1e309", "nan", "x", "99999", "up", "block", "2,5", "1,500", "B", "Position (km)", "Kind (m)"]
+    values = [
+        "",
+        "-1",
+        "1e309",
+        "nan",
+        "x",
+        "99999",
+        "up",
+        "block",
+        "2,5",
+        "1,500",
+        "B",
+        "Position (km)",
+        "Kind (m)",
+    ]
     outcomes = {"read": 0, "refused": 0}
     for seed in range(120):
         rng = random.Random(seed)

@@ -40,7 +40,9 @@ def braking_forces(c, v_mps, command, regime):
 
 
 @pytest.mark.parametrize("speed_kmh", [15.0, 30.0, 45.0, 70.0, 90.0])
-def test_regenerative_regime_brakes_with_the_electric_brake_curve_as_the_single_point_model(compiled, speed_kmh):
+def test_regenerative_regime_brakes_with_the_electric_brake_curve_as_the_single_point_model(
+    compiled, speed_kmh
+):
     # single-point REGEN: the regenerative curve alone, whatever the service brake (sim.kernel); here
     # from the train's own curves, 0.8 x min(800 kN, 10 MW / v) against 0.9 x 486 kN
     v = speed_kmh * KMH

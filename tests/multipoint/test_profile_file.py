@@ -39,7 +39,7 @@ def test_a_valid_profile_in_si(tmp_path):
     [
         ("100,nan,20", "speed_kmh", "not a number"),
         ("100,inf,20", "speed_kmh", "not a number"),
-        ("100,\"1,500\",20", "speed_kmh", "not a number"),
+        ('100,"1,500",20', "speed_kmh", "not a number"),
         ("100,1_0,20", "speed_kmh", "not a number"),
         ("100,,20", "speed_kmh", "not a number"),
         ("100,1e308,20", "speed_kmh", "out of range"),

@@ -68,9 +68,10 @@ def test_the_energy_efficient_run_respects_the_ceiling_too(train) -> None:
     sup = supervised_run(train, route, curves, SETTINGS, strategy="lesov", timetable=timetable)
     tr = sup.run.trace
     assert np.all(tr.speed_mps <= np.asarray(curves.permitted(tr.position_m)) + 1e-9)
-    assert sup.optimization is not None and sup.run.energy_kwh.net < supervised_run(
-        train, route, curves, SETTINGS
-    ).run.energy_kwh.net
+    assert (
+        sup.optimization is not None
+        and sup.run.energy_kwh.net < supervised_run(train, route, curves, SETTINGS).run.energy_kwh.net
+    )
 
 
 def test_a_run_beyond_the_authority_is_an_input_error(train) -> None:

@@ -46,7 +46,9 @@ def _traction_minutes(train, g: float, grade_permille: float, v_ss_kmh: float) -
         dv = min(lesov.speed_step_kmh(v, v_ss_kmh), v_ss_kmh - v)
         vm = (v + 0.5 * dv) * KMH
         force = float(train.traction(vm)) - float(train.running_resistance_n(vm))
-        a = (force - train.mass_kg * g * grade_permille / 1000.0) / (train.rotating_mass_factor * train.mass_kg)
+        a = (force - train.mass_kg * g * grade_permille / 1000.0) / (
+            train.rotating_mass_factor * train.mass_kg
+        )
         minutes += dv * KMH / a / 60.0
         v += dv
     return minutes

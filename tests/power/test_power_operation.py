@@ -18,7 +18,11 @@ OPERATION = (ROOT / "examples" / "operations" / "metro_fixed_block.yaml").as_pos
 def _file(tmp_path: Path, operation: dict | None = None, **extra) -> Path:
     doc = yaml.safe_load((ROOT / "examples" / "power" / "metro_750v_reversible.yaml").read_text())
     del doc["trains"]
-    doc["operation"] = operation or {"file": OPERATION, "tracks": {"up": "up", "down": "down"}, "origin_km": 0}
+    doc["operation"] = operation or {
+        "file": OPERATION,
+        "tracks": {"up": "up", "down": "down"},
+        "origin_km": 0,
+    }
     doc.update(extra)
     path = tmp_path / "power.yaml"
     path.write_text(yaml.safe_dump(doc))

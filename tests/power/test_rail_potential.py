@@ -97,4 +97,6 @@ def test_earthed_negative_has_no_potential_at_the_substation_and_more_stray_curr
     i = earthed.train_current_a[0]
     alpha = np.sqrt(R_RAIL * G_EARTH)
     # earthed at 0: V(L) = I r sinh(alpha L) / (alpha cosh(alpha L)) (all current may leave the rails)
-    assert np.max(earthed.rail_potential_v) == pytest.approx(i * R_RAIL / alpha * np.tanh(alpha * LENGTH), rel=1e-9)
+    assert np.max(earthed.rail_potential_v) == pytest.approx(
+        i * R_RAIL / alpha * np.tanh(alpha * LENGTH), rel=1e-9
+    )

@@ -152,7 +152,9 @@ def test_regulation_must_agree_with_e_and_r():
 
 
 # ---- AC: the reversible flag ------------------------------------------------------------------
-AC_LIMITS = VoltageLimits(nominal_v=25e3, min2_v=1e3, min1_v=1e3, max1_v=4e4, max2_v=4.1e4, traction_full_v=1001.0)
+AC_LIMITS = VoltageLimits(
+    nominal_v=25e3, min2_v=1e3, min1_v=1e3, max1_v=4e4, max2_v=4.1e4, traction_full_v=1001.0
+)
 
 
 def _ac(reversible: bool) -> Network:

@@ -79,7 +79,9 @@ def test_the_worst_surplus_matches_a_dense_sampling(seed):
     curve = EffortCurve.piecewise(
         starts, coefs, force_cap_n=float(rng.uniform(150e3, 400e3)), power_cap_w=float(rng.uniform(1e6, 6e6))
     )
-    resistance = Quadratic(float(rng.uniform(0, 5e3)), float(rng.uniform(-50, 200)), float(rng.uniform(0, 20)))
+    resistance = Quadratic(
+        float(rng.uniform(0, 5e3)), float(rng.uniform(-50, 200)), float(rng.uniform(0, 20))
+    )
     train = make_train(braking=Braking(service_force=curve), resistance=resistance)
     P, _, brake = kernel_parameters(train, trainsim.RunSettings())
     for q2_extra, v_max in ((0.0, 33.0), (float(rng.uniform(0, 60)), 25.0), (-3.0, 12.0)):

@@ -102,7 +102,8 @@ def test_scalar_evaluators_give_the_numpy_values() -> None:
     for s in np.concatenate([x, x + 1e-7, rng.uniform(x[0] - 100, x[-1] + 100, 500)]):
         assert fast(float(s)) == float(f(s))
     curve = EffortCurve.piecewise(
-        [0.0, 10.0, 20.0], [[3e5, -100.0, 0.0, 0.0], [2e5, 0.0, -50.0, 0.0], [0.0, 0.0, 0.0, 4e6]],
+        [0.0, 10.0, 20.0],
+        [[3e5, -100.0, 0.0, 0.0], [2e5, 0.0, -50.0, 0.0], [0.0, 0.0, 0.0, 4e6]],
         force_cap_n=2.5e5,
         power_cap_w=3.5e6,
     )

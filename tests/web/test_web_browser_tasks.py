@@ -273,7 +273,13 @@ def test_upload_ones_own_multipoint_scenario(page) -> None:  # noqa: F811
     scenario = small_scenario()
     pg.set_input_files(
         "#mp-file",
-        files=[{"name": "mine.yaml", "mimeType": "application/x-yaml", "buffer": yaml.safe_dump(scenario).encode()}],
+        files=[
+            {
+                "name": "mine.yaml",
+                "mimeType": "application/x-yaml",
+                "buffer": yaml.safe_dump(scenario).encode(),
+            }
+        ],
     )
     pg.wait_for_function("document.querySelector('#mp-status').textContent.includes('✓')", timeout=120_000)
     pg.wait_for_selector("#plot-couplers .main-svg")
@@ -282,7 +288,13 @@ def test_upload_ones_own_multipoint_scenario(page) -> None:  # noqa: F811
     scenario["train"]["formation"][1]["mass_t"] = -20
     pg.set_input_files(
         "#mp-file",
-        files=[{"name": "bad.yaml", "mimeType": "application/x-yaml", "buffer": yaml.safe_dump(scenario).encode()}],
+        files=[
+            {
+                "name": "bad.yaml",
+                "mimeType": "application/x-yaml",
+                "buffer": yaml.safe_dump(scenario).encode(),
+            }
+        ],
     )
     pg.wait_for_function("document.querySelector('#mp-status').textContent.includes('✗')", timeout=60_000)
     text = pg.locator("#mp-extremes").inner_text()

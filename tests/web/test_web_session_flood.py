@@ -52,9 +52,10 @@ def test_a_full_store_drops_empty_sessions_before_sessions_that_hold_something()
 def test_a_flood_from_one_client_gets_429_and_does_not_evict_an_active_session() -> None:
     settings = WebSettings(workers=0, drive_hosts=0, max_sessions=20, session_burst=10, sessions_per_minute=6)
     app = create_app(settings)
-    with TestClient(app, client=("10.0.0.1", 50000)) as user, TestClient(
-        app, client=("10.0.0.66", 50000)
-    ) as flood:
+    with (
+        TestClient(app, client=("10.0.0.1", 50000)) as user,
+        TestClient(app, client=("10.0.0.66", 50000)) as flood,
+    ):
         r = user.post("/api/examples/metro_b")
         assert r.status_code == 200
         sid = {"X-Trainsim-Session": r.headers["x-trainsim-session"]}

@@ -148,7 +148,11 @@ class Reader:
         """Whether ``pos`` lies on ``[begin, end]`` (a problem if not)."""
         if not begin - rc.POSITION_TOLERANCE_M <= pos <= end + rc.POSITION_TOLERANCE_M:
             self.problems.add(
-                el, "position outside its track", attribute="pos", value=pos, allowed=f"{begin:g} .. {end:g} m"
+                el,
+                "position outside its track",
+                attribute="pos",
+                value=pos,
+                allowed=f"{begin:g} .. {end:g} m",
             )
             return False
         return True
@@ -236,7 +240,9 @@ class Reader:
             spans[kind] = path.spans(data[kind], down=down)
             rc.check_overlaps(spans[kind], what, p)
         p.raise_if_any()
-        lr = rc.line_resistance_choice(self.infra, line_resistance, self.content, required=require_line_resistance)
+        lr = rc.line_resistance_choice(
+            self.infra, line_resistance, self.content, required=require_line_resistance
+        )
         route = rc.route_mapping(
             self.content,
             p,
@@ -327,7 +333,12 @@ class Reader:
             )
             self.usage.use(train_order)
             order = rc.vehicle_order(
-                refs, vehicles, self.usage, p, unknown=self.d.unknown_vehicle, merge_repeats=self.d.merge_repeats
+                refs,
+                vehicles,
+                self.usage,
+                p,
+                unknown=self.d.unknown_vehicle,
+                merge_repeats=self.d.merge_repeats,
             )
             if not order:
                 p.add(formation, self.d.empty_formation)
@@ -413,4 +424,3 @@ def read_railml(
     content.ignored = reader.usage.ignored(reader.root)
     content.figures["railML version"] = reader.version
     return content
-

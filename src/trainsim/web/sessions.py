@@ -155,7 +155,9 @@ class SessionStore:
         self._sessions: OrderedDict[str, WebSession] = OrderedDict()
         self._lock = threading.Lock()
         self.active_drives = 0
-        self.rate = SessionRateLimit(settings.session_burst, settings.sessions_per_minute, settings.max_rate_clients)
+        self.rate = SessionRateLimit(
+            settings.session_burst, settings.sessions_per_minute, settings.max_rate_clients
+        )
 
     def __len__(self) -> int:
         return len(self._sessions)
