@@ -1,7 +1,8 @@
 """Turn the CSVs of bench_optimize.py into docs/optimization_benchmark.md (and its CSV).
 
 Run: python benchmarks/optimize_report.py table.csv [more.csv ...] [--journeys journeys.csv ...]
-         [--csv docs/optimization_benchmark.csv] [--missing-reason TEXT] > docs/optimization_benchmark.md
+         [--csv docs/optimization_benchmark.csv] [--missing-reason TEXT] [--notes reading.md]
+         > docs/optimization_benchmark.md
 The cases expected are bench_optimize's (every TTOBench track x train x section, the metro with and
 without regeneration, the heavy haul, at 5/10/20/30 %): the header lists every one without a row.
 """
@@ -250,7 +251,7 @@ def summary(df: pd.DataFrame, usable: pd.DataFrame) -> list[str]:
             f"{les.lesov_gap_percent.median():.1f} %, max {les.lesov_gap_percent.max():.1f} % ({len(les)} cases)."
         )
     out.append(
-        "Optimal-strategy times in the CSV (`opt_ms`) are wall times on a machine at load 8-10 and do not "
+        "Optimal-strategy times in the CSV (`opt_ms`) are wall times on a shared, loaded machine and do not "
         "measure the speed targets (`bench_optimize.py --speed` does)."
     )
     return [*out, ""]
@@ -338,6 +339,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--journeys", nargs="*", type=Path, default=[])
     parser.add_argument("--csv", type=Path, default=None, help="write every row (both kinds) here")
     parser.add_argument(
+        "--notes",
+        type=Path,
+        default=None,
+        help="markdown written by hand, printed after the summary as its reading",
+    )
+    parser.add_argument(
         "--missing-reason",
         default="not reached by the benchmark run before the deadline (see the lead's notes).",
     )
@@ -352,6 +359,8 @@ def main(argv: list[str] | None = None) -> None:
     out = header(commits)
     out += coverage(df, args.missing_reason)
     out += summary(df, usable)
+    if args.notes:
+        out += ["## Reading (written by hand, from the rows below)", "", args.notes.read_text().strip(), ""]
     out += ["## Per line and train (worst section per supplement)", "", *section_table(df, usable), ""]
     if len(usable):
         out += worst_rows(usable)
