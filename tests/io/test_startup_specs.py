@@ -216,3 +216,21 @@ def test_mutated_files_are_read_as_pydantic_reads_them_or_left_to_it(name: str) 
     assert len(mutated) > 50
     read = sum(_same_as_pydantic(cls, doc) for _, doc in mutated)
     assert read > 0  # some mutations stay valid (e.g. another plausible number) and go the quick way
+
+
+def test_a_document_kind_read_many_times_gets_its_validator_built() -> None:
+    """The quick reader costs about 3 x a built validator per document: after
+    ``QUICK_READS_BEFORE_BUILD`` plainly valid trains (a batch worker building one per run) the
+    train's validator is built and used; every read gives the same spec."""
+    code = (
+        "from trainsim.io import spec, trainsim_yaml as tsy\n"
+        "from trainsim.io.yaml_train import TrainSpec\n"
+        f"data = spec.read_yaml({str(METRO / 'train.yaml')!r})\n"
+        "first = [tsy.train_spec_from_dict(data, 'train') for _ in range(spec.QUICK_READS_BEFORE_BUILD)]\n"
+        "assert not TrainSpec.__pydantic_complete__\n"
+        "later = [tsy.train_spec_from_dict(data, 'train') for _ in range(2)]\n"
+        "assert TrainSpec.__pydantic_complete__\n"
+        "assert all(s == first[0] for s in first + later)\n"
+    )
+    built, _ = built_models(code)
+    assert "TrainSpec" in built
