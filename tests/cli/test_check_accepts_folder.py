@@ -33,11 +33,13 @@ def test_check_run_and_optimize_read_the_same_csv_folder():
     )
     assert optimized.exit_code == ExitCode.OK, optimized.output
     runs = [json.loads(r.stdout) for r in (by_files, as_scenario, optimized)]
-    # the same train on the same route: one running time whatever the command (optimize's fastest run
-    # sums its sections in another order: the last bits may differ)
+    # the same train on the same route: one running time whatever the command. optimize's fastest run
+    # sums its sections in another order, and its start is integrated in the distance domain while
+    # run_fastest integrates starts in the speed domain (stop 26, 6d0ce29: the optimiser's kernels kept
+    # their bits): 3.2e-11 apart here, within the 1e-9 the speed work may move a figure
     assert {r["status"] for r in runs} == {"ok"}
     assert runs[0]["running_time_s"] == runs[1]["running_time_s"] > 400.0
-    assert runs[2]["running_time_s"] == pytest.approx(runs[0]["running_time_s"], rel=1e-12)
+    assert runs[2]["running_time_s"] == pytest.approx(runs[0]["running_time_s"], rel=1e-9)
     assert runs[0]["train"] == "Test IC" and runs[0]["route"] == "Testline"
 
 
